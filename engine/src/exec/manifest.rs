@@ -1,0 +1,168 @@
+//! The run manifest (JSON beside the outputs) and the dry-run plan that reads it.
+//!
+//! The manifest records, per instance, the key, version, parameter digests and input keys,
+//! so the next `plan` can say why an instance would run: new, new version, a changed
+//! parameter or a changed input.
+
+use super::{Cache, Outcome, RunResult};
+use crate::graph::Graph;
+use crate::model::Recipe;
+use indexmap::IndexMap;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One instance in the manifest.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ManifestNode {
+    pub id: String,
+    pub kind: String,
+    pub version: u32,
+    pub key: String,
+    /// `computed`, `cached`, `failed` or `skipped`.
+    pub status: String,
+    pub seconds: f64,
+    pub params: IndexMap<String, String>,
+    pub inputs: IndexMap<String, Vec<String>>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub error: Option<String>,
+}
+
+/// What a run did, written as `manifest.json` in the output directory.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Manifest {
+    pub tool: String,
+    pub recipe_name: String,
+    pub recipe_hash: String,
+    pub recipe_path: String,
+    pub seconds: f64,
+    pub cache_hits: usize,
+    pub computed: usize,
+    pub nodes: Vec<ManifestNode>,
+    pub outputs: Vec<String>,
+}
+
+pub const MANIFEST_FILE: &str = "manifest.json";
+
+fn input_keys(graph: &Graph, i: usize) -> IndexMap<String, Vec<String>> {
+    graph.instances[i]
+        .inputs
+        .iter()
+        .map(|(p, srcs)| (p.clone(), srcs.iter().map(|(s, o)| format!("{}.{o}", graph.instances[*s].key)).collect()))
+        .collect()
+}
+
+impl Manifest {
+    pub fn build(recipe: &Recipe, recipe_path: &str, graph: &Graph, result: &RunResult, outputs: Vec<String>) -> Manifest {
+        let nodes: Vec<ManifestNode> = graph
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| {
+                let (status, seconds, error) = match &result.outcomes[i] {
+                    Outcome::Computed { seconds, .. } => ("computed", *seconds, None),
+                    Outcome::Cached { .. } => ("cached", 0.0, None),
+                    Outcome::Failed(e) => ("failed", 0.0, Some(e.to_string())),
+                    Outcome::Skipped => ("skipped", 0.0, None),
+                };
+                ManifestNode {
+                    id: inst.id.clone(),
+                    kind: inst.kind.clone(),
+                    version: inst.version,
+                    key: inst.key.clone(),
+                    status: status.into(),
+                    seconds,
+                    params: inst.param_digests.clone(),
+                    inputs: input_keys(graph, i),
+                    error,
+                }
+            })
+            .collect();
+        Manifest {
+            tool: format!("spindlelab {}", env!("CARGO_PKG_VERSION")),
+            recipe_name: recipe.name.clone(),
+            recipe_hash: recipe.hash.clone(),
+            recipe_path: recipe_path.to_string(),
+            seconds: result.seconds,
+            cache_hits: nodes.iter().filter(|n| n.status == "cached").count(),
+            computed: nodes.iter().filter(|n| n.status == "computed").count(),
+            nodes,
+            outputs,
+        }
+    }
+
+    pub fn read(out_dir: &Path) -> Option<Manifest> {
+        let text = std::fs::read_to_string(out_dir.join(MANIFEST_FILE)).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+}
+
+/// Why an instance would run, or that it comes from the cache.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlanReason {
+    Cached,
+    New,
+    NewVersion { from: u32, to: u32 },
+    ChangedParams(Vec<String>),
+    ChangedInputs(Vec<String>),
+    /// The previous run did not finish it, or the cache was cleared or bypassed.
+    NotInCache,
+}
+
+impl std::fmt::Display for PlanReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PlanReason::Cached => write!(f, "from cache"),
+            PlanReason::New => write!(f, "run: new node"),
+            PlanReason::NewVersion { from, to } => write!(f, "run: node version {from} → {to}"),
+            PlanReason::ChangedParams(p) => write!(f, "run: changed parameter {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")),
+            PlanReason::ChangedInputs(p) => write!(f, "run: changed input {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")),
+            PlanReason::NotInCache => write!(f, "run: not in cache"),
+        }
+    }
+}
+
+/// One line of a plan.
+#[derive(Debug, Clone)]
+pub struct PlanEntry {
+    pub id: String,
+    pub kind: String,
+    pub reason: PlanReason,
+}
+
+/// Says, without running anything, which instances would run and why.
+pub fn plan(graph: &Graph, out_dir: &Path, cache: Option<&Cache>) -> Vec<PlanEntry> {
+    let previous = Manifest::read(out_dir);
+    graph
+        .instances
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| {
+            let reason = if cache.is_some_and(|c| c.contains(&inst.key)) {
+                PlanReason::Cached
+            } else {
+                match previous.as_ref().and_then(|m| m.nodes.iter().find(|n| n.id == inst.id)) {
+                    None => PlanReason::New,
+                    Some(prev) if prev.version != inst.version => PlanReason::NewVersion { from: prev.version, to: inst.version },
+                    Some(prev) => {
+                        let mut changed: Vec<String> = inst
+                            .param_digests
+                            .iter()
+                            .filter(|(k, d)| prev.params.get(*k) != Some(*d))
+                            .map(|(k, _)| k.clone())
+                            .collect();
+                        changed.extend(prev.params.keys().filter(|k| !inst.param_digests.contains_key(*k)).cloned());
+                        if !changed.is_empty() {
+                            PlanReason::ChangedParams(changed)
+                        } else {
+                            let now = input_keys(graph, i);
+                            let ports: Vec<String> =
+                                now.iter().filter(|(p, keys)| prev.inputs.get(*p) != Some(*keys)).map(|(p, _)| p.clone()).collect();
+                            if ports.is_empty() { PlanReason::NotInCache } else { PlanReason::ChangedInputs(ports) }
+                        }
+                    }
+                }
+            };
+            PlanEntry { id: inst.id.clone(), kind: inst.kind.clone(), reason }
+        })
+        .collect()
+}

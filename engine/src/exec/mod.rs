@@ -1,0 +1,194 @@
+//! Execution: instances run in dependency waves, each wave in parallel on rayon, with a
+//! content-addressed cache. Nodes are pure and results are gathered in instance order, so
+//! the numbers are identical whatever the thread count.
+
+mod cache;
+pub mod manifest;
+pub mod write;
+
+pub use cache::Cache;
+pub use manifest::{Manifest, ManifestNode, PlanEntry, PlanReason, plan};
+
+use crate::graph::Graph;
+use crate::model::Recipe;
+use crate::node::{Labelled, NodeContext, NodeError, Outputs, Registry};
+use indexmap::IndexMap;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// How to run a compiled recipe.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Where outputs, the manifest and (by default) the cache go.
+    pub out_dir: PathBuf,
+    /// Read and write the cache; off with `--no-cache`.
+    pub use_cache: bool,
+    /// Keep running independent instances after one fails.
+    pub keep_going: bool,
+    /// Worker threads; `None` uses rayon's default.
+    pub threads: Option<usize>,
+}
+
+impl RunOptions {
+    pub fn new(out_dir: impl Into<PathBuf>) -> Self {
+        RunOptions { out_dir: out_dir.into(), use_cache: true, keep_going: false, threads: None }
+    }
+
+    /// The cache directory for this output directory.
+    pub fn cache(&self) -> Cache {
+        Cache::new(cache_dir(&self.out_dir))
+    }
+}
+
+/// Where the cache of an output directory lives.
+pub fn cache_dir(out_dir: &Path) -> PathBuf {
+    out_dir.join(".spindlelab-cache")
+}
+
+/// What happened to one instance.
+#[derive(Debug, Clone)]
+pub enum Outcome {
+    Computed { outputs: Arc<Outputs>, seconds: f64 },
+    Cached { outputs: Arc<Outputs> },
+    Failed(NodeError),
+    /// Not run because an input failed (or the run stopped).
+    Skipped,
+}
+
+impl Outcome {
+    pub fn outputs(&self) -> Option<&Arc<Outputs>> {
+        match self {
+            Outcome::Computed { outputs, .. } | Outcome::Cached { outputs } => Some(outputs),
+            _ => None,
+        }
+    }
+}
+
+/// The result of executing a graph: one outcome per instance, in instance order.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    pub outcomes: Vec<Outcome>,
+    pub seconds: f64,
+}
+
+impl RunResult {
+    pub fn failures<'g>(&'g self, graph: &'g Graph) -> impl Iterator<Item = (&'g str, &'g NodeError)> {
+        self.outcomes.iter().zip(&graph.instances).filter_map(|(o, i)| match o {
+            Outcome::Failed(e) => Some((i.id.as_str(), e)),
+            _ => None,
+        })
+    }
+}
+
+/// Runs every instance of the graph. `progress` is called after each instance finishes.
+pub fn execute(
+    recipe: &Recipe,
+    graph: &Graph,
+    registry: &Registry,
+    opts: &RunOptions,
+    progress: &(dyn Fn(usize, &str) + Sync),
+) -> RunResult {
+    let start = Instant::now();
+    let pool = {
+        let mut b = rayon::ThreadPoolBuilder::new();
+        if let Some(n) = opts.threads {
+            b = b.num_threads(n.max(1));
+        }
+        b.build().expect("thread pool")
+    };
+    let cache = opts.use_cache.then(|| opts.cache());
+    let n = graph.instances.len();
+    let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
+    let mut stop = false;
+    let mut done_count = 0usize;
+    while outcomes.iter().any(Option::is_none) {
+        // The next wave: every instance whose inputs are all settled.
+        let wave: Vec<usize> = (0..n)
+            .filter(|&i| outcomes[i].is_none() && graph.instances[i].deps().all(|d| outcomes[d].is_some()))
+            .collect();
+        assert!(!wave.is_empty(), "graph has no ready instance; compile guarantees a DAG");
+        let results: Vec<(usize, Outcome)> = pool.install(|| {
+            wave.par_iter()
+                .map(|&i| {
+                    let inst = &graph.instances[i];
+                    let blocked = stop || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
+                    let outcome = if blocked { Outcome::Skipped } else { run_one(recipe, graph, registry, cache.as_ref(), &outcomes, i) };
+                    progress(i, &inst.id);
+                    (i, outcome)
+                })
+                .collect()
+        });
+        for (i, o) in results {
+            if matches!(o, Outcome::Failed(_)) && !opts.keep_going {
+                stop = true;
+            }
+            done_count += 1;
+            outcomes[i] = Some(o);
+        }
+    }
+    debug_assert_eq!(done_count, n);
+    RunResult { outcomes: outcomes.into_iter().map(|o| o.expect("settled")).collect(), seconds: start.elapsed().as_secs_f64() }
+}
+
+fn run_one(recipe: &Recipe, graph: &Graph, registry: &Registry, cache: Option<&Cache>, outcomes: &[Option<Outcome>], i: usize) -> Outcome {
+    let inst = &graph.instances[i];
+    if let Some(c) = cache
+        && let Some(outputs) = c.get(&inst.key)
+    {
+        return Outcome::Cached { outputs: Arc::new(outputs) };
+    }
+    let node = registry.get(&inst.kind).expect("compiled kind");
+    let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
+    for (port, srcs) in &inst.inputs {
+        let mut vals = Vec::new();
+        for (src, out_port) in srcs {
+            let outputs = outcomes[*src].as_ref().and_then(Outcome::outputs).expect("dependency finished");
+            let Some(v) = outputs.get(out_port) else {
+                return Outcome::Failed(NodeError::input(port, format!("`{}` produced no `{out_port}`", graph.instances[*src].id)));
+            };
+            vals.push(Labelled { label: graph.instances[*src].label.clone(), value: Arc::new(v.clone()) });
+        }
+        inputs.insert(port.clone(), vals);
+    }
+    let ctx = NodeContext { instance: &inst.id, params: &inst.params, inputs: &inputs, recipe };
+    let t = Instant::now();
+    // A panic in a node is a bug in that node; contain it and report it as that node's failure.
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| node.run(&ctx)));
+    let seconds = t.elapsed().as_secs_f64();
+    match result {
+        Ok(Ok(outputs)) => {
+            let spec = node.spec();
+            for p in &spec.outputs {
+                match outputs.get(p.name) {
+                    Some(v) if v.port_type() == p.ty => {}
+                    Some(v) => {
+                        return Outcome::Failed(NodeError::Failed(format!(
+                            "output `{}` is a {} but the node declares {}",
+                            p.name,
+                            v.port_type(),
+                            p.ty
+                        )));
+                    }
+                    None if p.optional => {}
+                    None => return Outcome::Failed(NodeError::Failed(format!("declared output `{}` was not produced", p.name))),
+                }
+            }
+            if let Some(c) = cache {
+                // A cache that cannot be written costs speed next time, not correctness now.
+                let _ = c.put(&inst.key, &outputs);
+            }
+            Outcome::Computed { outputs: Arc::new(outputs), seconds }
+        }
+        Ok(Err(e)) => Outcome::Failed(e),
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Outcome::Failed(NodeError::Failed(format!("internal error in node: {msg}")))
+        }
+    }
+}

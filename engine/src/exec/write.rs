@@ -1,0 +1,161 @@
+//! Output writers: CSV and JSON, written to a staging directory and moved into place only
+//! when every output of the run is ready.
+
+use crate::model::{OutputFormat, Recipe};
+use crate::value::{Frf, Table, TimeSeries, Value};
+use std::fmt::Write as _;
+
+/// One value to write, with the sweep assignments of the instance that made it.
+pub struct Row<'a> {
+    /// Numeric sweep coordinates (SI) in axis order.
+    pub coords: Vec<f64>,
+    pub label: &'a str,
+    pub value: &'a Value,
+}
+
+/// Renders the values of one output (several when its step is swept) in the given format.
+pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> String {
+    match format {
+        OutputFormat::Json => render_json(axes, rows),
+        OutputFormat::Csv => render_csv(axes, rows),
+    }
+}
+
+fn render_json(axes: &[(String, String)], rows: &[Row]) -> String {
+    if rows.len() == 1 && axes.is_empty() {
+        return serde_json::to_string_pretty(rows[0].value).unwrap_or_default() + "\n";
+    }
+    let items: Vec<serde_json::Value> = rows
+        .iter()
+        .map(|r| {
+            let mut m = serde_json::Map::new();
+            m.insert("label".into(), r.label.into());
+            for ((name, _), c) in axes.iter().zip(&r.coords) {
+                m.insert(name.clone(), (*c).into());
+            }
+            m.insert("value".into(), serde_json::to_value(r.value).unwrap_or_default());
+            serde_json::Value::Object(m)
+        })
+        .collect();
+    serde_json::to_string_pretty(&items).unwrap_or_default() + "\n"
+}
+
+fn num(v: f64) -> String {
+    // Round-trip precision; CSV readers get the exact double.
+    format!("{v:e}")
+}
+
+fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
+    let mut out = String::new();
+    let swept = !axes.is_empty() || rows.len() > 1;
+    let prefix_header: String = axes.iter().map(|(n, u)| if u.is_empty() { format!("{n},") } else { format!("{n}_{u},") }).collect();
+    let prefix_header = if swept && axes.is_empty() { "label,".to_string() } else { prefix_header };
+    let prefix = |r: &Row| -> String {
+        if swept && axes.is_empty() {
+            format!("\"{}\",", r.label.replace('"', "'"))
+        } else {
+            r.coords.iter().map(|c| format!("{},", num(*c))).collect()
+        }
+    };
+    let mut header_done = false;
+    for r in rows {
+        match r.value {
+            Value::Scalar(s) => {
+                if !header_done {
+                    let _ = writeln!(out, "{prefix_header}value_{}", unit_tag(&s.unit.symbol));
+                    header_done = true;
+                }
+                let _ = writeln!(out, "{}{}", prefix(r), num(s.value));
+            }
+            Value::Table(t) => table_rows(&mut out, t, &prefix_header, &prefix(r), &mut header_done),
+            Value::TimeSeries(ts) => time_series(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
+            Value::Frf(f) => frf(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
+            other => {
+                // Structured values without a tabular form go out as one JSON cell per row.
+                if !header_done {
+                    let _ = writeln!(out, "{prefix_header}json");
+                    header_done = true;
+                }
+                let json = serde_json::to_string(other).unwrap_or_default().replace('"', "\"\"");
+                let _ = writeln!(out, "{}\"{json}\"", prefix(r));
+            }
+        }
+    }
+    out
+}
+
+fn unit_tag(symbol: &str) -> String {
+    symbol.replace('/', "_per_").replace('*', "").replace('^', "")
+}
+
+fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut bool) {
+    if !*header_done {
+        let cols: Vec<String> = t
+            .columns
+            .iter()
+            .map(|c| if c.unit.symbol.is_empty() { c.name.clone() } else { format!("{}_{}", c.name, unit_tag(&c.unit.symbol)) })
+            .collect();
+        let _ = writeln!(out, "{ph}{}", cols.join(","));
+        *header_done = true;
+    }
+    for i in 0..t.rows() {
+        let cells: Vec<String> = t.columns.iter().map(|c| num(c.values[i])).collect();
+        let _ = writeln!(out, "{p}{}", cells.join(","));
+    }
+}
+
+fn time_series(out: &mut String, ts: &TimeSeries, ph: &str, p: &str, header_done: &mut bool) {
+    if !*header_done {
+        let _ = writeln!(out, "# sample_rate: {} Hz", ts.sample_rate);
+        let _ = writeln!(out, "# t0: {} s", ts.t0);
+        let units: Vec<String> = ts.channels.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
+        let _ = writeln!(out, "# units: {}", units.join(", "));
+        let names: Vec<&str> = ts.channels.iter().map(|c| c.name.as_str()).collect();
+        let _ = writeln!(out, "{ph}{}", names.join(","));
+        *header_done = true;
+    }
+    for i in 0..ts.len() {
+        let cells: Vec<String> = ts.channels.iter().map(|c| num(c.samples[i])).collect();
+        let _ = writeln!(out, "{p}{}", cells.join(","));
+    }
+}
+
+fn frf(out: &mut String, f: &Frf, ph: &str, p: &str, header_done: &mut bool) {
+    if !*header_done {
+        let _ = writeln!(out, "# units: {}", f.unit.symbol);
+        if let Some(d) = &f.direction {
+            let _ = writeln!(out, "# direction: {d}");
+        }
+        if let Some(s) = f.speed_rpm {
+            let _ = writeln!(out, "# speed_rpm: {s}");
+        }
+        let coh = if f.coherence.is_some() { ",coherence" } else { "" };
+        let _ = writeln!(out, "{ph}freq_hz,real,imag{coh}");
+        *header_done = true;
+    }
+    for (i, (fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
+        let coh = f.coherence.as_ref().map(|c| format!(",{}", num(c[i]))).unwrap_or_default();
+        let _ = writeln!(out, "{p}{},{},{}{coh}", num(*fr), num(v.re), num(v.im));
+    }
+}
+
+/// The sweep axes of a step as (name, SI unit) pairs, for column headers.
+pub fn axes_of(recipe: &Recipe, step: &str) -> Vec<(String, String)> {
+    recipe
+        .step(step)
+        .map(|s| {
+            s.sweep
+                .iter()
+                .map(|a| {
+                    let unit = match a.values.first() {
+                        Some(crate::spec::ParamValue::Quantity { dim, .. }) if *dim != spindlelab_grammar::Dimension::DIMENSIONLESS => {
+                            unit_tag(&dim.si_unit())
+                        }
+                        _ => String::new(),
+                    };
+                    (a.param.clone(), unit)
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}

@@ -1,0 +1,192 @@
+//! Graph: the resolved recipe compiled to node instances in dependency order.
+//!
+//! A swept step becomes one instance per sweep value; a step fed by a swept step runs once
+//! per upstream value (fan-out), unless its port collects, in which case it receives the
+//! whole collection. Every instance carries its content-addressed cache key, computed from
+//! kind, version, parameters and the keys of its inputs, so a plan needs no execution.
+
+mod render;
+
+pub use render::{to_dot, to_mermaid};
+
+use crate::model::{Recipe, Step};
+use crate::node::Registry;
+use crate::spec::{ParamValue, Params};
+use indexmap::IndexMap;
+
+/// One run of a node: a step, or one point of a swept step.
+#[derive(Debug, Clone)]
+pub struct Instance {
+    /// Unique name: the step id, plus the sweep label in brackets when swept.
+    pub id: String,
+    pub step: String,
+    pub kind: String,
+    pub version: u32,
+    /// Sweep assignments that made this instance, e.g. `hammer_mass=0.03 kg`.
+    pub label: String,
+    pub params: Params,
+    /// Per input port: the producing instances and their output port.
+    pub inputs: IndexMap<String, Vec<(usize, String)>>,
+    /// Content-addressed cache key (hex).
+    pub key: String,
+    /// Digest of each parameter, so a plan can say which one changed.
+    pub param_digests: IndexMap<String, String>,
+}
+
+impl Instance {
+    /// Instances this one waits for.
+    pub fn deps(&self) -> impl Iterator<Item = usize> + '_ {
+        self.inputs.values().flatten().map(|(i, _)| *i)
+    }
+}
+
+/// The compiled graph: instances in a topological order.
+#[derive(Debug, Clone)]
+pub struct Graph {
+    pub instances: Vec<Instance>,
+    /// Instances of each step, in sweep order.
+    pub by_step: IndexMap<String, Vec<usize>>,
+}
+
+fn digest(text: &str) -> String {
+    blake3::hash(text.as_bytes()).to_hex()[..16].to_string()
+}
+
+/// Steps in dependency order, ties broken by recipe order so the result is deterministic.
+fn step_order(recipe: &Recipe) -> Vec<&Step> {
+    let mut done: Vec<bool> = vec![false; recipe.steps.len()];
+    let mut order = Vec::with_capacity(recipe.steps.len());
+    while order.len() < recipe.steps.len() {
+        let before = order.len();
+        for (i, s) in recipe.steps.iter().enumerate() {
+            if done[i] {
+                continue;
+            }
+            let ready = s.inputs.iter().all(|b| recipe.steps.iter().position(|t| t.id == b.from.step).is_none_or(|j| done[j]));
+            if ready {
+                done[i] = true;
+                order.push(s);
+            }
+        }
+        assert!(order.len() > before, "cycle slipped past the resolver");
+    }
+    order
+}
+
+/// The product of sweep axes as (label, assignments) pairs.
+fn sweep_points(step: &Step) -> Vec<(String, Vec<(String, ParamValue)>)> {
+    let mut points: Vec<(String, Vec<(String, ParamValue)>)> = vec![(String::new(), Vec::new())];
+    for axis in &step.sweep {
+        let mut next = Vec::with_capacity(points.len() * axis.values.len());
+        for (label, assigned) in &points {
+            for v in &axis.values {
+                let l = format!("{}={}", axis.param, v.display());
+                let label = if label.is_empty() { l } else { format!("{label}, {l}") };
+                let mut a = assigned.clone();
+                a.push((axis.param.clone(), v.clone()));
+                next.push((label, a));
+            }
+        }
+        points = next;
+    }
+    points
+}
+
+/// Compiles a resolved recipe into its instance graph.
+pub fn compile(recipe: &Recipe, registry: &Registry) -> Graph {
+    let mut instances: Vec<Instance> = Vec::new();
+    let mut by_step: IndexMap<String, Vec<usize>> = IndexMap::new();
+    for step in step_order(recipe) {
+        let spec = registry.get(&step.kind).expect("resolved kind").spec();
+        // Upstream families: producers whose instances this step maps over (zipped when their labels agree).
+        let mut families: Vec<Vec<usize>> = Vec::new();
+        let mut family_of_binding: Vec<Option<usize>> = Vec::new();
+        for b in &step.inputs {
+            let collect = spec.input(&b.port).is_some_and(|p| p.collect);
+            let producers = &by_step[&b.from.step];
+            if collect || producers.len() == 1 {
+                family_of_binding.push(None);
+                continue;
+            }
+            let labels: Vec<&str> = producers.iter().map(|&i| instances[i].label.as_str()).collect();
+            let found = families.iter().position(|f| f.iter().map(|&i| instances[i].label.as_str()).eq(labels.iter().copied()));
+            let idx = found.unwrap_or_else(|| {
+                families.push(producers.clone());
+                families.len() - 1
+            });
+            family_of_binding.push(Some(idx));
+        }
+        // Upstream combinations (product over families), then own sweep points.
+        let mut combos: Vec<Vec<usize>> = vec![Vec::new()];
+        for fam in &families {
+            combos = combos.iter().flat_map(|c| (0..fam.len()).map(move |k| [c.clone(), vec![k]].concat())).collect();
+        }
+        let points = sweep_points(step);
+        let mut ids = Vec::new();
+        for combo in &combos {
+            let up_label: Vec<String> = combo.iter().enumerate().map(|(f, &k)| instances[families[f][k]].label.clone()).collect();
+            for (own_label, assigned) in &points {
+                let mut label_parts: Vec<&str> = up_label.iter().map(String::as_str).filter(|l| !l.is_empty()).collect();
+                if !own_label.is_empty() {
+                    label_parts.push(own_label);
+                }
+                let label = label_parts.join(", ");
+                let mut params = step.params.clone();
+                for (name, v) in assigned {
+                    params.values.insert(name.clone(), v.clone());
+                }
+                // Declaration order, so the key does not depend on sweep placement.
+                let mut ordered = Params::default();
+                for f in &spec.params {
+                    if let Some(v) = params.values.get(f.name) {
+                        ordered.values.insert(f.name.to_string(), v.clone());
+                    }
+                }
+                let params = ordered;
+                let mut inputs: IndexMap<String, Vec<(usize, String)>> = IndexMap::new();
+                for (b, fam) in step.inputs.iter().zip(&family_of_binding) {
+                    let producers = &by_step[&b.from.step];
+                    let chosen: Vec<usize> = match fam {
+                        Some(f) => vec![families[*f][combo[*f]]],
+                        None => producers.clone(),
+                    };
+                    inputs.insert(b.port.clone(), chosen.into_iter().map(|i| (i, b.from.port.clone())).collect());
+                }
+                let param_digests: IndexMap<String, String> = params
+                    .values
+                    .iter()
+                    .map(|(k, v)| {
+                        let mut s = String::new();
+                        v.canonical(&mut s);
+                        (k.clone(), digest(&s))
+                    })
+                    .collect();
+                let mut key_text = format!("{}@{}\n", step.kind, spec.version);
+                for (k, d) in &param_digests {
+                    key_text.push_str(&format!("p {k}={d}\n"));
+                }
+                for (port, srcs) in &inputs {
+                    for (i, out) in srcs {
+                        key_text.push_str(&format!("i {port}<-{}.{out}\n", instances[*i].key));
+                    }
+                }
+                let id = if label.is_empty() { step.id.clone() } else { format!("{}[{label}]", step.id) };
+                ids.push(instances.len());
+                instances.push(Instance {
+                    id,
+                    step: step.id.clone(),
+                    kind: step.kind.clone(),
+                    version: spec.version,
+                    label,
+                    params,
+                    inputs,
+                    key: blake3::hash(key_text.as_bytes()).to_hex().to_string(),
+                    param_digests,
+                });
+            }
+        }
+        by_step.insert(step.id.clone(), ids);
+    }
+    // Keep recipe order for display while instances stay topologically ordered.
+    Graph { instances, by_step }
+}

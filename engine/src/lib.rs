@@ -1,0 +1,176 @@
+//! spindlelab engine: a recipe goes from text to a raw tree ([`syntax`]), to a resolved,
+//! typed recipe ([`model`]), to an instance graph ([`graph`]), and is run by [`exec`].
+//!
+//! The facade here is what the CLI and tests use: [`compile_file`] collects every
+//! diagnostic before anything runs; [`run`] executes and writes outputs atomically.
+
+pub mod diag;
+pub mod exec;
+pub mod graph;
+pub mod model;
+pub mod node;
+pub mod schema;
+pub mod spec;
+pub mod syntax;
+pub mod value;
+
+pub use spindlelab_grammar as grammar;
+
+use diag::{Diagnostics, SourceFile};
+use exec::{Outcome, RunOptions, RunResult};
+use graph::Graph;
+use model::Recipe;
+use node::Registry;
+use std::path::{Path, PathBuf};
+
+/// A recipe that compiled: the resolved recipe, its graph and the sources it came from.
+pub struct Compiled {
+    pub path: PathBuf,
+    pub recipe: Recipe,
+    pub graph: Graph,
+    pub sources: Vec<SourceFile>,
+    /// Warnings found while compiling.
+    pub warnings: Diagnostics,
+}
+
+/// A recipe that did not compile, with every diagnostic found.
+#[derive(Debug)]
+pub struct CompileError {
+    pub diagnostics: Diagnostics,
+    pub sources: Vec<SourceFile>,
+}
+
+impl CompileError {
+    pub fn render(&self, color: bool) -> String {
+        self.diagnostics.render(&self.sources, color)
+    }
+}
+
+impl std::fmt::Display for CompileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.diagnostics)
+    }
+}
+
+impl std::error::Error for CompileError {}
+
+/// Loads, resolves and compiles a recipe file, reporting every problem at once.
+pub fn compile_file(path: &Path, registry: &Registry) -> Result<Compiled, CompileError> {
+    let mut diags = Diagnostics::new();
+    let loaded = syntax::load_file(path, &mut diags);
+    let sources: Vec<SourceFile> = loaded.iter().map(|l| l.file.clone()).collect();
+    let recipe = loaded.as_ref().and_then(|l| l.raw.as_ref()).and_then(|raw| model::resolve(raw, registry, &mut diags));
+    diags.sort();
+    match recipe {
+        Some(recipe) if !diags.has_errors() => {
+            let graph = graph::compile(&recipe, registry);
+            Ok(Compiled { path: path.to_path_buf(), recipe, graph, sources, warnings: diags })
+        }
+        _ => Err(CompileError { diagnostics: diags, sources }),
+    }
+}
+
+/// Why a run did not complete.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("{} node instance(s) failed", .failures.len())]
+    NodesFailed { failures: Vec<(String, String)> },
+    #[error("cannot write `{path}`: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+/// Everything a run produced.
+pub struct RunReport {
+    pub result: RunResult,
+    pub manifest: exec::Manifest,
+    /// Output files written (relative to the output directory).
+    pub written: Vec<String>,
+}
+
+/// Runs a compiled recipe and writes its outputs and manifest into `opts.out_dir`.
+///
+/// Outputs are rendered into a staging directory and moved into place only when all of
+/// them are ready; with `keep_going`, outputs whose instances all succeeded are written
+/// even if others failed. The cache keeps every computed instance either way.
+pub fn run(
+    compiled: &Compiled,
+    registry: &Registry,
+    opts: &RunOptions,
+    progress: &(dyn Fn(usize, &str) + Sync),
+) -> Result<RunReport, (RunError, Option<RunReport>)> {
+    let io = |path: &Path, source| RunError::Io { path: path.to_path_buf(), source };
+    if let Err(e) = std::fs::create_dir_all(&opts.out_dir) {
+        return Err((io(&opts.out_dir, e), None));
+    }
+    let result = exec::execute(&compiled.recipe, &compiled.graph, registry, opts, progress);
+    let staging = match tempfile::Builder::new().prefix(".staging-").tempdir_in(&opts.out_dir) {
+        Ok(d) => d,
+        Err(e) => return Err((io(&opts.out_dir, e), None)),
+    };
+    let mut ready: Vec<(PathBuf, String)> = Vec::new();
+    for out in &compiled.recipe.outputs {
+        let ids = &compiled.graph.by_step[&out.from.step];
+        let mut rows = Vec::new();
+        let axes = exec::write::axes_of(&compiled.recipe, &out.from.step);
+        for &i in ids {
+            let Some(outputs) = result.outcomes[i].outputs() else { break };
+            let inst = &compiled.graph.instances[i];
+            let Some(value) = outputs.get(&out.from.port) else { break };
+            let coords = axes.iter().map(|(a, _)| inst.params.f64(a).unwrap_or(f64::NAN)).collect();
+            rows.push(exec::write::Row { coords, label: &inst.label, value });
+        }
+        if rows.len() != ids.len() {
+            continue;
+        }
+        let text = exec::write::render(out.format, &axes, &rows);
+        let staged = staging.path().join(out.file.replace(['/', '\\'], "__"));
+        if let Err(e) = std::fs::write(&staged, text) {
+            return Err((io(&staged, e), None));
+        }
+        ready.push((staged, out.file.clone()));
+    }
+    let failures: Vec<(String, String)> =
+        result.failures(&compiled.graph).map(|(id, e)| (id.to_string(), e.to_string())).collect();
+    let complete = failures.is_empty() && result.outcomes.iter().all(|o| !matches!(o, Outcome::Skipped));
+    let mut written = Vec::new();
+    if complete || opts.keep_going {
+        for (staged, rel) in &ready {
+            let dest = opts.out_dir.join(rel);
+            if let Some(parent) = dest.parent()
+                && let Err(e) = std::fs::create_dir_all(parent)
+            {
+                return Err((io(parent, e), None));
+            }
+            if let Err(e) = std::fs::rename(staged, &dest) {
+                return Err((io(&dest, e), None));
+            }
+            written.push(rel.clone());
+        }
+    }
+    let manifest = exec::Manifest::build(&compiled.recipe, &compiled.path.display().to_string(), &compiled.graph, &result, written.clone());
+    let manifest_path = opts.out_dir.join(exec::manifest::MANIFEST_FILE);
+    let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
+    let write_manifest = || -> std::io::Result<()> {
+        let mut tmp = tempfile::NamedTempFile::new_in(&opts.out_dir)?;
+        std::io::Write::write_all(&mut tmp, json.as_bytes())?;
+        tmp.persist(&manifest_path).map_err(|e| e.error)?;
+        Ok(())
+    };
+    if let Err(e) = write_manifest() {
+        return Err((io(&manifest_path, e), None));
+    }
+    let report = RunReport { result, manifest, written };
+    if failures.is_empty() { Ok(report) } else { Err((RunError::NodesFailed { failures }, Some(report))) }
+}
+
+/// Rounds to `digits` significant digits: snapshots and summaries state their precision.
+pub fn round_sig(x: f64, digits: i32) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let mag = x.abs().log10().floor() as i32;
+    let scale = 10f64.powi(digits - 1 - mag);
+    let r = (x * scale).round() / scale;
+    // Clean binary noise such as 0.30000000000000004.
+    format!("{:.*e}", (digits - 1).max(0) as usize, r).parse().unwrap_or(r)
+}

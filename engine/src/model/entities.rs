@@ -1,0 +1,242 @@
+//! Entity field tables and the typed entities built from them: materials, machines,
+//! tool/holder assemblies of Timoshenko sections, sensors and cutting setups.
+//!
+//! Together they say everything a lab's case description holds: sections, joints,
+//! spindle modes with speed laws, sensor mass and the cutting setup.
+
+use crate::spec::{EntityKind, Field, FieldType as T, Params};
+use serde::{Deserialize, Serialize};
+use spindlelab_grammar::Dimension as D;
+
+const RATIO: T = T::Quantity(D::DIMENSIONLESS);
+
+pub const MATERIAL: &[Field] = &[
+    Field::req("E", T::Quantity(D::PRESSURE), "Young's modulus"),
+    Field::req("rho", T::Quantity(D::DENSITY), "density"),
+    Field::req("nu", RATIO, "Poisson's ratio"),
+    Field::def("eta", RATIO, "0", "structural loss factor of the complex modulus E(1 + i eta)"),
+];
+
+pub const JOINT: &[Field] = &[
+    Field::def("rigid", T::Bool, "false", "a rigid joint (no interface compliance)"),
+    Field::opt("kt", T::Quantity(D::STIFFNESS), "translational stiffness"),
+    Field::def("ct", T::Quantity(D::DAMPING), "0 N*s/m", "translational viscous damping"),
+    Field::opt("kr", T::Quantity(D::ROTATIONAL_STIFFNESS), "rotational stiffness"),
+    Field::def("cr", T::Quantity(D::ROTATIONAL_DAMPING), "0 N*m*s/rad", "rotational viscous damping"),
+];
+
+pub const SPINDLE_MODE: &[Field] = &[
+    Field::req("f", T::Quantity(D::FREQUENCY), "natural frequency of the equivalent fixed-free beam at rest"),
+    Field::req("d", T::Quantity(D::LENGTH), "diameter of the equivalent fixed-free beam"),
+    Field::req("eta", RATIO, "structural loss factor"),
+    Field::def("kf", RATIO, "0", "speed law: f(n) = f (1 + kf (n/ref_speed)^2)"),
+    Field::def("keta", RATIO, "0", "speed law: eta(n) = eta (1 + keta (n/ref_speed)^2)"),
+];
+
+const MODE_LIST: T = T::ObjectList(SPINDLE_MODE);
+
+pub const SPINDLE: &[Field] = &[
+    Field::req("material", T::Entity(EntityKind::Material), "material of the equivalent beams"),
+    Field::def("ref_speed", T::Quantity(D::ROTATIONAL_SPEED), "10000 rpm", "reference speed of the speed law"),
+    Field::req("modes", T::MapOf(&MODE_LIST), "equivalent Euler–Bernoulli modes per direction (x, y)"),
+];
+
+pub const MACHINE: &[Field] = &[
+    Field::def("directions", T::ChoiceList(&["x", "y"]), "[x, y]", "measured directions"),
+    Field::opt("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds of interest"),
+    Field::opt("max_speed", T::Quantity(D::ROTATIONAL_SPEED), "highest spindle speed"),
+    Field::opt("spindle", T::Object(SPINDLE), "spindle-machine receptance at the holder base as modes"),
+    Field::opt("holder_interface", T::Object(JOINT), "spindle–holder joint"),
+];
+
+pub const SECTION: &[Field] = &[
+    Field::req("name", T::Text, "section name"),
+    Field::req("component", T::Choice(&["holder", "holder+tool", "tool"]), "which part the section belongs to"),
+    Field::def("kind", T::Choice(&["plain", "fluted"]), "plain", "plain or fluted"),
+    Field::req("d_out", T::Quantity(D::LENGTH), "outer diameter at the spindle end"),
+    Field::opt("d_out_tip", T::Quantity(D::LENGTH), "outer diameter at the tip end (linear taper); default d_out"),
+    Field::def("d_in", T::Quantity(D::LENGTH), "0 m", "inner (bore) diameter"),
+    Field::req("length", T::Quantity(D::LENGTH), "section length"),
+    Field::req("outer", T::Entity(EntityKind::Material), "material of the outer tube"),
+    Field::opt("inner", T::Entity(EntityKind::Material), "material of a core filling the bore (composite section)"),
+    Field::opt("d_equivalent", T::Quantity(D::LENGTH), "equivalent diameter of a fluted section"),
+];
+
+pub const ASSEMBLY: &[Field] = &[
+    Field::req("sections", T::ObjectList(SECTION), "sections from the spindle end to the tip"),
+    Field::opt("tool_joint", T::Object(JOINT), "holder–tool joint at the holder face"),
+];
+
+pub const SENSOR: &[Field] = &[
+    Field::req(
+        "kind",
+        T::Choice(&["capacitance_probe", "laser_vibrometer", "accelerometer", "force_sensor"]),
+        "sensor type",
+    ),
+    Field::def("phase_slope", T::Quantity(D::PHASE_SLOPE), "0 deg/kHz", "phase lag slope of the measuring chain (Eq. 2.11)"),
+    Field::def("mass", T::Quantity(D::MASS), "0 kg", "mass added at the measurement point"),
+    Field::def("location", T::Text, "tool tip", "where the sensor measures"),
+    Field::opt("noise", T::Quantity(D::DIMENSIONLESS), "noise level relative to the signal"),
+];
+
+pub const CUTTING: &[Field] = &[
+    Field::req("teeth", T::Integer { min: 1, max: 64 }, "number of teeth"),
+    Field::req("radial_immersion", RATIO, "radial depth over tool diameter (0, 1]"),
+    Field::req("milling", T::Choice(&["up", "down"]), "up- or down-milling"),
+    Field::opt("Ks", T::Quantity(D::PRESSURE), "specific cutting force; Kt = Ks sin(beta), Kn = Ks cos(beta)"),
+    Field::opt("beta", T::Quantity(D::ANGLE), "force angle"),
+    Field::opt("Kt", T::Quantity(D::PRESSURE), "tangential coefficient"),
+    Field::opt("Kn", T::Quantity(D::PRESSURE), "normal coefficient"),
+    Field::opt("calibrated_at", T::Quantity(D::ROTATIONAL_SPEED), "speed at which the coefficients were calibrated"),
+    Field::opt("feed_per_tooth", T::Quantity(D::LENGTH), "feed per tooth"),
+    Field::opt("workpiece", T::Text, "workpiece material"),
+    Field::opt("trial_speeds", T::QuantityList(D::ROTATIONAL_SPEED), "speed range of cutting trials"),
+];
+
+/// The field table of an entity kind.
+pub fn fields(kind: EntityKind) -> &'static [Field] {
+    match kind {
+        EntityKind::Material => MATERIAL,
+        EntityKind::Machine => MACHINE,
+        EntityKind::Assembly => ASSEMBLY,
+        EntityKind::Sensor => SENSOR,
+        EntityKind::Cutting => CUTTING,
+    }
+}
+
+/// Elastic and damping properties of a material (SI).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub youngs_modulus: f64,
+    pub density: f64,
+    pub poisson: f64,
+    pub loss_factor: f64,
+}
+
+impl Material {
+    pub fn from_params(p: &Params) -> Material {
+        Material {
+            youngs_modulus: p.f64("E").unwrap_or(f64::NAN),
+            density: p.f64("rho").unwrap_or(f64::NAN),
+            poisson: p.f64("nu").unwrap_or(f64::NAN),
+            loss_factor: p.f64("eta").unwrap_or(0.0),
+        }
+    }
+}
+
+/// Which part of the assembly a section belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Component {
+    Holder,
+    HolderAndTool,
+    Tool,
+}
+
+/// One Timoshenko section of a tool/holder assembly, lengths in metres.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Section {
+    pub name: String,
+    pub component: Component,
+    pub fluted: bool,
+    pub d_out_spindle_end: f64,
+    pub d_out_tip_end: f64,
+    pub d_in: f64,
+    pub length: f64,
+    pub outer: Material,
+    pub inner: Option<Material>,
+    pub d_equivalent: Option<f64>,
+}
+
+/// A joint between substructures: rigid, or stiffness and damping per direction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Joint {
+    Rigid,
+    Compliant { kt: f64, ct: f64, kr: f64, cr: f64 },
+}
+
+impl Joint {
+    pub fn from_params(p: &Params) -> Joint {
+        if p.bool("rigid").unwrap_or(false) {
+            return Joint::Rigid;
+        }
+        Joint::Compliant {
+            kt: p.f64("kt").unwrap_or(f64::INFINITY),
+            ct: p.f64("ct").unwrap_or(0.0),
+            kr: p.f64("kr").unwrap_or(f64::INFINITY),
+            cr: p.f64("cr").unwrap_or(0.0),
+        }
+    }
+}
+
+/// One equivalent fixed-free Euler–Bernoulli spindle mode with its speed law.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SpindleMode {
+    pub freq_hz: f64,
+    pub diameter: f64,
+    pub loss_factor: f64,
+    pub kf: f64,
+    pub keta: f64,
+}
+
+impl SpindleMode {
+    /// Natural frequency (Hz) at spindle speed `n` (same unit as `ref_speed`).
+    pub fn freq_at(&self, n: f64, ref_speed: f64) -> f64 {
+        self.freq_hz * (1.0 + self.kf * (n / ref_speed).powi(2))
+    }
+    /// Loss factor at spindle speed `n`.
+    pub fn loss_at(&self, n: f64, ref_speed: f64) -> f64 {
+        self.loss_factor * (1.0 + self.keta * (n / ref_speed).powi(2))
+    }
+}
+
+/// The spindle-machine receptance at the holder base as equivalent modes per direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spindle {
+    pub material: Material,
+    /// Reference speed of the speed law (rad/s).
+    pub ref_speed: f64,
+    pub modes: Vec<(String, Vec<SpindleMode>)>,
+}
+
+/// A machine: directions, speeds, spindle model and holder joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Machine {
+    pub directions: Vec<String>,
+    /// Spindle speeds of interest (rad/s).
+    pub speeds: Vec<f64>,
+    pub max_speed: Option<f64>,
+    pub spindle: Option<Spindle>,
+    pub holder_interface: Joint,
+}
+
+/// A tool/holder assembly of sections from the spindle end to the tip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assembly {
+    pub sections: Vec<Section>,
+    pub tool_joint: Joint,
+}
+
+/// A response sensor and what it does to a measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensor {
+    pub kind: String,
+    /// Phase slope of the chain (rad per Hz, i.e. seconds × 2π); Eq. 2.11.
+    pub phase_slope: f64,
+    pub mass: f64,
+    pub location: String,
+    pub noise: Option<f64>,
+}
+
+/// A milling setup, with coefficients in the tangential/normal convention `Kt = Ks sin β`, `Kn = Ks cos β`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cutting {
+    pub teeth: u32,
+    pub radial_immersion: f64,
+    pub up_milling: bool,
+    pub kt: f64,
+    pub kn: f64,
+    pub calibrated_at: Option<f64>,
+    pub feed_per_tooth: Option<f64>,
+    pub workpiece: Option<String>,
+    pub trial_speeds: Vec<f64>,
+}

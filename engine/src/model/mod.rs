@@ -1,0 +1,100 @@
+//! Model: the resolved, typed recipe, built from the raw tree with every problem reported.
+//!
+//! Second recipe stage: units are SI, names resolve to entities, steps name registered
+//! node kinds with checked parameters, and inputs name existing step outputs.
+
+mod entities;
+mod resolve;
+
+pub use entities::{
+    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode, fields as entity_fields,
+};
+pub use resolve::resolve;
+
+use crate::diag::Span;
+use crate::spec::{ParamValue, Params};
+use indexmap::IndexMap;
+
+/// The recipe format version this engine reads.
+pub const FORMAT_VERSION: i64 = 1;
+
+/// A resolved recipe: entities, steps and outputs, all checked.
+#[derive(Debug, Clone)]
+pub struct Recipe {
+    pub name: String,
+    pub description: Option<String>,
+    /// Hash of the recipe's meaning (not its layout or comments): blake3 of the canonical raw tree.
+    pub hash: String,
+    pub materials: IndexMap<String, Material>,
+    pub machines: IndexMap<String, Machine>,
+    pub assemblies: IndexMap<String, Assembly>,
+    pub sensors: IndexMap<String, Sensor>,
+    pub cutting: IndexMap<String, Cutting>,
+    /// Recipe-wide spindle speeds (rad/s), when given.
+    pub speeds: Vec<f64>,
+    pub steps: Vec<Step>,
+    pub outputs: Vec<Output>,
+}
+
+impl Recipe {
+    pub fn step(&self, id: &str) -> Option<&Step> {
+        self.steps.iter().find(|s| s.id == id)
+    }
+}
+
+/// `step.port`: an output of a step.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct PortRef {
+    pub step: String,
+    pub port: String,
+}
+
+impl std::fmt::Display for PortRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "@{}.{}", self.step, self.port)
+    }
+}
+
+/// An input port bound to an upstream output.
+#[derive(Debug, Clone)]
+pub struct Binding {
+    pub port: String,
+    pub from: PortRef,
+    pub span: Span,
+}
+
+/// One parameter a step fans out over, with the values in SI.
+#[derive(Debug, Clone)]
+pub struct SweepAxis {
+    pub param: String,
+    pub values: Vec<ParamValue>,
+}
+
+/// An analysis step: a node kind with parameters, inputs and optional sweeps.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub id: String,
+    pub kind: String,
+    pub span: Span,
+    pub params: Params,
+    pub inputs: Vec<Binding>,
+    /// Sweep axes; several axes form their product.
+    pub sweep: Vec<SweepAxis>,
+}
+
+/// The file format of an output, from its extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    Csv,
+    Json,
+}
+
+/// A step output written to a file in the output directory.
+#[derive(Debug, Clone)]
+pub struct Output {
+    pub from: PortRef,
+    /// File name relative to the output directory.
+    pub file: String,
+    pub format: OutputFormat,
+    pub span: Span,
+}

@@ -1,0 +1,638 @@
+//! Raw tree → resolved recipe. Collects every diagnostic; returns a recipe only when there are no errors.
+
+use super::entities::{self, Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode};
+use super::{Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis};
+use crate::diag::{Diagnostics, Span};
+use crate::node::Registry;
+use crate::spec::{self, Ctx, EntityKind, EntityNames, Field, FieldType, ParamValue, Params, suggest};
+use crate::syntax::{Raw, RawKind};
+use indexmap::IndexMap;
+use spindlelab_grammar::Dimension;
+
+const TOP_KEYS: &[&str] =
+    &["spindlelab", "name", "description", "materials", "machines", "assemblies", "sensors", "cutting", "speeds", "steps", "outputs"];
+const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
+const OUTPUT_KEYS: &[&str] = &["from", "file"];
+
+fn valid_name(s: &str) -> bool {
+    let mut chars = s.chars();
+    matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+fn unknown_keys(raw: &Raw, known: &[&str], what: &str, diags: &mut Diagnostics) {
+    if let Some(entries) = raw.as_map() {
+        for (k, _) in entries {
+            if !known.contains(&k.name.as_str()) {
+                let msg = format!("unknown key `{}` in {what}", k.name);
+                match suggest(&k.name, known.iter().copied()) {
+                    Some(s) => diags.error_help(Some(&k.span), msg, format!("did you mean `{s}`?")),
+                    None => diags.error_help(Some(&k.span), msg, format!("known keys: {}", known.join(", "))),
+                }
+            }
+        }
+    }
+}
+
+/// Resolves a raw recipe against the node registry.
+pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Option<Recipe> {
+    let errors_before = diags.error_count();
+    let Some(_) = raw.as_map() else {
+        diags.error_help(
+            Some(&raw.span),
+            format!("a recipe must be a mapping, found {}", raw.describe()),
+            "start the file with `spindlelab: 1`",
+        );
+        return None;
+    };
+    unknown_keys(raw, TOP_KEYS, "the recipe", diags);
+    match raw.get("spindlelab") {
+        Some(Raw { kind: RawKind::Int(FORMAT_VERSION), .. }) => {}
+        Some(v) => diags.error_help(
+            Some(&v.span),
+            format!("unsupported recipe version `{}`", v.scalar_text().unwrap_or_else(|| v.describe().into())),
+            format!("this spindlelab reads `spindlelab: {FORMAT_VERSION}`"),
+        ),
+        None => diags.error_help(Some(&raw.span), "missing the version key `spindlelab`", "add `spindlelab: 1` at the top"),
+    }
+    let name = match raw.get("name") {
+        Some(Raw { kind: RawKind::Str(s), .. }) => s.clone(),
+        Some(v) => {
+            diags.error(Some(&v.span), "`name` must be text");
+            String::new()
+        }
+        None => raw.span.file.rsplit('/').next().unwrap_or("recipe").trim_end_matches(".yaml").to_string(),
+    };
+    let description = raw.get("description").and_then(|d| d.as_str()).map(str::to_string);
+
+    // Names first, so entities may refer to each other in any order.
+    let mut names = EntityNames::default();
+    for kind in EntityKind::ALL {
+        let set = names.names.entry(kind).or_default();
+        if let Some(section) = raw.get(kind.section()) {
+            match section.as_map() {
+                Some(entries) => {
+                    for (k, _) in entries {
+                        if !valid_name(&k.name) {
+                            diags.error_help(
+                                Some(&k.span),
+                                format!("`{}` is not a valid {} name", k.name, kind.noun()),
+                                "names start with a letter or `_` and hold letters, digits, `_` and `-`",
+                            );
+                        }
+                        set.insert(k.name.clone());
+                    }
+                }
+                None => diags.error(Some(&section.span), format!("`{}` must be a mapping of names to {}s", kind.section(), kind.noun())),
+            }
+        }
+    }
+    let ctx = Ctx { entities: &names };
+    let mut checked: IndexMap<EntityKind, IndexMap<String, Params>> = IndexMap::new();
+    for kind in EntityKind::ALL {
+        let out = checked.entry(kind).or_default();
+        let Some(entries) = raw.get(kind.section()).and_then(Raw::as_map) else { continue };
+        for (k, v) in entries {
+            let what = format!("{} `{}`", kind.noun(), k.name);
+            if let Some(p) = spec::check_object(v, entities::fields(kind), &what, &ctx, diags) {
+                check_entity_rules(kind, &k.name, v, &p, diags);
+                out.insert(k.name.clone(), p);
+            }
+        }
+    }
+    let materials: IndexMap<String, Material> =
+        checked[&EntityKind::Material].iter().map(|(n, p)| (n.clone(), Material::from_params(p))).collect();
+
+    let speeds = match raw.get("speeds") {
+        Some(v) => match spec::check_value(v, &FieldType::QuantityList(Dimension::ROTATIONAL_SPEED), "`speeds`", &ctx, diags) {
+            Some(ParamValue::List { values, .. }) => values,
+            _ => Vec::new(),
+        },
+        None => Vec::new(),
+    };
+
+    let steps = resolve_steps(raw.get("steps"), &raw.span, registry, &ctx, diags);
+    let outputs = resolve_outputs(raw.get("outputs"), &steps, registry, diags);
+    check_cycles(&steps, diags);
+
+    if diags.error_count() > errors_before {
+        return None;
+    }
+    let mut canonical = String::new();
+    raw.canonical(&mut canonical);
+    let hash = blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string();
+    Some(Recipe {
+        name,
+        description,
+        hash,
+        machines: checked[&EntityKind::Machine].iter().map(|(n, p)| (n.clone(), build_machine(p, &materials))).collect(),
+        assemblies: checked[&EntityKind::Assembly].iter().map(|(n, p)| (n.clone(), build_assembly(p, &materials))).collect(),
+        sensors: checked[&EntityKind::Sensor].iter().map(|(n, p)| (n.clone(), build_sensor(p))).collect(),
+        cutting: checked[&EntityKind::Cutting].iter().map(|(n, p)| (n.clone(), build_cutting(p))).collect(),
+        materials,
+        speeds,
+        steps,
+        outputs,
+    })
+}
+
+/// Rules that cross fields: geometry that cannot exist, coefficient pairs, joints.
+fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags: &mut Diagnostics) {
+    match kind {
+        EntityKind::Material => {
+            for (f, lo, hi) in [("E", 0.0, f64::INFINITY), ("rho", 0.0, f64::INFINITY), ("nu", -1.0, 0.5)] {
+                let v = p.f64(f).unwrap_or(f64::NAN);
+                if !(v > lo && v < hi) {
+                    let at = raw.get(f).map(|r| r.span.clone());
+                    diags.error(at.as_ref(), format!("material `{name}`: `{f}` = {v} is outside ({lo}, {hi})"));
+                }
+            }
+        }
+        EntityKind::Assembly => {
+            for (i, (s, sraw)) in p.objects("sections").unwrap_or(&[]).iter().zip(section_raws(raw)).enumerate() {
+                let sname = s.text("name").unwrap_or("?");
+                let d_out = s.f64("d_out").unwrap_or(0.0);
+                let d_tip = s.f64("d_out_tip").unwrap_or(d_out);
+                let d_in = s.f64("d_in").unwrap_or(0.0);
+                let len = s.f64("length").unwrap_or(0.0);
+                let at = |f: &str| sraw.get(f).map(|r| r.span.clone()).unwrap_or_else(|| sraw.span.clone());
+                if len <= 0.0 {
+                    diags.error_help(
+                        Some(&at("length")),
+                        format!("section {} (`{sname}`) of assembly `{name}` has zero or negative length", i + 1),
+                        "give the section a positive length or remove it",
+                    );
+                }
+                if d_out <= 0.0 || d_tip <= 0.0 {
+                    diags.error(Some(&at("d_out")), format!("section `{sname}` of assembly `{name}`: outer diameter must be positive"));
+                }
+                if d_in < 0.0 || d_in >= d_out.min(d_tip) {
+                    diags.error_help(
+                        Some(&at("d_in")),
+                        format!(
+                            "section `{sname}` of assembly `{name}`: inner diameter {} mm is not below the outer diameter {} mm",
+                            d_in * 1e3,
+                            d_out.min(d_tip) * 1e3
+                        ),
+                        "the bore must be smaller than the outside",
+                    );
+                }
+                if s.get("inner").is_some() && d_in <= 0.0 {
+                    diags.error(Some(&at("inner")), format!("section `{sname}` of assembly `{name}` has a core material but no bore (`d_in`)"));
+                }
+                if s.get("d_equivalent").is_some() && s.text("kind") != Some("fluted") {
+                    diags.error(Some(&at("d_equivalent")), format!("section `{sname}`: `d_equivalent` applies to a fluted section only"));
+                }
+            }
+        }
+        EntityKind::Cutting => {
+            let a = p.f64("radial_immersion").unwrap_or(0.0);
+            if !(a > 0.0 && a <= 1.0) {
+                let at = raw.get("radial_immersion").map(|r| r.span.clone());
+                diags.error_help(at.as_ref(), format!("cutting `{name}`: radial immersion {a} is outside (0, 1]"), "write it as a fraction or a percentage, e.g. `25 %`");
+            }
+            let ks = p.get("Ks").is_some() && p.get("beta").is_some();
+            let ktn = p.get("Kt").is_some() && p.get("Kn").is_some();
+            if ks == ktn {
+                diags.error_help(
+                    Some(&raw.span),
+                    format!("cutting `{name}` needs exactly one coefficient pair"),
+                    "give either `Ks` and `beta`, or `Kt` and `Kn`",
+                );
+            }
+        }
+        EntityKind::Machine => {
+            if let Some(jraw) = raw.get("holder_interface") {
+                check_joint(name, jraw, p.object("holder_interface"), diags);
+            }
+        }
+        EntityKind::Sensor => {}
+    }
+    if kind == EntityKind::Assembly {
+        if let Some(jraw) = raw.get("tool_joint") {
+            check_joint(name, jraw, p.object("tool_joint"), diags);
+        }
+    }
+}
+
+fn check_joint(owner: &str, raw: &Raw, p: Option<&Params>, diags: &mut Diagnostics) {
+    let Some(p) = p else { return };
+    let rigid = p.bool("rigid").unwrap_or(false);
+    let has_k = p.get("kt").is_some() || p.get("kr").is_some();
+    if rigid && has_k {
+        diags.error(Some(&raw.span), format!("joint of `{owner}` is both rigid and has stiffness; keep one"));
+    } else if !rigid && !(p.get("kt").is_some() && p.get("kr").is_some()) {
+        diags.error_help(Some(&raw.span), format!("joint of `{owner}` needs `kt` and `kr`"), "or write `rigid: true`");
+    }
+}
+
+fn section_raws(raw: &Raw) -> Vec<&Raw> {
+    match raw.get("sections").map(|r| &r.kind) {
+        Some(RawKind::Seq(items)) => items.iter().collect(),
+        _ => Vec::new(),
+    }
+}
+
+fn material(p: &Params, field: &str, materials: &IndexMap<String, Material>) -> Option<Material> {
+    p.text(field).and_then(|n| materials.get(n)).copied()
+}
+
+fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine {
+    let spindle = p.object("spindle").map(|s| Spindle {
+        material: material(s, "material", materials).expect("checked material"),
+        ref_speed: s.f64("ref_speed").unwrap_or(0.0),
+        modes: match s.get("modes") {
+            Some(ParamValue::Map(m)) => m
+                .iter()
+                .map(|(dir, v)| {
+                    let modes = match v {
+                        ParamValue::Objects(list) => list
+                            .iter()
+                            .map(|m| SpindleMode {
+                                freq_hz: m.f64("f").unwrap_or(0.0),
+                                diameter: m.f64("d").unwrap_or(0.0),
+                                loss_factor: m.f64("eta").unwrap_or(0.0),
+                                kf: m.f64("kf").unwrap_or(0.0),
+                                keta: m.f64("keta").unwrap_or(0.0),
+                            })
+                            .collect(),
+                        _ => Vec::new(),
+                    };
+                    (dir.clone(), modes)
+                })
+                .collect(),
+            _ => Vec::new(),
+        },
+    });
+    let directions = match p.get("directions") {
+        Some(ParamValue::Words(w)) => w.clone(),
+        _ => vec!["x".into(), "y".into()],
+    };
+    Machine {
+        directions,
+        speeds: p.list("speeds").map(<[f64]>::to_vec).unwrap_or_default(),
+        max_speed: p.f64("max_speed"),
+        spindle,
+        holder_interface: p.object("holder_interface").map(Joint::from_params).unwrap_or(Joint::Rigid),
+    }
+}
+
+fn build_assembly(p: &Params, materials: &IndexMap<String, Material>) -> Assembly {
+    let sections = p
+        .objects("sections")
+        .unwrap_or(&[])
+        .iter()
+        .map(|s| {
+            let d_out = s.f64("d_out").unwrap_or(0.0);
+            Section {
+                name: s.text("name").unwrap_or_default().to_string(),
+                component: match s.text("component") {
+                    Some("holder") => Component::Holder,
+                    Some("holder+tool") => Component::HolderAndTool,
+                    _ => Component::Tool,
+                },
+                fluted: s.text("kind") == Some("fluted"),
+                d_out_spindle_end: d_out,
+                d_out_tip_end: s.f64("d_out_tip").unwrap_or(d_out),
+                d_in: s.f64("d_in").unwrap_or(0.0),
+                length: s.f64("length").unwrap_or(0.0),
+                outer: material(s, "outer", materials).expect("checked material"),
+                inner: material(s, "inner", materials),
+                d_equivalent: s.f64("d_equivalent"),
+            }
+        })
+        .collect();
+    Assembly { sections, tool_joint: p.object("tool_joint").map(Joint::from_params).unwrap_or(Joint::Rigid) }
+}
+
+fn build_sensor(p: &Params) -> Sensor {
+    Sensor {
+        kind: p.text("kind").unwrap_or_default().to_string(),
+        phase_slope: p.f64("phase_slope").unwrap_or(0.0),
+        mass: p.f64("mass").unwrap_or(0.0),
+        location: p.text("location").unwrap_or("tool tip").to_string(),
+        noise: p.f64("noise"),
+    }
+}
+
+fn build_cutting(p: &Params) -> Cutting {
+    let (kt, kn) = match (p.f64("Ks"), p.f64("beta")) {
+        (Some(ks), Some(beta)) => (ks * beta.sin(), ks * beta.cos()),
+        _ => (p.f64("Kt").unwrap_or(0.0), p.f64("Kn").unwrap_or(0.0)),
+    };
+    Cutting {
+        teeth: p.int("teeth").unwrap_or(1) as u32,
+        radial_immersion: p.f64("radial_immersion").unwrap_or(0.0),
+        up_milling: p.text("milling") == Some("up"),
+        kt,
+        kn,
+        calibrated_at: p.f64("calibrated_at"),
+        feed_per_tooth: p.f64("feed_per_tooth"),
+        workpiece: p.text("workpiece").map(str::to_string),
+        trial_speeds: p.list("trial_speeds").map(<[f64]>::to_vec).unwrap_or_default(),
+    }
+}
+
+/// Parses `@step.port` (the `@` may be left out where only a reference makes sense).
+fn parse_port_ref(text: &str) -> Option<PortRef> {
+    let t = text.trim().strip_prefix('@').unwrap_or(text.trim());
+    let (step, port) = t.split_once('.')?;
+    (valid_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
+}
+
+fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx, diags: &mut Diagnostics) -> Vec<Step> {
+    let Some(raw) = raw else {
+        diags.error_help(Some(root), "the recipe has no `steps`", "add `steps:` with at least one analysis step");
+        return Vec::new();
+    };
+    let Some(entries) = raw.as_map() else {
+        diags.error(Some(&raw.span), format!("`steps` must be a mapping of step names to steps, found {}", raw.describe()));
+        return Vec::new();
+    };
+    // Kinds first, so input references can be checked against the producer's ports.
+    let kinds: IndexMap<&str, Option<&str>> = entries
+        .iter()
+        .map(|(k, v)| (k.name.as_str(), v.get("kind").and_then(Raw::as_str).filter(|kind| registry.get(kind).is_some())))
+        .collect();
+    let mut steps = Vec::new();
+    for (key, sraw) in entries {
+        let id = key.name.clone();
+        if !valid_name(&id) {
+            diags.error_help(Some(&key.span), format!("`{id}` is not a valid step name"), "use letters, digits, `_` and `-`, starting with a letter");
+        }
+        if sraw.as_map().is_none() {
+            diags.error(Some(&sraw.span), format!("step `{id}` must be a mapping with `kind`, found {}", sraw.describe()));
+            continue;
+        }
+        unknown_keys(sraw, STEP_KEYS, &format!("step `{id}`"), diags);
+        let Some(kind_raw) = sraw.get("kind") else {
+            diags.error_help(Some(&key.span), format!("step `{id}` has no `kind`"), "add `kind: …`; `spindlelab nodes` lists the kinds");
+            continue;
+        };
+        let Some(kind) = kind_raw.as_str() else {
+            diags.error(Some(&kind_raw.span), format!("`kind` of step `{id}` must be text"));
+            continue;
+        };
+        let Some(node) = registry.get(kind) else {
+            let msg = format!("unknown step kind `{kind}`");
+            match suggest(kind, registry.names()) {
+                Some(s) => diags.error_help(Some(&kind_raw.span), msg, format!("did you mean `{s}`?")),
+                None => diags.error_help(Some(&kind_raw.span), msg, "`spindlelab nodes` lists the kinds"),
+            }
+            continue;
+        };
+        let spec = node.spec();
+
+        // Sweeps: each axis names a parameter and its values.
+        let mut sweep = Vec::new();
+        if let Some(sw) = sraw.get("sweep") {
+            match sw.as_map() {
+                Some(axes) => {
+                    for (pk, pv) in axes {
+                        let Some(field) = spec.param(&pk.name) else {
+                            let msg = format!("step `{id}` sweeps `{}`, which is not a parameter of `{kind}`", pk.name);
+                            match suggest(&pk.name, spec.params.iter().map(|f| f.name)) {
+                                Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
+                                None => diags.error(Some(&pk.span), msg),
+                            }
+                            continue;
+                        };
+                        let what = format!("sweep `{}` of step `{id}`", pk.name);
+                        let values = match field.ty {
+                            FieldType::Quantity(dim) => match spec::check_value(pv, &FieldType::QuantityList(dim), &what, ctx, diags) {
+                                Some(ParamValue::List { values, dim }) => {
+                                    values.into_iter().map(|value| ParamValue::Quantity { value, dim }).collect()
+                                }
+                                _ => continue,
+                            },
+                            ty => match &pv.kind {
+                                RawKind::Seq(items) => {
+                                    let vals: Option<Vec<_>> =
+                                        items.iter().map(|it| spec::check_value(it, &ty, &what, ctx, diags)).collect();
+                                    match vals {
+                                        Some(v) => v,
+                                        None => continue,
+                                    }
+                                }
+                                _ => {
+                                    diags.error(Some(&pv.span), format!("{what} must be a list of values"));
+                                    continue;
+                                }
+                            },
+                        };
+                        if values.is_empty() {
+                            diags.error(Some(&pv.span), format!("{what} has no values"));
+                            continue;
+                        }
+                        sweep.push(SweepAxis { param: pk.name.clone(), values });
+                    }
+                }
+                None => diags.error(Some(&sw.span), format!("`sweep` of step `{id}` must map parameter names to values")),
+            }
+        }
+
+        // Parameters: a swept parameter is neither required nor defaulted here.
+        let fields: Vec<Field> = spec
+            .params
+            .iter()
+            .map(|f| {
+                if sweep.iter().any(|a| a.param == f.name) {
+                    Field { required: false, default: None, ..*f }
+                } else {
+                    *f
+                }
+            })
+            .collect();
+        let empty = Raw { span: key.span.clone(), kind: RawKind::Map(Vec::new()) };
+        let praw = sraw.get("params").unwrap_or(&empty);
+        let params = spec::check_object(praw, &fields, &format!("params of step `{id}` ({kind})"), ctx, diags);
+        for axis in &sweep {
+            if params.as_ref().is_some_and(|p| p.get(&axis.param).is_some()) {
+                let at = praw.get(&axis.param).map(|r| r.span.clone());
+                diags.error_help(at.as_ref(), format!("step `{id}` both sets and sweeps `{}`", axis.param), "keep one of them");
+            }
+        }
+
+        // Inputs.
+        let mut inputs = Vec::new();
+        if let Some(iraw) = sraw.get("inputs") {
+            match iraw.as_map() {
+                Some(bindings) => {
+                    for (pk, pv) in bindings {
+                        let Some(port) = spec.input(&pk.name) else {
+                            let msg = format!("`{kind}` has no input `{}`", pk.name);
+                            let known: Vec<&str> = spec.inputs.iter().map(|p| p.name).collect();
+                            match suggest(&pk.name, known.iter().copied()) {
+                                Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
+                                None => diags.error_help(Some(&pk.span), msg, format!("its inputs: {}", if known.is_empty() { "none".into() } else { known.join(", ") })),
+                            }
+                            continue;
+                        };
+                        let Some(text) = pv.as_str() else {
+                            diags.error(Some(&pv.span), format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name));
+                            continue;
+                        };
+                        let Some(r) = parse_port_ref(text) else {
+                            diags.error_help(Some(&pv.span), format!("`{text}` is not a reference"), "write `@step.port`, e.g. `@hit.force`");
+                            continue;
+                        };
+                        if r.step == id {
+                            diags.error(Some(&pv.span), format!("step `{id}` takes its own output `{r}` as input: a cycle"));
+                            continue;
+                        }
+                        let Some(producer_kind) = kinds.get(r.step.as_str()) else {
+                            let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
+                            match suggest(&r.step, kinds.keys().copied()) {
+                                Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
+                                None => diags.error(Some(&pv.span), msg),
+                            }
+                            continue;
+                        };
+                        let Some(producer_kind) = producer_kind else { continue };
+                        let pspec = registry.get(producer_kind).expect("checked kind").spec();
+                        let Some(out) = pspec.output(&r.port) else {
+                            let msg = format!("step `{}` ({producer_kind}) has no output `{}`", r.step, r.port);
+                            let known: Vec<&str> = pspec.outputs.iter().map(|p| p.name).collect();
+                            match suggest(&r.port, known.iter().copied()) {
+                                Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
+                                None => diags.error_help(Some(&pv.span), msg, format!("its outputs: {}", known.join(", "))),
+                            }
+                            continue;
+                        };
+                        if out.ty != port.ty {
+                            diags.error_help(
+                                Some(&pv.span),
+                                format!("type mismatch: input `{}` of step `{id}` takes a {}, but `{r}` is a {}", pk.name, port.ty, out.ty),
+                                format!("connect an output of type {}", port.ty),
+                            );
+                            continue;
+                        }
+                        inputs.push(Binding { port: pk.name.clone(), from: r, span: pv.span.clone() });
+                    }
+                }
+                None => diags.error(Some(&iraw.span), format!("`inputs` of step `{id}` must map input names to references")),
+            }
+        }
+        for port in &spec.inputs {
+            let given = sraw.get("inputs").and_then(|i| i.get(port.name)).is_some();
+            if !port.optional && !given {
+                diags.error_help(
+                    Some(&key.span),
+                    format!("step `{id}` ({kind}) needs input `{}` ({})", port.name, port.ty),
+                    format!("add `inputs: {{ {}: \"@step.port\" }}`", port.name),
+                );
+            }
+        }
+        if let Some(params) = params {
+            steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep });
+        }
+    }
+    steps
+}
+
+fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], registry: &Registry, diags: &mut Diagnostics) -> Vec<Output> {
+    let Some(raw) = raw else { return Vec::new() };
+    let RawKind::Seq(items) = &raw.kind else {
+        diags.error_help(Some(&raw.span), "`outputs` must be a list", "write `outputs: [{ from: \"@step.port\", file: name.csv }]`");
+        return Vec::new();
+    };
+    let mut outputs = Vec::new();
+    for item in items {
+        if item.as_map().is_none() {
+            diags.error(Some(&item.span), format!("an output must be a mapping with `from` and `file`, found {}", item.describe()));
+            continue;
+        }
+        unknown_keys(item, OUTPUT_KEYS, "an output", diags);
+        let (Some(from), Some(file)) = (item.get("from"), item.get("file")) else {
+            diags.error_help(Some(&item.span), "an output needs `from` and `file`", "e.g. `{ from: \"@hit.force\", file: force.csv }`");
+            continue;
+        };
+        let Some(r) = from.as_str().and_then(parse_port_ref) else {
+            diags.error_help(Some(&from.span), "`from` must be a reference", "write `@step.port`");
+            continue;
+        };
+        let Some(fname) = file.as_str() else {
+            diags.error(Some(&file.span), "`file` must be a file name");
+            continue;
+        };
+        let path = std::path::Path::new(fname);
+        if path.is_absolute() || path.components().any(|c| matches!(c, std::path::Component::ParentDir)) || fname.is_empty() {
+            diags.error_help(Some(&file.span), format!("output file `{fname}` must stay inside the output directory"), "use a relative name without `..`");
+            continue;
+        }
+        let format = match path.extension().and_then(|e| e.to_str()) {
+            Some("csv") => OutputFormat::Csv,
+            Some("json") => OutputFormat::Json,
+            other => {
+                diags.error_help(
+                    Some(&file.span),
+                    format!("unsupported output format `{}`", other.unwrap_or("")),
+                    "name the file `.csv` or `.json`",
+                );
+                continue;
+            }
+        };
+        match steps.iter().find(|s| s.id == r.step) {
+            Some(step) => {
+                let spec = registry.get(&step.kind).expect("checked kind").spec();
+                if spec.output(&r.port).is_none() {
+                    let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
+                    let msg = format!("step `{}` has no output `{}`", r.step, r.port);
+                    match suggest(&r.port, known.iter().copied()) {
+                        Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
+                        None => diags.error_help(Some(&from.span), msg, format!("its outputs: {}", known.join(", "))),
+                    }
+                    continue;
+                }
+            }
+            None => {
+                let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
+                match suggest(&r.step, steps.iter().map(|s| s.id.as_str())) {
+                    Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
+                    None => diags.error(Some(&from.span), msg),
+                }
+                continue;
+            }
+        }
+        if outputs.iter().any(|o: &Output| o.file == fname) {
+            diags.error(Some(&file.span), format!("two outputs write `{fname}`"));
+            continue;
+        }
+        outputs.push(Output { from: r, file: fname.to_string(), format, span: item.span.clone() });
+    }
+    outputs
+}
+
+/// Reports every dependency cycle among steps, naming the steps in it.
+fn check_cycles(steps: &[Step], diags: &mut Diagnostics) {
+    let index: IndexMap<&str, usize> = steps.iter().enumerate().map(|(i, s)| (s.id.as_str(), i)).collect();
+    // 0 = unvisited, 1 = on the stack, 2 = done.
+    let mut state = vec![0u8; steps.len()];
+    let mut stack: Vec<usize> = Vec::new();
+    fn visit(i: usize, steps: &[Step], index: &IndexMap<&str, usize>, state: &mut [u8], stack: &mut Vec<usize>, diags: &mut Diagnostics) {
+        state[i] = 1;
+        stack.push(i);
+        for b in &steps[i].inputs {
+            let Some(&j) = index.get(b.from.step.as_str()) else { continue };
+            if state[j] == 1 {
+                let pos = stack.iter().position(|&k| k == j).unwrap_or(0);
+                let mut names: Vec<&str> = stack[pos..].iter().map(|&k| steps[k].id.as_str()).collect();
+                names.push(&steps[j].id);
+                diags.error_help(
+                    Some(&b.span),
+                    format!("cycle between steps: {}", names.join(" → ")),
+                    "a step cannot depend on its own output, directly or through others",
+                );
+            } else if state[j] == 0 {
+                visit(j, steps, index, state, stack, diags);
+            }
+        }
+        stack.pop();
+        state[i] = 2;
+    }
+    for i in 0..steps.len() {
+        if state[i] == 0 {
+            visit(i, steps, &index, &mut state, &mut stack, diags);
+        }
+    }
+}

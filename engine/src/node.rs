@@ -1,0 +1,170 @@
+//! The node trait and the registry of node kinds.
+//!
+//! A node kind is registered once with its ports, parameters (with units and defaults),
+//! version and a one-line description. The compiler, `spindlelab nodes`, the JSON Schema
+//! and the docs all read that one registration. Built-in nodes (the `stdlib` crate) and
+//! WebAssembly plugins implement the same [`Node`] trait.
+//!
+//! Contract: a node is a pure function of its parameters and inputs. It must not read
+//! files other than those its parameters name, keep state between runs, or depend on the
+//! thread it runs on; random parts take a seed parameter. The cache relies on this: the
+//! same kind, version, parameters and inputs give the same outputs.
+
+use crate::model::Recipe;
+use crate::spec::{Field, Params};
+use crate::value::{PortType, Value};
+use indexmap::IndexMap;
+use std::sync::Arc;
+
+/// A named, typed port of a node.
+#[derive(Debug, Clone, Copy)]
+pub struct PortSpec {
+    pub name: &'static str,
+    pub ty: PortType,
+    /// Takes every value of a swept upstream step at once, instead of running once per value.
+    pub collect: bool,
+    pub optional: bool,
+    pub doc: &'static str,
+}
+
+impl PortSpec {
+    pub const fn new(name: &'static str, ty: PortType, doc: &'static str) -> Self {
+        PortSpec { name, ty, collect: false, optional: false, doc }
+    }
+    pub const fn optional(mut self) -> Self {
+        self.optional = true;
+        self
+    }
+    pub const fn collecting(mut self) -> Self {
+        self.collect = true;
+        self
+    }
+}
+
+/// Everything the engine knows about a node kind before running it.
+#[derive(Debug, Clone)]
+pub struct NodeSpec {
+    /// Dotted kind name used in recipes, e.g. `impact.simulate`.
+    pub kind: &'static str,
+    /// Bumped whenever the node's numbers change for the same inputs; part of the cache key.
+    pub version: u32,
+    pub description: &'static str,
+    pub inputs: Vec<PortSpec>,
+    pub outputs: Vec<PortSpec>,
+    pub params: Vec<Field>,
+}
+
+impl NodeSpec {
+    pub fn input(&self, name: &str) -> Option<&PortSpec> {
+        self.inputs.iter().find(|p| p.name == name)
+    }
+    pub fn output(&self, name: &str) -> Option<&PortSpec> {
+        self.outputs.iter().find(|p| p.name == name)
+    }
+    pub fn param(&self, name: &str) -> Option<&Field> {
+        self.params.iter().find(|p| p.name == name)
+    }
+}
+
+/// One value arriving at an input port, with the sweep label of the instance that made it.
+#[derive(Debug, Clone)]
+pub struct Labelled {
+    /// e.g. `hammer_mass=0.03 kg`; empty when the producer was not swept.
+    pub label: String,
+    pub value: Arc<Value>,
+}
+
+/// What a node sees when it runs.
+pub struct NodeContext<'a> {
+    /// Instance name, e.g. `hit[hammer_mass=0.03 kg]`, for messages.
+    pub instance: &'a str,
+    pub params: &'a Params,
+    /// Values per input port: one for an ordinary port, all of them for a collecting port.
+    pub inputs: &'a IndexMap<String, Vec<Labelled>>,
+    /// The resolved recipe, for the entities that parameters name.
+    pub recipe: &'a Recipe,
+}
+
+impl NodeContext<'_> {
+    /// The single value at an ordinary input port.
+    pub fn input(&self, port: &str) -> Result<&Value, NodeError> {
+        self.inputs
+            .get(port)
+            .and_then(|v| v.first())
+            .map(|l| l.value.as_ref())
+            .ok_or_else(|| NodeError::MissingInput { port: port.to_string() })
+    }
+    /// Every value at a collecting input port.
+    pub fn inputs_of(&self, port: &str) -> &[Labelled] {
+        self.inputs.get(port).map(Vec::as_slice).unwrap_or(&[])
+    }
+    /// A required SI parameter (the compiler has checked presence and dimension).
+    pub fn f64(&self, name: &str) -> Result<f64, NodeError> {
+        self.params.f64(name).ok_or_else(|| NodeError::InvalidParam {
+            param: name.to_string(),
+            message: "missing".into(),
+        })
+    }
+}
+
+/// Values produced by one run of a node, by output port name.
+pub type Outputs = IndexMap<String, Value>;
+
+/// Why a node could not produce its outputs. The executor adds the node instance.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NodeError {
+    #[error("input `{port}` is missing")]
+    MissingInput { port: String },
+    #[error("input `{port}`: {message}")]
+    InvalidInput { port: String, message: String },
+    #[error("parameter `{param}`: {message}")]
+    InvalidParam { param: String, message: String },
+    #[error("{0}")]
+    Failed(String),
+}
+
+impl NodeError {
+    pub fn param(param: &str, message: impl Into<String>) -> Self {
+        NodeError::InvalidParam { param: param.to_string(), message: message.into() }
+    }
+    pub fn input(port: &str, message: impl Into<String>) -> Self {
+        NodeError::InvalidInput { port: port.to_string(), message: message.into() }
+    }
+}
+
+/// A kind of node: its spec and the code that runs it.
+pub trait Node: Send + Sync {
+    fn spec(&self) -> &NodeSpec;
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError>;
+}
+
+/// Every node kind the engine can compile, by kind name.
+#[derive(Default, Clone)]
+pub struct Registry {
+    kinds: IndexMap<&'static str, Arc<dyn Node>>,
+}
+
+impl Registry {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a node kind; a second registration of the same kind name is a programming error.
+    pub fn register(&mut self, node: Arc<dyn Node>) {
+        let kind = node.spec().kind;
+        assert!(!self.kinds.contains_key(kind), "node kind `{kind}` registered twice");
+        self.kinds.insert(kind, node);
+    }
+
+    pub fn get(&self, kind: &str) -> Option<&Arc<dyn Node>> {
+        self.kinds.get(kind)
+    }
+
+    pub fn kinds(&self) -> impl Iterator<Item = &Arc<dyn Node>> {
+        self.kinds.values()
+    }
+
+    pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.kinds.keys().copied()
+    }
+}

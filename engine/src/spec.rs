@@ -1,0 +1,630 @@
+//! Field specifications: the one description of what a recipe entity or a node parameter accepts.
+//!
+//! The validator, the JSON Schema, `spindlelab nodes` and the docs all read these tables,
+//! so what the engine accepts and what it documents cannot drift apart.
+
+use crate::diag::{Diagnostics, Span};
+use crate::syntax::{Raw, RawKind};
+use indexmap::IndexMap;
+use spindlelab_grammar::{self as grammar, Dimension};
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+
+/// The kinds of named entity a recipe declares and steps refer to by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EntityKind {
+    Material,
+    Machine,
+    Assembly,
+    Sensor,
+    Cutting,
+}
+
+impl EntityKind {
+    pub const ALL: [EntityKind; 5] =
+        [EntityKind::Material, EntityKind::Machine, EntityKind::Assembly, EntityKind::Sensor, EntityKind::Cutting];
+
+    /// The recipe's top-level key that holds entities of this kind.
+    pub fn section(self) -> &'static str {
+        match self {
+            EntityKind::Material => "materials",
+            EntityKind::Machine => "machines",
+            EntityKind::Assembly => "assemblies",
+            EntityKind::Sensor => "sensors",
+            EntityKind::Cutting => "cutting",
+        }
+    }
+
+    pub fn noun(self) -> &'static str {
+        match self {
+            EntityKind::Material => "material",
+            EntityKind::Machine => "machine",
+            EntityKind::Assembly => "assembly",
+            EntityKind::Sensor => "sensor",
+            EntityKind::Cutting => "cutting setup",
+        }
+    }
+}
+
+/// What one field accepts.
+#[derive(Debug, Clone, Copy)]
+pub enum FieldType {
+    /// One number with a unit of this dimension (`12.7 mm`); a plain number when dimensionless.
+    Quantity(Dimension),
+    /// A list, a range or a single quantity of this dimension (`0..4000 step 500 rpm`).
+    QuantityList(Dimension),
+    /// A whole number within bounds.
+    Integer { min: i64, max: i64 },
+    Bool,
+    Text,
+    /// One of a fixed set of words.
+    Choice(&'static [&'static str]),
+    /// A list of words from a fixed set.
+    ChoiceList(&'static [&'static str]),
+    /// The name of an entity declared in the recipe.
+    Entity(EntityKind),
+    /// A nested mapping with its own fields.
+    Object(&'static [Field]),
+    /// A list of nested mappings.
+    ObjectList(&'static [Field]),
+    /// A mapping from free names (for example directions `x`, `y`) to values of one type.
+    MapOf(&'static FieldType),
+}
+
+impl FieldType {
+    /// A short human description, used in messages and `spindlelab nodes`.
+    pub fn describe(&self) -> String {
+        match self {
+            FieldType::Quantity(d) if *d == Dimension::DIMENSIONLESS => "number".into(),
+            FieldType::Quantity(d) => format!("{} [{}]", dim_name(*d), d.si_unit()),
+            FieldType::QuantityList(d) => format!("list or range of {} [{}]", dim_name(*d), d.si_unit()),
+            FieldType::Integer { min, max } => format!("integer {min}..={max}"),
+            FieldType::Bool => "true/false".into(),
+            FieldType::Text => "text".into(),
+            FieldType::Choice(c) => format!("one of {}", c.join(" | ")),
+            FieldType::ChoiceList(c) => format!("list of {}", c.join(" | ")),
+            FieldType::Entity(k) => format!("name of a {} in `{}`", k.noun(), k.section()),
+            FieldType::Object(_) => "mapping".into(),
+            FieldType::ObjectList(_) => "list of mappings".into(),
+            FieldType::MapOf(t) => format!("mapping of name to {}", t.describe()),
+        }
+    }
+}
+
+fn dim_name(d: Dimension) -> String {
+    d.name().map(str::to_string).unwrap_or_else(|| format!("quantity of dimension {}", d.si_unit()))
+}
+
+/// One field of an entity or node parameter list.
+#[derive(Debug, Clone, Copy)]
+pub struct Field {
+    pub name: &'static str,
+    pub ty: FieldType,
+    pub required: bool,
+    /// The default, written as a recipe would write it (`"6.5 ms"`); parsed like user input.
+    pub default: Option<&'static str>,
+    pub doc: &'static str,
+}
+
+impl Field {
+    pub const fn req(name: &'static str, ty: FieldType, doc: &'static str) -> Field {
+        Field { name, ty, required: true, default: None, doc }
+    }
+    pub const fn opt(name: &'static str, ty: FieldType, doc: &'static str) -> Field {
+        Field { name, ty, required: false, default: None, doc }
+    }
+    pub const fn def(name: &'static str, ty: FieldType, default: &'static str, doc: &'static str) -> Field {
+        Field { name, ty, required: false, default: Some(default), doc }
+    }
+}
+
+/// A checked value, in SI.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValue {
+    Quantity { value: f64, dim: Dimension },
+    List { values: Vec<f64>, dim: Dimension },
+    Int(i64),
+    Bool(bool),
+    Text(String),
+    Words(Vec<String>),
+    Entity { kind: EntityKind, name: String },
+    Object(Params),
+    Objects(Vec<Params>),
+    Map(IndexMap<String, ParamValue>),
+}
+
+impl ParamValue {
+    /// Location-free text of the value; cache keys and the recipe hash are built on it.
+    pub fn canonical(&self, out: &mut String) {
+        match self {
+            ParamValue::Quantity { value, dim } => {
+                let _ = write!(out, "{:016x}{dim:?}", value.to_bits());
+            }
+            ParamValue::List { values, dim } => {
+                out.push('[');
+                for v in values {
+                    let _ = write!(out, "{:016x},", v.to_bits());
+                }
+                let _ = write!(out, "]{dim:?}");
+            }
+            ParamValue::Int(i) => {
+                let _ = write!(out, "i{i}");
+            }
+            ParamValue::Bool(b) => {
+                let _ = write!(out, "b{b}");
+            }
+            ParamValue::Text(t) => {
+                let _ = write!(out, "{t:?}");
+            }
+            ParamValue::Words(w) => {
+                let _ = write!(out, "{w:?}");
+            }
+            ParamValue::Entity { kind, name } => {
+                let _ = write!(out, "{kind:?}:{name:?}");
+            }
+            ParamValue::Object(p) => p.canonical(out),
+            ParamValue::Objects(list) => {
+                out.push('[');
+                for p in list {
+                    p.canonical(out);
+                    out.push(',');
+                }
+                out.push(']');
+            }
+            ParamValue::Map(m) => {
+                out.push('{');
+                for (k, v) in m {
+                    let _ = write!(out, "{k:?}=");
+                    v.canonical(out);
+                    out.push(';');
+                }
+                out.push('}');
+            }
+        }
+    }
+
+    /// The value as a recipe would write it, for messages, plans and the graph.
+    pub fn display(&self) -> String {
+        match self {
+            ParamValue::Quantity { value, dim } => fmt_quantity(*value, *dim),
+            ParamValue::List { values, dim } => {
+                let items: Vec<String> = values.iter().map(|v| fmt_quantity(*v, *dim)).collect();
+                format!("[{}]", items.join(", "))
+            }
+            ParamValue::Int(i) => i.to_string(),
+            ParamValue::Bool(b) => b.to_string(),
+            ParamValue::Text(t) => t.clone(),
+            ParamValue::Words(w) => format!("[{}]", w.join(", ")),
+            ParamValue::Entity { name, .. } => name.clone(),
+            ParamValue::Object(_) => "{…}".into(),
+            ParamValue::Objects(l) => format!("[{} items]", l.len()),
+            ParamValue::Map(m) => format!("{{{} keys}}", m.len()),
+        }
+    }
+}
+
+/// Formats an SI value with its SI unit, to 6 significant digits.
+pub fn fmt_quantity(value: f64, dim: Dimension) -> String {
+    let num = format!("{}", crate::round_sig(value, 6));
+    if dim == Dimension::DIMENSIONLESS { num } else { format!("{num} {}", dim.si_unit()) }
+}
+
+/// Checked fields of one entity or node, in declaration order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Params {
+    pub values: IndexMap<String, ParamValue>,
+}
+
+impl Params {
+    pub fn get(&self, name: &str) -> Option<&ParamValue> {
+        self.values.get(name)
+    }
+    /// An SI number; `None` when absent or not a quantity.
+    pub fn f64(&self, name: &str) -> Option<f64> {
+        match self.values.get(name)? {
+            ParamValue::Quantity { value, .. } => Some(*value),
+            ParamValue::Int(i) => Some(*i as f64),
+            _ => None,
+        }
+    }
+    pub fn list(&self, name: &str) -> Option<&[f64]> {
+        match self.values.get(name)? {
+            ParamValue::List { values, .. } => Some(values),
+            _ => None,
+        }
+    }
+    pub fn int(&self, name: &str) -> Option<i64> {
+        match self.values.get(name)? {
+            ParamValue::Int(i) => Some(*i),
+            _ => None,
+        }
+    }
+    pub fn bool(&self, name: &str) -> Option<bool> {
+        match self.values.get(name)? {
+            ParamValue::Bool(b) => Some(*b),
+            _ => None,
+        }
+    }
+    /// Text, a choice word or an entity name.
+    pub fn text(&self, name: &str) -> Option<&str> {
+        match self.values.get(name)? {
+            ParamValue::Text(t) => Some(t),
+            ParamValue::Entity { name, .. } => Some(name),
+            _ => None,
+        }
+    }
+    pub fn object(&self, name: &str) -> Option<&Params> {
+        match self.values.get(name)? {
+            ParamValue::Object(p) => Some(p),
+            _ => None,
+        }
+    }
+    pub fn objects(&self, name: &str) -> Option<&[Params]> {
+        match self.values.get(name)? {
+            ParamValue::Objects(p) => Some(p),
+            _ => None,
+        }
+    }
+    pub fn canonical(&self, out: &mut String) {
+        out.push('{');
+        for (k, v) in &self.values {
+            let _ = write!(out, "{k:?}=");
+            v.canonical(out);
+            out.push(';');
+        }
+        out.push('}');
+    }
+}
+
+/// The names each entity kind declares, so references can be checked and misspellings suggested.
+#[derive(Debug, Clone, Default)]
+pub struct EntityNames {
+    pub names: IndexMap<EntityKind, BTreeSet<String>>,
+}
+
+impl EntityNames {
+    pub fn contains(&self, kind: EntityKind, name: &str) -> bool {
+        self.names.get(&kind).is_some_and(|s| s.contains(name))
+    }
+    pub fn of(&self, kind: EntityKind) -> impl Iterator<Item = &str> {
+        self.names.get(&kind).into_iter().flat_map(|s| s.iter().map(String::as_str))
+    }
+}
+
+/// The closest candidate to a misspelt word, when it is close enough to be a likely intent.
+pub fn suggest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
+    let mut best: Option<(f64, &str)> = None;
+    for c in candidates {
+        let score = strsim::jaro_winkler(word, c);
+        if score > best.map_or(0.0, |b| b.0) {
+            best = Some((score, c));
+        }
+    }
+    best.filter(|(s, _)| *s >= 0.8).map(|(_, c)| c.to_string())
+}
+
+/// Where a value is being checked, for messages: `steps.hit.params.hammer_mass`.
+pub struct Ctx<'a> {
+    pub entities: &'a EntityNames,
+}
+
+/// Checks a raw mapping against a field table, pushing every problem; unknown keys, missing
+/// fields and wrong values are all reported, not only the first.
+pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<Params> {
+    let Some(entries) = raw.as_map() else {
+        diags.error(Some(&raw.span), format!("{what} must be a mapping, found {}", raw.describe()));
+        return None;
+    };
+    let mut ok = true;
+    let mut values = IndexMap::new();
+    for (key, _) in entries {
+        if !fields.iter().any(|f| f.name == key.name) {
+            ok = false;
+            let known: Vec<&str> = fields.iter().map(|f| f.name).collect();
+            let msg = format!("unknown key `{}` in {what}", key.name);
+            match suggest(&key.name, known.iter().copied()) {
+                Some(s) => diags.error_help(Some(&key.span), msg, format!("did you mean `{s}`?")),
+                None => diags.error_help(Some(&key.span), msg, format!("known keys: {}", known.join(", "))),
+            }
+        }
+    }
+    for field in fields {
+        match entries.iter().find(|(k, _)| k.name == field.name) {
+            Some((_, v)) => match check_value(v, &field.ty, &format!("`{}` of {what}", field.name), ctx, diags) {
+                Some(pv) => {
+                    values.insert(field.name.to_string(), pv);
+                }
+                None => ok = false,
+            },
+            None => {
+                if let Some(def) = field.default {
+                    let span = Span::file_only("<default>".into());
+                    let raw_def = Raw { span, kind: RawKind::Str(def.to_string()) };
+                    let mut scratch = Diagnostics::new();
+                    let pv = check_value(&raw_def, &field.ty, field.name, ctx, &mut scratch);
+                    debug_assert!(pv.is_some(), "bad default for {}: {scratch}", field.name);
+                    if let Some(pv) = pv {
+                        values.insert(field.name.to_string(), pv);
+                    }
+                } else if field.required {
+                    ok = false;
+                    diags.error_help(
+                        Some(&raw.span),
+                        format!("missing `{}` in {what}", field.name),
+                        format!("add `{}: …` ({}): {}", field.name, field.ty.describe(), field.doc),
+                    );
+                }
+            }
+        }
+    }
+    ok.then_some(Params { values })
+}
+
+fn parse_scalar(raw: &Raw, what: &str, diags: &mut Diagnostics) -> Option<(String, grammar::Value)> {
+    let text = raw.scalar_text()?;
+    match grammar::parse_value(&text) {
+        Ok(v) => Some((text, v)),
+        Err(e) => {
+            let span = raw.span.narrow(&text, e.offset, e.len);
+            let msg = format!("{} in {what}: `{text}`", e.message);
+            match e.help {
+                Some(h) => diags.error_help(Some(&span), msg, h),
+                None => diags.error(Some(&span), msg),
+            }
+            None
+        }
+    }
+}
+
+fn dim_error(raw: &Raw, text: &str, expected: Dimension, found: Dimension, what: &str, diags: &mut Diagnostics) {
+    let err = grammar::DimensionError { expected, found };
+    let help = if found == Dimension::DIMENSIONLESS {
+        format!("write the number with a unit of {}, e.g. `{text} {}`", dim_name(expected), example_unit(expected))
+    } else {
+        format!("use a unit of {} such as `{}`", dim_name(expected), example_unit(expected))
+    };
+    diags.error_help(Some(&raw.span), format!("wrong unit for {what}: `{text}`: {err}"), help);
+}
+
+fn example_unit(d: Dimension) -> &'static str {
+    const EXAMPLES: &[(Dimension, &str)] = &[
+        (Dimension::LENGTH, "mm"),
+        (Dimension::MASS, "kg"),
+        (Dimension::TIME, "ms"),
+        (Dimension::FREQUENCY, "Hz"),
+        (Dimension::ROTATIONAL_SPEED, "rpm"),
+        (Dimension::PRESSURE, "GPa"),
+        (Dimension::DENSITY, "kg/m^3"),
+        (Dimension::STIFFNESS, "N/m"),
+        (Dimension::DAMPING, "N*s/m"),
+        (Dimension::ANGLE, "deg"),
+        (Dimension::PHASE_SLOPE, "deg/kHz"),
+        (Dimension::FORCE, "N"),
+    ];
+    EXAMPLES.iter().find(|(d2, _)| *d2 == d).map_or("an SI unit", |(_, u)| u)
+}
+
+/// Checks one raw value against a field type.
+pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<ParamValue> {
+    match ty {
+        FieldType::Quantity(dim) => {
+            if let RawKind::Int(_) | RawKind::Float(_) = raw.kind {
+                let v = match raw.kind {
+                    RawKind::Int(i) => i as f64,
+                    RawKind::Float(f) => f,
+                    _ => unreachable!(),
+                };
+                if *dim != Dimension::DIMENSIONLESS {
+                    dim_error(raw, &raw.scalar_text().unwrap_or_default(), *dim, Dimension::DIMENSIONLESS, what, diags);
+                    return None;
+                }
+                if !v.is_finite() {
+                    diags.error(Some(&raw.span), format!("{what} must be a finite number"));
+                    return None;
+                }
+                return Some(ParamValue::Quantity { value: v, dim: *dim });
+            }
+            if !matches!(raw.kind, RawKind::Str(_)) {
+                diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
+                return None;
+            }
+            let (text, v) = parse_scalar(raw, what, diags)?;
+            match v {
+                grammar::Value::Quantity(q) => {
+                    if q.dim != *dim {
+                        dim_error(raw, &text, *dim, q.dim, what, diags);
+                        return None;
+                    }
+                    Some(ParamValue::Quantity { value: q.value, dim: q.dim })
+                }
+                _ => {
+                    diags.error_help(
+                        Some(&raw.span),
+                        format!("{what} takes one value, found `{text}`"),
+                        "a list, a range or a reference is not accepted here; sweep over values with `sweep:`",
+                    );
+                    None
+                }
+            }
+        }
+        FieldType::QuantityList(dim) => {
+            let mut values = Vec::new();
+            let mut push = |raw: &Raw, q: grammar::Quantity, text: &str, diags: &mut Diagnostics| {
+                if q.dim != *dim {
+                    dim_error(raw, text, *dim, q.dim, what, diags);
+                    false
+                } else {
+                    values.push(q.value);
+                    true
+                }
+            };
+            match &raw.kind {
+                RawKind::Seq(items) => {
+                    let mut ok = true;
+                    for item in items {
+                        match check_value(item, &FieldType::Quantity(*dim), what, ctx, diags) {
+                            Some(ParamValue::Quantity { value, dim }) => {
+                                push(item, grammar::Quantity { value, dim }, "", diags);
+                            }
+                            _ => ok = false,
+                        }
+                    }
+                    if items.is_empty() {
+                        diags.error(Some(&raw.span), format!("{what} is an empty list"));
+                        return None;
+                    }
+                    ok.then_some(())?;
+                }
+                RawKind::Int(_) | RawKind::Float(_) => {
+                    let pv = check_value(raw, &FieldType::Quantity(*dim), what, ctx, diags)?;
+                    if let ParamValue::Quantity { value, .. } = pv {
+                        values.push(value);
+                    }
+                }
+                RawKind::Str(_) => {
+                    let (text, v) = parse_scalar(raw, what, diags)?;
+                    match v {
+                        grammar::Value::Quantity(q) => {
+                            push(raw, q, &text, diags).then_some(())?;
+                        }
+                        grammar::Value::List(qs) => {
+                            for q in qs {
+                                push(raw, q, &text, diags).then_some(())?;
+                            }
+                        }
+                        grammar::Value::Range { .. } => {
+                            let (rdim, pts) = match &v {
+                                grammar::Value::Range { dim, .. } => (*dim, v.points()),
+                                _ => unreachable!(),
+                            };
+                            for p in pts {
+                                push(raw, grammar::Quantity { value: p, dim: rdim }, &text, diags).then_some(())?;
+                            }
+                        }
+                        grammar::Value::Reference(_) => {
+                            diags.error(Some(&raw.span), format!("{what} takes values, not a reference: `{text}`"));
+                            return None;
+                        }
+                    }
+                }
+                _ => {
+                    diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
+                    return None;
+                }
+            }
+            Some(ParamValue::List { values, dim: *dim })
+        }
+        FieldType::Integer { min, max } => {
+            let v = match &raw.kind {
+                RawKind::Int(i) => Some(*i),
+                RawKind::Float(f) if f.fract() == 0.0 && f.is_finite() => Some(*f as i64),
+                RawKind::Str(s) => s.trim().parse::<i64>().ok(),
+                _ => None,
+            };
+            match v {
+                Some(i) if i >= *min && i <= *max => Some(ParamValue::Int(i)),
+                Some(i) => {
+                    diags.error(Some(&raw.span), format!("{what} is {i}, outside {min}..={max}"));
+                    None
+                }
+                None => {
+                    diags.error(Some(&raw.span), format!("{what} must be a whole number, found {}", raw.describe()));
+                    None
+                }
+            }
+        }
+        FieldType::Bool => match raw.kind {
+            RawKind::Bool(b) => Some(ParamValue::Bool(b)),
+            _ => {
+                diags.error(Some(&raw.span), format!("{what} must be true or false, found {}", raw.describe()));
+                None
+            }
+        },
+        FieldType::Text => match &raw.kind {
+            RawKind::Str(s) => Some(ParamValue::Text(s.clone())),
+            _ => {
+                diags.error(Some(&raw.span), format!("{what} must be text, found {}", raw.describe()));
+                None
+            }
+        },
+        FieldType::Choice(choices) => check_word(raw, choices, what, diags).map(ParamValue::Text),
+        FieldType::ChoiceList(choices) => {
+            let RawKind::Seq(items) = &raw.kind else {
+                diags.error(Some(&raw.span), format!("{what} must be a list of {}", choices.join(" | ")));
+                return None;
+            };
+            let words: Vec<Option<String>> = items.iter().map(|it| check_word(it, choices, what, diags)).collect();
+            words.into_iter().collect::<Option<Vec<_>>>().map(ParamValue::Words)
+        }
+        FieldType::Entity(kind) => {
+            let RawKind::Str(name) = &raw.kind else {
+                diags.error(Some(&raw.span), format!("{what} must name a {}, found {}", kind.noun(), raw.describe()));
+                return None;
+            };
+            if ctx.entities.contains(*kind, name) {
+                Some(ParamValue::Entity { kind: *kind, name: name.clone() })
+            } else {
+                let msg = format!("unknown {} `{name}` in {what}", kind.noun());
+                match suggest(name, ctx.entities.of(*kind)) {
+                    Some(s) => diags.error_help(Some(&raw.span), msg, format!("did you mean `{s}`?")),
+                    None => {
+                        let known: Vec<&str> = ctx.entities.of(*kind).collect();
+                        let help = if known.is_empty() {
+                            format!("declare it under `{}:`", kind.section())
+                        } else {
+                            format!("declared {}: {}", kind.section(), known.join(", "))
+                        };
+                        diags.error_help(Some(&raw.span), msg, help)
+                    }
+                }
+                None
+            }
+        }
+        FieldType::Object(fields) => check_object(raw, fields, what, ctx, diags).map(ParamValue::Object),
+        FieldType::ObjectList(fields) => {
+            let RawKind::Seq(items) = &raw.kind else {
+                diags.error(Some(&raw.span), format!("{what} must be a list, found {}", raw.describe()));
+                return None;
+            };
+            let checked: Vec<Option<Params>> = items
+                .iter()
+                .enumerate()
+                .map(|(i, it)| check_object(it, fields, &format!("item {} of {what}", i + 1), ctx, diags))
+                .collect();
+            checked.into_iter().collect::<Option<Vec<_>>>().map(ParamValue::Objects)
+        }
+        FieldType::MapOf(inner) => {
+            let Some(entries) = raw.as_map() else {
+                diags.error(Some(&raw.span), format!("{what} must be a mapping, found {}", raw.describe()));
+                return None;
+            };
+            let mut out = IndexMap::new();
+            let mut ok = true;
+            for (k, v) in entries {
+                match check_value(v, inner, &format!("`{}` of {what}", k.name), ctx, diags) {
+                    Some(pv) => {
+                        out.insert(k.name.clone(), pv);
+                    }
+                    None => ok = false,
+                }
+            }
+            ok.then_some(ParamValue::Map(out))
+        }
+    }
+}
+
+fn check_word(raw: &Raw, choices: &[&str], what: &str, diags: &mut Diagnostics) -> Option<String> {
+    let Some(word) = raw.scalar_text() else {
+        diags.error(Some(&raw.span), format!("{what} must be one of {}", choices.join(" | ")));
+        return None;
+    };
+    if choices.contains(&word.as_str()) {
+        return Some(word);
+    }
+    let msg = format!("`{word}` is not a valid {what}");
+    match suggest(&word, choices.iter().copied()) {
+        Some(s) => diags.error_help(Some(&raw.span), msg, format!("did you mean `{s}`?")),
+        None => diags.error_help(Some(&raw.span), msg, format!("use one of {}", choices.join(" | "))),
+    }
+    None
+}

@@ -1,0 +1,76 @@
+//! Syntax: recipe text (YAML or a Rhai script) to a raw tree that keeps every value's location.
+//!
+//! This is the first of the two recipe stages: close to the text, no meaning yet.
+//! [`crate::model`] turns the raw tree into a resolved, typed recipe.
+
+mod raw;
+mod rhai_recipe;
+mod yaml;
+
+pub use raw::{Key, Raw, RawKind};
+pub use rhai_recipe::{RhaiLimits, load_rhai, sandboxed_engine};
+pub use yaml::load_yaml;
+
+use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
+use std::path::Path;
+use std::sync::Arc;
+
+/// The largest recipe file read, in bytes: a recipe is a page of text, not a data set.
+pub const MAX_RECIPE_BYTES: u64 = 4 * 1024 * 1024;
+
+/// A recipe file read from disk and parsed into its raw tree.
+pub struct LoadedSource {
+    pub file: SourceFile,
+    pub raw: Option<Raw>,
+}
+
+/// Reads a recipe file (`.yaml`, `.yml` or `.rhai`) and parses it, pushing every problem found.
+pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
+    let shown: Arc<str> = Arc::from(path.display().to_string());
+    let span = Span::file_only(shown.clone());
+    let meta = match std::fs::metadata(path) {
+        Ok(m) => m,
+        Err(e) => {
+            diags.push(Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")).with_help("check the path"));
+            return None;
+        }
+    };
+    if meta.len() > MAX_RECIPE_BYTES {
+        diags.push(
+            Diagnostic::error(
+                Some(span),
+                format!("the recipe is {} bytes, over the {} byte limit for a recipe", meta.len(), MAX_RECIPE_BYTES),
+            )
+            .with_help("keep measured data in CSV or UFF files and name them in the recipe"),
+        );
+        return None;
+    }
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) => {
+            diags.push(Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")));
+            return None;
+        }
+    };
+    let text = match String::from_utf8(bytes) {
+        Ok(t) => t,
+        Err(e) => {
+            let valid = e.utf8_error().valid_up_to();
+            let prefix = String::from_utf8_lossy(&e.as_bytes()[..valid]).to_string();
+            let line = prefix.matches('\n').count() as u32 + 1;
+            let column = prefix.rsplit('\n').next().map(|l| l.chars().count()).unwrap_or(0) as u32 + 1;
+            diags.push(
+                Diagnostic::error(
+                    Some(Span { file: shown, line, column, bytes: None }),
+                    format!("the recipe is not valid UTF-8 (byte {valid})"),
+                )
+                .with_help("save the file as UTF-8"),
+            );
+            return None;
+        }
+    };
+    let file = SourceFile { path: shown, text: Arc::from(text) };
+    let is_rhai = path.extension().is_some_and(|e| e == "rhai");
+    let raw = if is_rhai { load_rhai(&file, &RhaiLimits::default(), diags) } else { load_yaml(&file, diags) };
+    Some(LoadedSource { file, raw })
+}

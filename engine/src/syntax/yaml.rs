@@ -1,0 +1,130 @@
+//! YAML recipes, read with serde-saphyr into the raw tree.
+//!
+//! serde-saphyr is serde-based, maintained and panic-free, keeps the line and column of
+//! every value (`Spanned`), and enforces budgets against alias bombs and runaway inputs.
+
+use super::raw::{Key, Raw, RawKind};
+use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
+use serde::de::{self, Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde_saphyr::Spanned;
+use std::fmt;
+use std::sync::Arc;
+
+/// A YAML node as serde sees it; converted to [`Raw`] once its span is known.
+enum Node {
+    Null,
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    Str(String),
+    Seq(Vec<Spanned<Node>>),
+    Map(Vec<(Spanned<String>, Spanned<Node>)>),
+}
+
+impl<'de> Deserialize<'de> for Node {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(NodeVisitor)
+    }
+}
+
+struct NodeVisitor;
+
+impl<'de> Visitor<'de> for NodeVisitor {
+    type Value = Node;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a YAML value")
+    }
+    fn visit_unit<E>(self) -> Result<Node, E> {
+        Ok(Node::Null)
+    }
+    fn visit_none<E>(self) -> Result<Node, E> {
+        Ok(Node::Null)
+    }
+    fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Node, D::Error> {
+        Node::deserialize(d)
+    }
+    fn visit_bool<E>(self, v: bool) -> Result<Node, E> {
+        Ok(Node::Bool(v))
+    }
+    fn visit_i64<E>(self, v: i64) -> Result<Node, E> {
+        Ok(Node::Int(v))
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Node, E> {
+        i64::try_from(v).map(Node::Int).map_err(|_| E::custom("integer too large"))
+    }
+    fn visit_f64<E>(self, v: f64) -> Result<Node, E> {
+        Ok(Node::Float(v))
+    }
+    fn visit_str<E>(self, v: &str) -> Result<Node, E> {
+        Ok(Node::Str(v.to_string()))
+    }
+    fn visit_string<E>(self, v: String) -> Result<Node, E> {
+        Ok(Node::Str(v))
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Node, A::Error> {
+        let mut items = Vec::new();
+        while let Some(item) = seq.next_element::<Spanned<Node>>()? {
+            items.push(item);
+        }
+        Ok(Node::Seq(items))
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Node, A::Error> {
+        let mut entries = Vec::new();
+        while let Some(k) = map.next_key::<Spanned<String>>()? {
+            let v = map.next_value::<Spanned<Node>>()?;
+            entries.push((k, v));
+        }
+        Ok(Node::Map(entries))
+    }
+}
+
+fn span_of(file: &Arc<str>, loc: &serde_saphyr::Location) -> Span {
+    let s = loc.span();
+    let bytes = s.byte_offset().map(|o| {
+        let len = s.byte_len().unwrap_or(0);
+        (o as usize, (o + len) as usize)
+    });
+    Span { file: file.clone(), line: loc.line() as u32, column: loc.column() as u32, bytes }
+}
+
+fn convert(file: &Arc<str>, node: Spanned<Node>) -> Raw {
+    let span = span_of(file, &node.referenced);
+    let kind = match node.value {
+        Node::Null => RawKind::Null,
+        Node::Bool(b) => RawKind::Bool(b),
+        Node::Int(i) => RawKind::Int(i),
+        Node::Float(f) => RawKind::Float(f),
+        Node::Str(s) => RawKind::Str(s),
+        Node::Seq(items) => RawKind::Seq(items.into_iter().map(|n| convert(file, n)).collect()),
+        Node::Map(entries) => RawKind::Map(
+            entries
+                .into_iter()
+                .map(|(k, v)| {
+                    let key = Key { name: k.value, span: span_of(file, &k.referenced) };
+                    (key, convert(file, v))
+                })
+                .collect(),
+        ),
+    };
+    Raw { span, kind }
+}
+
+/// Parses YAML text into the raw tree; a syntax error becomes one diagnostic with its location.
+pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
+    let options = serde_saphyr::options! {
+        with_snippet: false,
+    };
+    match serde_saphyr::from_str_with_options::<Spanned<Node>>(&file.text, options) {
+        Ok(node) => Some(convert(&file.path, node)),
+        Err(e) => {
+            let span = e.location().map(|l| span_of(&file.path, &l)).unwrap_or_else(|| Span::file_only(file.path.clone()));
+            let msg = e.to_string();
+            let msg = msg.lines().next().unwrap_or("invalid YAML").to_string();
+            diags.push(Diagnostic::error(Some(span), format!("invalid YAML: {msg}")).with_help(
+                "a recipe is a YAML mapping; quote values that contain `:` or start with `@`, `[` or `{`",
+            ));
+            None
+        }
+    }
+}

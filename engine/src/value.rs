@@ -1,0 +1,222 @@
+//! Typed values that cross node boundaries, and the port types that name them.
+//!
+//! Small structs with their units in the field docs (SI throughout), never loose vectors:
+//! the compiler checks that a port of one type only feeds a port of the same type.
+
+use num_complex::Complex64;
+use serde::{Deserialize, Serialize};
+use spindlelab_grammar::Dimension;
+use std::fmt;
+
+/// The type of a port, checked at compile time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PortType {
+    TimeSeries,
+    Frf,
+    ReceptanceSet,
+    ModalModel,
+    BeamModel,
+    Lobes,
+    Table,
+    Scalar,
+}
+
+impl PortType {
+    pub const ALL: [PortType; 8] = [
+        PortType::TimeSeries,
+        PortType::Frf,
+        PortType::ReceptanceSet,
+        PortType::ModalModel,
+        PortType::BeamModel,
+        PortType::Lobes,
+        PortType::Table,
+        PortType::Scalar,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PortType::TimeSeries => "time series",
+            PortType::Frf => "FRF",
+            PortType::ReceptanceSet => "2x2 receptance set",
+            PortType::ModalModel => "modal model",
+            PortType::BeamModel => "beam model",
+            PortType::Lobes => "stability lobes",
+            PortType::Table => "table",
+            PortType::Scalar => "scalar",
+        }
+    }
+}
+
+impl fmt::Display for PortType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A physical unit as stored with data: the dimension plus the symbol shown at the edges.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UnitLabel {
+    /// SI symbol of the stored values, e.g. `m`, `N`, `m/N`.
+    pub symbol: String,
+}
+
+impl UnitLabel {
+    pub fn new(symbol: impl Into<String>) -> Self {
+        UnitLabel { symbol: symbol.into() }
+    }
+}
+
+/// One or more channels sampled at a constant rate, in SI units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TimeSeries {
+    /// Samples per second (Hz).
+    pub sample_rate: f64,
+    /// Time of the first sample (s).
+    pub t0: f64,
+    pub channels: Vec<Channel>,
+}
+
+/// A named channel of a [`TimeSeries`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Channel {
+    pub name: String,
+    pub unit: UnitLabel,
+    pub samples: Vec<f64>,
+}
+
+impl TimeSeries {
+    pub fn len(&self) -> usize {
+        self.channels.first().map_or(0, |c| c.samples.len())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn channel(&self, name: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.name == name)
+    }
+}
+
+/// A frequency response function on a frequency grid (Hz), complex values in `unit` (e.g. m/N).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Frf {
+    pub freq_hz: Vec<f64>,
+    pub values: Vec<Complex64>,
+    /// Ordinary coherence per line (0..1), when the estimate has one.
+    pub coherence: Option<Vec<f64>>,
+    pub unit: UnitLabel,
+    /// Measurement direction (`x`, `y`), when known.
+    pub direction: Option<String>,
+    /// Spindle speed (rpm) at which it was measured or predicted.
+    pub speed_rpm: Option<f64>,
+}
+
+/// The 2x2 receptance blocks `[[h, l], [n, p]]` (displacement and rotation per force and moment) on a grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReceptanceSet {
+    pub freq_hz: Vec<f64>,
+    /// Displacement per force (m/N).
+    pub h: Vec<Complex64>,
+    /// Displacement per moment (m/(N m)).
+    pub l: Vec<Complex64>,
+    /// Rotation per force (rad/N).
+    pub n: Vec<Complex64>,
+    /// Rotation per moment (rad/(N m)).
+    pub p: Vec<Complex64>,
+}
+
+/// Modal parameters of a structure at one point and direction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModalModel {
+    pub modes: Vec<Mode>,
+}
+
+/// One mode: natural frequency (Hz), viscous damping ratio, modal mass (kg).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Mode {
+    pub freq_hz: f64,
+    pub damping_ratio: f64,
+    pub modal_mass: f64,
+}
+
+/// A free–free beam assembly: Timoshenko sections from the spindle end to the tip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BeamModel {
+    pub sections: Vec<crate::model::Section>,
+}
+
+/// A stability lobe diagram: limiting depth of cut (m) over spindle speed (rpm).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Lobes {
+    pub speed_rpm: Vec<f64>,
+    pub depth_limit: Vec<f64>,
+    /// Chatter frequency (Hz) of the lobe that sets the limit at each speed.
+    pub chatter_hz: Vec<f64>,
+}
+
+/// A table of named numeric columns with units, e.g. figures of merit over a sweep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Table {
+    pub columns: Vec<Column>,
+}
+
+/// One column of a [`Table`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Column {
+    pub name: String,
+    pub unit: UnitLabel,
+    pub values: Vec<f64>,
+}
+
+impl Table {
+    pub fn rows(&self) -> usize {
+        self.columns.first().map_or(0, |c| c.values.len())
+    }
+}
+
+/// A single number with its unit (SI).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scalar {
+    pub value: f64,
+    pub unit: UnitLabel,
+}
+
+impl Scalar {
+    pub fn new(value: f64, unit: &str) -> Self {
+        Scalar { value, unit: UnitLabel::new(unit) }
+    }
+}
+
+/// Any value a port can carry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Value {
+    TimeSeries(TimeSeries),
+    Frf(Frf),
+    ReceptanceSet(ReceptanceSet),
+    ModalModel(ModalModel),
+    BeamModel(BeamModel),
+    Lobes(Lobes),
+    Table(Table),
+    Scalar(Scalar),
+}
+
+impl Value {
+    pub fn port_type(&self) -> PortType {
+        match self {
+            Value::TimeSeries(_) => PortType::TimeSeries,
+            Value::Frf(_) => PortType::Frf,
+            Value::ReceptanceSet(_) => PortType::ReceptanceSet,
+            Value::ModalModel(_) => PortType::ModalModel,
+            Value::BeamModel(_) => PortType::BeamModel,
+            Value::Lobes(_) => PortType::Lobes,
+            Value::Table(_) => PortType::Table,
+            Value::Scalar(_) => PortType::Scalar,
+        }
+    }
+}
+
+/// The SI symbol for a dimension, used to label values that a node computes from parameters.
+pub fn si_symbol(dim: Dimension) -> String {
+    dim.si_unit()
+}
