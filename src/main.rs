@@ -1,1 +1,253 @@
-fn main() {}
+//! The `spindlelab` command: check, plan, draw and run recipes; list node kinds; print the schema.
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use spindlelab::engine::exec::{RunOptions, plan};
+use spindlelab::engine::{self, CompileError, Compiled, RunError};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Exit code for bad input: a recipe with errors, or a node that rejected its data.
+const EXIT_BAD_INPUT: u8 = 2;
+/// Exit code for a failure of the machine (a file that cannot be written).
+const EXIT_FAILURE: u8 = 1;
+
+#[derive(Parser)]
+#[command(name = "spindlelab", version, about = "Spindle-dynamics experiments as recipes: compiled to a typed dataflow graph and run end to end.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Compile and run a recipe, writing its outputs and a run manifest.
+    Run {
+        /// Recipe file (`.yaml` or `.rhai`).
+        recipe: PathBuf,
+        /// Output directory (default: `out/<recipe name>`).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Keep running independent nodes after one fails, and write the outputs that succeeded.
+        #[arg(long)]
+        keep_going: bool,
+        /// Neither read nor write the cache.
+        #[arg(long)]
+        no_cache: bool,
+        /// Worker threads (default: one per core). Results do not depend on it.
+        #[arg(long, short = 'j')]
+        threads: Option<usize>,
+        /// Print nothing but errors.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Check a recipe: report every problem, run nothing.
+    Check { recipe: PathBuf },
+    /// Dry run: which nodes would run and why, and which come from the cache.
+    Plan {
+        recipe: PathBuf,
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        no_cache: bool,
+    },
+    /// Draw the compiled graph (Graphviz DOT or Mermaid).
+    Graph {
+        recipe: PathBuf,
+        #[arg(long, short, value_enum, default_value_t = GraphFormat::Dot)]
+        format: GraphFormat,
+    },
+    /// List every node kind with its ports, parameters, units and description.
+    Nodes {
+        /// Show one kind only.
+        kind: Option<String>,
+    },
+    /// Print the JSON Schema of the YAML recipe (for editors with a YAML language server).
+    Schema,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum GraphFormat {
+    Dot,
+    Mermaid,
+}
+
+fn color() -> bool {
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none()
+}
+
+fn compile(path: &Path, registry: &engine::node::Registry) -> Result<Compiled, ExitCode> {
+    match engine::compile_file(path, registry) {
+        Ok(c) => {
+            if !c.warnings.is_empty() {
+                eprint!("{}", c.warnings.render(&c.sources, color()));
+            }
+            Ok(c)
+        }
+        Err(CompileError { diagnostics, sources }) => {
+            eprint!("{}", diagnostics.render(&sources, color()));
+            Err(ExitCode::from(EXIT_BAD_INPUT))
+        }
+    }
+}
+
+fn default_out(c: &Compiled) -> PathBuf {
+    PathBuf::from("out").join(&c.recipe.name)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let registry = spindlelab::registry();
+    match cli.command {
+        Command::Check { recipe } => match compile(&recipe, &registry) {
+            Ok(c) => {
+                println!(
+                    "{}: ok — {} steps, {} node instances, {} outputs",
+                    recipe.display(),
+                    c.recipe.steps.len(),
+                    c.graph.instances.len(),
+                    c.recipe.outputs.len()
+                );
+                ExitCode::SUCCESS
+            }
+            Err(code) => code,
+        },
+        Command::Graph { recipe, format } => match compile(&recipe, &registry) {
+            Ok(c) => {
+                let text = match format {
+                    GraphFormat::Dot => engine::graph::to_dot(&c.graph),
+                    GraphFormat::Mermaid => engine::graph::to_mermaid(&c.graph),
+                };
+                print!("{text}");
+                ExitCode::SUCCESS
+            }
+            Err(code) => code,
+        },
+        Command::Plan { recipe, out, no_cache } => match compile(&recipe, &registry) {
+            Ok(c) => {
+                let out = out.unwrap_or_else(|| default_out(&c));
+                let opts = RunOptions::new(&out);
+                let cache = (!no_cache).then(|| opts.cache());
+                let entries = plan(&c.graph, &out, cache.as_ref());
+                let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
+                for e in &entries {
+                    println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);
+                }
+                let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
+                println!("{} to run, {} from cache (output directory {})", entries.len() - cached, cached, out.display());
+                ExitCode::SUCCESS
+            }
+            Err(code) => code,
+        },
+        Command::Nodes { kind } => {
+            let mut any = false;
+            for node in registry.kinds() {
+                let spec = node.spec();
+                if kind.as_deref().is_some_and(|k| k != spec.kind) {
+                    continue;
+                }
+                any = true;
+                print!("{}", describe_node(spec));
+            }
+            if !any {
+                let k = kind.unwrap_or_default();
+                let hint = engine::spec::suggest(&k, registry.names()).map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default();
+                eprintln!("error: unknown node kind `{k}`{hint}");
+                return ExitCode::from(EXIT_BAD_INPUT);
+            }
+            ExitCode::SUCCESS
+        }
+        Command::Schema => {
+            println!("{}", serde_json::to_string_pretty(&engine::schema::recipe_schema(&registry)).expect("schema serialises"));
+            ExitCode::SUCCESS
+        }
+        Command::Run { recipe, out, keep_going, no_cache, threads, quiet } => {
+            let c = match compile(&recipe, &registry) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            let out = out.unwrap_or_else(|| default_out(&c));
+            let opts = RunOptions { out_dir: out.clone(), use_cache: !no_cache, keep_going, threads };
+            let bar = if std::io::stderr().is_terminal() && !quiet {
+                let b = ProgressBar::new(c.graph.instances.len() as u64);
+                b.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {wide_msg}").expect("template"));
+                b
+            } else {
+                ProgressBar::hidden()
+            };
+            let progress = |_: usize, id: &str| {
+                bar.inc(1);
+                bar.set_message(id.to_string());
+            };
+            let outcome = engine::run(&c, &registry, &opts, &progress);
+            bar.finish_and_clear();
+            match outcome {
+                Ok(report) => {
+                    if !quiet {
+                        print!("{}", spindlelab::summary::summarize(&c, &report.result));
+                        println!(
+                            "{} computed, {} from cache in {:.3} s; wrote {} file(s) and manifest.json to {}",
+                            report.manifest.computed,
+                            report.manifest.cache_hits,
+                            report.result.seconds,
+                            report.written.len(),
+                            out.display()
+                        );
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err((RunError::NodesFailed { failures }, report)) => {
+                    for (id, e) in &failures {
+                        eprintln!("error: node `{id}` failed: {e}");
+                    }
+                    if let Some(r) = report {
+                        eprintln!(
+                            "{} instance(s) computed and cached; {}",
+                            r.manifest.computed,
+                            if r.written.is_empty() {
+                                "no outputs written (use --keep-going to write those that succeeded)".to_string()
+                            } else {
+                                format!("wrote {} file(s) that did not depend on the failure", r.written.len())
+                            }
+                        );
+                    }
+                    ExitCode::from(EXIT_BAD_INPUT)
+                }
+                Err((e @ RunError::Io { .. }, _)) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(EXIT_FAILURE)
+                }
+            }
+        }
+    }
+}
+
+fn describe_node(spec: &engine::node::NodeSpec) -> String {
+    let mut s = format!("{} (version {})\n  {}\n", spec.kind, spec.version, spec.description);
+    if !spec.inputs.is_empty() {
+        s.push_str("  inputs:\n");
+        for p in &spec.inputs {
+            let flags = match (p.optional, p.collect) {
+                (true, true) => " (optional, collects a sweep)",
+                (true, false) => " (optional)",
+                (false, true) => " (collects a sweep)",
+                _ => "",
+            };
+            s.push_str(&format!("    {:16} {}{flags} — {}\n", p.name, p.ty, p.doc));
+        }
+    }
+    s.push_str("  outputs:\n");
+    for p in &spec.outputs {
+        s.push_str(&format!("    {:16} {} — {}\n", p.name, p.ty, p.doc));
+    }
+    if !spec.params.is_empty() {
+        s.push_str("  params:\n");
+        for f in &spec.params {
+            let req = if f.required { "required".to_string() } else { f.default.map(|d| format!("default {d}")).unwrap_or_else(|| "optional".into()) };
+            s.push_str(&format!("    {:16} {} ({req}) — {}\n", f.name, f.ty.describe(), f.doc));
+        }
+    }
+    s.push('\n');
+    s
+}

@@ -60,10 +60,10 @@ pub fn compile_file(path: &Path, registry: &Registry) -> Result<Compiled, Compil
     let loaded = syntax::load_file(path, &mut diags);
     let sources: Vec<SourceFile> = loaded.iter().map(|l| l.file.clone()).collect();
     let recipe = loaded.as_ref().and_then(|l| l.raw.as_ref()).and_then(|raw| model::resolve(raw, registry, &mut diags));
+    let graph = recipe.as_ref().filter(|_| !diags.has_errors()).map(|r| graph::compile(r, registry, &mut diags));
     diags.sort();
-    match recipe {
-        Some(recipe) if !diags.has_errors() => {
-            let graph = graph::compile(&recipe, registry);
+    match (recipe, graph) {
+        (Some(recipe), Some(graph)) if !diags.has_errors() => {
             Ok(Compiled { path: path.to_path_buf(), recipe, graph, sources, warnings: diags })
         }
         _ => Err(CompileError { diagnostics: diags, sources }),

@@ -66,11 +66,21 @@ impl NodeSpec {
     }
 }
 
+/// One numeric sweep coordinate: parameter name, SI value and SI unit symbol.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coord {
+    pub name: String,
+    pub value: f64,
+    pub unit: String,
+}
+
 /// One value arriving at an input port, with the sweep label of the instance that made it.
 #[derive(Debug, Clone)]
 pub struct Labelled {
     /// e.g. `hammer_mass=0.03 kg`; empty when the producer was not swept.
     pub label: String,
+    /// The numeric sweep assignments behind the label, in SI.
+    pub coords: Vec<Coord>,
     pub value: Arc<Value>,
 }
 
@@ -135,6 +145,14 @@ impl NodeError {
 /// A kind of node: its spec and the code that runs it.
 pub trait Node: Send + Sync {
     fn spec(&self) -> &NodeSpec;
+
+    /// Checks parameters beyond their types (ranges, combinations) at compile time, so a
+    /// recipe with impossible values fails before anything runs. Swept values are checked
+    /// per instance when the graph is compiled.
+    fn validate(&self, _params: &Params) -> Result<(), NodeError> {
+        Ok(())
+    }
+
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError>;
 }
 

@@ -25,7 +25,9 @@
 //! Eq. 2.7, exactly as in the dissertation.
 //!
 //! Output records are point samples at `sample_rate` (an integer number of fine steps per
-//! output interval; `dt` is reduced slightly when needed to make it so).
+//! output interval; `dt` is reduced slightly when needed to make it so). The force record is
+//! the contact force magnitude and the target record is positive along the impact
+//! direction, so the pair feeds the FRF estimate of Eq. 3.1 directly.
 
 use crate::signal::amplitude_at;
 use num_complex::Complex64;
@@ -49,8 +51,9 @@ pub const STEEL_POISSON: f64 = 0.29;
 const SPECTRAL_SAMPLE_INTERVAL: f64 = 1.0e-7;
 /// −10 dB amplitude ratio that defines the excited bandwidth (§2.1).
 const BANDWIDTH_RATIO: f64 = 0.316_227_766_016_837_94;
-/// Frequency scan steps per `1/T` of the force record span when locating the −10 dB point.
-const BANDWIDTH_SCAN_PER_SPAN: f64 = 64.0;
+/// Smallest frequency scan step, as a fraction `1/(n T)` of the force record span `T`,
+/// when locating the −10 dB point; a dip narrower than this could go unseen.
+const BANDWIDTH_MIN_STEP_PER_SPAN: f64 = 256.0;
 /// Cap on frequency scan steps for the excited bandwidth search.
 const BANDWIDTH_MAX_SCAN: usize = 200_000;
 /// Largest `ω·h` allowed for a free-flight sub-step, which keeps the cubic Hermite
@@ -441,8 +444,10 @@ pub struct ImpactResult {
     pub first_contact_index: usize,
     /// Contact force, N (point samples).
     pub force: Vec<f64>,
-    /// Target displacement at the impact point from its rest position, m, including
-    /// sensor noise if requested.
+    /// Target displacement at the impact point from its rest position, m, positive along
+    /// the impact direction (the direction of the contact force on the target, −x), so that
+    /// `target_displacement / force` spectra give the target receptance with its usual sign
+    /// (Eq. 3.1). Includes sensor noise if requested.
     pub target_displacement: Vec<f64>,
     /// Hammer position `x_h` from its spring rest position, m.
     pub hammer_displacement: Vec<f64>,
@@ -646,16 +651,24 @@ fn excited_bandwidth(samples: &[(u64, f64)], interval: f64) -> f64 {
         }
         acc.norm() / f0
     };
-    let span = (samples[samples.len() - 1].0 - samples[0].0) as f64 * interval;
+    let span = ((samples[samples.len() - 1].0 - samples[0].0) as f64 * interval).max(interval);
     let nyquist = 0.5 / interval;
-    let mut step = 1.0 / (BANDWIDTH_SCAN_PER_SPAN * span.max(4.0 * interval));
-    step = step.max(nyquist / BANDWIDTH_MAX_SCAN as f64);
+    // For a non-negative force supported on a span T, |F(f)|/F(0) is Lipschitz in f with
+    // constant πT, so no crossing of the threshold can lie closer than (r − r_10dB)/(πT):
+    // step by that distance, never less than 1/(BANDWIDTH_MIN_STEP_PER_SPAN·T).
+    let lipschitz = PI * span;
+    let min_step = 1.0 / (BANDWIDTH_MIN_STEP_PER_SPAN * span);
     let mut f_prev = 0.0;
-    let mut f = step;
-    while f <= nyquist {
-        if ratio(f) < BANDWIDTH_RATIO {
+    let mut r = 1.0;
+    for _ in 0..BANDWIDTH_MAX_SCAN {
+        let f = f_prev + ((r - BANDWIDTH_RATIO) / lipschitz).max(min_step);
+        if f > nyquist {
+            break;
+        }
+        r = ratio(f);
+        if r < BANDWIDTH_RATIO {
             let (mut lo, mut hi) = (f_prev, f);
-            for _ in 0..60 {
+            while hi - lo > 1e-9 * hi {
                 let mid = 0.5 * (lo + hi);
                 if ratio(mid) < BANDWIDTH_RATIO {
                     hi = mid;
@@ -666,7 +679,6 @@ fn excited_bandwidth(samples: &[(u64, f64)], interval: f64) -> f64 {
             return 0.5 * (lo + hi);
         }
         f_prev = f;
-        f += step;
     }
     nyquist
 }
@@ -836,35 +848,42 @@ impl Sim {
         let dt = self.dt;
         let (h_damp, h_stiff, h_force, x_t0) = (self.h_damp, self.h_stiff, self.h_force, self.x_t0);
         let k = self.contact_k;
+        let stride = self.spectral_stride;
         let mut yh = self.yh;
         let mut vh = self.vh;
         let mut delta = self.delta;
         let mut rate = self.delta_rate;
         let mut step = self.step;
-        let stride = self.spectral_stride;
+        let mut in_contact = self.in_contact;
+        let mut hyst_over_vi = self.hyst_over_vi;
+        // Running peak and impulse of the open contact event.
+        let (mut peak, mut impulse) = match (in_contact, self.contacts.last()) {
+            (true, Some(ev)) => (ev.peak_force, ev.impulse),
+            _ => (0.0, 0.0),
+        };
+        // Steps until the next spectral sample (taken when `step` is a multiple of stride).
+        let mut countdown = (stride - step % stride) % stride;
         let q = &mut self.q[..];
         let u = &mut self.u[..];
-        let m_damp = &self.m_damp[..];
-        let m_stiff = &self.m_stiff[..];
-        let m_force = &self.m_force[..];
+        let m_damp = &self.m_damp[..q.len()];
+        let m_stiff = &self.m_stiff[..q.len()];
+        let m_force = &self.m_force[..q.len()];
         for _ in 0..n {
             // Contact force at the current state (Eq. 2.4).
-            let f = if self.in_contact {
-                (k * delta * delta.sqrt() * (1.0 + self.hyst_over_vi * rate)).max(0.0)
+            let f = if in_contact {
+                (k * delta * delta.sqrt() * (1.0 + hyst_over_vi * rate)).max(0.0)
             } else {
                 0.0
             };
-            if f > 0.0 {
-                if let Some(ev) = self.contacts.last_mut() {
-                    ev.impulse += f * dt;
-                    if f > ev.peak_force {
-                        ev.peak_force = f;
-                    }
-                }
-                if step % stride == 0 {
+            if countdown == 0 {
+                if f > 0.0 {
                     self.spectral.push((step / stride, f));
                 }
+                countdown = stride;
             }
+            countdown -= 1;
+            impulse += f * dt;
+            peak = peak.max(f);
             // Eq. 2.3 accelerations, Eq. 2.7 velocity then position updates.
             vh = vh * h_damp - (yh + x_t0) * h_stiff + f * h_force;
             yh += vh * dt;
@@ -881,13 +900,16 @@ impl Sim {
             let new_delta = sq - yh;
             let new_rate = su - vh;
             step += 1;
-            if new_delta > 0.0 {
-                if !self.in_contact {
+            if (new_delta > 0.0) != in_contact {
+                if new_delta > 0.0 {
+                    // Onset: interpolate the crossing; V_i is the penetration rate now.
                     let t1 = step as f64 * dt;
                     let frac = new_delta / (new_delta - delta);
                     let v_i = new_rate.max(f64::MIN_POSITIVE);
-                    self.in_contact = true;
-                    self.hyst_over_vi = self.hysteresis / v_i;
+                    in_contact = true;
+                    hyst_over_vi = self.hysteresis / v_i;
+                    peak = 0.0;
+                    impulse = 0.0;
                     self.contacts.push(ContactEvent {
                         start: t1 - frac * dt,
                         end: f64::NAN,
@@ -896,24 +918,34 @@ impl Sim {
                         peak_force: 0.0,
                         impulse: 0.0,
                     });
-                }
-            } else if self.in_contact {
-                let t0 = (step - 1) as f64 * dt;
-                let frac = delta / (delta - new_delta);
-                self.in_contact = false;
-                if let Some(ev) = self.contacts.last_mut() {
-                    ev.end = t0 + frac * dt;
-                    ev.separation_velocity = new_rate;
+                } else {
+                    let t0 = (step - 1) as f64 * dt;
+                    let frac = delta / (delta - new_delta);
+                    in_contact = false;
+                    if let Some(ev) = self.contacts.last_mut() {
+                        ev.end = t0 + frac * dt;
+                        ev.separation_velocity = new_rate;
+                        ev.peak_force = peak;
+                        ev.impulse = impulse;
+                    }
                 }
             }
             delta = new_delta;
             rate = new_rate;
+        }
+        if in_contact {
+            if let Some(ev) = self.contacts.last_mut() {
+                ev.peak_force = peak;
+                ev.impulse = impulse;
+            }
         }
         self.yh = yh;
         self.vh = vh;
         self.delta = delta;
         self.delta_rate = rate;
         self.step = step;
+        self.in_contact = in_contact;
+        self.hyst_over_vi = hyst_over_vi;
         self.fine_steps += n as u64;
     }
 }
@@ -1056,7 +1088,7 @@ fn run(
 
     for k in 0..n_post {
         force.push(sim.force_now());
-        target.push(sim.q.iter().sum::<f64>());
+        target.push(-sim.q.iter().sum::<f64>());
         hammer.push(sim.yh + x_t0);
         if k + 1 == n_post {
             break;
@@ -1279,7 +1311,8 @@ mod tests {
         assert!((c.approach_velocity - v).abs() < 1e-6);
         // Free bodies after the impact: total momentum equals the hammer's initial momentum.
         let n = r.target_displacement.len();
-        let vt = (r.target_displacement[n - 1] - r.target_displacement[n - 2]) * r.sample_rate;
+        // The target record is positive along the impact direction (−x).
+        let vt = -(r.target_displacement[n - 1] - r.target_displacement[n - 2]) * r.sample_rate;
         let vh = (r.hammer_displacement[n - 1] - r.hammer_displacement[n - 2]) * r.sample_rate;
         let p = mh * vh + mt * vt;
         assert!((p - mh * (-v)).abs() < 1e-6 * mh * v, "momentum {p}");

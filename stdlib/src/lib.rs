@@ -1,0 +1,21 @@
+//! Built-in node kinds of spindlelab, and the physics kernels behind them.
+//!
+//! Kernels (`impact`, `frf`, `signal`) are plain functions on typed structs, SI units, no
+//! I/O; [`nodes`] adapts them to the engine's node trait. [`register`] is the one place
+//! where built-in kinds are listed.
+
+pub mod frf;
+pub mod impact;
+pub mod nodes;
+pub mod signal;
+
+use spindlelab_engine::node::Registry;
+use std::sync::Arc;
+
+/// Registers every built-in node kind.
+pub fn register(registry: &mut Registry) {
+    registry.register(Arc::new(nodes::ImpactSimulate::new()));
+    registry.register(Arc::new(nodes::FrfEstimate::new()));
+    registry.register(Arc::new(nodes::TableCollect::new()));
+    registry.register(Arc::new(nodes::RhaiEval::new()));
+}

@@ -148,7 +148,19 @@ fn run_one(recipe: &Recipe, graph: &Graph, registry: &Registry, cache: Option<&C
             let Some(v) = outputs.get(out_port) else {
                 return Outcome::Failed(NodeError::input(port, format!("`{}` produced no `{out_port}`", graph.instances[*src].id)));
             };
-            vals.push(Labelled { label: graph.instances[*src].label.clone(), value: Arc::new(v.clone()) });
+            let coords = graph.instances[*src]
+                .assignments
+                .iter()
+                .filter_map(|(k, v)| match v {
+                    crate::spec::ParamValue::Quantity { value, dim } => {
+                        let unit = if *dim == spindlelab_grammar::Dimension::DIMENSIONLESS { String::new() } else { dim.si_unit() };
+                        Some(crate::node::Coord { name: k.clone(), value: *value, unit })
+                    }
+                    crate::spec::ParamValue::Int(i) => Some(crate::node::Coord { name: k.clone(), value: *i as f64, unit: String::new() }),
+                    _ => None,
+                })
+                .collect();
+            vals.push(Labelled { label: graph.instances[*src].label.clone(), coords, value: Arc::new(v.clone()) });
         }
         inputs.insert(port.clone(), vals);
     }

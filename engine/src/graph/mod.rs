@@ -10,7 +10,8 @@ mod render;
 pub use render::{to_dot, to_mermaid};
 
 use crate::model::{Recipe, Step};
-use crate::node::Registry;
+use crate::diag::Diagnostics;
+use crate::node::{NodeError, Registry};
 use crate::spec::{ParamValue, Params};
 use indexmap::IndexMap;
 
@@ -24,6 +25,8 @@ pub struct Instance {
     pub version: u32,
     /// Sweep assignments that made this instance, e.g. `hammer_mass=0.03 kg`.
     pub label: String,
+    /// The sweep assignments behind the label (upstream ones first), in SI.
+    pub assignments: Vec<(String, ParamValue)>,
     pub params: Params,
     /// Per input port: the producing instances and their output port.
     pub inputs: IndexMap<String, Vec<(usize, String)>>,
@@ -93,11 +96,15 @@ fn sweep_points(step: &Step) -> Vec<(String, Vec<(String, ParamValue)>)> {
 }
 
 /// Compiles a resolved recipe into its instance graph.
-pub fn compile(recipe: &Recipe, registry: &Registry) -> Graph {
+///
+/// Each instance's parameters go through the node's own checks; failures are pushed as
+/// diagnostics at the step, naming the instance and the value.
+pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) -> Graph {
     let mut instances: Vec<Instance> = Vec::new();
     let mut by_step: IndexMap<String, Vec<usize>> = IndexMap::new();
     for step in step_order(recipe) {
-        let spec = registry.get(&step.kind).expect("resolved kind").spec();
+        let node = registry.get(&step.kind).expect("resolved kind");
+        let spec = node.spec();
         // Upstream families: producers whose instances this step maps over (zipped when their labels agree).
         let mut families: Vec<Vec<usize>> = Vec::new();
         let mut family_of_binding: Vec<Option<usize>> = Vec::new();
@@ -125,6 +132,8 @@ pub fn compile(recipe: &Recipe, registry: &Registry) -> Graph {
         let mut ids = Vec::new();
         for combo in &combos {
             let up_label: Vec<String> = combo.iter().enumerate().map(|(f, &k)| instances[families[f][k]].label.clone()).collect();
+            let up_assigned: Vec<(String, ParamValue)> =
+                combo.iter().enumerate().flat_map(|(f, &k)| instances[families[f][k]].assignments.clone()).collect();
             for (own_label, assigned) in &points {
                 let mut label_parts: Vec<&str> = up_label.iter().map(String::as_str).filter(|l| !l.is_empty()).collect();
                 if !own_label.is_empty() {
@@ -171,6 +180,17 @@ pub fn compile(recipe: &Recipe, registry: &Registry) -> Graph {
                     }
                 }
                 let id = if label.is_empty() { step.id.clone() } else { format!("{}[{label}]", step.id) };
+                if let Err(e) = node.validate(&params) {
+                    let which = if label.is_empty() { String::new() } else { format!(" at {label}") };
+                    let help = match &e {
+                        NodeError::InvalidParam { param, .. } => spec
+                            .param(param)
+                            .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
+                            .unwrap_or_else(|| "check the step's parameters".into()),
+                        _ => "check the step's parameters".into(),
+                    };
+                    diags.error_help(Some(&step.span), format!("step `{}` ({}){which}: {e}", step.id, step.kind), help);
+                }
                 ids.push(instances.len());
                 instances.push(Instance {
                     id,
@@ -178,6 +198,7 @@ pub fn compile(recipe: &Recipe, registry: &Registry) -> Graph {
                     kind: step.kind.clone(),
                     version: spec.version,
                     label,
+                    assignments: up_assigned.iter().cloned().chain(assigned.iter().cloned()).collect(),
                     params,
                     inputs,
                     key: blake3::hash(key_text.as_bytes()).to_hex().to_string(),

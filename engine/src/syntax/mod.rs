@@ -10,6 +10,8 @@ mod yaml;
 pub use raw::{Key, Raw, RawKind};
 pub use rhai_recipe::{RhaiLimits, load_rhai, sandboxed_engine};
 pub use yaml::load_yaml;
+/// The Rhai crate, so nodes that evaluate expressions use the same version and sandbox.
+pub use rhai;
 
 use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
 use std::path::Path;

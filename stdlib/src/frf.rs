@@ -1,0 +1,879 @@
+//! Frequency response function estimation from impact records, dissertation §3.1.2–3.1.5.
+//!
+//! Each record (force and response sampled together) is cut into an analysis frame that
+//! starts at the record start or a pre-trigger before the force peak, windowed (§3.1.2:
+//! rectangular force window of 6.5 ms, exponential response window with a 0.113 s time
+//! constant whose decay begins at the end of the force window) and transformed with one
+//! complex FFT per record (the force is the real part and the response the imaginary part
+//! of the packed signal). The FRF is the H1 estimate `S_xf / S_ff` (Eq. 3.1 averaged over
+//! records) or, as in §3.1.3, the ratio of the impact-synchronous averages `ΣX / ΣF`; the
+//! coherence is Eq. 3.2, `|S_xf|² / (S_xx S_ff)`.
+
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+use std::f64::consts::TAU;
+use std::sync::Arc;
+use thiserror::Error;
+
+/// Analysis windows of §3.1.2. `f64::INFINITY` disables either window (whole frame kept,
+/// no decay).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Windows {
+    /// Length of the rectangular force window from the frame start, s (> 0).
+    pub force_window: f64,
+    /// Time constant of the exponential response window, s (> 0); the decay starts at the
+    /// end of the force window.
+    pub response_decay: f64,
+}
+
+impl Windows {
+    /// No windowing: rectangular over the whole frame, no response decay.
+    pub const NONE: Windows = Windows { force_window: f64::INFINITY, response_decay: f64::INFINITY };
+}
+
+impl Default for Windows {
+    /// The values of §3.1.2: 6.5 ms force window, 0.113 s response decay.
+    fn default() -> Self {
+        Windows { force_window: 6.5e-3, response_decay: 0.113 }
+    }
+}
+
+/// Where the analysis frame (and so the force window) starts in each record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Trigger {
+    /// At the first sample of every record.
+    RecordStart,
+    /// `pre_trigger` seconds before the largest `|force|` sample of each record (clamped
+    /// to the record start); samples past the record end are zero. This also aligns the
+    /// records on their force peaks for impact-synchronous averaging (§3.1.3).
+    ForcePeak {
+        /// Time kept before the force peak, s (≥ 0).
+        pre_trigger: f64,
+    },
+}
+
+impl Default for Trigger {
+    /// Force-peak trigger with a 0.5 ms pre-trigger.
+    fn default() -> Self {
+        Trigger::ForcePeak { pre_trigger: 0.5e-3 }
+    }
+}
+
+/// How records are combined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Averaging {
+    /// H1 estimator `Σ X F* / Σ |F|²` (Eq. 3.1 with spectral averaging).
+    #[default]
+    H1,
+    /// Impact-synchronous time-domain averaging of §3.1.3: records aligned by the trigger,
+    /// averaged, then `X̄ / F̄` (equal to `Σ X / Σ F` by linearity of the FFT).
+    TimeSynchronous,
+}
+
+/// Options of [`FrfEstimator::estimate`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrfOptions {
+    /// Analysis windows.
+    pub windows: Windows,
+    /// Frame start.
+    pub trigger: Trigger,
+    /// Record combination.
+    pub averaging: Averaging,
+}
+
+/// One impact: force and response sampled together, equal lengths.
+#[derive(Debug, Clone, Copy)]
+pub struct ImpactRecord<'a> {
+    /// Force samples, N.
+    pub force: &'a [f64],
+    /// Response samples (displacement, or velocity for Eq. 3.3).
+    pub response: &'a [f64],
+}
+
+/// FRF on the FFT lines `0, fs/N, …, fs/2` (`N/2 + 1` lines).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrfEstimate {
+    /// Line frequencies, Hz.
+    pub freq: Vec<f64>,
+    /// Response-to-force FRF.
+    pub h: Vec<Complex64>,
+    /// Coherence of Eq. 3.2, in [0, 1]. With a single record it is 1 by construction
+    /// (`|X F*|² = |X|² |F|²`) and says nothing about quality. Lines where the force or the
+    /// response spectrum is exactly zero carry `h = 0` and coherence 0 (no information).
+    pub coherence: Vec<f64>,
+    /// Number of records combined.
+    pub records: usize,
+}
+
+impl FrfEstimate {
+    /// Converts a velocity-to-force FRF into receptance with Eq. 3.3, dropping the DC line
+    /// (a velocity record carries no static displacement information).
+    pub fn to_receptance(&self) -> Result<FrfEstimate, FrfError> {
+        let keep: Vec<usize> = (0..self.freq.len()).filter(|&i| self.freq[i] != 0.0).collect();
+        let freq: Vec<f64> = keep.iter().map(|&i| self.freq[i]).collect();
+        let hv: Vec<Complex64> = keep.iter().map(|&i| self.h[i]).collect();
+        let h = velocity_to_receptance(&freq, &hv)?;
+        Ok(FrfEstimate {
+            freq,
+            h,
+            coherence: keep.iter().map(|&i| self.coherence[i]).collect(),
+            records: self.records,
+        })
+    }
+}
+
+/// Errors of FRF estimation.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FrfError {
+    /// No records were given.
+    #[error("no records")]
+    NoRecords,
+    /// A record is shorter than two samples.
+    #[error("record {record} has {len} samples; at least 2 are needed")]
+    TooShort {
+        /// Record index.
+        record: usize,
+        /// Its length.
+        len: usize,
+    },
+    /// Force and response of one record differ in length.
+    #[error("record {record}: force has {force} samples, response {response}")]
+    ChannelLengthMismatch {
+        /// Record index.
+        record: usize,
+        /// Force length.
+        force: usize,
+        /// Response length.
+        response: usize,
+    },
+    /// Records differ in length (or differ from the estimator's length).
+    #[error("record {record} has {found} samples, expected {expected}")]
+    RecordLengthMismatch {
+        /// Record index.
+        record: usize,
+        /// Expected length.
+        expected: usize,
+        /// Actual length.
+        found: usize,
+    },
+    /// A sample is NaN or infinite.
+    #[error("record {record} contains a non-finite sample")]
+    NonFinite {
+        /// Record index.
+        record: usize,
+    },
+    /// A parameter is out of range.
+    #[error("invalid {field} = {value}: {requirement}")]
+    InvalidParameter {
+        /// Parameter name.
+        field: &'static str,
+        /// Offending value.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
+    /// The (averaged) force spectrum is zero on every line: there is no excitation.
+    #[error("the force spectrum is zero on every line")]
+    ZeroForceSpectrum,
+    /// Two arrays that must match in length do not.
+    #[error("frequency grid has {freq} lines, FRF {h}")]
+    GridMismatch {
+        /// Frequency lines.
+        freq: usize,
+        /// FRF lines.
+        h: usize,
+    },
+}
+
+/// H1 FRF and coherence (Eqs. 3.1–3.2) of the records with the given windows and trigger.
+/// Plans an FFT on every call; reuse an [`FrfEstimator`] for repeated estimates.
+pub fn estimate(
+    records: &[ImpactRecord<'_>],
+    sample_rate: f64,
+    windows: &Windows,
+    trigger: Trigger,
+) -> Result<FrfEstimate, FrfError> {
+    let first = records.first().ok_or(FrfError::NoRecords)?;
+    let mut est = FrfEstimator::new(first.force.len(), sample_rate)?;
+    est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1 })
+}
+
+/// Per-thread buffers and spectral accumulators.
+struct Worker {
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+    sff: Vec<f64>,
+    sxx: Vec<f64>,
+    sxf: Vec<Complex64>,
+    sx: Vec<Complex64>,
+    sf: Vec<Complex64>,
+}
+
+impl Worker {
+    fn new(n: usize, scratch_len: usize) -> Self {
+        let lines = n / 2 + 1;
+        Worker {
+            buf: vec![Complex64::new(0.0, 0.0); n],
+            scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
+            sff: vec![0.0; lines],
+            sxx: vec![0.0; lines],
+            sxf: vec![Complex64::new(0.0, 0.0); lines],
+            sx: vec![Complex64::new(0.0, 0.0); lines],
+            sf: vec![Complex64::new(0.0, 0.0); lines],
+        }
+    }
+
+    fn reset(&mut self) {
+        self.sff.fill(0.0);
+        self.sxx.fill(0.0);
+        self.sxf.fill(Complex64::new(0.0, 0.0));
+        self.sx.fill(Complex64::new(0.0, 0.0));
+        self.sf.fill(Complex64::new(0.0, 0.0));
+    }
+
+    /// Windows, transforms and accumulates one record; false if it holds a non-finite value.
+    fn process(
+        &mut self,
+        rec: &ImpactRecord<'_>,
+        fft: &dyn Fft<f64>,
+        response_window: &[f64],
+        force_len: usize,
+        pre: Option<usize>,
+    ) -> bool {
+        let n = self.buf.len();
+        let (f, x) = (rec.force, rec.response);
+        let (ef, ex) = (sum_squares(f), sum_squares(x));
+        if !(ef.is_finite() && ex.is_finite()) {
+            return false;
+        }
+        // Scale the response by a power of two to the force's level, so the rounding of the
+        // packed transform leaks no more than one unit in the last place between channels.
+        let scale = if ef > 0.0 && ex > 0.0 { (0.5 * (ef / ex).log2()).round().exp2() } else { 1.0 };
+        let unscale = 1.0 / scale;
+        let start = match pre {
+            None => 0,
+            Some(pre) => {
+                let mut peak = 0;
+                let mut best = f64::NEG_INFINITY;
+                for (i, v) in f.iter().enumerate() {
+                    if v.abs() > best {
+                        best = v.abs();
+                        peak = i;
+                    }
+                }
+                peak.saturating_sub(pre)
+            }
+        };
+        let avail = n - start;
+        let nf = force_len.min(avail);
+        let (head, tail) = self.buf.split_at_mut(nf);
+        for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(response_window) {
+            *z = Complex64::new(fv, xv * w * scale);
+        }
+        let (mid, zeros) = tail.split_at_mut(avail - nf);
+        for ((z, &xv), &w) in mid.iter_mut().zip(&x[start + nf..]).zip(&response_window[nf..]) {
+            *z = Complex64::new(0.0, xv * w * scale);
+        }
+        zeros.fill(Complex64::new(0.0, 0.0));
+
+        fft.process_with_scratch(&mut self.buf, &mut self.scratch);
+
+        let lines = n / 2 + 1;
+        let z = &self.buf;
+        for k in 0..lines {
+            let a = z[k];
+            let b = z[(n - k) % n].conj();
+            let fk = (a + b) * 0.5;
+            let d = a - b;
+            let xk = Complex64::new(0.5 * d.im, -0.5 * d.re) * unscale;
+            self.sff[k] += fk.norm_sqr();
+            self.sxx[k] += xk.norm_sqr();
+            self.sxf[k] += xk * fk.conj();
+            self.sx[k] += xk;
+            self.sf[k] += fk;
+        }
+        true
+    }
+}
+
+/// Sum of squares with independent partial sums, so the loop vectorises; NaN or ±∞ in
+/// the input makes the result non-finite.
+fn sum_squares(v: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let chunks = v.chunks_exact(8);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for i in 0..8 {
+            acc[i] += c[i] * c[i];
+        }
+    }
+    acc.iter().sum::<f64>() + rest.iter().map(|x| x * x).sum::<f64>()
+}
+
+/// Reusable FRF estimator for records of one length and sample rate: plans the FFT once,
+/// keeps window tables and per-thread scratch buffers, and splits records across threads.
+pub struct FrfEstimator {
+    len: usize,
+    sample_rate: f64,
+    fft: Arc<dyn Fft<f64>>,
+    workers: Vec<Worker>,
+    window_key: Option<(f64, f64)>,
+    response_window: Vec<f64>,
+    force_len: usize,
+}
+
+impl FrfEstimator {
+    /// Estimator for records of `len` samples at `sample_rate` Hz, using up to the
+    /// machine's available parallelism.
+    pub fn new(len: usize, sample_rate: f64) -> Result<Self, FrfError> {
+        if len < 2 {
+            return Err(FrfError::TooShort { record: 0, len });
+        }
+        if !(sample_rate.is_finite() && sample_rate > 0.0) {
+            return Err(FrfError::InvalidParameter {
+                field: "sample_rate",
+                value: sample_rate,
+                requirement: "must be finite and positive",
+            });
+        }
+        let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
+        let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+        let scratch = fft.get_inplace_scratch_len();
+        Ok(FrfEstimator {
+            len,
+            sample_rate,
+            fft,
+            workers: (0..threads.max(1)).map(|_| Worker::new(len, scratch)).collect(),
+            window_key: None,
+            response_window: vec![1.0; len],
+            force_len: len,
+        })
+    }
+
+    /// Limits the number of threads (at least 1).
+    pub fn set_threads(&mut self, threads: usize) {
+        let threads = threads.max(1);
+        let scratch = self.fft.get_inplace_scratch_len();
+        self.workers.truncate(threads);
+        while self.workers.len() < threads {
+            self.workers.push(Worker::new(self.len, scratch));
+        }
+    }
+
+    /// Record length this estimator expects.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Always false: an estimator is built for at least two samples.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    fn prepare_windows(&mut self, w: &Windows) -> Result<(), FrfError> {
+        for (field, value) in [("force_window", w.force_window), ("response_decay", w.response_decay)] {
+            if !(value > 0.0) {
+                return Err(FrfError::InvalidParameter {
+                    field,
+                    value,
+                    requirement: "must be positive (or infinite to disable)",
+                });
+            }
+        }
+        let key = (w.force_window, w.response_decay);
+        if self.window_key == Some(key) {
+            return Ok(());
+        }
+        let fs = self.sample_rate;
+        let nw = (w.force_window * fs).round().min(self.len as f64) as usize;
+        self.force_len = nw.max(1);
+        let decay = 1.0 / (w.response_decay * fs);
+        for (i, v) in self.response_window.iter_mut().enumerate() {
+            *v = if i < self.force_len { 1.0 } else { (-((i - self.force_len) as f64) * decay).exp() };
+        }
+        self.window_key = Some(key);
+        Ok(())
+    }
+
+    /// FRF and coherence of `records` (all of the estimator's length).
+    pub fn estimate(
+        &mut self,
+        records: &[ImpactRecord<'_>],
+        options: &FrfOptions,
+    ) -> Result<FrfEstimate, FrfError> {
+        if records.is_empty() {
+            return Err(FrfError::NoRecords);
+        }
+        for (i, r) in records.iter().enumerate() {
+            if r.force.len() != r.response.len() {
+                return Err(FrfError::ChannelLengthMismatch {
+                    record: i,
+                    force: r.force.len(),
+                    response: r.response.len(),
+                });
+            }
+            if r.force.len() != self.len {
+                return Err(FrfError::RecordLengthMismatch { record: i, expected: self.len, found: r.force.len() });
+            }
+        }
+        let pre = match options.trigger {
+            Trigger::RecordStart => None,
+            Trigger::ForcePeak { pre_trigger } => {
+                if !(pre_trigger.is_finite() && pre_trigger >= 0.0) {
+                    return Err(FrfError::InvalidParameter {
+                        field: "pre_trigger",
+                        value: pre_trigger,
+                        requirement: "must be finite and non-negative",
+                    });
+                }
+                Some((pre_trigger * self.sample_rate).round() as usize)
+            }
+        };
+        self.prepare_windows(&options.windows)?;
+
+        let threads = self.workers.len().min(records.len());
+        let chunk = records.len().div_ceil(threads);
+        let fft: &dyn Fft<f64> = &*self.fft;
+        let window = &self.response_window[..];
+        let force_len = self.force_len;
+        let run = |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
+            worker.reset();
+            for (i, r) in recs.iter().enumerate() {
+                if !worker.process(r, fft, window, force_len, pre) {
+                    return Some(offset + i);
+                }
+            }
+            None
+        };
+        let mut bad: Vec<Option<usize>> = vec![None; threads];
+        let (first, rest) = self.workers[..threads].split_at_mut(1);
+        std::thread::scope(|s| {
+            let handles: Vec<_> = rest
+                .iter_mut()
+                .enumerate()
+                .map(|(t, w)| {
+                    let lo = ((t + 1) * chunk).min(records.len());
+                    let hi = ((t + 2) * chunk).min(records.len());
+                    let recs = &records[lo..hi];
+                    s.spawn(move || run(w, lo, recs))
+                })
+                .collect();
+            bad[0] = run(&mut first[0], 0, &records[..chunk.min(records.len())]);
+            for (t, h) in handles.into_iter().enumerate() {
+                bad[t + 1] = h.join().expect("FRF worker thread panicked");
+            }
+        });
+        if let Some(record) = bad.into_iter().flatten().min() {
+            return Err(FrfError::NonFinite { record });
+        }
+
+        // Merge accumulators into the first worker.
+        let (first, rest) = self.workers[..threads].split_at_mut(1);
+        let acc = &mut first[0];
+        for w in rest.iter() {
+            for k in 0..acc.sff.len() {
+                acc.sff[k] += w.sff[k];
+                acc.sxx[k] += w.sxx[k];
+                acc.sxf[k] += w.sxf[k];
+                acc.sx[k] += w.sx[k];
+                acc.sf[k] += w.sf[k];
+            }
+        }
+        let lines = self.len / 2 + 1;
+        let df = self.sample_rate / self.len as f64;
+        let mut h = Vec::with_capacity(lines);
+        let mut coherence = Vec::with_capacity(lines);
+        let mut zero_force_lines = 0usize;
+        for k in 0..lines {
+            let sff = acc.sff[k];
+            let sxx = acc.sxx[k];
+            let sxf = acc.sxf[k];
+            let (num, den) = match options.averaging {
+                Averaging::H1 => (sxf, Complex64::new(sff, 0.0)),
+                Averaging::TimeSynchronous => (acc.sx[k], acc.sf[k]),
+            };
+            let product = sxx * sff;
+            if den.norm_sqr() > 0.0 && product > 0.0 {
+                h.push(num / den);
+                coherence.push((sxf.norm_sqr() / product).min(1.0));
+            } else if den.norm_sqr() > 0.0 {
+                // Zero response spectrum: zero FRF, coherence undefined and reported as 0.
+                h.push(Complex64::new(0.0, 0.0));
+                coherence.push(0.0);
+            } else {
+                // No force on this line: no information, flagged by zero coherence.
+                h.push(Complex64::new(0.0, 0.0));
+                coherence.push(0.0);
+                zero_force_lines += 1;
+            }
+        }
+        if zero_force_lines == lines {
+            return Err(FrfError::ZeroForceSpectrum);
+        }
+        Ok(FrfEstimate {
+            freq: (0..lines).map(|k| k as f64 * df).collect(),
+            h,
+            coherence,
+            records: records.len(),
+        })
+    }
+}
+
+/// Receptance from a velocity-to-force FRF, Eq. 3.3 `H = (V/F)/(iω)`. Every frequency must
+/// be positive: the DC line cannot be converted, so leave it out of the grid (see
+/// [`FrfEstimate::to_receptance`]).
+pub fn velocity_to_receptance(freq: &[f64], h_velocity: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
+    if freq.len() != h_velocity.len() {
+        return Err(FrfError::GridMismatch { freq: freq.len(), h: h_velocity.len() });
+    }
+    freq.iter()
+        .zip(h_velocity)
+        .map(|(&f, &hv)| {
+            if f.is_finite() && f > 0.0 {
+                Ok(hv / Complex64::new(0.0, TAU * f))
+            } else {
+                Err(FrfError::InvalidParameter {
+                    field: "freq",
+                    value: f,
+                    requirement: "must be finite and positive (drop the DC line)",
+                })
+            }
+        })
+        .collect()
+}
+
+/// Velocity-to-force FRF from receptance, `iω H` (the inverse of Eq. 3.3; zero at DC).
+pub fn receptance_to_velocity(freq: &[f64], h: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
+    if freq.len() != h.len() {
+        return Err(FrfError::GridMismatch { freq: freq.len(), h: h.len() });
+    }
+    freq.iter()
+        .zip(h)
+        .map(|(&f, &hk)| {
+            if f.is_finite() && f >= 0.0 {
+                Ok(hk * Complex64::new(0.0, TAU * f))
+            } else {
+                Err(FrfError::InvalidParameter { field: "freq", value: f, requirement: "must be finite and non-negative" })
+            }
+        })
+        .collect()
+}
+
+/// Natural frequency and viscous damping ratio of one mode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModalDamping {
+    /// Undamped natural frequency, Hz.
+    pub natural_frequency: f64,
+    /// Damping ratio.
+    pub damping_ratio: f64,
+}
+
+/// Apparent modal parameters after the exponential response window of §3.1.2: the window
+/// `e^{-t/τ}` adds `1/τ` to the modal decay rate `ζω_n` and keeps the damped frequency.
+/// Exact when the decay starts at the impact; with decay starting at the end of the force
+/// window only the amplitude changes, by `e^{t_w/τ}`.
+pub fn add_window_damping(true_mode: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
+    check_mode(true_mode, response_decay)?;
+    let wn = TAU * true_mode.natural_frequency;
+    let sigma = true_mode.damping_ratio * wn;
+    let wd2 = wn * wn - sigma * sigma;
+    let sigma_w = sigma + 1.0 / response_decay;
+    let wn_w = (wd2 + sigma_w * sigma_w).sqrt();
+    Ok(ModalDamping { natural_frequency: wn_w / TAU, damping_ratio: sigma_w / wn_w })
+}
+
+/// Removes the damping added by the exponential response window (inverse of
+/// [`add_window_damping`]) from modal parameters identified on a windowed FRF.
+pub fn remove_window_damping(apparent: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
+    check_mode(apparent, response_decay)?;
+    let wn_w = TAU * apparent.natural_frequency;
+    let sigma_w = apparent.damping_ratio * wn_w;
+    let wd2 = wn_w * wn_w - sigma_w * sigma_w;
+    let sigma = sigma_w - 1.0 / response_decay;
+    if sigma < 0.0 {
+        return Err(FrfError::InvalidParameter {
+            field: "damping_ratio",
+            value: apparent.damping_ratio,
+            requirement: "apparent decay rate must exceed the window's 1/τ",
+        });
+    }
+    let wn = (wd2 + sigma * sigma).sqrt();
+    Ok(ModalDamping { natural_frequency: wn / TAU, damping_ratio: sigma / wn })
+}
+
+fn check_mode(m: ModalDamping, response_decay: f64) -> Result<(), FrfError> {
+    if !(m.natural_frequency.is_finite() && m.natural_frequency > 0.0) {
+        return Err(FrfError::InvalidParameter {
+            field: "natural_frequency",
+            value: m.natural_frequency,
+            requirement: "must be finite and positive",
+        });
+    }
+    if !(m.damping_ratio.is_finite() && (0.0..1.0).contains(&m.damping_ratio)) {
+        return Err(FrfError::InvalidParameter {
+            field: "damping_ratio",
+            value: m.damping_ratio,
+            requirement: "must lie in [0, 1) (underdamped)",
+        });
+    }
+    if !(response_decay > 0.0) {
+        return Err(FrfError::InvalidParameter {
+            field: "response_decay",
+            value: response_decay,
+            requirement: "must be positive",
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::signal::sdof_receptance;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Normal};
+
+    const FS: f64 = 100.0e3;
+    const N: usize = 65_536;
+    // Single-DOF target: 3558.8 Hz, ζ = 0.02.
+    const M: f64 = 0.1;
+    const K: f64 = 5.0e7;
+
+    fn damping() -> f64 {
+        2.0 * 0.02 * (K * M).sqrt()
+    }
+
+    /// Slightly skewed half-sine force pulse (no exact spectral zeros) of `width` samples starting at `at`, peak `amp`.
+    fn pulse(at: usize, width: usize, amp: f64) -> Vec<f64> {
+        let mut f = vec![0.0; N];
+        for i in 0..width {
+            let skew = 1.0 + 0.1 * i as f64 / width as f64;
+            f[at + i] = amp * skew * (std::f64::consts::PI * (i as f64 + 0.5) / width as f64).sin();
+        }
+        f
+    }
+
+    /// Exact sampled response of the SDOF to a force that acts as impulses `F_j/fs` at the
+    /// sample instants: `x_n = Σ_j F_j/fs · g((n−j)/fs)`, `g(t) = e^{−σt} sin(ω_d t)/(m ω_d)`.
+    fn response(force: &[f64], c: f64) -> Vec<f64> {
+        let sigma = c / (2.0 * M);
+        let wd = (K / M - sigma * sigma).sqrt();
+        let g: Vec<f64> = (0..N)
+            .map(|n| {
+                let t = n as f64 / FS;
+                (-sigma * t).exp() * (wd * t).sin() / (M * wd)
+            })
+            .collect();
+        let mut x = vec![0.0; N];
+        for (j, &fj) in force.iter().enumerate() {
+            if fj != 0.0 {
+                for n in j..N {
+                    x[n] += fj / FS * g[n - j];
+                }
+            }
+        }
+        x
+    }
+
+    /// The DFT ratio of impulse-train data equals the aliased receptance `Σ_m H(f + m fs)`.
+    fn aliased(c: f64, f: f64) -> Complex64 {
+        (-20_000..=20_000).map(|m| sdof_receptance(M, K, c, f + m as f64 * FS)).sum()
+    }
+
+    fn fn_hz() -> f64 {
+        (K / M).sqrt() / TAU
+    }
+
+    #[test]
+    fn sdof_frf_matches_analytic_receptance() {
+        let c = damping();
+        let f = pulse(100, 10, 500.0);
+        let x = response(&f, c);
+        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
+        assert_eq!(est.freq.len(), N / 2 + 1);
+        assert_eq!(est.records, 1);
+        let f_n = fn_hz();
+        for (k, &fk) in est.freq.iter().enumerate() {
+            if fk == 0.0 || fk > 20.0e3 {
+                continue;
+            }
+            // Whole band against the sampled-data receptance.
+            let exact = aliased(c, fk);
+            assert!((est.h[k] - exact).norm() < 2e-4 * exact.norm(), "{fk} Hz: {} vs {exact}", est.h[k]);
+            // Near resonance against the continuous receptance: 1 % and 1°.
+            if (fk - f_n).abs() < 0.3 * f_n {
+                let h = sdof_receptance(M, K, c, fk);
+                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz magnitude");
+                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz phase");
+            }
+            assert!((est.coherence[k] - 1.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn exponential_window_adds_known_damping() {
+        let c = damping();
+        let f = pulse(0, 10, 500.0);
+        let x = response(&f, c);
+        let windows = Windows { force_window: 1.0e-4, response_decay: 0.02 };
+        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart).unwrap();
+        let truth = ModalDamping { natural_frequency: fn_hz(), damping_ratio: 0.02 };
+        let apparent = add_window_damping(truth, windows.response_decay).unwrap();
+        assert!(apparent.damping_ratio > 0.02);
+        // The windowed FRF is the receptance of the apparent mode, scaled by e^{t_w/τ}.
+        let wn = TAU * apparent.natural_frequency;
+        let (k_w, c_w) = (M * wn * wn, 2.0 * apparent.damping_ratio * M * wn);
+        let scale = (windows.force_window / windows.response_decay).exp();
+        for (k, &fk) in est.freq.iter().enumerate() {
+            if (fk - fn_hz()).abs() < 0.2 * fn_hz() {
+                let h = sdof_receptance(M, k_w, c_w, fk) * scale;
+                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz");
+                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz");
+            }
+        }
+        let back = remove_window_damping(apparent, windows.response_decay).unwrap();
+        assert!((back.damping_ratio - 0.02).abs() < 1e-12);
+        assert!((back.natural_frequency - fn_hz()).abs() < 1e-9);
+        assert!(remove_window_damping(ModalDamping { natural_frequency: 100.0, damping_ratio: 1e-4 }, 0.01).is_err());
+    }
+
+    #[test]
+    fn coherence_is_one_without_noise_and_drops_with_noise() {
+        let c = damping();
+        let f = pulse(50, 10, 500.0);
+        let x = response(&f, c);
+        let recs = vec![ImpactRecord { force: &f, response: &x }; 4];
+        let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
+        assert_eq!(est.records, 4);
+        assert!(est.coherence.iter().skip(1).all(|g| (g - 1.0).abs() < 1e-9));
+
+        let normal = Normal::new(0.0, 2.0e-9).unwrap();
+        let noisy: Vec<Vec<f64>> = (0..8)
+            .map(|s| {
+                let mut rng = ChaCha8Rng::seed_from_u64(s);
+                x.iter().map(|v| v + normal.sample(&mut rng)).collect()
+            })
+            .collect();
+        let recs: Vec<ImpactRecord<'_>> = noisy.iter().map(|r| ImpactRecord { force: &f, response: r }).collect();
+        let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
+        assert!(est.coherence.iter().all(|g| (0.0..=1.0).contains(g)));
+        let high: Vec<f64> = est.freq.iter().zip(&est.coherence).filter(|(f, _)| **f > 30.0e3).map(|(_, g)| *g).collect();
+        let mean_high = high.iter().sum::<f64>() / high.len() as f64;
+        assert!(mean_high < 0.9, "coherence far above resonance {mean_high}");
+        let k_res = (fn_hz() * N as f64 / FS).round() as usize;
+        assert!(est.coherence[k_res] > 0.99, "coherence at resonance {}", est.coherence[k_res]);
+    }
+
+    #[test]
+    fn force_peak_trigger_aligns_records() {
+        let c = damping();
+        let f0 = pulse(200, 10, 500.0);
+        let x0 = response(&f0, c);
+        let f1 = pulse(3_000, 10, 350.0);
+        let x1 = response(&f1, c);
+        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
+        let options = FrfOptions { averaging: Averaging::TimeSynchronous, ..FrfOptions::default() };
+        let mut est = FrfEstimator::new(N, FS).unwrap();
+        let sync = est.estimate(&recs, &options).unwrap();
+        let h1 = est.estimate(&recs, &FrfOptions::default()).unwrap();
+        // Near the zeros of the pulse spectrum rounding dominates: compare against the peak.
+        let h_max = h1.h.iter().fold(0.0f64, |m, h| m.max(h.norm()));
+        for k in 1..sync.h.len() {
+            let tol = if sync.freq[k] < 10.0e3 { 1e-9 * h1.h[k].norm() } else { 1e-9 * h_max };
+            assert!((sync.h[k] - h1.h[k]).norm() <= tol, "line {k}: {} vs {}", sync.h[k], h1.h[k]);
+        }
+        let k_res = (fn_hz() * N as f64 / FS).round() as usize;
+        assert!((h1.coherence[k_res] - 1.0).abs() < 1e-9);
+        // Threads change nothing but rounding.
+        est.set_threads(1);
+        let single = est.estimate(&recs, &FrfOptions::default()).unwrap();
+        for k in 0..single.h.len() {
+            assert!((single.h[k] - h1.h[k]).norm() <= 1e-12 * h_max);
+        }
+    }
+
+    #[test]
+    fn impact_simulation_frf_matches_target_receptance() {
+        use crate::impact::{Hammer, ImpactSetup, ModalTarget, simulate_from_contact};
+        let c = damping();
+        let mut setup = ImpactSetup::new(Hammer { mass: 0.03, stiffness: 0.0, damping: 0.0 }, ModalTarget::single(M, K, c));
+        setup.duration = N as f64 / FS;
+        let r = simulate_from_contact(&setup, 1.0).unwrap();
+        assert_eq!(r.force.len(), N);
+        let rec = ImpactRecord { force: &r.force, response: &r.target_displacement };
+        let est = estimate(&[rec], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
+        for (k, &fk) in est.freq.iter().enumerate() {
+            if fk > 500.0 && fk < 8.0e3 {
+                let h = sdof_receptance(M, K, c, fk);
+                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz: {} vs {}", est.h[k].norm(), h.norm());
+                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz phase {} vs {}", est.h[k].arg().to_degrees(), h.arg().to_degrees());
+            }
+        }
+    }
+
+    #[test]
+    fn velocity_receptance_round_trip_eq_3_3() {
+        let freq: Vec<f64> = (0..200).map(|i| i as f64 * 50.0).collect();
+        let h: Vec<Complex64> = freq.iter().map(|&f| sdof_receptance(M, K, damping(), f)).collect();
+        let hv = receptance_to_velocity(&freq, &h).unwrap();
+        assert_eq!(hv[0], Complex64::new(0.0, 0.0));
+        let back = velocity_to_receptance(&freq[1..], &hv[1..]).unwrap();
+        for (a, b) in back.iter().zip(&h[1..]) {
+            assert!((a - b).norm() < 1e-12 * b.norm());
+        }
+        assert!(velocity_to_receptance(&freq, &hv).is_err());
+        assert!(velocity_to_receptance(&freq[1..], &hv).is_err());
+
+        // From velocity records: differentiate the displacement, estimate, convert.
+        let c = damping();
+        let f = pulse(100, 10, 500.0);
+        let x = response(&f, c);
+        let mut v = vec![0.0; N];
+        for n in 1..N - 1 {
+            v[n] = (x[n + 1] - x[n - 1]) * 0.5 * FS;
+        }
+        let est = estimate(&[ImpactRecord { force: &f, response: &v }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
+        let rec = est.to_receptance().unwrap();
+        assert_eq!(rec.freq.len(), est.freq.len() - 1);
+        assert!(rec.freq[0] > 0.0);
+        let k = rec.freq.iter().position(|&f| f >= fn_hz()).unwrap();
+        let h = sdof_receptance(M, K, c, rec.freq[k]);
+        // Central differences shift the magnitude by sinc(ωT), 0.4 % at 3.6 kHz.
+        assert!((rec.h[k].norm() / h.norm() - 1.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let f = vec![0.0, 1.0, 0.5, 0.0];
+        let x = vec![0.0, 0.1, 0.2, 0.1];
+        let short = vec![0.0; 3];
+        let mut nan = x.clone();
+        nan[2] = f64::NAN;
+        let ok = ImpactRecord { force: &f, response: &x };
+        let w = Windows::NONE;
+        let t = Trigger::RecordStart;
+        assert_eq!(estimate(&[], FS, &w, t), Err(FrfError::NoRecords));
+        assert!(matches!(
+            estimate(&[ImpactRecord { force: &f, response: &short }], FS, &w, t),
+            Err(FrfError::ChannelLengthMismatch { .. })
+        ));
+        assert!(matches!(
+            estimate(&[ok, ImpactRecord { force: &short, response: &short }], FS, &w, t),
+            Err(FrfError::RecordLengthMismatch { record: 1, .. })
+        ));
+        assert_eq!(estimate(&[ok, ImpactRecord { force: &f, response: &nan }], FS, &w, t), Err(FrfError::NonFinite { record: 1 }));
+        assert!(matches!(estimate(&[ok], 0.0, &w, t), Err(FrfError::InvalidParameter { .. })));
+        assert!(matches!(estimate(&[ok], f64::NAN, &w, t), Err(FrfError::InvalidParameter { .. })));
+        let bad_w = Windows { force_window: -1.0, response_decay: 0.1 };
+        assert!(matches!(estimate(&[ok], FS, &bad_w, t), Err(FrfError::InvalidParameter { .. })));
+        let bad_t = Trigger::ForcePeak { pre_trigger: f64::NAN };
+        assert!(matches!(estimate(&[ok], FS, &w, bad_t), Err(FrfError::InvalidParameter { .. })));
+        let zero = vec![0.0; 4];
+        assert!(matches!(
+            estimate(&[ImpactRecord { force: &zero, response: &x }], FS, &w, t),
+            Err(FrfError::ZeroForceSpectrum { .. })
+        ));
+        assert!(matches!(estimate(&[ImpactRecord { force: &f[..1], response: &x[..1] }], FS, &w, t), Err(FrfError::TooShort { .. })));
+    }
+}

@@ -1,0 +1,137 @@
+//! `frf.estimate`: FRF and coherence from impact records (§3.1.2–3.1.5, Eqs. 3.1–3.3).
+
+use crate::frf::{Averaging, FrfError, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{Frf, PortType, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct FrfEstimate {
+    spec: NodeSpec,
+}
+
+impl Default for FrfEstimate {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrfEstimate {
+    pub fn new() -> Self {
+        FrfEstimate {
+            spec: NodeSpec {
+                kind: "frf.estimate",
+                version: 1,
+                description: "H = X/F with a rectangular force window and an exponential response window (§3.1.2), averaged over records, with coherence (Eqs. 3.1–3.2).",
+                inputs: vec![
+                    PortSpec::new("force", PortType::TimeSeries, "force records (N), one channel per impact"),
+                    PortSpec::new("response", PortType::TimeSeries, "response records, one channel per impact (m, or m/s with `response: velocity`)"),
+                ],
+                outputs: vec![PortSpec::new("frf", PortType::Frf, "receptance (m/N) with coherence")],
+                params: vec![
+                    Field::def("windows", T::Bool, "true", "apply the §3.1.2 windows"),
+                    Field::def("force_window", T::Quantity(D::TIME), "6.5 ms", "rectangular force window length"),
+                    Field::def("response_decay", T::Quantity(D::TIME), "0.113 s", "time constant of the exponential response window, starting at the force window's end"),
+                    Field::def("trigger", T::Choice(&["force-peak", "record-start"]), "force-peak", "where each analysis frame starts"),
+                    Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before the force peak"),
+                    Field::def("averaging", T::Choice(&["h1", "time-synchronous"]), "h1", "H1 spectral averaging, or impact-synchronous time averaging (§3.1.3)"),
+                    Field::def("response", T::Choice(&["displacement", "velocity"]), "displacement", "velocity responses become receptance by Eq. 3.3"),
+                    Field::opt("max_frequency", T::Quantity(D::FREQUENCY), "keep lines up to this frequency"),
+                ],
+            },
+        }
+    }
+}
+
+fn options(p: &Params) -> FrfOptions {
+    let windows = if p.bool("windows").unwrap_or(true) {
+        Windows { force_window: p.f64("force_window").unwrap_or(6.5e-3), response_decay: p.f64("response_decay").unwrap_or(0.113) }
+    } else {
+        Windows::NONE
+    };
+    let trigger = match p.text("trigger") {
+        Some("record-start") => Trigger::RecordStart,
+        _ => Trigger::ForcePeak { pre_trigger: p.f64("pre_trigger").unwrap_or(0.5e-3) },
+    };
+    let averaging = match p.text("averaging") {
+        Some("time-synchronous") => Averaging::TimeSynchronous,
+        _ => Averaging::H1,
+    };
+    FrfOptions { windows, trigger, averaging }
+}
+
+fn err(e: FrfError) -> NodeError {
+    match e {
+        FrfError::InvalidParameter { field, .. } => NodeError::param(field, e.to_string()),
+        FrfError::NonFinite { .. } | FrfError::TooShort { .. } | FrfError::ChannelLengthMismatch { .. } | FrfError::RecordLengthMismatch { .. } => {
+            NodeError::input("response", e.to_string())
+        }
+        FrfError::NoRecords => NodeError::input("force", e.to_string()),
+        other => NodeError::Failed(other.to_string()),
+    }
+}
+
+impl Node for FrfEstimate {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        for name in ["force_window", "response_decay", "max_frequency"] {
+            if let Some(v) = p.f64(name)
+                && v <= 0.0
+            {
+                return Err(NodeError::param(name, format!("must be positive, got {v}")));
+            }
+        }
+        if p.f64("pre_trigger").is_some_and(|v| v < 0.0) {
+            return Err(NodeError::param("pre_trigger", "must not be negative"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (Value::TimeSeries(force), Value::TimeSeries(response)) = (ctx.input("force")?, ctx.input("response")?) else {
+            return Err(NodeError::input("force", "expected time series"));
+        };
+        if force.channels.is_empty() || force.is_empty() {
+            return Err(NodeError::input("force", "the force record is empty"));
+        }
+        if force.channels.len() != response.channels.len() {
+            return Err(NodeError::input(
+                "response",
+                format!("{} force channel(s) but {} response channel(s): one of each per impact", force.channels.len(), response.channels.len()),
+            ));
+        }
+        if (force.sample_rate - response.sample_rate).abs() > 1e-9 * force.sample_rate {
+            return Err(NodeError::input(
+                "response",
+                format!("sample rate {} Hz differs from the force's {} Hz", response.sample_rate, force.sample_rate),
+            ));
+        }
+        let records: Vec<ImpactRecord> =
+            force.channels.iter().zip(&response.channels).map(|(f, r)| ImpactRecord { force: &f.samples, response: &r.samples }).collect();
+        let mut est = FrfEstimator::new(force.len(), force.sample_rate).map_err(err)?;
+        // One thread inside the node: the executor runs nodes in parallel, and a fixed
+        // summation order keeps the numbers identical whatever the machine.
+        est.set_threads(1);
+        let mut e = est.estimate(&records, &options(ctx.params)).map_err(err)?;
+        if ctx.params.text("response") == Some("velocity") {
+            e = e.to_receptance().map_err(err)?;
+        }
+        let keep = match ctx.params.f64("max_frequency") {
+            Some(fmax) => e.freq.iter().take_while(|f| **f <= fmax).count(),
+            None => e.freq.len(),
+        };
+        let unit = if force.channels[0].unit.symbol == "N" { "m/N" } else { "" };
+        let frf = Frf {
+            freq_hz: e.freq[..keep].to_vec(),
+            values: e.h[..keep].to_vec(),
+            coherence: Some(e.coherence[..keep].to_vec()),
+            unit: UnitLabel::new(unit),
+            direction: None,
+            speed_rpm: None,
+        };
+        Ok([("frf".to_string(), Value::Frf(frf))].into_iter().collect())
+    }
+}
