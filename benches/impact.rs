@@ -8,7 +8,14 @@ use spindlelab_stdlib::impact::{
 use std::hint::black_box;
 
 fn setup(target: ModalTarget) -> ImpactSetup {
-    let mut s = ImpactSetup::new(Hammer { mass: 0.01, stiffness: 100.0, damping: 0.0 }, target);
+    let mut s = ImpactSetup::new(
+        Hammer {
+            mass: 0.01,
+            stiffness: 100.0,
+            damping: 0.0,
+        },
+        target,
+    );
     s.dt = 1.0e-8;
     s.duration = 5.0e-3;
     s.sample_rate = 100.0e3;
@@ -22,7 +29,9 @@ fn bench_impact(c: &mut Criterion) {
         ("impact/one_mode_5ms_dt1e-8", one_mode),
         ("impact/table2_1_target1_5ms_dt1e-8", table),
     ] {
-        let speed = -first_contact(&s).expect("hammer reaches the target").hammer_velocity;
+        let speed = -first_contact(&s)
+            .expect("hammer reaches the target")
+            .hammer_velocity;
         c.bench_function(name, |b| {
             b.iter(|| simulate_from_contact(black_box(&s), black_box(speed)).expect("valid setup"))
         });

@@ -199,7 +199,15 @@ fn main() -> ExitCode {
                 }
                 Err((RunError::NodesFailed { failures }, report)) => {
                     for (id, e) in &failures {
-                        eprintln!("error: node `{id}` failed: {e}");
+                        let at = c
+                            .graph
+                            .instances
+                            .iter()
+                            .find(|i| &i.id == id)
+                            .and_then(|i| c.recipe.step(&i.step))
+                            .map(|s| format!("\n --> {} (step `{}`)", s.span, s.id))
+                            .unwrap_or_default();
+                        eprintln!("error: node `{id}` failed: {e}{at}");
                     }
                     if let Some(r) = report {
                         eprintln!(

@@ -195,17 +195,42 @@ fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
         Severity::Warning => Level::WARNING,
     };
     let source = d.span.as_ref().and_then(|s| {
-        let (start, end) = s.bytes?;
         let file = sources.iter().find(|f| f.path == s.file)?;
-        // Quote only the line that holds the span: big files stay cheap to report on.
         let text: &str = &file.text;
-        if end > text.len() || start > end {
-            return None;
-        }
-        let line_start = text[..start].rfind('\n').map(|i| i + 1).unwrap_or(0);
-        let line_end = text[end..].find('\n').map(|i| end + i).unwrap_or(text.len());
+        // Quote only the line that holds the span: big files stay cheap to report on.
+        let (line_start, start, end) = match s.bytes {
+            Some((start, end)) if end <= text.len() && start <= end && text.is_char_boundary(start) => {
+                (text[..start].rfind('\n').map(|i| i + 1).unwrap_or(0), start, end)
+            }
+            _ if s.line > 0 => {
+                let line_start = text.split_inclusive('\n').take(s.line as usize - 1).map(str::len).sum::<usize>();
+                let line = text[line_start..].split('\n').next().unwrap_or("");
+                let col: usize = line.chars().take(s.column.saturating_sub(1) as usize).map(char::len_utf8).sum();
+                let start = line_start + col;
+                let len = line[col..].chars().next().map_or(0, char::len_utf8);
+                (line_start, start, start + len)
+            }
+            _ => return None,
+        };
+        let line_end = text[line_start..].find('\n').map(|i| line_start + i).unwrap_or(text.len());
+        let end = end.min(line_end).max(start);
         Some((s.clone(), text[line_start..line_end].to_string(), start - line_start, end - line_start))
     });
+    if source.is_none() {
+        // Nothing to quote: a plain two-line message reads better than an empty frame.
+        let level_word = match d.severity {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        };
+        let mut out = match &d.span {
+            Some(s) => format!("{level_word}: {}\n --> {s}\n", d.message),
+            None => format!("{level_word}: {}\n", d.message),
+        };
+        if let Some(h) = &d.help {
+            out.push_str(&format!("help: {h}\n"));
+        }
+        return out;
+    }
     // With a quoted line the renderer shows the location; without one the title carries it.
     let title = match (&d.span, &source) {
         (Some(s), None) => format!("{}  [{s}]", d.message),

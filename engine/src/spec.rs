@@ -295,7 +295,10 @@ impl EntityNames {
 pub fn suggest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
     let mut best: Option<(f64, &str)> = None;
     for c in candidates {
-        let score = strsim::jaro_winkler(word, c);
+        // Jaro–Winkler ranks; a small edit distance also counts for short names (`hot` → `hit`).
+        let edits = strsim::levenshtein(word, c);
+        let close = edits <= (c.chars().count() / 3).max(1);
+        let score = strsim::jaro_winkler(word, c) + if close { 1.0 } else { 0.0 };
         if score > best.map_or(0.0, |b| b.0) {
             best = Some((score, c));
         }
@@ -317,13 +320,17 @@ pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &
     };
     let mut ok = true;
     let mut values = IndexMap::new();
+    let mut suggested: Vec<String> = Vec::new();
     for (key, _) in entries {
         if !fields.iter().any(|f| f.name == key.name) {
             ok = false;
             let known: Vec<&str> = fields.iter().map(|f| f.name).collect();
             let msg = format!("unknown key `{}` in {what}", key.name);
             match suggest(&key.name, known.iter().copied()) {
-                Some(s) => diags.error_help(Some(&key.span), msg, format!("did you mean `{s}`?")),
+                Some(s) => {
+                    diags.error_help(Some(&key.span), msg, format!("did you mean `{s}`?"));
+                    suggested.push(s);
+                }
                 None => diags.error_help(Some(&key.span), msg, format!("known keys: {}", known.join(", "))),
             }
         }
@@ -338,14 +345,16 @@ pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &
             },
             None => {
                 if let Some(def) = field.default {
-                    let span = Span::file_only("<default>".into());
-                    let raw_def = Raw { span, kind: RawKind::Str(def.to_string()) };
+                    let raw_def = default_raw(def, &field.ty);
                     let mut scratch = Diagnostics::new();
                     let pv = check_value(&raw_def, &field.ty, field.name, ctx, &mut scratch);
                     debug_assert!(pv.is_some(), "bad default for {}: {scratch}", field.name);
                     if let Some(pv) = pv {
                         values.insert(field.name.to_string(), pv);
                     }
+                } else if field.required && suggested.iter().any(|s| s == field.name) {
+                    // Already reported as a misspelling of this field.
+                    ok = false;
                 } else if field.required {
                     ok = false;
                     diags.error_help(
@@ -358,6 +367,41 @@ pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &
         }
     }
     ok.then_some(Params { values })
+}
+
+/// A field default, written as recipe text, as the raw value the validator reads.
+fn default_raw(def: &str, ty: &FieldType) -> Raw {
+    let span = Span::file_only("<default>".into());
+    let kind = match ty {
+        FieldType::Bool => RawKind::Bool(def == "true"),
+        FieldType::ChoiceList(_) => RawKind::Seq(
+            def.trim_matches(|c| c == '[' || c == ']')
+                .split(',')
+                .map(|w| Raw { span: span.clone(), kind: RawKind::Str(w.trim().to_string()) })
+                .collect(),
+        ),
+        _ => RawKind::Str(def.to_string()),
+    };
+    Raw { span, kind }
+}
+
+/// Checks that every default in a field table is valid for its field; a registry test calls it.
+pub fn check_defaults(fields: &[Field]) -> Result<(), String> {
+    let names = EntityNames::default();
+    let ctx = Ctx { entities: &names };
+    for f in fields {
+        if let Some(def) = f.default {
+            let mut d = Diagnostics::new();
+            if check_value(&default_raw(def, &f.ty), &f.ty, f.name, &ctx, &mut d).is_none() {
+                return Err(format!("default `{def}` of `{}` is invalid: {d}", f.name));
+            }
+        }
+        match f.ty {
+            FieldType::Object(inner) | FieldType::ObjectList(inner) => check_defaults(inner)?,
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn parse_scalar(raw: &Raw, what: &str, diags: &mut Diagnostics) -> Option<(String, grammar::Value)> {

@@ -28,13 +28,19 @@ pub struct Windows {
 
 impl Windows {
     /// No windowing: rectangular over the whole frame, no response decay.
-    pub const NONE: Windows = Windows { force_window: f64::INFINITY, response_decay: f64::INFINITY };
+    pub const NONE: Windows = Windows {
+        force_window: f64::INFINITY,
+        response_decay: f64::INFINITY,
+    };
 }
 
 impl Default for Windows {
     /// The values of §3.1.2: 6.5 ms force window, 0.113 s response decay.
     fn default() -> Self {
-        Windows { force_window: 6.5e-3, response_decay: 0.113 }
+        Windows {
+            force_window: 6.5e-3,
+            response_decay: 0.113,
+        }
     }
 }
 
@@ -55,7 +61,9 @@ pub enum Trigger {
 impl Default for Trigger {
     /// Force-peak trigger with a 0.5 ms pre-trigger.
     fn default() -> Self {
-        Trigger::ForcePeak { pre_trigger: 0.5e-3 }
+        Trigger::ForcePeak {
+            pre_trigger: 0.5e-3,
+        }
     }
 }
 
@@ -109,7 +117,9 @@ impl FrfEstimate {
     /// Converts a velocity-to-force FRF into receptance with Eq. 3.3, dropping the DC line
     /// (a velocity record carries no static displacement information).
     pub fn to_receptance(&self) -> Result<FrfEstimate, FrfError> {
-        let keep: Vec<usize> = (0..self.freq.len()).filter(|&i| self.freq[i] != 0.0).collect();
+        let keep: Vec<usize> = (0..self.freq.len())
+            .filter(|&i| self.freq[i] != 0.0)
+            .collect();
         let freq: Vec<f64> = keep.iter().map(|&i| self.freq[i]).collect();
         let hv: Vec<Complex64> = keep.iter().map(|&i| self.h[i]).collect();
         let h = velocity_to_receptance(&freq, &hv)?;
@@ -195,40 +205,54 @@ pub fn estimate(
 ) -> Result<FrfEstimate, FrfError> {
     let first = records.first().ok_or(FrfError::NoRecords)?;
     let mut est = FrfEstimator::new(first.force.len(), sample_rate)?;
-    est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1 })
+    est.estimate(
+        records,
+        &FrfOptions {
+            windows: *windows,
+            trigger,
+            averaging: Averaging::H1,
+        },
+    )
+}
+
+/// Spectral sums of one FFT line.
+#[derive(Debug, Clone, Copy, Default)]
+struct Line {
+    sff: f64,
+    sxx: f64,
+    sxf: Complex64,
 }
 
 /// Per-thread buffers and spectral accumulators.
 struct Worker {
     buf: Vec<Complex64>,
     scratch: Vec<Complex64>,
-    sff: Vec<f64>,
-    sxx: Vec<f64>,
-    sxf: Vec<Complex64>,
-    sx: Vec<Complex64>,
-    sf: Vec<Complex64>,
+    lines: Vec<Line>,
+    /// `(Σ X, Σ F)` per line, kept only for time-synchronous averaging.
+    sums: Vec<(Complex64, Complex64)>,
 }
 
 impl Worker {
     fn new(n: usize, scratch_len: usize) -> Self {
-        let lines = n / 2 + 1;
         Worker {
             buf: vec![Complex64::new(0.0, 0.0); n],
             scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
-            sff: vec![0.0; lines],
-            sxx: vec![0.0; lines],
-            sxf: vec![Complex64::new(0.0, 0.0); lines],
-            sx: vec![Complex64::new(0.0, 0.0); lines],
-            sf: vec![Complex64::new(0.0, 0.0); lines],
+            lines: vec![Line::default(); n / 2 + 1],
+            sums: Vec::new(),
         }
     }
 
-    fn reset(&mut self) {
-        self.sff.fill(0.0);
-        self.sxx.fill(0.0);
-        self.sxf.fill(Complex64::new(0.0, 0.0));
-        self.sx.fill(Complex64::new(0.0, 0.0));
-        self.sf.fill(Complex64::new(0.0, 0.0));
+    fn reset(&mut self, keep_sums: bool) {
+        self.lines.fill(Line::default());
+        if keep_sums {
+            self.sums.clear();
+            self.sums.resize(
+                self.lines.len(),
+                (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0)),
+            );
+        } else {
+            self.sums.clear();
+        }
     }
 
     /// Windows, transforms and accumulates one record; false if it holds a non-finite value.
@@ -242,58 +266,103 @@ impl Worker {
     ) -> bool {
         let n = self.buf.len();
         let (f, x) = (rec.force, rec.response);
-        let (ef, ex) = (sum_squares(f), sum_squares(x));
-        if !(ef.is_finite() && ex.is_finite()) {
+        let (ef, peak) = force_stats(f);
+        if !ef.is_finite() {
             return false;
         }
-        // Scale the response by a power of two to the force's level, so the rounding of the
-        // packed transform leaks no more than one unit in the last place between channels.
-        let scale = if ef > 0.0 && ex > 0.0 { (0.5 * (ef / ex).log2()).round().exp2() } else { 1.0 };
-        let unscale = 1.0 / scale;
-        let start = match pre {
-            None => 0,
-            Some(pre) => {
-                let mut peak = 0;
-                let mut best = f64::NEG_INFINITY;
-                for (i, v) in f.iter().enumerate() {
-                    if v.abs() > best {
-                        best = v.abs();
-                        peak = i;
-                    }
-                }
-                peak.saturating_sub(pre)
-            }
-        };
+        let start = pre.map_or(0, |p| peak.saturating_sub(p));
         let avail = n - start;
         let nf = force_len.min(avail);
+        // Scale the response by a power of two to the force's level (judged over the force
+        // window), so the rounding of the packed transform does not leak from the larger
+        // channel into the smaller one.
+        let ef_window = sum_squares(&f[start..start + nf]);
+        let ex_window = sum_squares(&x[start..start + nf]);
+        let scale = if ef_window > 0.0 && ex_window > 0.0 && ex_window.is_finite() {
+            (0.5 * (ef_window / ex_window).log2())
+                .round()
+                .clamp(-1000.0, 1000.0)
+                .exp2()
+        } else {
+            1.0
+        };
+        let unscale = 1.0 / scale;
+        let mut ex = sum_squares(&x[..start]) + ex_window;
         let (head, tail) = self.buf.split_at_mut(nf);
-        for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(response_window) {
-            *z = Complex64::new(fv, xv * w * scale);
+        for (((z, &fv), &xv), &w) in head
+            .iter_mut()
+            .zip(&f[start..])
+            .zip(&x[start..])
+            .zip(response_window)
+        {
+            *z = Complex64::new(fv, xv * (w * scale));
         }
         let (mid, zeros) = tail.split_at_mut(avail - nf);
-        for ((z, &xv), &w) in mid.iter_mut().zip(&x[start + nf..]).zip(&response_window[nf..]) {
-            *z = Complex64::new(0.0, xv * w * scale);
+        ex += pack_response(mid, &x[start + nf..], &response_window[nf..], scale);
+        if !ex.is_finite() {
+            return false;
         }
         zeros.fill(Complex64::new(0.0, 0.0));
 
         fft.process_with_scratch(&mut self.buf, &mut self.scratch);
 
-        let lines = n / 2 + 1;
+        // Unpack: F_k = (Z_k + conj Z_{N−k})/2, X_k = (Z_k − conj Z_{N−k})/(2i).
+        // A channel that is identically zero in the frame stays exactly zero (instead of
+        // picking up the other channel's rounding).
+        let f_gain = if ef_window > 0.0 { 1.0 } else { 0.0 };
+        let x_gain = if ex > 0.0 { unscale } else { 0.0 };
         let z = &self.buf;
-        for k in 0..lines {
+        let keep_sums = !self.sums.is_empty();
+        let unpack = |k: usize| {
             let a = z[k];
-            let b = z[(n - k) % n].conj();
-            let fk = (a + b) * 0.5;
+            let b = if k == 0 { a.conj() } else { z[n - k].conj() };
+            let fk = (a + b) * (0.5 * f_gain);
             let d = a - b;
-            let xk = Complex64::new(0.5 * d.im, -0.5 * d.re) * unscale;
-            self.sff[k] += fk.norm_sqr();
-            self.sxx[k] += xk.norm_sqr();
-            self.sxf[k] += xk * fk.conj();
-            self.sx[k] += xk;
-            self.sf[k] += fk;
+            (fk, Complex64::new(0.5 * d.im, -0.5 * d.re) * x_gain)
+        };
+        for (k, line) in self.lines.iter_mut().enumerate() {
+            let (fk, xk) = unpack(k);
+            line.sff += fk.norm_sqr();
+            line.sxx += xk.norm_sqr();
+            line.sxf += xk * fk.conj();
+        }
+        if keep_sums {
+            for (k, s) in self.sums.iter_mut().enumerate() {
+                let (fk, xk) = unpack(k);
+                s.0 += xk;
+                s.1 += fk;
+            }
         }
         true
     }
+}
+
+/// Writes `i·x·w·scale` into `out` and returns the sum of squares of `x` (non-finite if
+/// any sample is), in one vectorisable pass.
+fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64 {
+    let len = out.len();
+    let (x, w) = (&x[..len], &w[..len]);
+    let mut acc = [0.0f64; 4];
+    let mut oc = out.chunks_exact_mut(4);
+    let mut xc = x.chunks_exact(4);
+    let mut wc = w.chunks_exact(4);
+    for ((o, xv), wv) in (&mut oc).zip(&mut xc).zip(&mut wc) {
+        for i in 0..4 {
+            acc[i] += xv[i] * xv[i];
+            o[i] = Complex64::new(0.0, xv[i] * (wv[i] * scale));
+        }
+    }
+    let mut rest = 0.0;
+    for ((o, &xv), &wv) in oc
+        .into_remainder()
+        .iter_mut()
+        .zip(xc.remainder())
+        .zip(wc.remainder())
+    {
+        rest += xv * xv;
+        *o = Complex64::new(0.0, xv * (wv * scale));
+    }
+    acc.iter().sum::<f64>() + rest
 }
 
 /// Sum of squares with independent partial sums, so the loop vectorises; NaN or ±∞ in
@@ -308,6 +377,46 @@ fn sum_squares(v: &[f64]) -> f64 {
         }
     }
     acc.iter().sum::<f64>() + rest.iter().map(|x| x * x).sum::<f64>()
+}
+
+/// Sum of squares of the force (non-finite if any sample is) and index of its largest
+/// `|f|`, in one vectorisable pass.
+fn force_stats(v: &[f64]) -> (f64, usize) {
+    const L: usize = 8;
+    let mut acc = [0.0f64; L];
+    let mut best = [f64::NEG_INFINITY; L];
+    let mut best_chunk = [0usize; L];
+    let chunks = v.chunks_exact(L);
+    let rest = chunks.remainder();
+    for (ci, c) in chunks.enumerate() {
+        for i in 0..L {
+            acc[i] += c[i] * c[i];
+            let a = c[i].abs();
+            let better = a > best[i];
+            best[i] = if better { a } else { best[i] };
+            best_chunk[i] = if better { ci } else { best_chunk[i] };
+        }
+    }
+    // Largest over lanes, earliest sample on ties.
+    let mut peak_value = f64::NEG_INFINITY;
+    let mut peak = 0usize;
+    for i in 0..L {
+        let idx = best_chunk[i] * L + i;
+        if best[i] > peak_value || (best[i] == peak_value && idx < peak) {
+            peak_value = best[i];
+            peak = idx;
+        }
+    }
+    let base = v.len() - rest.len();
+    let mut tail = 0.0;
+    for (i, x) in rest.iter().enumerate() {
+        tail += x * x;
+        if x.abs() > peak_value {
+            peak_value = x.abs();
+            peak = base + i;
+        }
+    }
+    (acc.iter().sum::<f64>() + tail, peak)
 }
 
 /// Reusable FRF estimator for records of one length and sample rate: plans the FFT once,
@@ -337,13 +446,17 @@ impl FrfEstimator {
             });
         }
         let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
-        let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+        let threads = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1);
         let scratch = fft.get_inplace_scratch_len();
         Ok(FrfEstimator {
             len,
             sample_rate,
             fft,
-            workers: (0..threads.max(1)).map(|_| Worker::new(len, scratch)).collect(),
+            workers: (0..threads.max(1))
+                .map(|_| Worker::new(len, scratch))
+                .collect(),
             window_key: None,
             response_window: vec![1.0; len],
             force_len: len,
@@ -371,8 +484,11 @@ impl FrfEstimator {
     }
 
     fn prepare_windows(&mut self, w: &Windows) -> Result<(), FrfError> {
-        for (field, value) in [("force_window", w.force_window), ("response_decay", w.response_decay)] {
-            if !(value > 0.0) {
+        for (field, value) in [
+            ("force_window", w.force_window),
+            ("response_decay", w.response_decay),
+        ] {
+            if value.is_nan() || value <= 0.0 {
                 return Err(FrfError::InvalidParameter {
                     field,
                     value,
@@ -389,7 +505,11 @@ impl FrfEstimator {
         self.force_len = nw.max(1);
         let decay = 1.0 / (w.response_decay * fs);
         for (i, v) in self.response_window.iter_mut().enumerate() {
-            *v = if i < self.force_len { 1.0 } else { (-((i - self.force_len) as f64) * decay).exp() };
+            *v = if i < self.force_len {
+                1.0
+            } else {
+                (-((i - self.force_len) as f64) * decay).exp()
+            };
         }
         self.window_key = Some(key);
         Ok(())
@@ -413,7 +533,11 @@ impl FrfEstimator {
                 });
             }
             if r.force.len() != self.len {
-                return Err(FrfError::RecordLengthMismatch { record: i, expected: self.len, found: r.force.len() });
+                return Err(FrfError::RecordLengthMismatch {
+                    record: i,
+                    expected: self.len,
+                    found: r.force.len(),
+                });
             }
         }
         let pre = match options.trigger {
@@ -436,15 +560,17 @@ impl FrfEstimator {
         let fft: &dyn Fft<f64> = &*self.fft;
         let window = &self.response_window[..];
         let force_len = self.force_len;
-        let run = |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
-            worker.reset();
-            for (i, r) in recs.iter().enumerate() {
-                if !worker.process(r, fft, window, force_len, pre) {
-                    return Some(offset + i);
+        let keep_sums = options.averaging == Averaging::TimeSynchronous;
+        let run =
+            |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
+                worker.reset(keep_sums);
+                for (i, r) in recs.iter().enumerate() {
+                    if !worker.process(r, fft, window, force_len, pre) {
+                        return Some(offset + i);
+                    }
                 }
-            }
-            None
-        };
+                None
+            };
         let mut bad: Vec<Option<usize>> = vec![None; threads];
         let (first, rest) = self.workers[..threads].split_at_mut(1);
         std::thread::scope(|s| {
@@ -471,12 +597,14 @@ impl FrfEstimator {
         let (first, rest) = self.workers[..threads].split_at_mut(1);
         let acc = &mut first[0];
         for w in rest.iter() {
-            for k in 0..acc.sff.len() {
-                acc.sff[k] += w.sff[k];
-                acc.sxx[k] += w.sxx[k];
-                acc.sxf[k] += w.sxf[k];
-                acc.sx[k] += w.sx[k];
-                acc.sf[k] += w.sf[k];
+            for (a, b) in acc.lines.iter_mut().zip(&w.lines) {
+                a.sff += b.sff;
+                a.sxx += b.sxx;
+                a.sxf += b.sxf;
+            }
+            for (a, b) in acc.sums.iter_mut().zip(&w.sums) {
+                a.0 += b.0;
+                a.1 += b.1;
             }
         }
         let lines = self.len / 2 + 1;
@@ -484,27 +612,24 @@ impl FrfEstimator {
         let mut h = Vec::with_capacity(lines);
         let mut coherence = Vec::with_capacity(lines);
         let mut zero_force_lines = 0usize;
-        for k in 0..lines {
-            let sff = acc.sff[k];
-            let sxx = acc.sxx[k];
-            let sxf = acc.sxf[k];
+        for (k, line) in acc.lines.iter().enumerate() {
+            let Line { sff, sxx, sxf } = *line;
             let (num, den) = match options.averaging {
                 Averaging::H1 => (sxf, Complex64::new(sff, 0.0)),
-                Averaging::TimeSynchronous => (acc.sx[k], acc.sf[k]),
+                Averaging::TimeSynchronous => acc.sums[k],
             };
             let product = sxx * sff;
             if den.norm_sqr() > 0.0 && product > 0.0 {
                 h.push(num / den);
                 coherence.push((sxf.norm_sqr() / product).min(1.0));
-            } else if den.norm_sqr() > 0.0 {
-                // Zero response spectrum: zero FRF, coherence undefined and reported as 0.
-                h.push(Complex64::new(0.0, 0.0));
-                coherence.push(0.0);
             } else {
-                // No force on this line: no information, flagged by zero coherence.
+                // No force (or no response) on this line: no information, flagged by zero
+                // coherence.
                 h.push(Complex64::new(0.0, 0.0));
                 coherence.push(0.0);
-                zero_force_lines += 1;
+                if den.norm_sqr() == 0.0 {
+                    zero_force_lines += 1;
+                }
             }
         }
         if zero_force_lines == lines {
@@ -522,9 +647,15 @@ impl FrfEstimator {
 /// Receptance from a velocity-to-force FRF, Eq. 3.3 `H = (V/F)/(iω)`. Every frequency must
 /// be positive: the DC line cannot be converted, so leave it out of the grid (see
 /// [`FrfEstimate::to_receptance`]).
-pub fn velocity_to_receptance(freq: &[f64], h_velocity: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
+pub fn velocity_to_receptance(
+    freq: &[f64],
+    h_velocity: &[Complex64],
+) -> Result<Vec<Complex64>, FrfError> {
     if freq.len() != h_velocity.len() {
-        return Err(FrfError::GridMismatch { freq: freq.len(), h: h_velocity.len() });
+        return Err(FrfError::GridMismatch {
+            freq: freq.len(),
+            h: h_velocity.len(),
+        });
     }
     freq.iter()
         .zip(h_velocity)
@@ -545,7 +676,10 @@ pub fn velocity_to_receptance(freq: &[f64], h_velocity: &[Complex64]) -> Result<
 /// Velocity-to-force FRF from receptance, `iω H` (the inverse of Eq. 3.3; zero at DC).
 pub fn receptance_to_velocity(freq: &[f64], h: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
     if freq.len() != h.len() {
-        return Err(FrfError::GridMismatch { freq: freq.len(), h: h.len() });
+        return Err(FrfError::GridMismatch {
+            freq: freq.len(),
+            h: h.len(),
+        });
     }
     freq.iter()
         .zip(h)
@@ -553,7 +687,11 @@ pub fn receptance_to_velocity(freq: &[f64], h: &[Complex64]) -> Result<Vec<Compl
             if f.is_finite() && f >= 0.0 {
                 Ok(hk * Complex64::new(0.0, TAU * f))
             } else {
-                Err(FrfError::InvalidParameter { field: "freq", value: f, requirement: "must be finite and non-negative" })
+                Err(FrfError::InvalidParameter {
+                    field: "freq",
+                    value: f,
+                    requirement: "must be finite and non-negative",
+                })
             }
         })
         .collect()
@@ -572,19 +710,28 @@ pub struct ModalDamping {
 /// `e^{-t/τ}` adds `1/τ` to the modal decay rate `ζω_n` and keeps the damped frequency.
 /// Exact when the decay starts at the impact; with decay starting at the end of the force
 /// window only the amplitude changes, by `e^{t_w/τ}`.
-pub fn add_window_damping(true_mode: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
+pub fn add_window_damping(
+    true_mode: ModalDamping,
+    response_decay: f64,
+) -> Result<ModalDamping, FrfError> {
     check_mode(true_mode, response_decay)?;
     let wn = TAU * true_mode.natural_frequency;
     let sigma = true_mode.damping_ratio * wn;
     let wd2 = wn * wn - sigma * sigma;
     let sigma_w = sigma + 1.0 / response_decay;
     let wn_w = (wd2 + sigma_w * sigma_w).sqrt();
-    Ok(ModalDamping { natural_frequency: wn_w / TAU, damping_ratio: sigma_w / wn_w })
+    Ok(ModalDamping {
+        natural_frequency: wn_w / TAU,
+        damping_ratio: sigma_w / wn_w,
+    })
 }
 
 /// Removes the damping added by the exponential response window (inverse of
 /// [`add_window_damping`]) from modal parameters identified on a windowed FRF.
-pub fn remove_window_damping(apparent: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
+pub fn remove_window_damping(
+    apparent: ModalDamping,
+    response_decay: f64,
+) -> Result<ModalDamping, FrfError> {
     check_mode(apparent, response_decay)?;
     let wn_w = TAU * apparent.natural_frequency;
     let sigma_w = apparent.damping_ratio * wn_w;
@@ -598,7 +745,10 @@ pub fn remove_window_damping(apparent: ModalDamping, response_decay: f64) -> Res
         });
     }
     let wn = (wd2 + sigma * sigma).sqrt();
-    Ok(ModalDamping { natural_frequency: wn / TAU, damping_ratio: sigma / wn })
+    Ok(ModalDamping {
+        natural_frequency: wn / TAU,
+        damping_ratio: sigma / wn,
+    })
 }
 
 fn check_mode(m: ModalDamping, response_decay: f64) -> Result<(), FrfError> {
@@ -616,7 +766,7 @@ fn check_mode(m: ModalDamping, response_decay: f64) -> Result<(), FrfError> {
             requirement: "must lie in [0, 1) (underdamped)",
         });
     }
-    if !(response_decay > 0.0) {
+    if response_decay.is_nan() || response_decay <= 0.0 {
         return Err(FrfError::InvalidParameter {
             field: "response_decay",
             value: response_decay,
@@ -678,7 +828,9 @@ mod tests {
 
     /// The DFT ratio of impulse-train data equals the aliased receptance `Σ_m H(f + m fs)`.
     fn aliased(c: f64, f: f64) -> Complex64 {
-        (-20_000..=20_000).map(|m| sdof_receptance(M, K, c, f + m as f64 * FS)).sum()
+        (-20_000..=20_000)
+            .map(|m| sdof_receptance(M, K, c, f + m as f64 * FS))
+            .sum()
     }
 
     fn fn_hz() -> f64 {
@@ -690,7 +842,16 @@ mod tests {
         let c = damping();
         let f = pulse(100, 10, 500.0);
         let x = response(&f, c);
-        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
+        let est = estimate(
+            &[ImpactRecord {
+                force: &f,
+                response: &x,
+            }],
+            FS,
+            &Windows::NONE,
+            Trigger::RecordStart,
+        )
+        .unwrap();
         assert_eq!(est.freq.len(), N / 2 + 1);
         assert_eq!(est.records, 1);
         let f_n = fn_hz();
@@ -700,12 +861,22 @@ mod tests {
             }
             // Whole band against the sampled-data receptance.
             let exact = aliased(c, fk);
-            assert!((est.h[k] - exact).norm() < 2e-4 * exact.norm(), "{fk} Hz: {} vs {exact}", est.h[k]);
+            assert!(
+                (est.h[k] - exact).norm() < 2e-4 * exact.norm(),
+                "{fk} Hz: {} vs {exact}",
+                est.h[k]
+            );
             // Near resonance against the continuous receptance: 1 % and 1°.
             if (fk - f_n).abs() < 0.3 * f_n {
                 let h = sdof_receptance(M, K, c, fk);
-                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz magnitude");
-                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz phase");
+                assert!(
+                    (est.h[k].norm() / h.norm() - 1.0).abs() < 0.01,
+                    "{fk} Hz magnitude"
+                );
+                assert!(
+                    (est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0,
+                    "{fk} Hz phase"
+                );
             }
             assert!((est.coherence[k] - 1.0).abs() < 1e-9);
         }
@@ -716,9 +887,24 @@ mod tests {
         let c = damping();
         let f = pulse(0, 10, 500.0);
         let x = response(&f, c);
-        let windows = Windows { force_window: 1.0e-4, response_decay: 0.02 };
-        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart).unwrap();
-        let truth = ModalDamping { natural_frequency: fn_hz(), damping_ratio: 0.02 };
+        let windows = Windows {
+            force_window: 1.0e-4,
+            response_decay: 0.02,
+        };
+        let est = estimate(
+            &[ImpactRecord {
+                force: &f,
+                response: &x,
+            }],
+            FS,
+            &windows,
+            Trigger::RecordStart,
+        )
+        .unwrap();
+        let truth = ModalDamping {
+            natural_frequency: fn_hz(),
+            damping_ratio: 0.02,
+        };
         let apparent = add_window_damping(truth, windows.response_decay).unwrap();
         assert!(apparent.damping_ratio > 0.02);
         // The windowed FRF is the receptance of the apparent mode, scaled by e^{t_w/τ}.
@@ -729,13 +915,25 @@ mod tests {
             if (fk - fn_hz()).abs() < 0.2 * fn_hz() {
                 let h = sdof_receptance(M, k_w, c_w, fk) * scale;
                 assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz");
-                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz");
+                assert!(
+                    (est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0,
+                    "{fk} Hz"
+                );
             }
         }
         let back = remove_window_damping(apparent, windows.response_decay).unwrap();
         assert!((back.damping_ratio - 0.02).abs() < 1e-12);
         assert!((back.natural_frequency - fn_hz()).abs() < 1e-9);
-        assert!(remove_window_damping(ModalDamping { natural_frequency: 100.0, damping_ratio: 1e-4 }, 0.01).is_err());
+        assert!(
+            remove_window_damping(
+                ModalDamping {
+                    natural_frequency: 100.0,
+                    damping_ratio: 1e-4
+                },
+                0.01
+            )
+            .is_err()
+        );
     }
 
     #[test]
@@ -743,7 +941,13 @@ mod tests {
         let c = damping();
         let f = pulse(50, 10, 500.0);
         let x = response(&f, c);
-        let recs = vec![ImpactRecord { force: &f, response: &x }; 4];
+        let recs = vec![
+            ImpactRecord {
+                force: &f,
+                response: &x
+            };
+            4
+        ];
         let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
         assert_eq!(est.records, 4);
         assert!(est.coherence.iter().skip(1).all(|g| (g - 1.0).abs() < 1e-9));
@@ -755,14 +959,30 @@ mod tests {
                 x.iter().map(|v| v + normal.sample(&mut rng)).collect()
             })
             .collect();
-        let recs: Vec<ImpactRecord<'_>> = noisy.iter().map(|r| ImpactRecord { force: &f, response: r }).collect();
+        let recs: Vec<ImpactRecord<'_>> = noisy
+            .iter()
+            .map(|r| ImpactRecord {
+                force: &f,
+                response: r,
+            })
+            .collect();
         let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
         assert!(est.coherence.iter().all(|g| (0.0..=1.0).contains(g)));
-        let high: Vec<f64> = est.freq.iter().zip(&est.coherence).filter(|(f, _)| **f > 30.0e3).map(|(_, g)| *g).collect();
+        let high: Vec<f64> = est
+            .freq
+            .iter()
+            .zip(&est.coherence)
+            .filter(|(f, _)| **f > 30.0e3)
+            .map(|(_, g)| *g)
+            .collect();
         let mean_high = high.iter().sum::<f64>() / high.len() as f64;
         assert!(mean_high < 0.9, "coherence far above resonance {mean_high}");
         let k_res = (fn_hz() * N as f64 / FS).round() as usize;
-        assert!(est.coherence[k_res] > 0.99, "coherence at resonance {}", est.coherence[k_res]);
+        assert!(
+            est.coherence[k_res] > 0.99,
+            "coherence at resonance {}",
+            est.coherence[k_res]
+        );
     }
 
     #[test]
@@ -772,16 +992,37 @@ mod tests {
         let x0 = response(&f0, c);
         let f1 = pulse(3_000, 10, 350.0);
         let x1 = response(&f1, c);
-        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
-        let options = FrfOptions { averaging: Averaging::TimeSynchronous, ..FrfOptions::default() };
+        let recs = [
+            ImpactRecord {
+                force: &f0,
+                response: &x0,
+            },
+            ImpactRecord {
+                force: &f1,
+                response: &x1,
+            },
+        ];
+        let options = FrfOptions {
+            averaging: Averaging::TimeSynchronous,
+            ..FrfOptions::default()
+        };
         let mut est = FrfEstimator::new(N, FS).unwrap();
         let sync = est.estimate(&recs, &options).unwrap();
         let h1 = est.estimate(&recs, &FrfOptions::default()).unwrap();
         // Near the zeros of the pulse spectrum rounding dominates: compare against the peak.
         let h_max = h1.h.iter().fold(0.0f64, |m, h| m.max(h.norm()));
         for k in 1..sync.h.len() {
-            let tol = if sync.freq[k] < 10.0e3 { 1e-9 * h1.h[k].norm() } else { 1e-9 * h_max };
-            assert!((sync.h[k] - h1.h[k]).norm() <= tol, "line {k}: {} vs {}", sync.h[k], h1.h[k]);
+            let tol = if sync.freq[k] < 10.0e3 {
+                1e-9 * h1.h[k].norm()
+            } else {
+                1e-9 * h_max
+            };
+            assert!(
+                (sync.h[k] - h1.h[k]).norm() <= tol,
+                "line {k}: {} vs {}",
+                sync.h[k],
+                h1.h[k]
+            );
         }
         let k_res = (fn_hz() * N as f64 / FS).round() as usize;
         assert!((h1.coherence[k_res] - 1.0).abs() < 1e-9);
@@ -794,20 +1035,91 @@ mod tests {
     }
 
     #[test]
+    fn late_pulse_odd_length_matches_analytic() {
+        // Frame offset by the force-peak trigger, record length not a power of two (nor a
+        // multiple of the vector width), pulse far from the record start.
+        let c = damping();
+        let len = 40_003;
+        let mut f = pulse(12_345, 10, 400.0);
+        f.truncate(len);
+        let mut x = response(&f, c);
+        x.truncate(len);
+        let est = estimate(
+            &[ImpactRecord {
+                force: &f,
+                response: &x,
+            }],
+            FS,
+            &Windows::NONE,
+            Trigger::ForcePeak {
+                pre_trigger: 0.5e-3,
+            },
+        )
+        .unwrap();
+        assert_eq!(est.freq.len(), len / 2 + 1);
+        for (k, &fk) in est.freq.iter().enumerate() {
+            if fk > 0.0 && fk < 20.0e3 {
+                let exact = aliased(c, fk);
+                assert!(
+                    (est.h[k] - exact).norm() < 2e-4 * exact.norm(),
+                    "{fk} Hz: {} vs {exact}",
+                    est.h[k]
+                );
+            }
+        }
+        // The force window cut away the pulse (record start trigger, 6.5 ms window): no
+        // excitation at all.
+        let windows = Windows {
+            force_window: 6.5e-3,
+            response_decay: f64::INFINITY,
+        };
+        let cut = estimate(
+            &[ImpactRecord {
+                force: &f,
+                response: &x,
+            }],
+            FS,
+            &windows,
+            Trigger::RecordStart,
+        );
+        assert_eq!(cut, Err(FrfError::ZeroForceSpectrum));
+    }
+
+    #[test]
     fn impact_simulation_frf_matches_target_receptance() {
         use crate::impact::{Hammer, ImpactSetup, ModalTarget, simulate_from_contact};
         let c = damping();
-        let mut setup = ImpactSetup::new(Hammer { mass: 0.03, stiffness: 0.0, damping: 0.0 }, ModalTarget::single(M, K, c));
+        let mut setup = ImpactSetup::new(
+            Hammer {
+                mass: 0.03,
+                stiffness: 0.0,
+                damping: 0.0,
+            },
+            ModalTarget::single(M, K, c),
+        );
         setup.duration = N as f64 / FS;
         let r = simulate_from_contact(&setup, 1.0).unwrap();
         assert_eq!(r.force.len(), N);
-        let rec = ImpactRecord { force: &r.force, response: &r.target_displacement };
+        let rec = ImpactRecord {
+            force: &r.force,
+            response: &r.target_displacement,
+        };
         let est = estimate(&[rec], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
         for (k, &fk) in est.freq.iter().enumerate() {
             if fk > 500.0 && fk < 8.0e3 {
                 let h = sdof_receptance(M, K, c, fk);
-                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz: {} vs {}", est.h[k].norm(), h.norm());
-                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz phase {} vs {}", est.h[k].arg().to_degrees(), h.arg().to_degrees());
+                assert!(
+                    (est.h[k].norm() / h.norm() - 1.0).abs() < 0.01,
+                    "{fk} Hz: {} vs {}",
+                    est.h[k].norm(),
+                    h.norm()
+                );
+                assert!(
+                    (est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0,
+                    "{fk} Hz phase {} vs {}",
+                    est.h[k].arg().to_degrees(),
+                    h.arg().to_degrees()
+                );
             }
         }
     }
@@ -815,7 +1127,10 @@ mod tests {
     #[test]
     fn velocity_receptance_round_trip_eq_3_3() {
         let freq: Vec<f64> = (0..200).map(|i| i as f64 * 50.0).collect();
-        let h: Vec<Complex64> = freq.iter().map(|&f| sdof_receptance(M, K, damping(), f)).collect();
+        let h: Vec<Complex64> = freq
+            .iter()
+            .map(|&f| sdof_receptance(M, K, damping(), f))
+            .collect();
         let hv = receptance_to_velocity(&freq, &h).unwrap();
         assert_eq!(hv[0], Complex64::new(0.0, 0.0));
         let back = velocity_to_receptance(&freq[1..], &hv[1..]).unwrap();
@@ -833,7 +1148,16 @@ mod tests {
         for n in 1..N - 1 {
             v[n] = (x[n + 1] - x[n - 1]) * 0.5 * FS;
         }
-        let est = estimate(&[ImpactRecord { force: &f, response: &v }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
+        let est = estimate(
+            &[ImpactRecord {
+                force: &f,
+                response: &v,
+            }],
+            FS,
+            &Windows::NONE,
+            Trigger::RecordStart,
+        )
+        .unwrap();
         let rec = est.to_receptance().unwrap();
         assert_eq!(rec.freq.len(), est.freq.len() - 1);
         assert!(rec.freq[0] > 0.0);
@@ -850,30 +1174,102 @@ mod tests {
         let short = vec![0.0; 3];
         let mut nan = x.clone();
         nan[2] = f64::NAN;
-        let ok = ImpactRecord { force: &f, response: &x };
+        let ok = ImpactRecord {
+            force: &f,
+            response: &x,
+        };
         let w = Windows::NONE;
         let t = Trigger::RecordStart;
         assert_eq!(estimate(&[], FS, &w, t), Err(FrfError::NoRecords));
         assert!(matches!(
-            estimate(&[ImpactRecord { force: &f, response: &short }], FS, &w, t),
+            estimate(
+                &[ImpactRecord {
+                    force: &f,
+                    response: &short
+                }],
+                FS,
+                &w,
+                t
+            ),
             Err(FrfError::ChannelLengthMismatch { .. })
         ));
         assert!(matches!(
-            estimate(&[ok, ImpactRecord { force: &short, response: &short }], FS, &w, t),
+            estimate(
+                &[
+                    ok,
+                    ImpactRecord {
+                        force: &short,
+                        response: &short
+                    }
+                ],
+                FS,
+                &w,
+                t
+            ),
             Err(FrfError::RecordLengthMismatch { record: 1, .. })
         ));
-        assert_eq!(estimate(&[ok, ImpactRecord { force: &f, response: &nan }], FS, &w, t), Err(FrfError::NonFinite { record: 1 }));
-        assert!(matches!(estimate(&[ok], 0.0, &w, t), Err(FrfError::InvalidParameter { .. })));
-        assert!(matches!(estimate(&[ok], f64::NAN, &w, t), Err(FrfError::InvalidParameter { .. })));
-        let bad_w = Windows { force_window: -1.0, response_decay: 0.1 };
-        assert!(matches!(estimate(&[ok], FS, &bad_w, t), Err(FrfError::InvalidParameter { .. })));
-        let bad_t = Trigger::ForcePeak { pre_trigger: f64::NAN };
-        assert!(matches!(estimate(&[ok], FS, &w, bad_t), Err(FrfError::InvalidParameter { .. })));
+        assert_eq!(
+            estimate(
+                &[
+                    ok,
+                    ImpactRecord {
+                        force: &f,
+                        response: &nan
+                    }
+                ],
+                FS,
+                &w,
+                t
+            ),
+            Err(FrfError::NonFinite { record: 1 })
+        );
+        assert!(matches!(
+            estimate(&[ok], 0.0, &w, t),
+            Err(FrfError::InvalidParameter { .. })
+        ));
+        assert!(matches!(
+            estimate(&[ok], f64::NAN, &w, t),
+            Err(FrfError::InvalidParameter { .. })
+        ));
+        let bad_w = Windows {
+            force_window: -1.0,
+            response_decay: 0.1,
+        };
+        assert!(matches!(
+            estimate(&[ok], FS, &bad_w, t),
+            Err(FrfError::InvalidParameter { .. })
+        ));
+        let bad_t = Trigger::ForcePeak {
+            pre_trigger: f64::NAN,
+        };
+        assert!(matches!(
+            estimate(&[ok], FS, &w, bad_t),
+            Err(FrfError::InvalidParameter { .. })
+        ));
         let zero = vec![0.0; 4];
         assert!(matches!(
-            estimate(&[ImpactRecord { force: &zero, response: &x }], FS, &w, t),
-            Err(FrfError::ZeroForceSpectrum { .. })
+            estimate(
+                &[ImpactRecord {
+                    force: &zero,
+                    response: &x
+                }],
+                FS,
+                &w,
+                t
+            ),
+            Err(FrfError::ZeroForceSpectrum)
         ));
-        assert!(matches!(estimate(&[ImpactRecord { force: &f[..1], response: &x[..1] }], FS, &w, t), Err(FrfError::TooShort { .. })));
+        assert!(matches!(
+            estimate(
+                &[ImpactRecord {
+                    force: &f[..1],
+                    response: &x[..1]
+                }],
+                FS,
+                &w,
+                t
+            ),
+            Err(FrfError::TooShort { .. })
+        ));
     }
 }

@@ -75,7 +75,11 @@ pub struct Sphere {
 impl Sphere {
     /// A steel sphere with the material constants of the §2.1 example.
     pub fn steel(radius: f64) -> Self {
-        Sphere { radius, youngs_modulus: STEEL_YOUNGS_MODULUS, poisson: STEEL_POISSON }
+        Sphere {
+            radius,
+            youngs_modulus: STEEL_YOUNGS_MODULUS,
+            poisson: STEEL_POISSON,
+        }
     }
 
     /// Material compliance `k_i = (1 − ν_i²)/E_i` of Eq. 2.6.
@@ -202,7 +206,13 @@ pub struct ModalTarget {
 impl ModalTarget {
     /// Single-degree-of-freedom target.
     pub fn single(mass: f64, stiffness: f64, damping: f64) -> Self {
-        ModalTarget { modes: vec![Mode { mass, stiffness, damping }] }
+        ModalTarget {
+            modes: vec![Mode {
+                mass,
+                stiffness,
+                damping,
+            }],
+        }
     }
 
     /// Mode with the lowest undamped natural frequency, used for the response magnitude.
@@ -256,7 +266,11 @@ pub fn table_2_1_target(which: Table21Target) -> ModalTarget {
     ModalTarget {
         modes: rows
             .iter()
-            .map(|&(m, k, c)| Mode { mass: m, stiffness: k * 1.0e6, damping: c * 1.0e3 })
+            .map(|&(m, k, c)| Mode {
+                mass: m,
+                stiffness: k * 1.0e6,
+                damping: c * 1.0e3,
+            })
             .collect(),
     }
 }
@@ -325,7 +339,11 @@ impl ImpactSetup {
     /// `K_t = 1e7 N/m`, no damping.
     pub fn dissertation_example() -> Self {
         ImpactSetup::new(
-            Hammer { mass: 0.01, stiffness: 100.0, damping: 0.0 },
+            Hammer {
+                mass: 0.01,
+                stiffness: 100.0,
+                damping: 0.0,
+            },
             ModalTarget::single(0.1, 1.0e7, 0.0),
         )
     }
@@ -362,12 +380,18 @@ impl ImpactSetup {
             non_negative("noise", "std_dev", noise.std_dev)?;
         }
         let steps = self.duration * self.sample_rate * (1.0 / (self.sample_rate * self.dt)).ceil();
-        if !(steps <= MAX_FINE_STEPS) {
-            return Err(ImpactError::TooManySteps { steps, limit: MAX_FINE_STEPS });
+        if steps.is_nan() || steps > MAX_FINE_STEPS {
+            return Err(ImpactError::TooManySteps {
+                steps,
+                limit: MAX_FINE_STEPS,
+            });
         }
         let samples = (self.duration + self.pre_trigger) * self.sample_rate;
-        if !(samples <= MAX_FINE_STEPS) {
-            return Err(ImpactError::TooManySteps { steps: samples, limit: MAX_FINE_STEPS });
+        if samples.is_nan() || samples > MAX_FINE_STEPS {
+            return Err(ImpactError::TooManySteps {
+                steps: samples,
+                limit: MAX_FINE_STEPS,
+            });
         }
         Ok(())
     }
@@ -614,10 +638,13 @@ pub fn first_contact(setup: &ImpactSetup) -> Result<FirstContact, ImpactError> {
     }
     let (_, v) = body.transition(hi).apply(x0, v0);
     // A grazing approach (zero normal speed) is no impact.
-    if !(v < -1e-12) {
+    if v.is_nan() || v >= -1e-12 {
         return Err(ImpactError::NoContact);
     }
-    Ok(FirstContact { time: hi, hammer_velocity: v })
+    Ok(FirstContact {
+        time: hi,
+        hammer_velocity: v,
+    })
 }
 
 /// Single-frequency excited bandwidth of a finely sampled force: the first frequency where
@@ -728,7 +755,12 @@ impl Body {
             let e = (-a * h).exp();
             (e, e * h)
         };
-        Transition { xx: ec + a * es, xv: es, vx: -self.wn2 * es, vv: ec - a * es }
+        Transition {
+            xx: ec + a * es,
+            xv: es,
+            vx: -self.wn2 * es,
+            vv: ec - a * es,
+        }
     }
 
     /// Bound on the fourth time derivative of the free response from state `(x, v)`.
@@ -933,11 +965,9 @@ impl Sim {
             delta = new_delta;
             rate = new_rate;
         }
-        if in_contact {
-            if let Some(ev) = self.contacts.last_mut() {
-                ev.peak_force = peak;
-                ev.impulse = impulse;
-            }
+        if let (true, Some(ev)) = (in_contact, self.contacts.last_mut()) {
+            ev.peak_force = peak;
+            ev.impulse = impulse;
         }
         self.yh = yh;
         self.vh = vh;
@@ -1034,7 +1064,10 @@ fn run(
         h_damp: 1.0 - hm.damping * dt / hm.mass,
         h_stiff: hm.stiffness * dt / hm.mass,
         h_force: dt / hm.mass,
-        m_damp: modes.iter().map(|m| 1.0 - m.damping * dt / m.mass).collect(),
+        m_damp: modes
+            .iter()
+            .map(|m| 1.0 - m.damping * dt / m.mass)
+            .collect(),
         m_stiff: modes.iter().map(|m| m.stiffness * dt / m.mass).collect(),
         m_force: modes.iter().map(|m| dt / m.mass).collect(),
         spectral_stride,
@@ -1053,8 +1086,14 @@ fn run(
     };
 
     let hammer_body = Body::new(hm.mass, hm.stiffness, hm.damping);
-    let mode_bodies: Vec<Body> = modes.iter().map(|m| Body::new(m.mass, m.stiffness, m.damping)).collect();
-    let max_rate = mode_bodies.iter().map(|b| b.rate).fold(hammer_body.rate, f64::max);
+    let mode_bodies: Vec<Body> = modes
+        .iter()
+        .map(|m| Body::new(m.mass, m.stiffness, m.damping))
+        .collect();
+    let max_rate = mode_bodies
+        .iter()
+        .map(|b| b.rate)
+        .fold(hammer_body.rate, f64::max);
     let substeps = ((ts * max_rate / FREE_FLIGHT_MAX_PHASE).ceil() as usize).max(1);
     let h = ts / substeps as f64;
     let free = FreeFlight {
@@ -1093,7 +1132,8 @@ fn run(
         if k + 1 == n_post {
             break;
         }
-        let advanced = setup.exact_free_flight && free.try_advance(&mut sim, &mut save_q, &mut save_u);
+        let advanced =
+            setup.exact_free_flight && free.try_advance(&mut sim, &mut save_q, &mut save_u);
         if advanced {
             sim.step += n_sub as u64;
         } else {
@@ -1102,10 +1142,8 @@ fn run(
     }
 
     let record_end = (n_post - 1) as f64 * ts;
-    if sim.in_contact {
-        if let Some(ev) = sim.contacts.last_mut() {
-            ev.end = record_end;
-        }
+    if let (true, Some(ev)) = (sim.in_contact, sim.contacts.last_mut()) {
+        ev.end = record_end;
     }
     let contacts = sim.contacts;
     let impulse_time = match (contacts.first(), contacts.last()) {
@@ -1122,18 +1160,17 @@ fn run(
         .unwrap_or(0.0);
     let response_magnitude = amplitude_at(&target[n_pre..], fs, response_frequency);
 
-    if let Some(noise) = &setup.noise {
-        if noise.std_dev > 0.0 {
-            let normal = Normal::new(0.0, noise.std_dev).map_err(|_| ImpactError::InvalidParameter {
+    if let Some(noise) = setup.noise.filter(|n| n.std_dev > 0.0) {
+        let normal =
+            Normal::new(0.0, noise.std_dev).map_err(|_| ImpactError::InvalidParameter {
                 name: "noise",
                 field: "std_dev",
                 value: noise.std_dev,
                 requirement: "must be finite and non-negative",
             })?;
-            let mut rng = ChaCha8Rng::seed_from_u64(noise.seed);
-            for x in target.iter_mut() {
-                *x += normal.sample(&mut rng);
-            }
+        let mut rng = ChaCha8Rng::seed_from_u64(noise.seed);
+        for x in target.iter_mut() {
+            *x += normal.sample(&mut rng);
         }
     }
 
@@ -1159,7 +1196,12 @@ fn finite(name: &'static str, field: &'static str, value: f64) -> Result<(), Imp
     if value.is_finite() {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be finite" })
+        Err(ImpactError::InvalidParameter {
+            name,
+            field,
+            value,
+            requirement: "must be finite",
+        })
     }
 }
 
@@ -1180,7 +1222,12 @@ fn positive_or_inf(name: &'static str, field: &'static str, value: f64) -> Resul
     if value > 0.0 {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be positive" })
+        Err(ImpactError::InvalidParameter {
+            name,
+            field,
+            value,
+            requirement: "must be positive",
+        })
     }
 }
 
@@ -1206,7 +1253,11 @@ mod tests {
 
     fn free_pair(mh: f64, mt: f64, speed: f64, restitution: f64) -> ImpactSetup {
         let mut s = ImpactSetup::new(
-            Hammer { mass: mh, stiffness: 0.0, damping: 0.0 },
+            Hammer {
+                mass: mh,
+                stiffness: 0.0,
+                damping: 0.0,
+            },
             ModalTarget::single(mt, 0.0, 0.0),
         );
         s.contact.restitution = restitution;
@@ -1219,7 +1270,11 @@ mod tests {
 
     fn sweep_setup(mh: f64) -> ImpactSetup {
         let mut s = ImpactSetup::new(
-            Hammer { mass: mh, stiffness: 500.0, damping: 0.0 },
+            Hammer {
+                mass: mh,
+                stiffness: 500.0,
+                damping: 0.0,
+            },
             ModalTarget::single(0.1, 5.0e7, 0.0),
         );
         s.duration = 2.0e-3;
@@ -1234,9 +1289,16 @@ mod tests {
         let expected = 4.0 / (3.0 * 2.0 * k1) * f64::sqrt(r);
         assert!((c.stiffness() - expected).abs() < 1e-12 * expected);
         // Swapping the spheres changes nothing; a flat equals a sphere of infinite radius.
-        let swapped = Contact { hammer_tip: c.target, target: c.hammer_tip, ..c };
+        let swapped = Contact {
+            hammer_tip: c.target,
+            target: c.hammer_tip,
+            ..c
+        };
         assert!((swapped.stiffness() - c.stiffness()).abs() < 1e-9 * expected);
-        let flat = Contact { target: Sphere::steel(f64::INFINITY), ..c };
+        let flat = Contact {
+            target: Sphere::steel(f64::INFINITY),
+            ..c
+        };
         let expected_flat = 4.0 / (3.0 * 2.0 * k1) * f64::sqrt(6.35e-3);
         assert!((flat.stiffness() - expected_flat).abs() < 1e-9 * expected_flat);
     }
@@ -1292,9 +1354,14 @@ mod tests {
             let f_max = k.powf(0.4) * (1.25 * m_star * v * v).powf(0.6);
             let t = r.impulse_time;
             assert!((t / t_hertz - 1.0).abs() < 0.005, "T {t} vs {t_hertz}");
-            assert!((r.peak_force / f_max - 1.0).abs() < 0.005, "F {} vs {f_max}", r.peak_force);
+            assert!(
+                (r.peak_force / f_max - 1.0).abs() < 0.005,
+                "F {} vs {f_max}",
+                r.peak_force
+            );
             // Equivalent form (m*²/(K² v))^(1/5) carries the factor 2.9432·(5/4)^(2/5).
-            let alt = HERTZ_TIME_FACTOR * 1.25f64.powf(0.4) * (m_star * m_star / (k * k * v)).powf(0.2);
+            let alt =
+                HERTZ_TIME_FACTOR * 1.25f64.powf(0.4) * (m_star * m_star / (k * k * v)).powf(0.2);
             assert!((alt / t_hertz - 1.0).abs() < 1e-12);
         }
     }
@@ -1325,7 +1392,10 @@ mod tests {
         let r = simulate(&free_pair(0.01, 0.1, 1.0, 0.95)).unwrap();
         let c = r.contacts[0];
         let e_eff = -c.separation_velocity / c.approach_velocity;
-        assert!((e_eff / 0.95 - 1.0).abs() < 0.02, "effective restitution {e_eff}");
+        assert!(
+            (e_eff / 0.95 - 1.0).abs() < 0.02,
+            "effective restitution {e_eff}"
+        );
         // A lower restitution loses more energy.
         let r2 = simulate(&free_pair(0.01, 0.1, 1.0, 0.8)).unwrap();
         let e2 = -r2.contacts[0].separation_velocity / r2.contacts[0].approach_velocity;
@@ -1339,8 +1409,16 @@ mod tests {
         let r = simulate(&s).unwrap();
         assert_eq!(r.first_contact_index, 10);
         assert_eq!(r.contact_count(), 1);
-        assert!(r.impulse_time > 0.05e-3 && r.impulse_time < 0.2e-3, "{}", r.impulse_time);
-        assert!(r.excited_bandwidth > 2.0e3 && r.excited_bandwidth < 50.0e3, "{}", r.excited_bandwidth);
+        assert!(
+            r.impulse_time > 0.05e-3 && r.impulse_time < 0.2e-3,
+            "{}",
+            r.impulse_time
+        );
+        assert!(
+            r.excited_bandwidth > 2.0e3 && r.excited_bandwidth < 50.0e3,
+            "{}",
+            r.excited_bandwidth
+        );
         assert!(r.response_magnitude > 0.0 && r.response_magnitude.is_finite());
         assert!((r.response_frequency - (1.0e7f64 / 0.1).sqrt() / TAU).abs() < 1e-9);
         assert!(r.peak_force > 0.0 && r.force.iter().all(|f| *f >= 0.0));
@@ -1348,7 +1426,9 @@ mod tests {
         // The target was at rest before contact; afterwards it rings at its natural
         // frequency with the response magnitude as amplitude (no damping).
         assert!(r.target_displacement[..10].iter().all(|x| *x == 0.0));
-        let tail_peak = r.target_displacement[500..].iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        let tail_peak = r.target_displacement[500..]
+            .iter()
+            .fold(0.0f64, |a, x| a.max(x.abs()));
         assert!((tail_peak / r.response_magnitude - 1.0).abs() < 0.05);
         // The impulse is the momentum handed to the target plus the hammer rebound.
         let total: f64 = r.contacts.iter().map(|c| c.impulse).sum();
@@ -1377,7 +1457,11 @@ mod tests {
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap();
         assert!(jump > 0.05e-3, "largest jump {jump}");
-        assert!(masses[i] >= 0.04 && masses[i + 1] <= 0.06, "jump at {}", masses[i]);
+        assert!(
+            masses[i] >= 0.04 && masses[i + 1] <= 0.06,
+            "jump at {}",
+            masses[i]
+        );
         // Longer contact narrows the excited bandwidth.
         let bw_light = simulate(&sweep_setup(0.03)).unwrap().excited_bandwidth;
         let bw_heavy = simulate(&sweep_setup(0.07)).unwrap().excited_bandwidth;
@@ -1390,17 +1474,45 @@ mod tests {
         let t2 = table_2_1_target(Table21Target::Target2);
         assert_eq!(t1.modes.len(), 10);
         assert_eq!(t2.modes.len(), 10);
-        assert_eq!(t1.modes[3], Mode { mass: 125.99, stiffness: 813.04e6, damping: 27.07e3 });
-        assert_eq!(t2.modes[9], Mode { mass: 0.54, stiffness: 1488.68e6, damping: 0.99e3 });
+        assert_eq!(
+            t1.modes[3],
+            Mode {
+                mass: 125.99,
+                stiffness: 813.04e6,
+                damping: 27.07e3
+            }
+        );
+        assert_eq!(
+            t2.modes[9],
+            Mode {
+                mass: 0.54,
+                stiffness: 1488.68e6,
+                damping: 0.99e3
+            }
+        );
         // Lowest natural frequencies: mode 6 of target 1 (332 Hz), mode 5 of target 2 (608 Hz).
         for (target, lowest) in [(t1, 5), (t2, 4)] {
             let f_low = target.modes[lowest].natural_frequency();
             for mh in [0.001, 0.01, 0.1] {
-                let mut s = ImpactSetup::new(Hammer { mass: mh, stiffness: 100.0, damping: 0.0 }, target.clone());
-                s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 7 });
+                let mut s = ImpactSetup::new(
+                    Hammer {
+                        mass: mh,
+                        stiffness: 100.0,
+                        damping: 0.0,
+                    },
+                    target.clone(),
+                );
+                s.noise = Some(SensorNoise {
+                    std_dev: 25.0e-9,
+                    seed: 7,
+                });
                 let r = simulate(&s).unwrap();
                 assert!((r.response_frequency - f_low).abs() < 1e-9);
-                assert!(r.impulse_time > 0.0 && r.impulse_time < 1.0e-3, "{}", r.impulse_time);
+                assert!(
+                    r.impulse_time > 0.0 && r.impulse_time < 1.0e-3,
+                    "{}",
+                    r.impulse_time
+                );
                 assert!(r.excited_bandwidth.is_finite() && r.excited_bandwidth > 0.0);
                 assert!(r.response_magnitude.is_finite() && r.response_magnitude > 0.0);
                 assert!(r.target_displacement.iter().all(|x| x.is_finite()));
@@ -1412,18 +1524,34 @@ mod tests {
     fn noise_is_deterministic_per_seed() {
         let mut s = ImpactSetup::dissertation_example();
         s.duration = 2.0e-3;
-        s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 42 });
+        s.noise = Some(SensorNoise {
+            std_dev: 25.0e-9,
+            seed: 42,
+        });
         let a = simulate(&s).unwrap();
         let b = simulate(&s).unwrap();
-        let bits = |r: &ImpactResult| r.target_displacement.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let bits = |r: &ImpactResult| {
+            r.target_displacement
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
         assert_eq!(bits(&a), bits(&b));
-        s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 43 });
+        s.noise = Some(SensorNoise {
+            std_dev: 25.0e-9,
+            seed: 43,
+        });
         let c = simulate(&s).unwrap();
         assert_ne!(bits(&a), bits(&c));
         // The noise has the requested spread and leaves the force untouched.
         s.noise = None;
         let clean = simulate(&s).unwrap();
-        let diff: Vec<f64> = a.target_displacement.iter().zip(&clean.target_displacement).map(|(x, y)| x - y).collect();
+        let diff: Vec<f64> = a
+            .target_displacement
+            .iter()
+            .zip(&clean.target_displacement)
+            .map(|(x, y)| x - y)
+            .collect();
         let sd = (diff.iter().map(|d| d * d).sum::<f64>() / diff.len() as f64).sqrt();
         assert!((sd / 25.0e-9 - 1.0).abs() < 0.15, "noise sd {sd}");
         assert_eq!(a.force, clean.force);
@@ -1451,11 +1579,19 @@ mod tests {
                 assert!(a.contact_count() >= 2, "expected a second hit");
             }
             for (ca, cb) in a.contacts.iter().zip(&b.contacts) {
-                assert!((ca.start - cb.start).abs() < 1e-7, "{case}: {} vs {}", ca.start, cb.start);
+                assert!(
+                    (ca.start - cb.start).abs() < 1e-7,
+                    "{case}: {} vs {}",
+                    ca.start,
+                    cb.start
+                );
                 assert!((ca.end - cb.end).abs() < 1e-7, "{case}");
                 assert!((ca.peak_force / cb.peak_force - 1.0).abs() < 1e-3, "{case}");
             }
-            let scale = b.target_displacement.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let scale = b
+                .target_displacement
+                .iter()
+                .fold(0.0f64, |m, x| m.max(x.abs()));
             for (x, y) in a.target_displacement.iter().zip(&b.target_displacement) {
                 assert!((x - y).abs() < 1e-3 * scale, "{case}: {x} vs {y}");
             }
@@ -1495,10 +1631,19 @@ mod tests {
         s.target.modes.clear();
         cases.push(s);
         let mut s = base.clone();
-        s.noise = Some(SensorNoise { std_dev: -1.0, seed: 0 });
+        s.noise = Some(SensorNoise {
+            std_dev: -1.0,
+            seed: 0,
+        });
         cases.push(s);
         for (i, s) in cases.iter().enumerate() {
-            assert!(matches!(simulate(s), Err(ImpactError::InvalidParameter { .. } | ImpactError::EmptyTarget)), "case {i}");
+            assert!(
+                matches!(
+                    simulate(s),
+                    Err(ImpactError::InvalidParameter { .. } | ImpactError::EmptyTarget)
+                ),
+                "case {i}"
+            );
         }
         // Released closer to the hammer rest than the contact point: never reaches it.
         let mut s = base.clone();
@@ -1511,8 +1656,14 @@ mod tests {
         // Step cap.
         let mut s = base.clone();
         s.duration = 20.0;
-        assert!(matches!(simulate(&s), Err(ImpactError::TooManySteps { .. })));
-        assert!(matches!(simulate_from_contact(&base, 0.0), Err(ImpactError::InvalidParameter { .. })));
+        assert!(matches!(
+            simulate(&s),
+            Err(ImpactError::TooManySteps { .. })
+        ));
+        assert!(matches!(
+            simulate_from_contact(&base, 0.0),
+            Err(ImpactError::InvalidParameter { .. })
+        ));
     }
 
     #[test]

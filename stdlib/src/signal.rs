@@ -65,7 +65,9 @@ mod tests {
     #[test]
     fn dtft_matches_direct_sum() {
         let fs = 1000.0;
-        let x: Vec<f64> = (0..2000).map(|n| ((n * 7919) % 101) as f64 - 50.0).collect();
+        let x: Vec<f64> = (0..2000)
+            .map(|n| ((n * 7919) % 101) as f64 - 50.0)
+            .collect();
         let f = 37.25;
         let direct: Complex64 = x
             .iter()

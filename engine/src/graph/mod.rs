@@ -180,7 +180,9 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                     }
                 }
                 let id = if label.is_empty() { step.id.clone() } else { format!("{}[{label}]", step.id) };
-                if let Err(e) = node.validate(&params) {
+                // Unswept steps were checked by the resolver already.
+                let checked = if step.sweep.is_empty() { Ok(()) } else { node.validate(&params) };
+                if let Err(e) = checked {
                     let which = if label.is_empty() { String::new() } else { format!(" at {label}") };
                     let help = match &e {
                         NodeError::InvalidParam { param, .. } => spec
@@ -189,7 +191,11 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                             .unwrap_or_else(|| "check the step's parameters".into()),
                         _ => "check the step's parameters".into(),
                     };
-                    diags.error_help(Some(&step.span), format!("step `{}` ({}){which}: {e}", step.id, step.kind), help);
+                    let at = match &e {
+                        NodeError::InvalidParam { param, .. } => step.param_spans.get(param).unwrap_or(&step.span),
+                        _ => &step.span,
+                    };
+                    diags.error_help(Some(at), format!("step `{}` ({}){which}: {e}", step.id, step.kind), help);
                 }
                 ids.push(instances.len());
                 instances.push(Instance {

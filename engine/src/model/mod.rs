@@ -80,6 +80,8 @@ pub struct Step {
     pub inputs: Vec<Binding>,
     /// Sweep axes; several axes form their product.
     pub sweep: Vec<SweepAxis>,
+    /// Where each parameter (or sweep axis) was written, for messages about its value.
+    pub param_spans: IndexMap<String, Span>,
 }
 
 /// The file format of an output, from its extension.

@@ -112,7 +112,9 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
     };
 
     let steps = resolve_steps(raw.get("steps"), &raw.span, registry, &ctx, diags);
-    let outputs = resolve_outputs(raw.get("outputs"), &steps, registry, diags);
+    let step_names: Vec<String> =
+        raw.get("steps").and_then(Raw::as_map).map(|m| m.iter().map(|(k, _)| k.name.clone()).collect()).unwrap_or_default();
+    let outputs = resolve_outputs(raw.get("outputs"), &steps, &step_names, registry, diags);
     check_cycles(&steps, diags);
 
     if diags.error_count() > errors_before {
@@ -431,12 +433,15 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
             }
         }
 
-        // Parameters: a swept parameter is neither required nor defaulted here.
+        // Parameters: a swept parameter is neither required nor defaulted here, even when
+        // its sweep values were rejected (that error is already reported).
+        let swept: Vec<&str> =
+            sraw.get("sweep").and_then(Raw::as_map).map(|m| m.iter().map(|(k, _)| k.name.as_str()).collect()).unwrap_or_default();
         let fields: Vec<Field> = spec
             .params
             .iter()
             .map(|f| {
-                if sweep.iter().any(|a| a.param == f.name) {
+                if swept.contains(&f.name) {
                     Field { required: false, default: None, ..*f }
                 } else {
                     *f
@@ -484,7 +489,11 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                             let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
                             match suggest(&r.step, kinds.keys().copied()) {
                                 Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
-                                None => diags.error(Some(&pv.span), msg),
+                                None => diags.error_help(
+                                    Some(&pv.span),
+                                    msg,
+                                    format!("steps: {}", kinds.keys().copied().collect::<Vec<_>>().join(", ")),
+                                ),
                             }
                             continue;
                         };
@@ -523,14 +532,37 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                 );
             }
         }
+        let mut param_spans: IndexMap<String, Span> =
+            praw.as_map().map(|m| m.iter().map(|(k, v)| (k.name.clone(), v.span.clone())).collect()).unwrap_or_default();
+        if let Some(axes) = sraw.get("sweep").and_then(Raw::as_map) {
+            param_spans.extend(axes.iter().map(|(k, v)| (k.name.clone(), v.span.clone())));
+        }
+        // A node's own checks on values (ranges, combinations); swept steps are checked per
+        // instance when the graph is built.
+        if let Some(p) = params.as_ref().filter(|_| swept.is_empty()) {
+            if let Err(e) = node.validate(p) {
+                let at = match &e {
+                    crate::node::NodeError::InvalidParam { param, .. } => param_spans.get(param).unwrap_or(&key.span),
+                    _ => &key.span,
+                };
+                let help = match &e {
+                    crate::node::NodeError::InvalidParam { param, .. } => spec
+                        .param(param)
+                        .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
+                        .unwrap_or_else(|| "check the step's parameters".into()),
+                    _ => "check the step's parameters".into(),
+                };
+                diags.error_help(Some(at), format!("step `{id}` ({kind}): {e}"), help);
+            }
+        }
         if let Some(params) = params {
-            steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep });
+            steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep, param_spans });
         }
     }
     steps
 }
 
-fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], registry: &Registry, diags: &mut Diagnostics) -> Vec<Output> {
+fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], step_names: &[String], registry: &Registry, diags: &mut Diagnostics) -> Vec<Output> {
     let Some(raw) = raw else { return Vec::new() };
     let RawKind::Seq(items) = &raw.kind else {
         diags.error_help(Some(&raw.span), "`outputs` must be a list", "write `outputs: [{ from: \"@step.port\", file: name.csv }]`");
@@ -585,11 +617,13 @@ fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], registry: &Registry, diags
                     continue;
                 }
             }
+            // The step exists but has errors of its own, already reported.
+            None if step_names.contains(&r.step) => continue,
             None => {
                 let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
-                match suggest(&r.step, steps.iter().map(|s| s.id.as_str())) {
+                match suggest(&r.step, step_names.iter().map(String::as_str)) {
                     Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
-                    None => diags.error(Some(&from.span), msg),
+                    None => diags.error_help(Some(&from.span), msg, format!("steps: {}", step_names.join(", "))),
                 }
                 continue;
             }

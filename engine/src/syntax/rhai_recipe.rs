@@ -95,6 +95,10 @@ pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics
                 _ => "fix the script; it runs at compile time and must return the recipe as an object map",
             };
             let msg = e.to_string();
+            let msg = match msg.rfind(" (line ") {
+                Some(i) if msg.ends_with(')') => msg[..i].to_string(),
+                _ => msg,
+            };
             diags.push(Diagnostic::error(Some(span), format!("Rhai recipe failed: {msg}")).with_help(help));
             None
         }

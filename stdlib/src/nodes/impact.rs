@@ -133,10 +133,10 @@ fn setup_from(params: &Params, recipe: Option<&spindlelab_engine::model::Recipe>
     Ok(setup)
 }
 
-/// Maps a simulation error to the recipe parameter a user would change.
-fn to_node_error(e: ImpactError) -> NodeError {
+/// Maps a simulation error to the recipe parameter a user would change, in recipe terms.
+fn to_node_error(e: ImpactError, spec: &NodeSpec) -> NodeError {
     match &e {
-        ImpactError::InvalidParameter { name, field, .. } => {
+        ImpactError::InvalidParameter { name, field, value, requirement } => {
             let param = match (*name, *field) {
                 ("hammer", f) => format!("hammer_{f}"),
                 ("target mode", "mass") => "target_mass".into(),
@@ -151,7 +151,12 @@ fn to_node_error(e: ImpactError) -> NodeError {
                 ("noise", _) => "noise".into(),
                 (n, f) => format!("{n}.{f}"),
             };
-            NodeError::param(&param, e.to_string())
+            let unit = match spec.param(&param).map(|f| f.ty) {
+                Some(T::Quantity(d)) if d != D::DIMENSIONLESS => format!(" {}", d.si_unit()),
+                _ => String::new(),
+            };
+            let requirement = requirement.replace("release_position", "`release`").replace("contact_position", "`contact`");
+            NodeError::param(&param, format!("{value}{unit} {requirement}"))
         }
         ImpactError::NoContact => NodeError::param("release", "the hammer never reaches the target: move `release` or `contact`"),
         ImpactError::TooManySteps { .. } => NodeError::param("dt", format!("{e}: raise `dt` or shorten `duration`")),
@@ -171,7 +176,7 @@ impl Node for ImpactSimulate {
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
         // The closed-form approach phase checks every parameter and that contact happens.
         let setup = setup_from(params, None)?;
-        first_contact(&setup).map(|_| ()).map_err(to_node_error)
+        first_contact(&setup).map(|_| ()).map_err(|e| to_node_error(e, &self.spec))
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
@@ -184,7 +189,7 @@ impl Node for ImpactSimulate {
         let mut first = None;
         for k in 0..impacts {
             setup.noise = (noise > 0.0).then_some(SensorNoise { std_dev: noise, seed: seed.wrapping_add(k as u64) });
-            let r = simulate(&setup).map_err(to_node_error)?;
+            let r = simulate(&setup).map_err(|e| to_node_error(e, &self.spec))?;
             let name = |base: &str| if impacts == 1 { base.to_string() } else { format!("{base}_{}", k + 1) };
             forces.push(Channel { name: name("force"), unit: UnitLabel::new("N"), samples: r.force.clone() });
             disps.push(Channel { name: name("displacement"), unit: UnitLabel::new("m"), samples: r.target_displacement.clone() });
