@@ -186,7 +186,6 @@ fn control_a_good_recipe_checks_runs_and_writes() {
 }
 
 #[test]
-#[ignore = "engine bug: frf.estimate's `windows` default \"true\" is rejected by spec::check_object (debug assertion panics)"]
 fn control_impact_study_checks() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let o = spindlelab(root, ["check", "scripts/impact-study.yaml"]);
@@ -460,7 +459,6 @@ fn non_finite_numbers_and_degenerate_sweeps() {
 }
 
 #[test]
-#[ignore = "engine bug: a rejected sweep of a required parameter also reports the parameter as missing (model/resolve.rs, resolve_steps)"]
 fn a_bad_sweep_is_one_error_not_two() {
     let e = reject("bad-sweep-of-required-param.yaml");
     assert_has(&e, &["range step must be positive"]);
@@ -538,7 +536,6 @@ fn output_files_must_stay_inside_be_supported_and_distinct() {
 }
 
 #[test]
-#[ignore = "engine bug: an output from a step whose params failed is reported as a dangling reference (model/resolve.rs, resolve_outputs)"]
 fn an_output_from_a_step_with_bad_params_is_not_dangling() {
     let e = reject("output-from-bad-step.yaml");
     assert_has(&e, &["expected a mass"]);
