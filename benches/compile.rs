@@ -6,7 +6,9 @@ use std::hint::black_box;
 
 /// A recipe with 100 impact simulations, each followed by an FRF estimate (200 steps).
 fn recipe_200_steps() -> String {
-    let mut s = String::from("spindlelab: 1\nname: bench-200\nmaterials:\n  steel: { E: 200 GPa, rho: 7800 kg/m^3, nu: 0.29 }\nsteps:\n");
+    let mut s = String::from(
+        "spindlelab: 1\nname: bench-200\nmaterials:\n  steel: { E: 200 GPa, rho: 7800 kg/m^3, nu: 0.29 }\nsteps:\n",
+    );
     for i in 0..100 {
         let _ = write!(
             s,
@@ -29,7 +31,8 @@ fn bench_compile(c: &mut Criterion) {
     let registry = spindlelab::registry();
     c.bench_function("compile/200_steps", |b| {
         b.iter(|| {
-            let compiled = spindlelab::engine::compile_file(black_box(&path), &registry).expect("compiles");
+            let compiled =
+                spindlelab::engine::compile_file(black_box(&path), &registry).expect("compiles");
             black_box(compiled.graph.instances.len())
         })
     });

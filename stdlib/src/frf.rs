@@ -383,40 +383,35 @@ fn sum_squares(v: &[f64]) -> f64 {
 /// `|f|`, in one vectorisable pass.
 fn force_stats(v: &[f64]) -> (f64, usize) {
     const L: usize = 8;
+    const BLOCK: usize = 256;
     let mut acc = [0.0f64; L];
-    let mut best = [f64::NEG_INFINITY; L];
-    let mut best_chunk = [0usize; L];
-    let chunks = v.chunks_exact(L);
-    let rest = chunks.remainder();
-    for (ci, c) in chunks.enumerate() {
-        for i in 0..L {
-            acc[i] += c[i] * c[i];
-            let a = c[i].abs();
-            let better = a > best[i];
-            best[i] = if better { a } else { best[i] };
-            best_chunk[i] = if better { ci } else { best_chunk[i] };
+    let mut best = f64::NEG_INFINITY;
+    let mut best_block = 0usize;
+    for (bi, block) in v.chunks(BLOCK).enumerate() {
+        // Lane-wise maxima over the block, reduced once per block.
+        let mut m = [0.0f64; L];
+        let chunks = block.chunks_exact(L);
+        let rest = chunks.remainder();
+        for c in chunks {
+            for i in 0..L {
+                acc[i] += c[i] * c[i];
+                m[i] = m[i].max(c[i].abs());
+            }
+        }
+        for (i, x) in rest.iter().enumerate() {
+            acc[i] += x * x;
+            m[i] = m[i].max(x.abs());
+        }
+        let block_max = m.iter().fold(0.0f64, |a, &b| a.max(b));
+        if block_max > best {
+            best = block_max;
+            best_block = bi;
         }
     }
-    // Largest over lanes, earliest sample on ties.
-    let mut peak_value = f64::NEG_INFINITY;
-    let mut peak = 0usize;
-    for i in 0..L {
-        let idx = best_chunk[i] * L + i;
-        if best[i] > peak_value || (best[i] == peak_value && idx < peak) {
-            peak_value = best[i];
-            peak = idx;
-        }
-    }
-    let base = v.len() - rest.len();
-    let mut tail = 0.0;
-    for (i, x) in rest.iter().enumerate() {
-        tail += x * x;
-        if x.abs() > peak_value {
-            peak_value = x.abs();
-            peak = base + i;
-        }
-    }
-    (acc.iter().sum::<f64>() + tail, peak)
+    let lo = best_block * BLOCK;
+    let hi = (lo + BLOCK).min(v.len());
+    let peak = lo + v[lo..hi].iter().position(|x| x.abs() == best).unwrap_or(0);
+    (acc.iter().sum::<f64>(), peak)
 }
 
 /// Reusable FRF estimator for records of one length and sample rate: plans the FFT once,

@@ -1659,7 +1659,7 @@ mod tests {
         s.target.modes.clear();
         cases.push(s);
         let mut s = base.clone();
-        s.dt = 1.0e-4; // coarser than the 503 Hz target allows
+        s.dt = 1.0e-4; // coarser than the 1.6 kHz target allows
         s.sample_rate = 1.0e3;
         cases.push(s);
         let mut s = base.clone();

@@ -114,6 +114,8 @@ fn convert(file: &Arc<str>, node: Spanned<Node>) -> Raw {
 pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
     let options = serde_saphyr::options! {
         with_snippet: false,
+        // `y` and `n` are directions here, not YAML 1.1 booleans.
+        strict_booleans: true,
     };
     match serde_saphyr::from_str_with_options::<Spanned<Node>>(&file.text, options) {
         Ok(node) => Some(convert(&file.path, node)),
@@ -128,5 +130,44 @@ pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
             ));
             None
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str) -> (Option<Raw>, Diagnostics) {
+        let file = SourceFile { path: Arc::from("t.yaml"), text: Arc::from(text) };
+        let mut d = Diagnostics::new();
+        (load_yaml(&file, &mut d), d)
+    }
+
+    #[test]
+    fn every_value_keeps_its_line_and_column() {
+        let (raw, d) = load("spindlelab: 1\nsteps:\n  hit:\n    kind: impact.simulate\n");
+        assert!(d.is_empty());
+        let raw = raw.unwrap();
+        let kind = raw.get("steps").unwrap().get("hit").unwrap().get("kind").unwrap();
+        assert_eq!((kind.span.line, kind.span.column), (4, 11));
+        assert_eq!(kind.as_str(), Some("impact.simulate"));
+        let (start, end) = kind.span.bytes.unwrap();
+        assert_eq!(&"spindlelab: 1\nsteps:\n  hit:\n    kind: impact.simulate\n"[start..end], "impact.simulate");
+    }
+
+    #[test]
+    fn y_and_n_are_words_not_booleans() {
+        let (raw, _) = load("directions: [x, y, n]\n");
+        let dirs = raw.unwrap();
+        let RawKind::Seq(items) = &dirs.get("directions").unwrap().kind else { panic!() };
+        assert!(items.iter().all(|i| matches!(i.kind, RawKind::Str(_))));
+    }
+
+    #[test]
+    fn duplicate_keys_are_an_error_with_a_place() {
+        let (raw, d) = load("a: 1\na: 2\n");
+        assert!(raw.is_none());
+        let diag = d.iter().next().unwrap();
+        assert_eq!(diag.span.as_ref().unwrap().line, 2, "{diag}");
     }
 }
