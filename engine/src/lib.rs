@@ -111,13 +111,13 @@ pub fn run(
     for out in &compiled.recipe.outputs {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
-        let axes = exec::write::axes_of(&compiled.recipe, &out.from.step);
+        // Sweep columns: every numeric assignment behind the instances, upstream ones included.
+        let axes = ids.first().map(|&i| exec::write::axes_of(&compiled.graph.instances[i])).unwrap_or_default();
         for &i in ids {
             let Some(outputs) = result.outcomes[i].outputs() else { break };
             let inst = &compiled.graph.instances[i];
             let Some(value) = outputs.get(&out.from.port) else { break };
-            let coords = axes.iter().map(|(a, _)| inst.params.f64(a).unwrap_or(f64::NAN)).collect();
-            rows.push(exec::write::Row { coords, label: &inst.label, value });
+            rows.push(exec::write::Row { coords: exec::write::coords_of(inst), label: &inst.label, value });
         }
         if rows.len() != ids.len() {
             continue;

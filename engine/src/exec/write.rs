@@ -1,7 +1,10 @@
 //! Output writers: CSV and JSON, written to a staging directory and moved into place only
 //! when every output of the run is ready.
 
-use crate::model::{OutputFormat, Recipe};
+use crate::graph::Instance;
+use crate::model::OutputFormat;
+use crate::spec::ParamValue;
+use spindlelab_grammar::Dimension;
 use crate::value::{Frf, Table, TimeSeries, Value};
 use std::fmt::Write as _;
 
@@ -139,23 +142,27 @@ fn frf(out: &mut String, f: &Frf, ph: &str, p: &str, header_done: &mut bool) {
     }
 }
 
-/// The sweep axes of a step as (name, SI unit) pairs, for column headers.
-pub fn axes_of(recipe: &Recipe, step: &str) -> Vec<(String, String)> {
-    recipe
-        .step(step)
-        .map(|s| {
-            s.sweep
-                .iter()
-                .map(|a| {
-                    let unit = match a.values.first() {
-                        Some(crate::spec::ParamValue::Quantity { dim, .. }) if *dim != spindlelab_grammar::Dimension::DIMENSIONLESS => {
-                            unit_tag(&dim.si_unit())
-                        }
-                        _ => String::new(),
-                    };
-                    (a.param.clone(), unit)
-                })
-                .collect()
+/// The numeric sweep assignments of an instance as (name, SI unit) pairs, for column headers.
+pub fn axes_of(inst: &Instance) -> Vec<(String, String)> {
+    inst.assignments
+        .iter()
+        .filter_map(|(name, v)| match v {
+            ParamValue::Quantity { dim, .. } if *dim == Dimension::DIMENSIONLESS => Some((name.clone(), String::new())),
+            ParamValue::Quantity { dim, .. } => Some((name.clone(), unit_tag(&dim.si_unit()))),
+            ParamValue::Int(_) => Some((name.clone(), String::new())),
+            _ => None,
         })
-        .unwrap_or_default()
+        .collect()
+}
+
+/// The numeric sweep values (SI) of an instance, in the order of [`axes_of`].
+pub fn coords_of(inst: &Instance) -> Vec<f64> {
+    inst.assignments
+        .iter()
+        .filter_map(|(_, v)| match v {
+            ParamValue::Quantity { value, .. } => Some(*value),
+            ParamValue::Int(i) => Some(*i as f64),
+            _ => None,
+        })
+        .collect()
 }
