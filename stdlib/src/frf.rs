@@ -225,7 +225,10 @@ struct Line {
 
 /// Per-thread buffers and spectral accumulators.
 struct Worker {
+    /// Packed, windowed frame (destroyed by the transform).
     buf: Vec<Complex64>,
+    /// Spectrum of the packed frame.
+    spectrum: Vec<Complex64>,
     scratch: Vec<Complex64>,
     lines: Vec<Line>,
     /// `(Σ X, Σ F)` per line, kept only for time-synchronous averaging.
@@ -236,6 +239,7 @@ impl Worker {
     fn new(n: usize, scratch_len: usize) -> Self {
         Worker {
             buf: vec![Complex64::new(0.0, 0.0); n],
+            spectrum: vec![Complex64::new(0.0, 0.0); n],
             scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
             lines: vec![Line::default(); n / 2 + 1],
             sums: Vec::new(),
@@ -304,14 +308,14 @@ impl Worker {
         }
         zeros.fill(Complex64::new(0.0, 0.0));
 
-        fft.process_with_scratch(&mut self.buf, &mut self.scratch);
+        fft.process_outofplace_with_scratch(&mut self.buf, &mut self.spectrum, &mut self.scratch);
 
         // Unpack: F_k = (Z_k + conj Z_{N−k})/2, X_k = (Z_k − conj Z_{N−k})/(2i).
         // A channel that is identically zero in the frame stays exactly zero (instead of
         // picking up the other channel's rounding).
         let f_gain = if ef_window > 0.0 { 1.0 } else { 0.0 };
         let x_gain = if ex > 0.0 { unscale } else { 0.0 };
-        let z = &self.buf;
+        let z = &self.spectrum;
         let keep_sums = !self.sums.is_empty();
         let unpack = |k: usize| {
             let a = z[k];
@@ -444,7 +448,7 @@ impl FrfEstimator {
         let threads = std::thread::available_parallelism()
             .map(|n| n.get())
             .unwrap_or(1);
-        let scratch = fft.get_inplace_scratch_len();
+        let scratch = fft.get_outofplace_scratch_len();
         Ok(FrfEstimator {
             len,
             sample_rate,
@@ -461,7 +465,7 @@ impl FrfEstimator {
     /// Limits the number of threads (at least 1).
     pub fn set_threads(&mut self, threads: usize) {
         let threads = threads.max(1);
-        let scratch = self.fft.get_inplace_scratch_len();
+        let scratch = self.fft.get_outofplace_scratch_len();
         self.workers.truncate(threads);
         while self.workers.len() < threads {
             self.workers.push(Worker::new(self.len, scratch));
