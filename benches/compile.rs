@@ -31,8 +31,7 @@ fn bench_compile(c: &mut Criterion) {
     let registry = spindlelab::registry();
     c.bench_function("compile/200_steps", |b| {
         b.iter(|| {
-            let compiled =
-                spindlelab::engine::compile_file(black_box(&path), &registry).expect("compiles");
+            let compiled = spindlelab::engine::compile_file(black_box(&path), &registry).expect("compiles");
             black_box(compiled.graph.instances.len())
         })
     });

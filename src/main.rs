@@ -14,7 +14,11 @@ const EXIT_BAD_INPUT: u8 = 2;
 const EXIT_FAILURE: u8 = 1;
 
 #[derive(Parser)]
-#[command(name = "spindlelab", version, about = "Spindle-dynamics experiments as recipes: compiled to a typed dataflow graph and run end to end.")]
+#[command(
+    name = "spindlelab",
+    version,
+    about = "Spindle-dynamics experiments as recipes: compiled to a typed dataflow graph and run end to end."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -135,7 +139,12 @@ fn main() -> ExitCode {
                     println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);
                 }
                 let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
-                println!("{} to run, {} from cache (output directory {})", entries.len() - cached, cached, out.display());
+                println!(
+                    "{} to run, {} from cache (output directory {})",
+                    entries.len() - cached,
+                    cached,
+                    out.display()
+                );
                 ExitCode::SUCCESS
             }
             Err(code) => code,
@@ -152,14 +161,19 @@ fn main() -> ExitCode {
             }
             if !any {
                 let k = kind.unwrap_or_default();
-                let hint = engine::spec::suggest(&k, registry.names()).map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default();
+                let hint = engine::spec::suggest(&k, registry.names())
+                    .map(|s| format!(" (did you mean `{s}`?)"))
+                    .unwrap_or_default();
                 eprintln!("error: unknown node kind `{k}`{hint}");
                 return ExitCode::from(EXIT_BAD_INPUT);
             }
             ExitCode::SUCCESS
         }
         Command::Schema => {
-            println!("{}", serde_json::to_string_pretty(&engine::schema::recipe_schema(&registry)).expect("schema serialises"));
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&engine::schema::recipe_schema(&registry)).expect("schema serialises")
+            );
             ExitCode::SUCCESS
         }
         Command::Run { recipe, out, keep_going, no_cache, threads, quiet } => {
@@ -197,7 +211,7 @@ fn main() -> ExitCode {
                     }
                     ExitCode::SUCCESS
                 }
-                Err((RunError::NodesFailed { failures }, report)) => {
+                Err(RunError::NodesFailed { failures, report }) => {
                     for (id, e) in &failures {
                         let at = c
                             .graph
@@ -209,7 +223,8 @@ fn main() -> ExitCode {
                             .unwrap_or_default();
                         eprintln!("error: node `{id}` failed: {e}{at}");
                     }
-                    if let Some(r) = report {
+                    {
+                        let r = report;
                         eprintln!(
                             "{} instance(s) computed and cached; {}",
                             r.manifest.computed,
@@ -222,7 +237,7 @@ fn main() -> ExitCode {
                     }
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
-                Err((e @ RunError::Io { .. }, _)) => {
+                Err(e @ RunError::Io { .. }) => {
                     eprintln!("error: {e}");
                     ExitCode::from(EXIT_FAILURE)
                 }
@@ -252,7 +267,11 @@ fn describe_node(spec: &engine::node::NodeSpec) -> String {
     if !spec.params.is_empty() {
         s.push_str("  params:\n");
         for f in &spec.params {
-            let req = if f.required { "required".to_string() } else { f.default.map(|d| format!("default {d}")).unwrap_or_else(|| "optional".into()) };
+            let req = if f.required {
+                "required".to_string()
+            } else {
+                f.default.map(|d| format!("default {d}")).unwrap_or_else(|| "optional".into())
+            };
             s.push_str(&format!("    {:16} {} ({req}) — {}\n", f.name, f.ty.describe(), f.doc));
         }
     }

@@ -66,7 +66,11 @@ fn train_07_baseline_round_trips_through_a_recipe() {
         let want = case["spindle"]["modes"][dir.as_str()].as_array().unwrap();
         assert_eq!(modes.len(), want.len());
         for (m, w) in modes.iter().zip(want) {
-            assert!(close(m.freq_hz, f(&w["f_hz"])) && close(m.diameter, f(&w["d_m"])) && close(m.loss_factor, f(&w["eta"])));
+            assert!(
+                close(m.freq_hz, f(&w["f_hz"]))
+                    && close(m.diameter, f(&w["d_m"]))
+                    && close(m.loss_factor, f(&w["eta"]))
+            );
             assert_eq!((m.kf, m.keta), (f(&w["kf"]), f(&w["keta"])));
         }
     }

@@ -17,15 +17,11 @@ fn run(c: &Compiled, out: &Path, threads: usize, cache: bool) -> engine::RunRepo
     let mut opts = RunOptions::new(out);
     opts.threads = Some(threads);
     opts.use_cache = cache;
-    engine::run(c, &spindlelab::registry(), &opts, &|_, _| {}).unwrap_or_else(|(e, _)| panic!("{e}"))
+    engine::run(c, &spindlelab::registry(), &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn outputs(r: &engine::RunReport) -> Vec<String> {
-    r.result
-        .outcomes
-        .iter()
-        .map(|o| format!("{:?}", o.outputs().expect("every instance ran").as_ref()))
-        .collect()
+    r.result.outcomes.iter().map(|o| format!("{:?}", o.outputs().expect("every instance ran").as_ref())).collect()
 }
 
 #[test]
@@ -79,7 +75,11 @@ fn second_run_comes_from_the_cache_and_a_changed_parameter_reruns_only_its_cone(
     assert_eq!(outputs(&first), outputs(&second));
 
     // Change one parameter of `frf`: `hit` stays cached, `frf` and nothing else reruns.
-    std::fs::write(&recipe, text.replace("windows: false, trigger: record-start", "windows: false, trigger: force-peak")).unwrap();
+    std::fs::write(
+        &recipe,
+        text.replace("windows: false, trigger: record-start", "windows: false, trigger: force-peak"),
+    )
+    .unwrap();
     let c2 = compile(&recipe);
     let cache = RunOptions::new(&out).cache();
     let p = plan(&c2.graph, &out, Some(&cache));
@@ -143,7 +143,8 @@ fn manifest_records_the_recipe_hash_tool_version_and_every_instance() {
     let dir = tempfile::tempdir().unwrap();
     let c = compile(&data("noisy-sweep.yaml"));
     run(&c, dir.path(), 2, true);
-    let m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("manifest.json")).unwrap()).unwrap();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("manifest.json")).unwrap()).unwrap();
     assert_eq!(m["recipe_hash"], c.recipe.hash.as_str());
     assert!(m["tool"].as_str().unwrap().starts_with("spindlelab "));
     assert_eq!(m["nodes"].as_array().unwrap().len(), 7);
@@ -164,7 +165,11 @@ fn the_recipe_hash_ignores_layout_and_comments() {
     let b = dir.path().join("b.yaml");
     let text = std::fs::read_to_string(data("noisy-sweep.yaml")).unwrap();
     std::fs::write(&a, &text).unwrap();
-    std::fs::write(&b, format!("# another comment\n\n{}", text.replace("hammer_stiffness: 500 N/m", "hammer_stiffness:   500 N/m"))).unwrap();
+    std::fs::write(
+        &b,
+        format!("# another comment\n\n{}", text.replace("hammer_stiffness: 500 N/m", "hammer_stiffness:   500 N/m")),
+    )
+    .unwrap();
     assert_eq!(compile(&a).recipe.hash, compile(&b).recipe.hash);
 }
 
@@ -205,4 +210,30 @@ fn rhai_and_yaml_recipes_that_say_the_same_compile_to_the_same_graph() {
         k
     };
     assert_eq!(keys(&from_rhai), keys(&from_yaml));
+}
+
+#[test]
+fn a_failure_writes_nothing_but_keeps_what_was_computed_and_keep_going_writes_the_rest() {
+    let c = compile(&data("one-step-fails.yaml"));
+    let registry = spindlelab::registry();
+    let dir = tempfile::tempdir().unwrap();
+    let opts = RunOptions::new(dir.path());
+    let Err(engine::RunError::NodesFailed { failures, report }) = engine::run(&c, &registry, &opts, &|_, _| {}) else {
+        panic!("the run should fail");
+    };
+    assert_eq!(failures.len(), 1);
+    assert_eq!(failures[0].0, "ratio");
+    assert!(failures[0].1.contains("x / 0.0"), "{}", failures[0].1);
+    assert!(report.written.is_empty());
+    assert!(!dir.path().join("impulse.csv").exists() && !dir.path().join("ratio.csv").exists());
+    assert_eq!(report.manifest.computed, 1, "the successful instance is kept in the cache");
+
+    let mut opts = RunOptions::new(dir.path());
+    opts.keep_going = true;
+    let Err(engine::RunError::NodesFailed { report, .. }) = engine::run(&c, &registry, &opts, &|_, _| {}) else {
+        panic!("the run should still fail");
+    };
+    assert_eq!(report.written, ["impulse.csv"]);
+    assert_eq!(report.manifest.cache_hits, 1);
+    assert!(dir.path().join("impulse.csv").exists() && !dir.path().join("ratio.csv").exists());
 }

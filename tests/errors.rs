@@ -200,16 +200,19 @@ fn control_impact_study_checks() {
 #[test]
 fn unknown_keys_and_kind_suggest_the_right_name() {
     let e = reject("unknown-names.yaml");
-    assert_has(&e, &[
-        "unknown key `materails` in the recipe",
-        "did you mean `materials`?",
-        "unknown key `parms` in step `hit`",
-        "did you mean `params`?",
-        "unknown key `hammer_mas`",
-        "did you mean `hammer_mass`?",
-        "unknown step kind `frf.estimat`",
-        "did you mean `frf.estimate`?",
-    ]);
+    assert_has(
+        &e,
+        &[
+            "unknown key `materails` in the recipe",
+            "did you mean `materials`?",
+            "unknown key `parms` in step `hit`",
+            "did you mean `params`?",
+            "unknown key `hammer_mas`",
+            "did you mean `hammer_mass`?",
+            "unknown step kind `frf.estimat`",
+            "did you mean `frf.estimate`?",
+        ],
+    );
     let f = "unknown-names.yaml";
     assert_at(&e, f, 3, 1);
     assert_at(&e, f, 9, 5);
@@ -251,7 +254,10 @@ fn dangling_misspelt_and_mistyped_references() {
     assert_at(&e, f, 17, 17);
     assert_has(&e, &["has no output `forse`", "did you mean `@hit.force`?"]);
     assert_at(&e, f, 23, 14);
-    assert_has(&e, &["type mismatch", "input `force` of step `wrong_type` takes a time series", "`@hit.peak_force` is a scalar"]);
+    assert_has(
+        &e,
+        &["type mismatch", "input `force` of step `wrong_type` takes a time series", "`@hit.peak_force` is a scalar"],
+    );
     assert_at(&e, f, 30, 14);
     assert_eq!(error_count(&e), 4, "{e}");
     insta::assert_snapshot!("references", e);
@@ -288,15 +294,18 @@ fn all_errors_are_reported_at_once_in_line_order() {
     assert_has(&e, &["7 errors found; nothing was run."]);
     let lines: Vec<u32> = locations(&e, f).into_iter().map(|(l, _)| l).collect();
     assert_eq!(lines, [3, 8, 11, 16, 18, 20, 21], "{e}");
-    assert_has(&e, &[
-        "unsupported output format `txt`",
-        "expected a mass",
-        "unknown unit `mmm`",
-        "did you mean `force_window`?",
-        "did you mean `@hit.force`?",
-        "unsupported recipe version `2`",
-        "unknown key `extra_key` in the recipe",
-    ]);
+    assert_has(
+        &e,
+        &[
+            "unsupported output format `txt`",
+            "expected a mass",
+            "unknown unit `mmm`",
+            "did you mean `force_window`?",
+            "did you mean `@hit.force`?",
+            "unsupported recipe version `2`",
+            "unknown key `extra_key` in the recipe",
+        ],
+    );
     insta::assert_snapshot!("many_errors", e);
 }
 
@@ -490,17 +499,23 @@ fn impossible_parameters_are_rejected_at_compile_time() {
 fn run_time_failures_name_the_instance_and_write_no_outputs() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
-    let o = spindlelab(&bad_dir(), [OsStr::new("run"), OsStr::new("runtime-failure.yaml"), OsStr::new("-o"), out.as_os_str()]);
+    let o = spindlelab(
+        &bad_dir(),
+        [OsStr::new("run"), OsStr::new("runtime-failure.yaml"), OsStr::new("-o"), out.as_os_str()],
+    );
     assert_rejected(&o);
     let e = redact(&o.stderr, &[(tmp.path(), "[OUT]"), (&bad_dir(), "[CWD]")]);
-    assert_has(&e, &[
-        "node `mismatched_frf[hammer_mass=0.01 kg]` failed",
-        "node `mismatched_frf[hammer_mass=0.02 kg]` failed",
-        "2 force channel(s) but 1 response channel(s)",
-        "node `ratio[hammer_mass=0.01 kg]` failed",
-        "`x / 0.0` gave inf",
-        "no outputs written",
-    ]);
+    assert_has(
+        &e,
+        &[
+            "node `mismatched_frf[hammer_mass=0.01 kg]` failed",
+            "node `mismatched_frf[hammer_mass=0.02 kg]` failed",
+            "2 force channel(s) but 1 response channel(s)",
+            "node `ratio[hammer_mass=0.01 kg]` failed",
+            "`x / 0.0` gave inf",
+            "no outputs written",
+        ],
+    );
     assert_eq!(error_count(&e), 4, "{e}");
     // The run record and the cache stay, by design; no declared output, no staging left over.
     let written = entries(&out);

@@ -18,7 +18,7 @@ fn every_recipe_in_scripts() {
         opts.use_cache = false;
         let report = match engine::run(&compiled, &registry, &opts, &|_, _| {}) {
             Ok(r) => r,
-            Err((e, _)) => panic!("{} failed: {e}", path.display()),
+            Err(e) => panic!("{} failed: {e}", path.display()),
         };
         let mut summary = spindlelab::summary::summarize(&compiled, &report.result);
         summary.push_str(&format!(

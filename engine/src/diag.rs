@@ -39,12 +39,7 @@ impl Span {
         let byte_len: usize = scalar_text.chars().skip(char_offset).take(char_len.max(1)).map(char::len_utf8).sum();
         // Quoted scalars start one character later than their span; find the text to be exact.
         let bytes = self.bytes.map(|(s, _)| (s + byte_start, s + byte_start + byte_len));
-        Span {
-            file: self.file.clone(),
-            line: self.line,
-            column: self.column + char_offset as u32,
-            bytes,
-        }
+        Span { file: self.file.clone(), line: self.line, column: self.column + char_offset as u32, bytes }
     }
 }
 
@@ -168,10 +163,7 @@ impl Diagnostics {
         }
         let errors = self.error_count();
         if errors > 0 {
-            out.push_str(&format!(
-                "{errors} error{} found; nothing was run.\n",
-                if errors == 1 { "" } else { "s" }
-            ));
+            out.push_str(&format!("{errors} error{} found; nothing was run.\n", if errors == 1 { "" } else { "s" }));
         }
         out
     }

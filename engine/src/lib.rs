@@ -73,13 +73,15 @@ pub fn compile_file(path: &Path, registry: &Registry) -> Result<Compiled, Compil
 /// Why a run did not complete.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
+    /// Some instances failed; the report says what the others did and what was written.
     #[error("{} node instance(s) failed", .failures.len())]
-    NodesFailed { failures: Vec<(String, String)> },
+    NodesFailed { failures: Vec<(String, String)>, report: Box<RunReport> },
     #[error("cannot write `{path}`: {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
 
 /// Everything a run produced.
+#[derive(Debug)]
 pub struct RunReport {
     pub result: RunResult,
     pub manifest: exec::Manifest,
@@ -97,15 +99,15 @@ pub fn run(
     registry: &Registry,
     opts: &RunOptions,
     progress: &(dyn Fn(usize, &str) + Sync),
-) -> Result<RunReport, (RunError, Option<RunReport>)> {
+) -> Result<RunReport, RunError> {
     let io = |path: &Path, source| RunError::Io { path: path.to_path_buf(), source };
     if let Err(e) = std::fs::create_dir_all(&opts.out_dir) {
-        return Err((io(&opts.out_dir, e), None));
+        return Err(io(&opts.out_dir, e));
     }
     let result = exec::execute(&compiled.recipe, &compiled.graph, registry, opts, progress);
     let staging = match tempfile::Builder::new().prefix(".staging-").tempdir_in(&opts.out_dir) {
         Ok(d) => d,
-        Err(e) => return Err((io(&opts.out_dir, e), None)),
+        Err(e) => return Err(io(&opts.out_dir, e)),
     };
     let mut ready: Vec<(PathBuf, String)> = Vec::new();
     for out in &compiled.recipe.outputs {
@@ -125,7 +127,7 @@ pub fn run(
         let text = exec::write::render(out.format, &axes, &rows);
         let staged = staging.path().join(out.file.replace(['/', '\\'], "__"));
         if let Err(e) = std::fs::write(&staged, text) {
-            return Err((io(&staged, e), None));
+            return Err(io(&staged, e));
         }
         ready.push((staged, out.file.clone()));
     }
@@ -139,15 +141,21 @@ pub fn run(
             if let Some(parent) = dest.parent()
                 && let Err(e) = std::fs::create_dir_all(parent)
             {
-                return Err((io(parent, e), None));
+                return Err(io(parent, e));
             }
             if let Err(e) = std::fs::rename(staged, &dest) {
-                return Err((io(&dest, e), None));
+                return Err(io(&dest, e));
             }
             written.push(rel.clone());
         }
     }
-    let manifest = exec::Manifest::build(&compiled.recipe, &compiled.path.display().to_string(), &compiled.graph, &result, written.clone());
+    let manifest = exec::Manifest::build(
+        &compiled.recipe,
+        &compiled.path.display().to_string(),
+        &compiled.graph,
+        &result,
+        written.clone(),
+    );
     let manifest_path = opts.out_dir.join(exec::manifest::MANIFEST_FILE);
     let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     let write_manifest = || -> std::io::Result<()> {
@@ -157,10 +165,10 @@ pub fn run(
         Ok(())
     };
     if let Err(e) = write_manifest() {
-        return Err((io(&manifest_path, e), None));
+        return Err(io(&manifest_path, e));
     }
     let report = RunReport { result, manifest, written };
-    if failures.is_empty() { Ok(report) } else { Err((RunError::NodesFailed { failures }, Some(report))) }
+    if failures.is_empty() { Ok(report) } else { Err(RunError::NodesFailed { failures, report: Box::new(report) }) }
 }
 
 /// Rounds to `digits` significant digits: snapshots and summaries state their precision.

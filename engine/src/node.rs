@@ -110,10 +110,9 @@ impl NodeContext<'_> {
     }
     /// A required SI parameter (the compiler has checked presence and dimension).
     pub fn f64(&self, name: &str) -> Result<f64, NodeError> {
-        self.params.f64(name).ok_or_else(|| NodeError::InvalidParam {
-            param: name.to_string(),
-            message: "missing".into(),
-        })
+        self.params
+            .f64(name)
+            .ok_or_else(|| NodeError::InvalidParam { param: name.to_string(), message: "missing".into() })
     }
 }
 

@@ -29,7 +29,9 @@ fn field_schema(ty: &FieldType) -> Value {
         FieldType::Text => json!({"type": "string"}),
         FieldType::Choice(c) => json!({"enum": c}),
         FieldType::ChoiceList(c) => json!({"type": "array", "items": {"enum": c}}),
-        FieldType::Entity(k) => json!({"type": "string", "description": format!("name of a {} declared under `{}`", k.noun(), k.section())}),
+        FieldType::Entity(k) => {
+            json!({"type": "string", "description": format!("name of a {} declared under `{}`", k.noun(), k.section())})
+        }
         FieldType::Object(fields) => object_schema(fields),
         FieldType::ObjectList(fields) => json!({"type": "array", "items": object_schema(fields)}),
         FieldType::MapOf(inner) => json!({"type": "object", "additionalProperties": field_schema(inner)}),
@@ -98,7 +100,10 @@ pub fn recipe_schema(registry: &Registry) -> Value {
     props.insert("name".into(), json!({"type": "string"}));
     props.insert("description".into(), json!({"type": "string"}));
     for kind in EntityKind::ALL {
-        props.insert(kind.section().into(), json!({"type": "object", "additionalProperties": object_schema(entity_fields(kind))}));
+        props.insert(
+            kind.section().into(),
+            json!({"type": "object", "additionalProperties": object_schema(entity_fields(kind))}),
+        );
     }
     props.insert("speeds".into(), field_schema(&FieldType::QuantityList(Dimension::ROTATIONAL_SPEED)));
     props.insert("steps".into(), json!({"type": "object", "additionalProperties": step}));

@@ -54,7 +54,10 @@ pub enum FieldType {
     /// A list, a range or a single quantity of this dimension (`0..4000 step 500 rpm`).
     QuantityList(Dimension),
     /// A whole number within bounds.
-    Integer { min: i64, max: i64 },
+    Integer {
+        min: i64,
+        max: i64,
+    },
     Bool,
     Text,
     /// One of a fixed set of words.

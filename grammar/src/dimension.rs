@@ -44,16 +44,8 @@ const NAMED: &[Named] = &[
     named(Dimension::DENSITY, "density", "kg/m^3"),
     named(Dimension::STIFFNESS, "stiffness", "N/m"),
     named(Dimension::DAMPING, "damping", "N*s/m"),
-    named(
-        Dimension::ROTATIONAL_STIFFNESS,
-        "rotational stiffness",
-        "N*m/rad",
-    ),
-    named(
-        Dimension::ROTATIONAL_DAMPING,
-        "rotational damping",
-        "N*m*s/rad",
-    ),
+    named(Dimension::ROTATIONAL_STIFFNESS, "rotational stiffness", "N*m/rad"),
+    named(Dimension::ROTATIONAL_DAMPING, "rotational damping", "N*m*s/rad"),
     named(Dimension::PHASE_SLOPE, "phase slope", "rad*s"),
     named(Dimension::VELOCITY, "velocity", "m/s"),
     named(Dimension::ACCELERATION, "acceleration", "m/s^2"),
@@ -62,11 +54,7 @@ const NAMED: &[Named] = &[
     named(Dimension::MOMENT, "moment", "N*m"),
     named(Dimension::POWER, "power", "W"),
     named(Dimension::COMPLIANCE, "compliance", "m/N"),
-    named(
-        Dimension::ROTATIONAL_ACCELERATION,
-        "rotational acceleration",
-        "rad/s^2",
-    ),
+    named(Dimension::ROTATIONAL_ACCELERATION, "rotational acceleration", "rad/s^2"),
 ];
 
 /// Extra names accepted by [`Dimension::from_name`] for dimensions that share exponents.
@@ -84,12 +72,7 @@ const ALIASES: &[(&str, Dimension)] = &[
 impl Dimension {
     /// Builds a dimension from exponents of length, mass, time and angle.
     pub const fn new(length: i8, mass: i8, time: i8, angle: i8) -> Self {
-        Dimension {
-            length,
-            mass,
-            time,
-            angle,
-        }
+        Dimension { length, mass, time, angle }
     }
 
     /// A pure number (all exponents zero).
@@ -159,28 +142,14 @@ impl Dimension {
 
     /// Looks a dimension up by name, accepting spaces, `_` or `-` between words and any case.
     pub fn from_name(name: &str) -> Option<Dimension> {
-        let normalised: String = name
-            .trim()
-            .chars()
-            .map(|c| {
-                if c == '_' || c == '-' {
-                    ' '
-                } else {
-                    c.to_ascii_lowercase()
-                }
-            })
-            .collect();
+        let normalised: String =
+            name.trim().chars().map(|c| if c == '_' || c == '-' { ' ' } else { c.to_ascii_lowercase() }).collect();
         let normalised = normalised.split_whitespace().collect::<Vec<_>>().join(" ");
         NAMED
             .iter()
             .find(|n| n.name == normalised)
             .map(|n| n.dim)
-            .or_else(|| {
-                ALIASES
-                    .iter()
-                    .find(|(a, _)| *a == normalised)
-                    .map(|(_, d)| *d)
-            })
+            .or_else(|| ALIASES.iter().find(|(a, _)| *a == normalised).map(|(_, d)| *d))
     }
 
     /// SI unit of this dimension, readable for named ones (`"N*s/m"`) and built from the
@@ -189,35 +158,14 @@ impl Dimension {
         if let Some(n) = self.named() {
             return n.si.to_string();
         }
-        let bases = [
-            ("kg", self.mass),
-            ("m", self.length),
-            ("s", self.time),
-            ("rad", self.angle),
-        ];
+        let bases = [("kg", self.mass), ("m", self.length), ("s", self.time), ("rad", self.angle)];
         let factor = |sym: &str, exp: i8| {
             let exp = exp.unsigned_abs();
-            if exp == 1 {
-                sym.to_string()
-            } else {
-                format!("{sym}^{exp}")
-            }
+            if exp == 1 { sym.to_string() } else { format!("{sym}^{exp}") }
         };
-        let num: Vec<String> = bases
-            .iter()
-            .filter(|(_, e)| *e > 0)
-            .map(|(s, e)| factor(s, *e))
-            .collect();
-        let den: Vec<String> = bases
-            .iter()
-            .filter(|(_, e)| *e < 0)
-            .map(|(s, e)| factor(s, *e))
-            .collect();
-        let num = if num.is_empty() {
-            "1".to_string()
-        } else {
-            num.join("*")
-        };
+        let num: Vec<String> = bases.iter().filter(|(_, e)| *e > 0).map(|(s, e)| factor(s, *e)).collect();
+        let den: Vec<String> = bases.iter().filter(|(_, e)| *e < 0).map(|(s, e)| factor(s, *e)).collect();
+        let num = if num.is_empty() { "1".to_string() } else { num.join("*") };
         match den.len() {
             0 => num,
             1 => format!("{num}/{}", den[0]),
@@ -233,11 +181,7 @@ impl Dimension {
         }
         match self.named() {
             Some(n) => {
-                let article = if n.name.starts_with(['a', 'e', 'i', 'o', 'u']) {
-                    "an"
-                } else {
-                    "a"
-                };
+                let article = if n.name.starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
                 format!("{article} {} ({})", n.name, n.si)
             }
             None => format!("a quantity of dimension {}", self.si_unit()),
@@ -267,27 +211,13 @@ impl Dimension {
     /// Integer power of a dimension, or `None` if an exponent leaves the `i8` range.
     pub fn checked_powi(self, n: i32) -> Option<Dimension> {
         let p = |e: i8| i8::try_from(i32::from(e).checked_mul(n)?).ok();
-        Some(Dimension {
-            length: p(self.length)?,
-            mass: p(self.mass)?,
-            time: p(self.time)?,
-            angle: p(self.angle)?,
-        })
+        Some(Dimension { length: p(self.length)?, mass: p(self.mass)?, time: p(self.time)?, angle: p(self.angle)? })
     }
 
     /// Integer power of a dimension; exponents saturate at the `i8` limits.
     pub fn powi(self, n: i32) -> Dimension {
-        let p = |e: i8| {
-            i32::from(e)
-                .saturating_mul(n)
-                .clamp(i8::MIN.into(), i8::MAX.into()) as i8
-        };
-        Dimension {
-            length: p(self.length),
-            mass: p(self.mass),
-            time: p(self.time),
-            angle: p(self.angle),
-        }
+        let p = |e: i8| i32::from(e).saturating_mul(n).clamp(i8::MIN.into(), i8::MAX.into()) as i8;
+        Dimension { length: p(self.length), mass: p(self.mass), time: p(self.time), angle: p(self.angle) }
     }
 
     /// Reciprocal dimension (all exponents negated, saturating).

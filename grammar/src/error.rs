@@ -19,12 +19,7 @@ pub struct ParseError {
 impl ParseError {
     /// Builds an error at a character span without a hint.
     pub fn new(offset: usize, len: usize, message: impl Into<String>) -> Self {
-        ParseError {
-            offset,
-            len,
-            message: message.into(),
-            help: None,
-        }
+        ParseError { offset, len, message: message.into(), help: None }
     }
 
     /// Attaches a hint to the error.
@@ -35,16 +30,9 @@ impl ParseError {
 
     /// Renders the error under the source line with carets, for terminal output.
     pub fn render(&self, source: &str) -> String {
-        let line: String = source
-            .chars()
-            .map(|c| if c == '\n' || c == '\r' { ' ' } else { c })
-            .collect();
-        let mut out = format!(
-            "error: {}\n  {line}\n  {}{}",
-            self.message,
-            " ".repeat(self.offset),
-            "^".repeat(self.len.max(1))
-        );
+        let line: String = source.chars().map(|c| if c == '\n' || c == '\r' { ' ' } else { c }).collect();
+        let mut out =
+            format!("error: {}\n  {line}\n  {}{}", self.message, " ".repeat(self.offset), "^".repeat(self.len.max(1)));
         if let Some(help) = &self.help {
             out.push_str("\n  help: ");
             out.push_str(help);

@@ -24,6 +24,4 @@ pub use dimension::Dimension;
 pub use error::{DimensionError, ParseError};
 pub use parser::{looks_like_value, parse_quantity, parse_unit, parse_value};
 pub use unit::Unit;
-pub use value::{
-    MAX_RANGE_POINTS, Quantity, RANGE_END_TOLERANCE, Reference, Value, range_len, range_points,
-};
+pub use value::{MAX_RANGE_POINTS, Quantity, RANGE_END_TOLERANCE, Reference, Value, range_len, range_points};

@@ -22,8 +22,7 @@ const MAX_EXPONENT: i32 = 24;
 pub fn parse_value(text: &str) -> Result<Value, ParseError> {
     let cx = Cx { text };
     cx.precheck()?;
-    let mut pairs =
-        QuantityParser::parse(Rule::value_input, text).map_err(|e| cx.pest_error(&e))?;
+    let mut pairs = QuantityParser::parse(Rule::value_input, text).map_err(|e| cx.pest_error(&e))?;
     let Some(pair) = pairs.next() else {
         return Err(cx.error_at(0, "expected a value"));
     };
@@ -32,10 +31,7 @@ pub fn parse_value(text: &str) -> Result<Value, ParseError> {
         Rule::list => cx.list(pair),
         Rule::range => cx.range(pair),
         Rule::quantity => {
-            let item = pair
-                .into_inner()
-                .next()
-                .ok_or_else(|| cx.error_at(0, "expected a number"))?;
+            let item = pair.into_inner().next().ok_or_else(|| cx.error_at(0, "expected a number"))?;
             let item = cx.item(item)?;
             Ok(Value::Quantity(cx.quantity(&item, None)?))
         }
@@ -50,12 +46,8 @@ pub fn parse_quantity(text: &str) -> Result<Quantity, ParseError> {
         other => {
             let start = text.chars().take_while(|c| c.is_whitespace()).count();
             let len = text.trim().chars().count();
-            Err(ParseError::new(
-                start,
-                len,
-                format!("expected a single quantity, found {}", other.kind()),
-            )
-            .with_help("write one number with its unit, e.g. `12.7 mm`"))
+            Err(ParseError::new(start, len, format!("expected a single quantity, found {}", other.kind()))
+                .with_help("write one number with its unit, e.g. `12.7 mm`"))
         }
     }
 }
@@ -73,16 +65,13 @@ pub fn parse_unit(text: &str) -> Result<Unit, ParseError> {
         Rule::unit => cx.unit(pair)?,
         _ => Scale::ONE,
     };
-    scale
-        .to_unit()
-        .ok_or_else(|| cx.error(span, "unit scale is out of range"))
+    scale.to_unit().ok_or_else(|| cx.error(span, "unit scale is out of range"))
 }
 
 /// Cheap test whether a scalar is meant as a value: after leading whitespace it starts with
 /// a digit, a sign, `.`, `[` or `@`.
 pub fn looks_like_value(text: &str) -> bool {
-    text.trim_start()
-        .starts_with(|c: char| c.is_ascii_digit() || matches!(c, '+' | '-' | '.' | '[' | '@'))
+    text.trim_start().starts_with(|c: char| c.is_ascii_digit() || matches!(c, '+' | '-' | '.' | '[' | '@'))
 }
 
 /// A parsed list item or range bound before unit defaults are applied.
@@ -116,10 +105,8 @@ impl<'a> Cx<'a> {
     /// Rejects empty input and runaway parenthesis nesting before running the grammar.
     fn precheck(&self) -> Result<(), ParseError> {
         if self.text.trim().is_empty() {
-            return Err(
-                ParseError::new(0, 0, "expected a value, found an empty string")
-                    .with_help("write a number with a unit, e.g. `12.7 mm`"),
-            );
+            return Err(ParseError::new(0, 0, "expected a value, found an empty string")
+                .with_help("write a number with a unit, e.g. `12.7 mm`"));
         }
         let mut depth = 0usize;
         for (i, c) in self.text.char_indices() {
@@ -148,21 +135,11 @@ impl<'a> Cx<'a> {
         let rest = self.text.get(pos..).unwrap_or("");
         let at_start = self.text.get(..pos).is_some_and(|s| s.trim().is_empty());
         let wants = |r: Rule| positives.contains(&r);
-        let structural = [
-            Rule::comma,
-            Rule::close,
-            Rule::dots,
-            Rule::step_kw,
-            Rule::name,
-            Rule::number,
-            Rule::rparen,
-        ];
+        let structural = [Rule::comma, Rule::close, Rule::dots, Rule::step_kw, Rule::name, Rule::number, Rule::rparen];
         let mut expected: Vec<&str> = Vec::new();
         for rule in &positives {
             let word = match rule {
-                Rule::number | Rule::nonfinite | Rule::item | Rule::quantity | Rule::range => {
-                    "a number"
-                }
+                Rule::number | Rule::nonfinite | Rule::item | Rule::quantity | Rule::range => "a number",
                 Rule::reference | Rule::name => "a name",
                 Rule::list | Rule::open => "`[`",
                 Rule::comma => "`,`",
@@ -210,28 +187,16 @@ impl<'a> Cx<'a> {
             None => format!("{message}, found end of input"),
         };
         let mut err = self.error_at(pos, message);
-        if at_start
-            && rest.starts_with(|c: char| c.is_alphabetic() || c == '%' || c == '°' || c == 'µ')
-        {
-            err = err.with_help(
-                if rest
-                    .trim_start()
-                    .to_ascii_lowercase()
-                    .starts_with(['n', 'i'])
-                {
-                    "numbers must be finite decimals such as `12.7` or `1e-3`"
-                } else {
-                    "write the number before its unit, e.g. `12.7 mm`; references start with `@`"
-                },
-            );
+        if at_start && rest.starts_with(|c: char| c.is_alphabetic() || c == '%' || c == '°' || c == 'µ') {
+            err = err.with_help(if rest.trim_start().to_ascii_lowercase().starts_with(['n', 'i']) {
+                "numbers must be finite decimals such as `12.7` or `1e-3`"
+            } else {
+                "write the number before its unit, e.g. `12.7 mm`; references start with `@`"
+            });
         } else if wants(Rule::name) {
-            err = err.with_help(
-                "names start with a letter or `_` and contain letters, digits, `_` or `-`",
-            );
+            err = err.with_help("names start with a letter or `_` and contain letters, digits, `_` or `-`");
         } else if wants(Rule::step_kw) {
-            err = err.with_help(
-                "write ranges as `start..end step size unit`, e.g. `0..4000 step 500 rpm`",
-            );
+            err = err.with_help("write ranges as `start..end step size unit`, e.g. `0..4000 step 500 rpm`");
         } else if wants(Rule::EOI)
             && found.is_some_and(|c| c.is_alphabetic())
             && !self.text.trim_start().starts_with('@')
@@ -242,9 +207,7 @@ impl<'a> Cx<'a> {
     }
 
     fn reference(&self, pair: Pair<'a, Rule>) -> Reference {
-        Reference {
-            path: pair.into_inner().map(|p| p.as_str().to_string()).collect(),
-        }
+        Reference { path: pair.into_inner().map(|p| p.as_str().to_string()).collect() }
     }
 
     fn item(&self, pair: Pair<'a, Rule>) -> Result<Item<'a>, ParseError> {
@@ -256,25 +219,15 @@ impl<'a> Cx<'a> {
         let number = num.as_str();
         if num.as_rule() == Rule::nonfinite {
             return Err(self
-                .error(
-                    num.as_span(),
-                    format!("non-finite number `{number}` is not allowed"),
-                )
+                .error(num.as_span(), format!("non-finite number `{number}` is not allowed"))
                 .with_help("write a finite decimal number such as `12.7` or `1e-3`"));
         }
-        let raw: f64 = number
-            .parse()
-            .map_err(|_| self.error(num.as_span(), format!("invalid number `{number}`")))?;
+        let raw: f64 = number.parse().map_err(|_| self.error(num.as_span(), format!("invalid number `{number}`")))?;
         if !raw.is_finite() {
             return Err(self.error(num.as_span(), format!("number `{number}` is out of range")));
         }
         let unit = inner.next().map(|u| self.unit(u)).transpose()?;
-        Ok(Item {
-            pair: whole,
-            number,
-            raw,
-            unit,
-        })
+        Ok(Item { pair: whole, number, raw, unit })
     }
 
     /// Converts an item to SI using its own unit, else `default`, else no unit.
@@ -282,15 +235,11 @@ impl<'a> Cx<'a> {
         let scale = item.unit.or(default).unwrap_or(Scale::ONE);
         let value = scale.convert(item.number, item.raw);
         if !value.is_finite() {
-            return Err(self.error(
-                item.pair.as_span(),
-                format!("`{}` is out of range in SI units", item.pair.as_str()),
-            ));
+            return Err(
+                self.error(item.pair.as_span(), format!("`{}` is out of range in SI units", item.pair.as_str()))
+            );
         }
-        Ok(Quantity {
-            value,
-            dim: scale.dim,
-        })
+        Ok(Quantity { value, dim: scale.dim })
     }
 
     fn list(&self, pair: Pair<'a, Rule>) -> Result<Value, ParseError> {
@@ -329,21 +278,14 @@ impl<'a> Cx<'a> {
 
     fn range(&self, pair: Pair<'a, Rule>) -> Result<Value, ParseError> {
         let span = pair.as_span();
-        let items: Vec<Item<'a>> = pair
-            .into_inner()
-            .filter(|p| p.as_rule() == Rule::item)
-            .map(|p| self.item(p))
-            .collect::<Result<_, _>>()?;
+        let items: Vec<Item<'a>> =
+            pair.into_inner().filter(|p| p.as_rule() == Rule::item).map(|p| self.item(p)).collect::<Result<_, _>>()?;
         let [start, end, step] = items.as_slice() else {
             return Err(self.error(span, "expected `start..end step size`"));
         };
         // Bounds without a unit take the step's unit: `0..4000 step 500 rpm`.
         let default = step.unit;
-        let qs = [
-            self.quantity(start, default)?,
-            self.quantity(end, default)?,
-            self.quantity(step, default)?,
-        ];
+        let qs = [self.quantity(start, default)?, self.quantity(end, default)?, self.quantity(step, default)?];
         let dim = qs[2].dim;
         for (q, item) in qs.iter().zip([start, end]) {
             if q.dim != dim {
@@ -363,9 +305,7 @@ impl<'a> Cx<'a> {
         if step_v <= 0.0 {
             let mut err = self.error(step.pair.as_span(), "range step must be positive");
             if step_v < 0.0 {
-                err = err.with_help(
-                    "write ranges in increasing order with a positive step, e.g. `0..10 step 1 s`",
-                );
+                err = err.with_help("write ranges in increasing order with a positive step, e.g. `0..10 step 1 s`");
             }
             return Err(err);
         }
@@ -376,18 +316,10 @@ impl<'a> Cx<'a> {
         }
         if range_len(start_v, end_v, step_v).is_none() {
             return Err(self
-                .error(
-                    span,
-                    format!("range has more than {MAX_RANGE_POINTS} points"),
-                )
+                .error(span, format!("range has more than {MAX_RANGE_POINTS} points"))
                 .with_help("use a larger step or a shorter range"));
         }
-        Ok(Value::Range {
-            start: start_v,
-            end: end_v,
-            step: step_v,
-            dim,
-        })
+        Ok(Value::Range { start: start_v, end: end_v, step: step_v, dim })
     }
 
     /// Evaluates a unit expression left to right: `N/m/s` is `N/(m*s)`.
@@ -423,12 +355,13 @@ impl<'a> Cx<'a> {
                     } else {
                         superscript(p.as_str())
                     };
-                    let n = n
-                        .filter(|n| n.unsigned_abs() <= MAX_EXPONENT.unsigned_abs())
-                        .ok_or_else(|| self.error(p.as_span(), format!("unit exponent must be between -{MAX_EXPONENT} and {MAX_EXPONENT}")))?;
-                    base = base
-                        .powi(n)
-                        .ok_or_else(|| self.error(span, "unit is out of range"))?;
+                    let n = n.filter(|n| n.unsigned_abs() <= MAX_EXPONENT.unsigned_abs()).ok_or_else(|| {
+                        self.error(
+                            p.as_span(),
+                            format!("unit exponent must be between -{MAX_EXPONENT} and {MAX_EXPONENT}"),
+                        )
+                    })?;
+                    base = base.powi(n).ok_or_else(|| self.error(span, "unit is out of range"))?;
                 }
                 _ => {}
             }
@@ -450,9 +383,7 @@ impl<'a> Cx<'a> {
                     }
                 }
             }
-            SymbolError::Unsupported(message, help) => {
-                self.error(pair.as_span(), message).with_help(help)
-            }
+            SymbolError::Unsupported(message, help) => self.error(pair.as_span(), message).with_help(help),
         })
     }
 }

@@ -15,10 +15,7 @@ pub struct Unit {
 
 impl Unit {
     /// The unit of a plain number: scale 1, dimensionless.
-    pub const ONE: Unit = Unit {
-        scale: 1.0,
-        dim: Dimension::DIMENSIONLESS,
-    };
+    pub const ONE: Unit = Unit { scale: 1.0, dim: Dimension::DIMENSIONLESS };
 
     /// Converts a value written in this unit to SI.
     pub fn to_si(&self, value: f64) -> f64 {
@@ -35,11 +32,7 @@ pub(crate) struct Scale {
 }
 
 impl Scale {
-    pub const ONE: Scale = Scale {
-        factor: 1.0,
-        pow10: 0,
-        dim: Dimension::DIMENSIONLESS,
-    };
+    pub const ONE: Scale = Scale { factor: 1.0, pow10: 0, dim: Dimension::DIMENSIONLESS };
 
     pub fn mul(self, rhs: Scale) -> Option<Scale> {
         Some(Scale {
@@ -64,10 +57,7 @@ impl Scale {
     /// The combined scale as one number, if it is finite and non-zero.
     pub fn to_unit(self) -> Option<Unit> {
         let scale = finite(self.factor * pow10(self.pow10))?;
-        Some(Unit {
-            scale,
-            dim: self.dim,
-        })
+        Some(Unit { scale, dim: self.dim })
     }
 
     /// Converts the decimal text `number` (already validated as finite) to SI.
@@ -110,20 +100,8 @@ struct Symbol {
     prefixable: bool,
 }
 
-const fn sym(
-    sym: &'static str,
-    factor: f64,
-    pow10: i32,
-    dim: Dimension,
-    prefixable: bool,
-) -> Symbol {
-    Symbol {
-        sym,
-        factor,
-        pow10,
-        dim,
-        prefixable,
-    }
+const fn sym(sym: &'static str, factor: f64, pow10: i32, dim: Dimension, prefixable: bool) -> Symbol {
+    Symbol { sym, factor, pow10, dim, prefixable }
 }
 
 const D: Dimension = Dimension::DIMENSIONLESS;
@@ -137,13 +115,7 @@ const SYMBOLS: &[Symbol] = &[
     sym("min", 60.0, 0, Dimension::TIME, false),
     sym("h", 3600.0, 0, Dimension::TIME, false),
     sym("Hz", 1.0, 0, Dimension::FREQUENCY, true),
-    sym(
-        "rpm",
-        2.0 * PI / 60.0,
-        0,
-        Dimension::ROTATIONAL_SPEED,
-        false,
-    ),
+    sym("rpm", 2.0 * PI / 60.0, 0, Dimension::ROTATIONAL_SPEED, false),
     sym("rps", 2.0 * PI, 0, Dimension::ROTATIONAL_SPEED, false),
     sym("rev", 2.0 * PI, 0, Dimension::ANGLE, false),
     sym("rad", 1.0, 0, Dimension::ANGLE, true),
@@ -193,11 +165,7 @@ pub(crate) enum SymbolError {
 /// Resolves one unit symbol: a whole symbol first, then prefix + prefixable symbol.
 pub(crate) fn lookup_symbol(text: &str) -> Result<Scale, SymbolError> {
     if let Some(s) = SYMBOLS.iter().find(|s| s.sym == text) {
-        return Ok(Scale {
-            factor: s.factor,
-            pow10: s.pow10,
-            dim: s.dim,
-        });
+        return Ok(Scale { factor: s.factor, pow10: s.pow10, dim: s.dim });
     }
     for (prefix, p) in PREFIXES {
         let Some(rest) = text.strip_prefix(prefix) else {
@@ -207,11 +175,7 @@ pub(crate) fn lookup_symbol(text: &str) -> Result<Scale, SymbolError> {
             continue;
         }
         if let Some(s) = SYMBOLS.iter().find(|s| s.prefixable && s.sym == rest) {
-            return Ok(Scale {
-                factor: s.factor,
-                pow10: s.pow10 + p,
-                dim: s.dim,
-            });
+            return Ok(Scale { factor: s.factor, pow10: s.pow10 + p, dim: s.dim });
         }
     }
     if text.starts_with("dB") {
@@ -247,31 +211,17 @@ fn candidates() -> Vec<String> {
 fn suggest(text: &str) -> Vec<String> {
     let all = candidates();
     let lower = text.to_lowercase();
-    let same_case: Vec<String> = all
-        .iter()
-        .filter(|c| c.to_lowercase() == lower)
-        .cloned()
-        .collect();
+    let same_case: Vec<String> = all.iter().filter(|c| c.to_lowercase() == lower).cloned().collect();
     if !same_case.is_empty() {
         return same_case;
     }
     let len = text.chars().count();
     let max = if len <= 2 { 1 } else { 2 };
     let scored: Vec<(usize, &String)> = all.iter().map(|c| (levenshtein(text, c), c)).collect();
-    let Some(best) = scored
-        .iter()
-        .map(|(d, _)| *d)
-        .min()
-        .filter(|d| *d <= max && *d < len)
-    else {
+    let Some(best) = scored.iter().map(|(d, _)| *d).min().filter(|d| *d <= max && *d < len) else {
         return Vec::new();
     };
-    scored
-        .into_iter()
-        .filter(|(d, _)| *d == best)
-        .map(|(_, c)| c.clone())
-        .take(3)
-        .collect()
+    scored.into_iter().filter(|(d, _)| *d == best).map(|(_, c)| c.clone()).take(3).collect()
 }
 
 /// Edit distance between two strings in characters, counting an adjacent swap as one edit.
@@ -289,9 +239,7 @@ pub(crate) fn levenshtein(a: &str, b: &str) -> usize {
     for i in 1..=a.len() {
         for j in 1..=b.len() {
             let cost = usize::from(a[i - 1] != b[j - 1]);
-            let mut best = (d[(i - 1) * w + j] + 1)
-                .min(d[i * w + j - 1] + 1)
-                .min(d[(i - 1) * w + j - 1] + cost);
+            let mut best = (d[(i - 1) * w + j] + 1).min(d[i * w + j - 1] + 1).min(d[(i - 1) * w + j - 1] + cost);
             if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
                 best = best.min(d[(i - 2) * w + j - 2] + 1);
             }

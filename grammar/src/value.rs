@@ -27,33 +27,19 @@ impl Quantity {
 
     /// A dimensionless number.
     pub const fn dimensionless(value: f64) -> Self {
-        Quantity {
-            value,
-            dim: Dimension::DIMENSIONLESS,
-        }
+        Quantity { value, dim: Dimension::DIMENSIONLESS }
     }
 
     /// Returns the SI value if the quantity has dimension `dim`, so callers can type-check fields.
     pub fn expect(&self, dim: Dimension) -> Result<f64, DimensionError> {
-        if self.dim == dim {
-            Ok(self.value)
-        } else {
-            Err(DimensionError {
-                expected: dim,
-                found: self.dim,
-            })
-        }
+        if self.dim == dim { Ok(self.value) } else { Err(DimensionError { expected: dim, found: self.dim }) }
     }
 }
 
 impl fmt::Display for Quantity {
     /// Writes the SI value followed by its SI unit, e.g. `0.0127 m`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.dim.is_dimensionless() {
-            write!(f, "{}", self.value)
-        } else {
-            write!(f, "{} {}", self.value, self.dim)
-        }
+        if self.dim.is_dimensionless() { write!(f, "{}", self.value) } else { write!(f, "{} {}", self.value, self.dim) }
     }
 }
 
@@ -125,10 +111,7 @@ impl Value {
             Value::Reference(_) => None,
         };
         match found {
-            Some(found) if found != dim => Err(DimensionError {
-                expected: dim,
-                found,
-            }),
+            Some(found) if found != dim => Err(DimensionError { expected: dim, found }),
             _ => Ok(()),
         }
     }
@@ -155,9 +138,7 @@ impl Value {
         match self {
             Value::Quantity(q) => vec![q.value],
             Value::List(items) => items.iter().map(|q| q.value).collect(),
-            Value::Range {
-                start, end, step, ..
-            } => range_points(*start, *end, *step),
+            Value::Range { start, end, step, .. } => range_points(*start, *end, *step),
             Value::Reference(_) => Vec::new(),
         }
     }
@@ -195,11 +176,7 @@ pub fn range_points(start: f64, end: f64, step: f64) -> Vec<f64> {
     (0..n)
         .map(|i| {
             let x = start + i as f64 * step;
-            if (x - end).abs() <= RANGE_END_TOLERANCE * step {
-                end
-            } else {
-                x
-            }
+            if (x - end).abs() <= RANGE_END_TOLERANCE * step { end } else { x }
         })
         .collect()
 }

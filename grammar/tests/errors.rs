@@ -26,10 +26,7 @@ fn unknown_unit_with_suggestion() {
     assert_eq!((e.offset, e.len), (5, 3));
     assert_eq!(err("12 khz").help.as_deref(), Some("did you mean `kHz`?"));
     assert_eq!(err("5 rmp").help.as_deref(), Some("did you mean `rpm`?"));
-    assert_eq!(
-        err("1 mpa").help.as_deref(),
-        Some("did you mean `mPa` or `MPa`?")
-    );
+    assert_eq!(err("1 mpa").help.as_deref(), Some("did you mean `mPa` or `MPa`?"));
     assert_eq!(err("1 xyzzy").help, None);
 }
 
@@ -76,11 +73,7 @@ fn unclosed_list() {
     assert!(e.message.contains("at least one"), "{}", e.message);
     let e = err("[1 mm, 2]");
     assert_eq!(e.offset, 7);
-    assert!(
-        e.message.contains("length") && e.message.contains("dimensionless"),
-        "{}",
-        e.message
-    );
+    assert!(e.message.contains("length") && e.message.contains("dimensionless"), "{}", e.message);
 }
 
 #[test]
@@ -98,15 +91,7 @@ fn bad_references() {
 
 #[test]
 fn non_finite_numbers() {
-    for text in [
-        "NaN mm",
-        "nan",
-        "inf Hz",
-        "-inf",
-        "+Infinity s",
-        "[1, inf] m",
-        "0..inf step 1 s",
-    ] {
+    for text in ["NaN mm", "nan", "inf Hz", "-inf", "+Infinity s", "[1, inf] m", "0..inf step 1 s"] {
         let e = err(text);
         assert!(e.message.contains("non-finite"), "{text}: {}", e.message);
     }
@@ -166,10 +151,7 @@ fn deep_nesting_is_refused() {
 #[test]
 fn render_points_at_the_span() {
     let e = err("12.7 mmm");
-    assert_eq!(
-        e.render("12.7 mmm"),
-        "error: unknown unit `mmm`\n  12.7 mmm\n       ^^^\n  help: did you mean `mm`?"
-    );
+    assert_eq!(e.render("12.7 mmm"), "error: unknown unit `mmm`\n  12.7 mmm\n       ^^^\n  help: did you mean `mm`?");
     assert_eq!(e.to_string(), "unknown unit `mmm`");
 }
 

@@ -4,12 +4,7 @@ use spindlelab_grammar::{looks_like_value, parse_quantity, parse_unit, parse_val
 
 fn check_span(text: &str, e: &spindlelab_grammar::ParseError) {
     let chars = text.chars().count();
-    assert!(
-        e.offset + e.len <= chars,
-        "{text:?}: span {}+{} beyond {chars}",
-        e.offset,
-        e.len
-    );
+    assert!(e.offset + e.len <= chars, "{text:?}: span {}+{} beyond {chars}", e.offset, e.len);
     assert!(!e.message.is_empty(), "{text:?}");
 }
 
@@ -24,10 +19,7 @@ fn check_value(text: &str) {
 /// Runs every entry point.
 fn check(text: &str) {
     check_value(text);
-    for e in [parse_quantity(text).err(), parse_unit(text).err()]
-        .iter()
-        .flatten()
-    {
+    for e in [parse_quantity(text).err(), parse_unit(text).err()].iter().flatten() {
         check_span(text, e);
     }
     let _ = looks_like_value(text);
@@ -57,8 +49,8 @@ fn all_ascii_strings_up_to_three_chars() {
 #[test]
 fn unicode_and_structural_combinations() {
     let pieces = [
-        "1", "-", ".", "..", "e", "m", "µ", "μ", "²", "⁻", "°", "·", "/", "*", "^", "(", ")", "[",
-        "]", ",", "@", " ", "step", "\u{a0}", "é", "😀", "\n", "NaN", "k",
+        "1", "-", ".", "..", "e", "m", "µ", "μ", "²", "⁻", "°", "·", "/", "*", "^", "(", ")", "[", "]", ",", "@", " ",
+        "step", "\u{a0}", "é", "😀", "\n", "NaN", "k",
     ];
     for a in pieces {
         for b in pieces {

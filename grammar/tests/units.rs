@@ -6,10 +6,7 @@ use spindlelab_grammar::{Dimension, Unit, parse_unit};
 
 fn assert_close(actual: f64, expected: f64, what: &str) {
     let tol = 1e-12 * expected.abs().max(f64::MIN_POSITIVE);
-    assert!(
-        (actual - expected).abs() <= tol,
-        "{what}: got {actual:e}, expected {expected:e}"
-    );
+    assert!((actual - expected).abs() <= tol, "{what}: got {actual:e}, expected {expected:e}");
 }
 
 fn unit(text: &str) -> Unit {
@@ -101,35 +98,21 @@ fn centi_and_deci_only_apply_to_the_metre() {
 
 #[test]
 fn prefixes_do_not_apply_to_non_si_symbols() {
-    for text in [
-        "krpm", "mdeg", "kin", "mft", "klbf", "Mpsi", "m%", "ktooth", "kmin", "mh",
-    ] {
+    for text in ["krpm", "mdeg", "kin", "mft", "klbf", "Mpsi", "m%", "ktooth", "kmin", "mh"] {
         assert!(parse_unit(text).is_err(), "`{text}` should be rejected");
     }
 }
 
 #[test]
 fn whole_symbols_win_over_prefix_splits() {
-    assert_eq!(
-        unit("min"),
-        Unit {
-            scale: 60.0,
-            dim: Dimension::TIME
-        }
-    );
+    assert_eq!(unit("min"), Unit { scale: 60.0, dim: Dimension::TIME });
     assert_eq!(unit("mm").dim, Dimension::LENGTH);
     assert_eq!(unit("ms").dim, Dimension::TIME);
     assert_close(unit("ms").scale, 1e-3, "ms");
     assert_close(unit("Ms").scale, 1e6, "Ms");
     assert_eq!(unit("psi").dim, Dimension::PRESSURE);
     assert_close(unit("ps").scale, 1e-12, "ps");
-    assert_eq!(
-        unit("kg"),
-        Unit {
-            scale: 1.0,
-            dim: Dimension::MASS
-        }
-    );
+    assert_eq!(unit("kg"), Unit { scale: 1.0, dim: Dimension::MASS });
 }
 
 #[test]
@@ -162,10 +145,7 @@ fn division_is_left_associative() {
     let a = unit("N/m/s");
     let b = unit("N/(m*s)");
     assert_eq!(a.dim, b.dim);
-    assert_eq!(
-        a.dim,
-        Dimension::FORCE / Dimension::LENGTH / Dimension::TIME
-    );
+    assert_eq!(a.dim, Dimension::FORCE / Dimension::LENGTH / Dimension::TIME);
     assert_eq!(unit("kg/(m*s^2)").dim, Dimension::PRESSURE);
     assert_close(unit("kN/mm").scale, 1e6, "kN/mm");
     assert_close(unit("(mm)^2").scale, 1e-6, "(mm)^2");

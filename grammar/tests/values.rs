@@ -3,8 +3,7 @@
 use std::f64::consts::PI;
 
 use spindlelab_grammar::{
-    Dimension, DimensionError, Quantity, Reference, Value, looks_like_value, parse_quantity,
-    parse_value,
+    Dimension, DimensionError, Quantity, Reference, Value, looks_like_value, parse_quantity, parse_value,
 };
 
 fn q(text: &str) -> Quantity {
@@ -17,10 +16,7 @@ fn v(text: &str) -> Value {
 
 fn assert_close(actual: f64, expected: f64) {
     let tol = 1e-12 * expected.abs();
-    assert!(
-        (actual - expected).abs() <= tol,
-        "got {actual:e}, expected {expected:e}"
-    );
+    assert!((actual - expected).abs() <= tol, "got {actual:e}, expected {expected:e}");
 }
 
 #[test]
@@ -28,30 +24,15 @@ fn documented_conversions_are_exact() {
     assert_eq!(q("12.7 mm"), Quantity::new(0.0127, Dimension::LENGTH));
     assert_eq!(q("7800 kg/m^3"), Quantity::new(7800.0, Dimension::DENSITY));
     assert_eq!(q("200 GPa"), Quantity::new(2e11, Dimension::PRESSURE));
-    assert_eq!(
-        q("76.2 um/tooth"),
-        Quantity::new(7.62e-5, Dimension::LENGTH)
-    );
-    assert_eq!(
-        q("76.2 µm/tooth"),
-        Quantity::new(7.62e-5, Dimension::LENGTH)
-    );
-    assert_eq!(
-        q("76.2 μm/tooth"),
-        Quantity::new(7.62e-5, Dimension::LENGTH)
-    );
+    assert_eq!(q("76.2 um/tooth"), Quantity::new(7.62e-5, Dimension::LENGTH));
+    assert_eq!(q("76.2 µm/tooth"), Quantity::new(7.62e-5, Dimension::LENGTH));
+    assert_eq!(q("76.2 μm/tooth"), Quantity::new(7.62e-5, Dimension::LENGTH));
     assert_eq!(q("0.003 in"), Quantity::new(7.62e-5, Dimension::LENGTH));
     assert_eq!(q("25 %"), Quantity::new(0.25, Dimension::DIMENSIONLESS));
-    assert_eq!(
-        q("3000 rpm"),
-        Quantity::new(100.0 * PI, Dimension::ROTATIONAL_SPEED)
-    );
+    assert_eq!(q("3000 rpm"), Quantity::new(100.0 * PI, Dimension::ROTATIONAL_SPEED));
     assert_eq!(q("250 N*s/m"), Quantity::new(250.0, Dimension::DAMPING));
     assert_eq!(q("1e7 N/m"), Quantity::new(1e7, Dimension::STIFFNESS));
-    assert_eq!(
-        q("3e5 N*m/rad"),
-        Quantity::new(3e5, Dimension::ROTATIONAL_STIFFNESS)
-    );
+    assert_eq!(q("3e5 N*m/rad"), Quantity::new(3e5, Dimension::ROTATIONAL_STIFFNESS));
     assert_eq!(q("5 ms"), Quantity::new(5e-3, Dimension::TIME));
     assert_eq!(q("100 kHz"), Quantity::new(1e5, Dimension::FREQUENCY));
     assert_eq!(q("2 min"), Quantity::new(120.0, Dimension::TIME));
@@ -105,39 +86,19 @@ fn whitespace_between_number_and_unit_is_optional() {
 #[test]
 fn dimension_mismatch_names_both() {
     let err: DimensionError = q("12.7 mm").expect(Dimension::FREQUENCY).unwrap_err();
-    assert_eq!(
-        err,
-        DimensionError {
-            expected: Dimension::FREQUENCY,
-            found: Dimension::LENGTH
-        }
-    );
+    assert_eq!(err, DimensionError { expected: Dimension::FREQUENCY, found: Dimension::LENGTH });
     let text = err.to_string();
-    assert!(
-        text.contains("frequency") && text.contains("length"),
-        "{text}"
-    );
+    assert!(text.contains("frequency") && text.contains("length"), "{text}");
     assert_eq!(text, "expected a frequency (1/s), found a length (m)");
     let err = q("3000 rpm").expect(Dimension::FREQUENCY).unwrap_err();
-    assert_eq!(
-        err.to_string(),
-        "expected a frequency (1/s), found a rotational speed (rad/s)"
-    );
+    assert_eq!(err.to_string(), "expected a frequency (1/s), found a rotational speed (rad/s)");
     assert_eq!(q("100 Hz").expect(Dimension::FREQUENCY), Ok(100.0));
 }
 
 #[test]
 fn range_of_speeds_has_nine_points() {
     let r = v("0..4000 step 500 rpm");
-    let Value::Range {
-        start,
-        end,
-        step,
-        dim,
-    } = r
-    else {
-        panic!("not a range: {r:?}")
-    };
+    let Value::Range { start, end, step, dim } = r else { panic!("not a range: {r:?}") };
     assert_eq!(dim, Dimension::ROTATIONAL_SPEED);
     assert_eq!(start, 0.0);
     assert_close(end, 4000.0 * 2.0 * PI / 60.0);
@@ -191,18 +152,13 @@ fn range_point_limit() {
 #[test]
 fn lists() {
     let l = v("[1000, 2000, 3000] rpm");
-    let Value::List(items) = &l else {
-        panic!("{l:?}")
-    };
+    let Value::List(items) = &l else { panic!("{l:?}") };
     assert_eq!(items.len(), 3);
     assert!(items.iter().all(|q| q.dim == Dimension::ROTATIONAL_SPEED));
     assert_eq!(items[2].value, 100.0 * PI);
     assert_eq!(
         v("[1 mm, 2 mm]"),
-        Value::List(vec![
-            Quantity::new(1e-3, Dimension::LENGTH),
-            Quantity::new(2e-3, Dimension::LENGTH)
-        ])
+        Value::List(vec![Quantity::new(1e-3, Dimension::LENGTH), Quantity::new(2e-3, Dimension::LENGTH)])
     );
     assert_eq!(v("[1,2,3]").points(), vec![1.0, 2.0, 3.0]);
     assert_eq!(v("[ 1 , 2 , ]kg").points(), vec![1.0, 2.0]);
@@ -215,15 +171,8 @@ fn lists() {
 #[test]
 fn references() {
     let r = v("@fit.receptance");
-    assert_eq!(
-        r,
-        Value::Reference(Reference {
-            path: vec!["fit".into(), "receptance".into()]
-        })
-    );
-    let Value::Reference(r) = r else {
-        unreachable!()
-    };
+    assert_eq!(r, Value::Reference(Reference { path: vec!["fit".into(), "receptance".into()] }));
+    let Value::Reference(r) = r else { unreachable!() };
     assert_eq!(r.to_string(), "@fit.receptance");
     assert_eq!(r.root(), Some("fit"));
     assert_eq!(r.rest(), ["receptance".to_string()]);
@@ -241,9 +190,7 @@ trait RefText {
 
 impl RefText for Value {
     fn to_string_ref(&self) -> String {
-        self.as_reference()
-            .map(ToString::to_string)
-            .unwrap_or_default()
+        self.as_reference().map(ToString::to_string).unwrap_or_default()
     }
 }
 
@@ -251,11 +198,7 @@ impl RefText for Value {
 fn parse_quantity_rejects_other_values() {
     for text in ["[1, 2] mm", "0..1 step 1 s", "@a"] {
         let err = parse_quantity(text).unwrap_err();
-        assert!(
-            err.message.starts_with("expected a single quantity"),
-            "{text}: {}",
-            err.message
-        );
+        assert!(err.message.starts_with("expected a single quantity"), "{text}: {}", err.message);
     }
 }
 

@@ -28,19 +28,13 @@ pub struct Windows {
 
 impl Windows {
     /// No windowing: rectangular over the whole frame, no response decay.
-    pub const NONE: Windows = Windows {
-        force_window: f64::INFINITY,
-        response_decay: f64::INFINITY,
-    };
+    pub const NONE: Windows = Windows { force_window: f64::INFINITY, response_decay: f64::INFINITY };
 }
 
 impl Default for Windows {
     /// The values of §3.1.2: 6.5 ms force window, 0.113 s response decay.
     fn default() -> Self {
-        Windows {
-            force_window: 6.5e-3,
-            response_decay: 0.113,
-        }
+        Windows { force_window: 6.5e-3, response_decay: 0.113 }
     }
 }
 
@@ -61,9 +55,7 @@ pub enum Trigger {
 impl Default for Trigger {
     /// Force-peak trigger with a 0.5 ms pre-trigger.
     fn default() -> Self {
-        Trigger::ForcePeak {
-            pre_trigger: 0.5e-3,
-        }
+        Trigger::ForcePeak { pre_trigger: 0.5e-3 }
     }
 }
 
@@ -117,18 +109,11 @@ impl FrfEstimate {
     /// Converts a velocity-to-force FRF into receptance with Eq. 3.3, dropping the DC line
     /// (a velocity record carries no static displacement information).
     pub fn to_receptance(&self) -> Result<FrfEstimate, FrfError> {
-        let keep: Vec<usize> = (0..self.freq.len())
-            .filter(|&i| self.freq[i] != 0.0)
-            .collect();
+        let keep: Vec<usize> = (0..self.freq.len()).filter(|&i| self.freq[i] != 0.0).collect();
         let freq: Vec<f64> = keep.iter().map(|&i| self.freq[i]).collect();
         let hv: Vec<Complex64> = keep.iter().map(|&i| self.h[i]).collect();
         let h = velocity_to_receptance(&freq, &hv)?;
-        Ok(FrfEstimate {
-            freq,
-            h,
-            coherence: keep.iter().map(|&i| self.coherence[i]).collect(),
-            records: self.records,
-        })
+        Ok(FrfEstimate { freq, h, coherence: keep.iter().map(|&i| self.coherence[i]).collect(), records: self.records })
     }
 }
 
@@ -205,14 +190,7 @@ pub fn estimate(
 ) -> Result<FrfEstimate, FrfError> {
     let first = records.first().ok_or(FrfError::NoRecords)?;
     let mut est = FrfEstimator::new(first.force.len(), sample_rate)?;
-    est.estimate(
-        records,
-        &FrfOptions {
-            windows: *windows,
-            trigger,
-            averaging: Averaging::H1,
-        },
-    )
+    est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1 })
 }
 
 /// Spectral sums of one FFT line.
@@ -250,10 +228,7 @@ impl Worker {
         self.lines.fill(Line::default());
         if keep_sums {
             self.sums.clear();
-            self.sums.resize(
-                self.lines.len(),
-                (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0)),
-            );
+            self.sums.resize(self.lines.len(), (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0)));
         } else {
             self.sums.clear();
         }
@@ -283,22 +258,14 @@ impl Worker {
         let ef_window = sum_squares(&f[start..start + nf]);
         let ex_window = sum_squares(&x[start..start + nf]);
         let scale = if ef_window > 0.0 && ex_window > 0.0 && ex_window.is_finite() {
-            (0.5 * (ef_window / ex_window).log2())
-                .round()
-                .clamp(-1000.0, 1000.0)
-                .exp2()
+            (0.5 * (ef_window / ex_window).log2()).round().clamp(-1000.0, 1000.0).exp2()
         } else {
             1.0
         };
         let unscale = 1.0 / scale;
         let mut ex = sum_squares(&x[..start]) + ex_window;
         let (head, tail) = self.buf.split_at_mut(nf);
-        for (((z, &fv), &xv), &w) in head
-            .iter_mut()
-            .zip(&f[start..])
-            .zip(&x[start..])
-            .zip(response_window)
-        {
+        for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(response_window) {
             *z = Complex64::new(fv, xv * (w * scale));
         }
         let (mid, zeros) = tail.split_at_mut(avail - nf);
@@ -357,12 +324,7 @@ fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64
         }
     }
     let mut rest = 0.0;
-    for ((o, &xv), &wv) in oc
-        .into_remainder()
-        .iter_mut()
-        .zip(xc.remainder())
-        .zip(wc.remainder())
-    {
+    for ((o, &xv), &wv) in oc.into_remainder().iter_mut().zip(xc.remainder()).zip(wc.remainder()) {
         rest += xv * xv;
         *o = Complex64::new(0.0, xv * (wv * scale));
     }
@@ -445,17 +407,13 @@ impl FrfEstimator {
             });
         }
         let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
-        let threads = std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1);
+        let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
         let scratch = fft.get_outofplace_scratch_len();
         Ok(FrfEstimator {
             len,
             sample_rate,
             fft,
-            workers: (0..threads.max(1))
-                .map(|_| Worker::new(len, scratch))
-                .collect(),
+            workers: (0..threads.max(1)).map(|_| Worker::new(len, scratch)).collect(),
             window_key: None,
             response_window: vec![1.0; len],
             force_len: len,
@@ -483,10 +441,7 @@ impl FrfEstimator {
     }
 
     fn prepare_windows(&mut self, w: &Windows) -> Result<(), FrfError> {
-        for (field, value) in [
-            ("force_window", w.force_window),
-            ("response_decay", w.response_decay),
-        ] {
+        for (field, value) in [("force_window", w.force_window), ("response_decay", w.response_decay)] {
             if value.is_nan() || value <= 0.0 {
                 return Err(FrfError::InvalidParameter {
                     field,
@@ -504,22 +459,14 @@ impl FrfEstimator {
         self.force_len = nw.max(1);
         let decay = 1.0 / (w.response_decay * fs);
         for (i, v) in self.response_window.iter_mut().enumerate() {
-            *v = if i < self.force_len {
-                1.0
-            } else {
-                (-((i - self.force_len) as f64) * decay).exp()
-            };
+            *v = if i < self.force_len { 1.0 } else { (-((i - self.force_len) as f64) * decay).exp() };
         }
         self.window_key = Some(key);
         Ok(())
     }
 
     /// FRF and coherence of `records` (all of the estimator's length).
-    pub fn estimate(
-        &mut self,
-        records: &[ImpactRecord<'_>],
-        options: &FrfOptions,
-    ) -> Result<FrfEstimate, FrfError> {
+    pub fn estimate(&mut self, records: &[ImpactRecord<'_>], options: &FrfOptions) -> Result<FrfEstimate, FrfError> {
         if records.is_empty() {
             return Err(FrfError::NoRecords);
         }
@@ -532,11 +479,7 @@ impl FrfEstimator {
                 });
             }
             if r.force.len() != self.len {
-                return Err(FrfError::RecordLengthMismatch {
-                    record: i,
-                    expected: self.len,
-                    found: r.force.len(),
-                });
+                return Err(FrfError::RecordLengthMismatch { record: i, expected: self.len, found: r.force.len() });
             }
         }
         let pre = match options.trigger {
@@ -560,16 +503,15 @@ impl FrfEstimator {
         let window = &self.response_window[..];
         let force_len = self.force_len;
         let keep_sums = options.averaging == Averaging::TimeSynchronous;
-        let run =
-            |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
-                worker.reset(keep_sums);
-                for (i, r) in recs.iter().enumerate() {
-                    if !worker.process(r, fft, window, force_len, pre) {
-                        return Some(offset + i);
-                    }
+        let run = |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
+            worker.reset(keep_sums);
+            for (i, r) in recs.iter().enumerate() {
+                if !worker.process(r, fft, window, force_len, pre) {
+                    return Some(offset + i);
                 }
-                None
-            };
+            }
+            None
+        };
         let mut bad: Vec<Option<usize>> = vec![None; threads];
         let (first, rest) = self.workers[..threads].split_at_mut(1);
         std::thread::scope(|s| {
@@ -634,27 +576,16 @@ impl FrfEstimator {
         if zero_force_lines == lines {
             return Err(FrfError::ZeroForceSpectrum);
         }
-        Ok(FrfEstimate {
-            freq: (0..lines).map(|k| k as f64 * df).collect(),
-            h,
-            coherence,
-            records: records.len(),
-        })
+        Ok(FrfEstimate { freq: (0..lines).map(|k| k as f64 * df).collect(), h, coherence, records: records.len() })
     }
 }
 
 /// Receptance from a velocity-to-force FRF, Eq. 3.3 `H = (V/F)/(iω)`. Every frequency must
 /// be positive: the DC line cannot be converted, so leave it out of the grid (see
 /// [`FrfEstimate::to_receptance`]).
-pub fn velocity_to_receptance(
-    freq: &[f64],
-    h_velocity: &[Complex64],
-) -> Result<Vec<Complex64>, FrfError> {
+pub fn velocity_to_receptance(freq: &[f64], h_velocity: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
     if freq.len() != h_velocity.len() {
-        return Err(FrfError::GridMismatch {
-            freq: freq.len(),
-            h: h_velocity.len(),
-        });
+        return Err(FrfError::GridMismatch { freq: freq.len(), h: h_velocity.len() });
     }
     freq.iter()
         .zip(h_velocity)
@@ -675,10 +606,7 @@ pub fn velocity_to_receptance(
 /// Velocity-to-force FRF from receptance, `iω H` (the inverse of Eq. 3.3; zero at DC).
 pub fn receptance_to_velocity(freq: &[f64], h: &[Complex64]) -> Result<Vec<Complex64>, FrfError> {
     if freq.len() != h.len() {
-        return Err(FrfError::GridMismatch {
-            freq: freq.len(),
-            h: h.len(),
-        });
+        return Err(FrfError::GridMismatch { freq: freq.len(), h: h.len() });
     }
     freq.iter()
         .zip(h)
@@ -709,28 +637,19 @@ pub struct ModalDamping {
 /// `e^{-t/τ}` adds `1/τ` to the modal decay rate `ζω_n` and keeps the damped frequency.
 /// Exact when the decay starts at the impact; with decay starting at the end of the force
 /// window only the amplitude changes, by `e^{t_w/τ}`.
-pub fn add_window_damping(
-    true_mode: ModalDamping,
-    response_decay: f64,
-) -> Result<ModalDamping, FrfError> {
+pub fn add_window_damping(true_mode: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
     check_mode(true_mode, response_decay)?;
     let wn = TAU * true_mode.natural_frequency;
     let sigma = true_mode.damping_ratio * wn;
     let wd2 = wn * wn - sigma * sigma;
     let sigma_w = sigma + 1.0 / response_decay;
     let wn_w = (wd2 + sigma_w * sigma_w).sqrt();
-    Ok(ModalDamping {
-        natural_frequency: wn_w / TAU,
-        damping_ratio: sigma_w / wn_w,
-    })
+    Ok(ModalDamping { natural_frequency: wn_w / TAU, damping_ratio: sigma_w / wn_w })
 }
 
 /// Removes the damping added by the exponential response window (inverse of
 /// [`add_window_damping`]) from modal parameters identified on a windowed FRF.
-pub fn remove_window_damping(
-    apparent: ModalDamping,
-    response_decay: f64,
-) -> Result<ModalDamping, FrfError> {
+pub fn remove_window_damping(apparent: ModalDamping, response_decay: f64) -> Result<ModalDamping, FrfError> {
     check_mode(apparent, response_decay)?;
     let wn_w = TAU * apparent.natural_frequency;
     let sigma_w = apparent.damping_ratio * wn_w;
@@ -744,10 +663,7 @@ pub fn remove_window_damping(
         });
     }
     let wn = (wd2 + sigma * sigma).sqrt();
-    Ok(ModalDamping {
-        natural_frequency: wn / TAU,
-        damping_ratio: sigma / wn,
-    })
+    Ok(ModalDamping { natural_frequency: wn / TAU, damping_ratio: sigma / wn })
 }
 
 fn check_mode(m: ModalDamping, response_decay: f64) -> Result<(), FrfError> {
@@ -827,9 +743,7 @@ mod tests {
 
     /// The DFT ratio of impulse-train data equals the aliased receptance `Σ_m H(f + m fs)`.
     fn aliased(c: f64, f: f64) -> Complex64 {
-        (-20_000..=20_000)
-            .map(|m| sdof_receptance(M, K, c, f + m as f64 * FS))
-            .sum()
+        (-20_000..=20_000).map(|m| sdof_receptance(M, K, c, f + m as f64 * FS)).sum()
     }
 
     fn fn_hz() -> f64 {
@@ -841,16 +755,8 @@ mod tests {
         let c = damping();
         let f = pulse(100, 10, 500.0);
         let x = response(&f, c);
-        let est = estimate(
-            &[ImpactRecord {
-                force: &f,
-                response: &x,
-            }],
-            FS,
-            &Windows::NONE,
-            Trigger::RecordStart,
-        )
-        .unwrap();
+        let est =
+            estimate(&[ImpactRecord { force: &f, response: &x }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
         assert_eq!(est.freq.len(), N / 2 + 1);
         assert_eq!(est.records, 1);
         let f_n = fn_hz();
@@ -860,22 +766,12 @@ mod tests {
             }
             // Whole band against the sampled-data receptance.
             let exact = aliased(c, fk);
-            assert!(
-                (est.h[k] - exact).norm() < 2e-4 * exact.norm(),
-                "{fk} Hz: {} vs {exact}",
-                est.h[k]
-            );
+            assert!((est.h[k] - exact).norm() < 2e-4 * exact.norm(), "{fk} Hz: {} vs {exact}", est.h[k]);
             // Near resonance against the continuous receptance: 1 % and 1°.
             if (fk - f_n).abs() < 0.3 * f_n {
                 let h = sdof_receptance(M, K, c, fk);
-                assert!(
-                    (est.h[k].norm() / h.norm() - 1.0).abs() < 0.01,
-                    "{fk} Hz magnitude"
-                );
-                assert!(
-                    (est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0,
-                    "{fk} Hz phase"
-                );
+                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz magnitude");
+                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz phase");
             }
             assert!((est.coherence[k] - 1.0).abs() < 1e-9);
         }
@@ -886,24 +782,9 @@ mod tests {
         let c = damping();
         let f = pulse(0, 10, 500.0);
         let x = response(&f, c);
-        let windows = Windows {
-            force_window: 1.0e-4,
-            response_decay: 0.02,
-        };
-        let est = estimate(
-            &[ImpactRecord {
-                force: &f,
-                response: &x,
-            }],
-            FS,
-            &windows,
-            Trigger::RecordStart,
-        )
-        .unwrap();
-        let truth = ModalDamping {
-            natural_frequency: fn_hz(),
-            damping_ratio: 0.02,
-        };
+        let windows = Windows { force_window: 1.0e-4, response_decay: 0.02 };
+        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart).unwrap();
+        let truth = ModalDamping { natural_frequency: fn_hz(), damping_ratio: 0.02 };
         let apparent = add_window_damping(truth, windows.response_decay).unwrap();
         assert!(apparent.damping_ratio > 0.02);
         // The windowed FRF is the receptance of the apparent mode, scaled by e^{t_w/τ}.
@@ -914,25 +795,13 @@ mod tests {
             if (fk - fn_hz()).abs() < 0.2 * fn_hz() {
                 let h = sdof_receptance(M, k_w, c_w, fk) * scale;
                 assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz");
-                assert!(
-                    (est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0,
-                    "{fk} Hz"
-                );
+                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz");
             }
         }
         let back = remove_window_damping(apparent, windows.response_decay).unwrap();
         assert!((back.damping_ratio - 0.02).abs() < 1e-12);
         assert!((back.natural_frequency - fn_hz()).abs() < 1e-9);
-        assert!(
-            remove_window_damping(
-                ModalDamping {
-                    natural_frequency: 100.0,
-                    damping_ratio: 1e-4
-                },
-                0.01
-            )
-            .is_err()
-        );
+        assert!(remove_window_damping(ModalDamping { natural_frequency: 100.0, damping_ratio: 1e-4 }, 0.01).is_err());
     }
 
     #[test]
@@ -940,13 +809,7 @@ mod tests {
         let c = damping();
         let f = pulse(50, 10, 500.0);
         let x = response(&f, c);
-        let recs = vec![
-            ImpactRecord {
-                force: &f,
-                response: &x
-            };
-            4
-        ];
+        let recs = vec![ImpactRecord { force: &f, response: &x }; 4];
         let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
         assert_eq!(est.records, 4);
         assert!(est.coherence.iter().skip(1).all(|g| (g - 1.0).abs() < 1e-9));
@@ -958,30 +821,15 @@ mod tests {
                 x.iter().map(|v| v + normal.sample(&mut rng)).collect()
             })
             .collect();
-        let recs: Vec<ImpactRecord<'_>> = noisy
-            .iter()
-            .map(|r| ImpactRecord {
-                force: &f,
-                response: r,
-            })
-            .collect();
+        let recs: Vec<ImpactRecord<'_>> = noisy.iter().map(|r| ImpactRecord { force: &f, response: r }).collect();
         let est = estimate(&recs, FS, &Windows::default(), Trigger::default()).unwrap();
         assert!(est.coherence.iter().all(|g| (0.0..=1.0).contains(g)));
-        let high: Vec<f64> = est
-            .freq
-            .iter()
-            .zip(&est.coherence)
-            .filter(|(f, _)| **f > 30.0e3)
-            .map(|(_, g)| *g)
-            .collect();
+        let high: Vec<f64> =
+            est.freq.iter().zip(&est.coherence).filter(|(f, _)| **f > 30.0e3).map(|(_, g)| *g).collect();
         let mean_high = high.iter().sum::<f64>() / high.len() as f64;
         assert!(mean_high < 0.9, "coherence far above resonance {mean_high}");
         let k_res = (fn_hz() * N as f64 / FS).round() as usize;
-        assert!(
-            est.coherence[k_res] > 0.99,
-            "coherence at resonance {}",
-            est.coherence[k_res]
-        );
+        assert!(est.coherence[k_res] > 0.99, "coherence at resonance {}", est.coherence[k_res]);
     }
 
     #[test]
@@ -991,37 +839,16 @@ mod tests {
         let x0 = response(&f0, c);
         let f1 = pulse(3_000, 10, 350.0);
         let x1 = response(&f1, c);
-        let recs = [
-            ImpactRecord {
-                force: &f0,
-                response: &x0,
-            },
-            ImpactRecord {
-                force: &f1,
-                response: &x1,
-            },
-        ];
-        let options = FrfOptions {
-            averaging: Averaging::TimeSynchronous,
-            ..FrfOptions::default()
-        };
+        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
+        let options = FrfOptions { averaging: Averaging::TimeSynchronous, ..FrfOptions::default() };
         let mut est = FrfEstimator::new(N, FS).unwrap();
         let sync = est.estimate(&recs, &options).unwrap();
         let h1 = est.estimate(&recs, &FrfOptions::default()).unwrap();
         // Near the zeros of the pulse spectrum rounding dominates: compare against the peak.
         let h_max = h1.h.iter().fold(0.0f64, |m, h| m.max(h.norm()));
         for k in 1..sync.h.len() {
-            let tol = if sync.freq[k] < 10.0e3 {
-                1e-9 * h1.h[k].norm()
-            } else {
-                1e-9 * h_max
-            };
-            assert!(
-                (sync.h[k] - h1.h[k]).norm() <= tol,
-                "line {k}: {} vs {}",
-                sync.h[k],
-                h1.h[k]
-            );
+            let tol = if sync.freq[k] < 10.0e3 { 1e-9 * h1.h[k].norm() } else { 1e-9 * h_max };
+            assert!((sync.h[k] - h1.h[k]).norm() <= tol, "line {k}: {} vs {}", sync.h[k], h1.h[k]);
         }
         let k_res = (fn_hz() * N as f64 / FS).round() as usize;
         assert!((h1.coherence[k_res] - 1.0).abs() < 1e-9);
@@ -1044,43 +871,23 @@ mod tests {
         let mut x = response(&f, c);
         x.truncate(len);
         let est = estimate(
-            &[ImpactRecord {
-                force: &f,
-                response: &x,
-            }],
+            &[ImpactRecord { force: &f, response: &x }],
             FS,
             &Windows::NONE,
-            Trigger::ForcePeak {
-                pre_trigger: 0.5e-3,
-            },
+            Trigger::ForcePeak { pre_trigger: 0.5e-3 },
         )
         .unwrap();
         assert_eq!(est.freq.len(), len / 2 + 1);
         for (k, &fk) in est.freq.iter().enumerate() {
             if fk > 0.0 && fk < 20.0e3 {
                 let exact = aliased(c, fk);
-                assert!(
-                    (est.h[k] - exact).norm() < 2e-4 * exact.norm(),
-                    "{fk} Hz: {} vs {exact}",
-                    est.h[k]
-                );
+                assert!((est.h[k] - exact).norm() < 2e-4 * exact.norm(), "{fk} Hz: {} vs {exact}", est.h[k]);
             }
         }
         // The force window cut away the pulse (record start trigger, 6.5 ms window): no
         // excitation at all.
-        let windows = Windows {
-            force_window: 6.5e-3,
-            response_decay: f64::INFINITY,
-        };
-        let cut = estimate(
-            &[ImpactRecord {
-                force: &f,
-                response: &x,
-            }],
-            FS,
-            &windows,
-            Trigger::RecordStart,
-        );
+        let windows = Windows { force_window: 6.5e-3, response_decay: f64::INFINITY };
+        let cut = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart);
         assert_eq!(cut, Err(FrfError::ZeroForceSpectrum));
     }
 
@@ -1088,21 +895,12 @@ mod tests {
     fn impact_simulation_frf_matches_target_receptance() {
         use crate::impact::{Hammer, ImpactSetup, ModalTarget, simulate_from_contact};
         let c = damping();
-        let mut setup = ImpactSetup::new(
-            Hammer {
-                mass: 0.03,
-                stiffness: 0.0,
-                damping: 0.0,
-            },
-            ModalTarget::single(M, K, c),
-        );
+        let mut setup =
+            ImpactSetup::new(Hammer { mass: 0.03, stiffness: 0.0, damping: 0.0 }, ModalTarget::single(M, K, c));
         setup.duration = N as f64 / FS;
         let r = simulate_from_contact(&setup, 1.0).unwrap();
         assert_eq!(r.force.len(), N);
-        let rec = ImpactRecord {
-            force: &r.force,
-            response: &r.target_displacement,
-        };
+        let rec = ImpactRecord { force: &r.force, response: &r.target_displacement };
         let est = estimate(&[rec], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
         for (k, &fk) in est.freq.iter().enumerate() {
             if fk > 500.0 && fk < 8.0e3 {
@@ -1126,10 +924,7 @@ mod tests {
     #[test]
     fn velocity_receptance_round_trip_eq_3_3() {
         let freq: Vec<f64> = (0..200).map(|i| i as f64 * 50.0).collect();
-        let h: Vec<Complex64> = freq
-            .iter()
-            .map(|&f| sdof_receptance(M, K, damping(), f))
-            .collect();
+        let h: Vec<Complex64> = freq.iter().map(|&f| sdof_receptance(M, K, damping(), f)).collect();
         let hv = receptance_to_velocity(&freq, &h).unwrap();
         assert_eq!(hv[0], Complex64::new(0.0, 0.0));
         let back = velocity_to_receptance(&freq[1..], &hv[1..]).unwrap();
@@ -1147,16 +942,8 @@ mod tests {
         for n in 1..N - 1 {
             v[n] = (x[n + 1] - x[n - 1]) * 0.5 * FS;
         }
-        let est = estimate(
-            &[ImpactRecord {
-                force: &f,
-                response: &v,
-            }],
-            FS,
-            &Windows::NONE,
-            Trigger::RecordStart,
-        )
-        .unwrap();
+        let est =
+            estimate(&[ImpactRecord { force: &f, response: &v }], FS, &Windows::NONE, Trigger::RecordStart).unwrap();
         let rec = est.to_receptance().unwrap();
         assert_eq!(rec.freq.len(), est.freq.len() - 1);
         assert!(rec.freq[0] > 0.0);
@@ -1173,101 +960,35 @@ mod tests {
         let short = vec![0.0; 3];
         let mut nan = x.clone();
         nan[2] = f64::NAN;
-        let ok = ImpactRecord {
-            force: &f,
-            response: &x,
-        };
+        let ok = ImpactRecord { force: &f, response: &x };
         let w = Windows::NONE;
         let t = Trigger::RecordStart;
         assert_eq!(estimate(&[], FS, &w, t), Err(FrfError::NoRecords));
         assert!(matches!(
-            estimate(
-                &[ImpactRecord {
-                    force: &f,
-                    response: &short
-                }],
-                FS,
-                &w,
-                t
-            ),
+            estimate(&[ImpactRecord { force: &f, response: &short }], FS, &w, t),
             Err(FrfError::ChannelLengthMismatch { .. })
         ));
         assert!(matches!(
-            estimate(
-                &[
-                    ok,
-                    ImpactRecord {
-                        force: &short,
-                        response: &short
-                    }
-                ],
-                FS,
-                &w,
-                t
-            ),
+            estimate(&[ok, ImpactRecord { force: &short, response: &short }], FS, &w, t),
             Err(FrfError::RecordLengthMismatch { record: 1, .. })
         ));
         assert_eq!(
-            estimate(
-                &[
-                    ok,
-                    ImpactRecord {
-                        force: &f,
-                        response: &nan
-                    }
-                ],
-                FS,
-                &w,
-                t
-            ),
+            estimate(&[ok, ImpactRecord { force: &f, response: &nan }], FS, &w, t),
             Err(FrfError::NonFinite { record: 1 })
         );
-        assert!(matches!(
-            estimate(&[ok], 0.0, &w, t),
-            Err(FrfError::InvalidParameter { .. })
-        ));
-        assert!(matches!(
-            estimate(&[ok], f64::NAN, &w, t),
-            Err(FrfError::InvalidParameter { .. })
-        ));
-        let bad_w = Windows {
-            force_window: -1.0,
-            response_decay: 0.1,
-        };
-        assert!(matches!(
-            estimate(&[ok], FS, &bad_w, t),
-            Err(FrfError::InvalidParameter { .. })
-        ));
-        let bad_t = Trigger::ForcePeak {
-            pre_trigger: f64::NAN,
-        };
-        assert!(matches!(
-            estimate(&[ok], FS, &w, bad_t),
-            Err(FrfError::InvalidParameter { .. })
-        ));
+        assert!(matches!(estimate(&[ok], 0.0, &w, t), Err(FrfError::InvalidParameter { .. })));
+        assert!(matches!(estimate(&[ok], f64::NAN, &w, t), Err(FrfError::InvalidParameter { .. })));
+        let bad_w = Windows { force_window: -1.0, response_decay: 0.1 };
+        assert!(matches!(estimate(&[ok], FS, &bad_w, t), Err(FrfError::InvalidParameter { .. })));
+        let bad_t = Trigger::ForcePeak { pre_trigger: f64::NAN };
+        assert!(matches!(estimate(&[ok], FS, &w, bad_t), Err(FrfError::InvalidParameter { .. })));
         let zero = vec![0.0; 4];
         assert!(matches!(
-            estimate(
-                &[ImpactRecord {
-                    force: &zero,
-                    response: &x
-                }],
-                FS,
-                &w,
-                t
-            ),
+            estimate(&[ImpactRecord { force: &zero, response: &x }], FS, &w, t),
             Err(FrfError::ZeroForceSpectrum)
         ));
         assert!(matches!(
-            estimate(
-                &[ImpactRecord {
-                    force: &f[..1],
-                    response: &x[..1]
-                }],
-                FS,
-                &w,
-                t
-            ),
+            estimate(&[ImpactRecord { force: &f[..1], response: &x[..1] }], FS, &w, t),
             Err(FrfError::TooShort { .. })
         ));
     }

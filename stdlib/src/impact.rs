@@ -78,11 +78,7 @@ pub struct Sphere {
 impl Sphere {
     /// A steel sphere with the material constants of the §2.1 example.
     pub fn steel(radius: f64) -> Self {
-        Sphere {
-            radius,
-            youngs_modulus: STEEL_YOUNGS_MODULUS,
-            poisson: STEEL_POISSON,
-        }
+        Sphere { radius, youngs_modulus: STEEL_YOUNGS_MODULUS, poisson: STEEL_POISSON }
     }
 
     /// Material compliance `k_i = (1 − ν_i²)/E_i` of Eq. 2.6.
@@ -121,11 +117,7 @@ impl Contact {
     /// Steel spheres of radii 6.35 mm and 1 mm with `e = 0.95`, the contact used throughout
     /// dissertation §2.1.
     pub fn dissertation_steel() -> Self {
-        Contact {
-            hammer_tip: Sphere::steel(6.35e-3),
-            target: Sphere::steel(1.0e-3),
-            restitution: 0.95,
-        }
+        Contact { hammer_tip: Sphere::steel(6.35e-3), target: Sphere::steel(1.0e-3), restitution: 0.95 }
     }
 
     /// Hertz stiffness `K = 4/(3(k1+k2)) · sqrt(r1 r2/(r1+r2))` of Eq. 2.5, in N/m^1.5.
@@ -190,11 +182,7 @@ impl Mode {
     /// Viscous damping ratio `c / (2 sqrt(k m))` (infinite for a zero-stiffness mode with
     /// damping, zero when undamped).
     pub fn damping_ratio(&self) -> f64 {
-        if self.damping == 0.0 {
-            0.0
-        } else {
-            self.damping / (2.0 * (self.stiffness * self.mass).sqrt())
-        }
+        if self.damping == 0.0 { 0.0 } else { self.damping / (2.0 * (self.stiffness * self.mass).sqrt()) }
     }
 }
 
@@ -209,20 +197,12 @@ pub struct ModalTarget {
 impl ModalTarget {
     /// Single-degree-of-freedom target.
     pub fn single(mass: f64, stiffness: f64, damping: f64) -> Self {
-        ModalTarget {
-            modes: vec![Mode {
-                mass,
-                stiffness,
-                damping,
-            }],
-        }
+        ModalTarget { modes: vec![Mode { mass, stiffness, damping }] }
     }
 
     /// Mode with the lowest undamped natural frequency, used for the response magnitude.
     pub fn fundamental(&self) -> Option<&Mode> {
-        self.modes
-            .iter()
-            .min_by(|a, b| a.natural_frequency().total_cmp(&b.natural_frequency()))
+        self.modes.iter().min_by(|a, b| a.natural_frequency().total_cmp(&b.natural_frequency()))
     }
 }
 
@@ -267,14 +247,7 @@ pub fn table_2_1_target(which: Table21Target) -> ModalTarget {
         Table21Target::Target2 => &TARGET_2,
     };
     ModalTarget {
-        modes: rows
-            .iter()
-            .map(|&(m, k, c)| Mode {
-                mass: m,
-                stiffness: k * 1.0e6,
-                damping: c * 1.0e3,
-            })
-            .collect(),
+        modes: rows.iter().map(|&(m, k, c)| Mode { mass: m, stiffness: k * 1.0e6, damping: c * 1.0e3 }).collect(),
     }
 }
 
@@ -341,14 +314,7 @@ impl ImpactSetup {
     /// The worked example of §2.1: `M_h = 0.01 kg`, `K_h = 100 N/m`, `M_t = 0.1 kg`,
     /// `K_t = 1e7 N/m`, no damping.
     pub fn dissertation_example() -> Self {
-        ImpactSetup::new(
-            Hammer {
-                mass: 0.01,
-                stiffness: 100.0,
-                damping: 0.0,
-            },
-            ModalTarget::single(0.1, 1.0e7, 0.0),
-        )
+        ImpactSetup::new(Hammer { mass: 0.01, stiffness: 100.0, damping: 0.0 }, ModalTarget::single(0.1, 1.0e7, 0.0))
     }
 
     fn validate(&self) -> Result<(), ImpactError> {
@@ -377,18 +343,9 @@ impl ImpactSetup {
         }
         positive("setup", "dt", self.dt)?;
         // Eq. 2.7 must resolve every linear time scale (stability needs ω·dt < 2).
-        let rates = std::iter::once(Body::new(
-            self.hammer.mass,
-            self.hammer.stiffness,
-            self.hammer.damping,
-        ))
-        .chain(
-            self.target
-                .modes
-                .iter()
-                .map(|m| Body::new(m.mass, m.stiffness, m.damping)),
-        )
-        .map(|b| b.rate);
+        let rates = std::iter::once(Body::new(self.hammer.mass, self.hammer.stiffness, self.hammer.damping))
+            .chain(self.target.modes.iter().map(|m| Body::new(m.mass, m.stiffness, m.damping)))
+            .map(|b| b.rate);
         for rate in rates {
             if rate * self.dt > MAX_RATE_TIMES_DT {
                 return Err(ImpactError::InvalidParameter {
@@ -407,17 +364,11 @@ impl ImpactSetup {
         }
         let steps = self.duration * self.sample_rate * (1.0 / (self.sample_rate * self.dt)).ceil();
         if steps.is_nan() || steps > MAX_FINE_STEPS {
-            return Err(ImpactError::TooManySteps {
-                steps,
-                limit: MAX_FINE_STEPS,
-            });
+            return Err(ImpactError::TooManySteps { steps, limit: MAX_FINE_STEPS });
         }
         let samples = (self.duration + self.pre_trigger) * self.sample_rate;
         if samples.is_nan() || samples > MAX_FINE_STEPS {
-            return Err(ImpactError::TooManySteps {
-                steps: samples,
-                limit: MAX_FINE_STEPS,
-            });
+            return Err(ImpactError::TooManySteps { steps: samples, limit: MAX_FINE_STEPS });
         }
         Ok(())
     }
@@ -547,10 +498,7 @@ pub fn contact_force(
         return 0.0;
     }
     let hysteresis = 0.75 * (1.0 - restitution * restitution);
-    let f = stiffness
-        * penetration
-        * penetration.sqrt()
-        * (1.0 + hysteresis * penetration_rate / approach_velocity);
+    let f = stiffness * penetration * penetration.sqrt() * (1.0 + hysteresis * penetration_rate / approach_velocity);
     f.max(0.0)
 }
 
@@ -564,10 +512,7 @@ pub fn simulate(setup: &ImpactSetup) -> Result<ImpactResult, ImpactError> {
 /// Simulates the impact starting at first contact, with the hammer touching the resting
 /// target at speed `approach_speed` (m/s, > 0, towards the target); the release fields of
 /// the setup are ignored. This is the kernel timed by the impact benchmarks.
-pub fn simulate_from_contact(
-    setup: &ImpactSetup,
-    approach_speed: f64,
-) -> Result<ImpactResult, ImpactError> {
+pub fn simulate_from_contact(setup: &ImpactSetup, approach_speed: f64) -> Result<ImpactResult, ImpactError> {
     setup.validate()?;
     positive("simulate_from_contact", "approach_speed", approach_speed)?;
     run(setup, approach_speed, None)
@@ -669,10 +614,7 @@ pub fn first_contact(setup: &ImpactSetup) -> Result<FirstContact, ImpactError> {
     if v.is_nan() || v >= -1e-12 {
         return Err(ImpactError::NoContact);
     }
-    Ok(FirstContact {
-        time: hi,
-        hammer_velocity: v,
-    })
+    Ok(FirstContact { time: hi, hammer_velocity: v })
 }
 
 /// Single-frequency excited bandwidth of a finely sampled force: the first frequency where
@@ -751,12 +693,7 @@ struct Body {
 impl Body {
     fn new(mass: f64, stiffness: f64, damping: f64) -> Self {
         let wn2 = stiffness / mass;
-        Body {
-            alpha: damping / (2.0 * mass),
-            wn2,
-            rate: wn2.sqrt() + damping / mass,
-            stiff: stiffness > 0.0,
-        }
+        Body { alpha: damping / (2.0 * mass), wn2, rate: wn2.sqrt() + damping / mass, stiff: stiffness > 0.0 }
     }
 
     /// Exact free-response state-transition matrix over time `h` (any sign).
@@ -783,12 +720,7 @@ impl Body {
             let e = (-a * h).exp();
             (e, e * h)
         };
-        Transition {
-            xx: ec + a * es,
-            xv: es,
-            vx: -self.wn2 * es,
-            vv: ec - a * es,
-        }
+        Transition { xx: ec + a * es, xv: es, vx: -self.wn2 * es, vv: ec - a * es }
     }
 
     /// Bound on the fourth time derivative of the free response from state `(x, v)`.
@@ -821,10 +753,7 @@ fn hermite_max(p0: f64, m0: f64, p1: f64, m1: f64) -> f64 {
     let eval = |t: f64| {
         let t2 = t * t;
         let t3 = t2 * t;
-        (2.0 * t3 - 3.0 * t2 + 1.0) * p0
-            + (t3 - 2.0 * t2 + t) * m0
-            + (-2.0 * t3 + 3.0 * t2) * p1
-            + (t3 - t2) * m1
+        (2.0 * t3 - 3.0 * t2 + 1.0) * p0 + (t3 - 2.0 * t2 + t) * m0 + (-2.0 * t3 + 3.0 * t2) * p1 + (t3 - t2) * m1
     };
     let mut best = p0.max(p1);
     let a = 6.0 * p0 + 3.0 * m0 - 6.0 * p1 + 3.0 * m1;
@@ -930,11 +859,7 @@ impl Sim {
         let m_force = &self.m_force[..q.len()];
         for _ in 0..n {
             // Contact force at the current state (Eq. 2.4).
-            let f = if in_contact {
-                (k * delta * delta.sqrt() * (1.0 + hyst_over_vi * rate)).max(0.0)
-            } else {
-                0.0
-            };
+            let f = if in_contact { (k * delta * delta.sqrt() * (1.0 + hyst_over_vi * rate)).max(0.0) } else { 0.0 };
             if countdown == 0 {
                 if f > 0.0 {
                     self.spectral.push((step / stride, f));
@@ -1068,11 +993,7 @@ impl FreeFlight {
     }
 }
 
-fn run(
-    setup: &ImpactSetup,
-    approach_speed: f64,
-    release_to_contact: Option<f64>,
-) -> Result<ImpactResult, ImpactError> {
+fn run(setup: &ImpactSetup, approach_speed: f64, release_to_contact: Option<f64>) -> Result<ImpactResult, ImpactError> {
     let fs = setup.sample_rate;
     let ts = 1.0 / fs;
     let n_sub = ((ts / setup.dt) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
@@ -1092,10 +1013,7 @@ fn run(
         h_damp: 1.0 - hm.damping * dt / hm.mass,
         h_stiff: hm.stiffness * dt / hm.mass,
         h_force: dt / hm.mass,
-        m_damp: modes
-            .iter()
-            .map(|m| 1.0 - m.damping * dt / m.mass)
-            .collect(),
+        m_damp: modes.iter().map(|m| 1.0 - m.damping * dt / m.mass).collect(),
         m_stiff: modes.iter().map(|m| m.stiffness * dt / m.mass).collect(),
         m_force: modes.iter().map(|m| dt / m.mass).collect(),
         spectral_stride,
@@ -1114,14 +1032,8 @@ fn run(
     };
 
     let hammer_body = Body::new(hm.mass, hm.stiffness, hm.damping);
-    let mode_bodies: Vec<Body> = modes
-        .iter()
-        .map(|m| Body::new(m.mass, m.stiffness, m.damping))
-        .collect();
-    let max_rate = mode_bodies
-        .iter()
-        .map(|b| b.rate)
-        .fold(hammer_body.rate, f64::max);
+    let mode_bodies: Vec<Body> = modes.iter().map(|m| Body::new(m.mass, m.stiffness, m.damping)).collect();
+    let max_rate = mode_bodies.iter().map(|b| b.rate).fold(hammer_body.rate, f64::max);
     let substeps = ((ts * max_rate / FREE_FLIGHT_MAX_PHASE).ceil() as usize).max(1);
     let h = ts / substeps as f64;
     let free = FreeFlight {
@@ -1160,8 +1072,7 @@ fn run(
         if k + 1 == n_post {
             break;
         }
-        let advanced =
-            setup.exact_free_flight && free.try_advance(&mut sim, &mut save_q, &mut save_u);
+        let advanced = setup.exact_free_flight && free.try_advance(&mut sim, &mut save_q, &mut save_u);
         if advanced {
             sim.step += n_sub as u64;
         } else {
@@ -1181,21 +1092,16 @@ fn run(
     let peak_force = contacts.iter().map(|c| c.peak_force).fold(0.0, f64::max);
     let excited_bandwidth = excited_bandwidth(&sim.spectral, spectral_stride as f64 * dt);
 
-    let response_frequency = setup
-        .target
-        .fundamental()
-        .map(|m| m.natural_frequency())
-        .unwrap_or(0.0);
+    let response_frequency = setup.target.fundamental().map(|m| m.natural_frequency()).unwrap_or(0.0);
     let response_magnitude = amplitude_at(&target[n_pre..], fs, response_frequency);
 
     if let Some(noise) = setup.noise.filter(|n| n.std_dev > 0.0) {
-        let normal =
-            Normal::new(0.0, noise.std_dev).map_err(|_| ImpactError::InvalidParameter {
-                name: "noise",
-                field: "std_dev",
-                value: noise.std_dev,
-                requirement: "must be finite and non-negative",
-            })?;
+        let normal = Normal::new(0.0, noise.std_dev).map_err(|_| ImpactError::InvalidParameter {
+            name: "noise",
+            field: "std_dev",
+            value: noise.std_dev,
+            requirement: "must be finite and non-negative",
+        })?;
         let mut rng = ChaCha8Rng::seed_from_u64(noise.seed);
         for x in target.iter_mut() {
             *x += normal.sample(&mut rng);
@@ -1224,12 +1130,7 @@ fn finite(name: &'static str, field: &'static str, value: f64) -> Result<(), Imp
     if value.is_finite() {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter {
-            name,
-            field,
-            value,
-            requirement: "must be finite",
-        })
+        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be finite" })
     }
 }
 
@@ -1237,12 +1138,7 @@ fn positive(name: &'static str, field: &'static str, value: f64) -> Result<(), I
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter {
-            name,
-            field,
-            value,
-            requirement: "must be finite and positive",
-        })
+        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be finite and positive" })
     }
 }
 
@@ -1250,12 +1146,7 @@ fn positive_or_inf(name: &'static str, field: &'static str, value: f64) -> Resul
     if value > 0.0 {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter {
-            name,
-            field,
-            value,
-            requirement: "must be positive",
-        })
+        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be positive" })
     }
 }
 
@@ -1263,12 +1154,7 @@ fn non_negative(name: &'static str, field: &'static str, value: f64) -> Result<(
     if value.is_finite() && value >= 0.0 {
         Ok(())
     } else {
-        Err(ImpactError::InvalidParameter {
-            name,
-            field,
-            value,
-            requirement: "must be finite and non-negative",
-        })
+        Err(ImpactError::InvalidParameter { name, field, value, requirement: "must be finite and non-negative" })
     }
 }
 
@@ -1280,14 +1166,8 @@ mod tests {
     const HERTZ_TIME_FACTOR: f64 = 2.943_27;
 
     fn free_pair(mh: f64, mt: f64, speed: f64, restitution: f64) -> ImpactSetup {
-        let mut s = ImpactSetup::new(
-            Hammer {
-                mass: mh,
-                stiffness: 0.0,
-                damping: 0.0,
-            },
-            ModalTarget::single(mt, 0.0, 0.0),
-        );
+        let mut s =
+            ImpactSetup::new(Hammer { mass: mh, stiffness: 0.0, damping: 0.0 }, ModalTarget::single(mt, 0.0, 0.0));
         s.contact.restitution = restitution;
         s.release_position = s.contact_position + 1.0e-4;
         s.release_velocity = -speed;
@@ -1297,14 +1177,8 @@ mod tests {
     }
 
     fn sweep_setup(mh: f64) -> ImpactSetup {
-        let mut s = ImpactSetup::new(
-            Hammer {
-                mass: mh,
-                stiffness: 500.0,
-                damping: 0.0,
-            },
-            ModalTarget::single(0.1, 5.0e7, 0.0),
-        );
+        let mut s =
+            ImpactSetup::new(Hammer { mass: mh, stiffness: 500.0, damping: 0.0 }, ModalTarget::single(0.1, 5.0e7, 0.0));
         s.duration = 2.0e-3;
         s
     }
@@ -1317,16 +1191,9 @@ mod tests {
         let expected = 4.0 / (3.0 * 2.0 * k1) * f64::sqrt(r);
         assert!((c.stiffness() - expected).abs() < 1e-12 * expected);
         // Swapping the spheres changes nothing; a flat equals a sphere of infinite radius.
-        let swapped = Contact {
-            hammer_tip: c.target,
-            target: c.hammer_tip,
-            ..c
-        };
+        let swapped = Contact { hammer_tip: c.target, target: c.hammer_tip, ..c };
         assert!((swapped.stiffness() - c.stiffness()).abs() < 1e-9 * expected);
-        let flat = Contact {
-            target: Sphere::steel(f64::INFINITY),
-            ..c
-        };
+        let flat = Contact { target: Sphere::steel(f64::INFINITY), ..c };
         let expected_flat = 4.0 / (3.0 * 2.0 * k1) * f64::sqrt(6.35e-3);
         assert!((flat.stiffness() - expected_flat).abs() < 1e-9 * expected_flat);
     }
@@ -1382,14 +1249,9 @@ mod tests {
             let f_max = k.powf(0.4) * (1.25 * m_star * v * v).powf(0.6);
             let t = r.impulse_time;
             assert!((t / t_hertz - 1.0).abs() < 0.005, "T {t} vs {t_hertz}");
-            assert!(
-                (r.peak_force / f_max - 1.0).abs() < 0.005,
-                "F {} vs {f_max}",
-                r.peak_force
-            );
+            assert!((r.peak_force / f_max - 1.0).abs() < 0.005, "F {} vs {f_max}", r.peak_force);
             // Equivalent form (m*²/(K² v))^(1/5) carries the factor 2.9432·(5/4)^(2/5).
-            let alt =
-                HERTZ_TIME_FACTOR * 1.25f64.powf(0.4) * (m_star * m_star / (k * k * v)).powf(0.2);
+            let alt = HERTZ_TIME_FACTOR * 1.25f64.powf(0.4) * (m_star * m_star / (k * k * v)).powf(0.2);
             assert!((alt / t_hertz - 1.0).abs() < 1e-12);
         }
     }
@@ -1420,10 +1282,7 @@ mod tests {
         let r = simulate(&free_pair(0.01, 0.1, 1.0, 0.95)).unwrap();
         let c = r.contacts[0];
         let e_eff = -c.separation_velocity / c.approach_velocity;
-        assert!(
-            (e_eff / 0.95 - 1.0).abs() < 0.02,
-            "effective restitution {e_eff}"
-        );
+        assert!((e_eff / 0.95 - 1.0).abs() < 0.02, "effective restitution {e_eff}");
         // A lower restitution loses more energy.
         let r2 = simulate(&free_pair(0.01, 0.1, 1.0, 0.8)).unwrap();
         let e2 = -r2.contacts[0].separation_velocity / r2.contacts[0].approach_velocity;
@@ -1437,16 +1296,8 @@ mod tests {
         let r = simulate(&s).unwrap();
         assert_eq!(r.first_contact_index, 10);
         assert_eq!(r.contact_count(), 1);
-        assert!(
-            r.impulse_time > 0.05e-3 && r.impulse_time < 0.2e-3,
-            "{}",
-            r.impulse_time
-        );
-        assert!(
-            r.excited_bandwidth > 2.0e3 && r.excited_bandwidth < 50.0e3,
-            "{}",
-            r.excited_bandwidth
-        );
+        assert!(r.impulse_time > 0.05e-3 && r.impulse_time < 0.2e-3, "{}", r.impulse_time);
+        assert!(r.excited_bandwidth > 2.0e3 && r.excited_bandwidth < 50.0e3, "{}", r.excited_bandwidth);
         assert!(r.response_magnitude > 0.0 && r.response_magnitude.is_finite());
         assert!((r.response_frequency - (1.0e7f64 / 0.1).sqrt() / TAU).abs() < 1e-9);
         assert!(r.peak_force > 0.0 && r.force.iter().all(|f| *f >= 0.0));
@@ -1454,9 +1305,7 @@ mod tests {
         // The target was at rest before contact; afterwards it rings at its natural
         // frequency with the response magnitude as amplitude (no damping).
         assert!(r.target_displacement[..10].iter().all(|x| *x == 0.0));
-        let tail_peak = r.target_displacement[500..]
-            .iter()
-            .fold(0.0f64, |a, x| a.max(x.abs()));
+        let tail_peak = r.target_displacement[500..].iter().fold(0.0f64, |a, x| a.max(x.abs()));
         assert!((tail_peak / r.response_magnitude - 1.0).abs() < 0.05);
         // The impulse is the momentum handed to the target plus the hammer rebound.
         let total: f64 = r.contacts.iter().map(|c| c.impulse).sum();
@@ -1470,26 +1319,14 @@ mod tests {
     #[test]
     fn hammer_mass_sweep_shows_impulse_time_jump() {
         let masses: Vec<f64> = (0..=16).map(|i| 0.03 + 0.0025 * i as f64).collect();
-        let times: Vec<f64> = masses
-            .iter()
-            .map(|&mh| simulate(&sweep_setup(mh)).unwrap().impulse_time)
-            .collect();
+        let times: Vec<f64> = masses.iter().map(|&mh| simulate(&sweep_setup(mh)).unwrap().impulse_time).collect();
         let at = |mh: f64| times[masses.iter().position(|m| (m - mh).abs() < 1e-9).unwrap()];
         assert!(at(0.03) < 0.17e-3, "impulse(0.03) = {}", at(0.03));
         assert!(at(0.07) > 0.22e-3, "impulse(0.07) = {}", at(0.07));
         // The largest jump between neighbouring masses lies between 0.04 and 0.06 kg.
-        let (i, jump) = times
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .enumerate()
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
+        let (i, jump) = times.windows(2).map(|w| w[1] - w[0]).enumerate().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
         assert!(jump > 0.05e-3, "largest jump {jump}");
-        assert!(
-            masses[i] >= 0.04 && masses[i + 1] <= 0.06,
-            "jump at {}",
-            masses[i]
-        );
+        assert!(masses[i] >= 0.04 && masses[i + 1] <= 0.06, "jump at {}", masses[i]);
         // Longer contact narrows the excited bandwidth.
         let bw_light = simulate(&sweep_setup(0.03)).unwrap().excited_bandwidth;
         let bw_heavy = simulate(&sweep_setup(0.07)).unwrap().excited_bandwidth;
@@ -1502,45 +1339,17 @@ mod tests {
         let t2 = table_2_1_target(Table21Target::Target2);
         assert_eq!(t1.modes.len(), 10);
         assert_eq!(t2.modes.len(), 10);
-        assert_eq!(
-            t1.modes[3],
-            Mode {
-                mass: 125.99,
-                stiffness: 813.04e6,
-                damping: 27.07e3
-            }
-        );
-        assert_eq!(
-            t2.modes[9],
-            Mode {
-                mass: 0.54,
-                stiffness: 1488.68e6,
-                damping: 0.99e3
-            }
-        );
+        assert_eq!(t1.modes[3], Mode { mass: 125.99, stiffness: 813.04e6, damping: 27.07e3 });
+        assert_eq!(t2.modes[9], Mode { mass: 0.54, stiffness: 1488.68e6, damping: 0.99e3 });
         // Lowest natural frequencies: mode 6 of target 1 (332 Hz), mode 5 of target 2 (608 Hz).
         for (target, lowest) in [(t1, 5), (t2, 4)] {
             let f_low = target.modes[lowest].natural_frequency();
             for mh in [0.001, 0.01, 0.1] {
-                let mut s = ImpactSetup::new(
-                    Hammer {
-                        mass: mh,
-                        stiffness: 100.0,
-                        damping: 0.0,
-                    },
-                    target.clone(),
-                );
-                s.noise = Some(SensorNoise {
-                    std_dev: 25.0e-9,
-                    seed: 7,
-                });
+                let mut s = ImpactSetup::new(Hammer { mass: mh, stiffness: 100.0, damping: 0.0 }, target.clone());
+                s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 7 });
                 let r = simulate(&s).unwrap();
                 assert!((r.response_frequency - f_low).abs() < 1e-9);
-                assert!(
-                    r.impulse_time > 0.0 && r.impulse_time < 1.0e-3,
-                    "{}",
-                    r.impulse_time
-                );
+                assert!(r.impulse_time > 0.0 && r.impulse_time < 1.0e-3, "{}", r.impulse_time);
                 assert!(r.excited_bandwidth.is_finite() && r.excited_bandwidth > 0.0);
                 assert!(r.response_magnitude.is_finite() && r.response_magnitude > 0.0);
                 assert!(r.target_displacement.iter().all(|x| x.is_finite()));
@@ -1552,34 +1361,18 @@ mod tests {
     fn noise_is_deterministic_per_seed() {
         let mut s = ImpactSetup::dissertation_example();
         s.duration = 2.0e-3;
-        s.noise = Some(SensorNoise {
-            std_dev: 25.0e-9,
-            seed: 42,
-        });
+        s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 42 });
         let a = simulate(&s).unwrap();
         let b = simulate(&s).unwrap();
-        let bits = |r: &ImpactResult| {
-            r.target_displacement
-                .iter()
-                .map(|x| x.to_bits())
-                .collect::<Vec<_>>()
-        };
+        let bits = |r: &ImpactResult| r.target_displacement.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&a), bits(&b));
-        s.noise = Some(SensorNoise {
-            std_dev: 25.0e-9,
-            seed: 43,
-        });
+        s.noise = Some(SensorNoise { std_dev: 25.0e-9, seed: 43 });
         let c = simulate(&s).unwrap();
         assert_ne!(bits(&a), bits(&c));
         // The noise has the requested spread and leaves the force untouched.
         s.noise = None;
         let clean = simulate(&s).unwrap();
-        let diff: Vec<f64> = a
-            .target_displacement
-            .iter()
-            .zip(&clean.target_displacement)
-            .map(|(x, y)| x - y)
-            .collect();
+        let diff: Vec<f64> = a.target_displacement.iter().zip(&clean.target_displacement).map(|(x, y)| x - y).collect();
         let sd = (diff.iter().map(|d| d * d).sum::<f64>() / diff.len() as f64).sqrt();
         assert!((sd / 25.0e-9 - 1.0).abs() < 0.15, "noise sd {sd}");
         assert_eq!(a.force, clean.force);
@@ -1607,19 +1400,11 @@ mod tests {
                 assert!(a.contact_count() >= 2, "expected a second hit");
             }
             for (ca, cb) in a.contacts.iter().zip(&b.contacts) {
-                assert!(
-                    (ca.start - cb.start).abs() < 1e-7,
-                    "{case}: {} vs {}",
-                    ca.start,
-                    cb.start
-                );
+                assert!((ca.start - cb.start).abs() < 1e-7, "{case}: {} vs {}", ca.start, cb.start);
                 assert!((ca.end - cb.end).abs() < 1e-7, "{case}");
                 assert!((ca.peak_force / cb.peak_force - 1.0).abs() < 1e-3, "{case}");
             }
-            let scale = b
-                .target_displacement
-                .iter()
-                .fold(0.0f64, |m, x| m.max(x.abs()));
+            let scale = b.target_displacement.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             for (x, y) in a.target_displacement.iter().zip(&b.target_displacement) {
                 assert!((x - y).abs() < 1e-3 * scale, "{case}: {x} vs {y}");
             }
@@ -1663,17 +1448,11 @@ mod tests {
         s.sample_rate = 1.0e3;
         cases.push(s);
         let mut s = base.clone();
-        s.noise = Some(SensorNoise {
-            std_dev: -1.0,
-            seed: 0,
-        });
+        s.noise = Some(SensorNoise { std_dev: -1.0, seed: 0 });
         cases.push(s);
         for (i, s) in cases.iter().enumerate() {
             assert!(
-                matches!(
-                    simulate(s),
-                    Err(ImpactError::InvalidParameter { .. } | ImpactError::EmptyTarget)
-                ),
+                matches!(simulate(s), Err(ImpactError::InvalidParameter { .. } | ImpactError::EmptyTarget)),
                 "case {i}"
             );
         }
@@ -1688,14 +1467,8 @@ mod tests {
         // Step cap.
         let mut s = base.clone();
         s.duration = 20.0;
-        assert!(matches!(
-            simulate(&s),
-            Err(ImpactError::TooManySteps { .. })
-        ));
-        assert!(matches!(
-            simulate_from_contact(&base, 0.0),
-            Err(ImpactError::InvalidParameter { .. })
-        ));
+        assert!(matches!(simulate(&s), Err(ImpactError::TooManySteps { .. })));
+        assert!(matches!(simulate_from_contact(&base, 0.0), Err(ImpactError::InvalidParameter { .. })));
     }
 
     #[test]

@@ -55,9 +55,7 @@ mod tests {
     fn amplitude_of_sinusoid_off_bin() {
         let fs = 10_000.0;
         let f = 123.456;
-        let x: Vec<f64> = (0..100_000)
-            .map(|n| 0.7 * (TAU * f * n as f64 / fs + 0.3).cos())
-            .collect();
+        let x: Vec<f64> = (0..100_000).map(|n| 0.7 * (TAU * f * n as f64 / fs + 0.3).cos()).collect();
         let a = amplitude_at(&x, fs, f);
         assert!((a - 0.7).abs() < 1e-3, "amplitude {a}");
     }
@@ -65,15 +63,10 @@ mod tests {
     #[test]
     fn dtft_matches_direct_sum() {
         let fs = 1000.0;
-        let x: Vec<f64> = (0..2000)
-            .map(|n| ((n * 7919) % 101) as f64 - 50.0)
-            .collect();
+        let x: Vec<f64> = (0..2000).map(|n| ((n * 7919) % 101) as f64 - 50.0).collect();
         let f = 37.25;
-        let direct: Complex64 = x
-            .iter()
-            .enumerate()
-            .map(|(n, &v)| Complex64::from_polar(v, -TAU * f * n as f64 / fs))
-            .sum();
+        let direct: Complex64 =
+            x.iter().enumerate().map(|(n, &v)| Complex64::from_polar(v, -TAU * f * n as f64 / fs)).sum();
         let fast = dtft_at(&x, fs, f);
         assert!((fast - direct).norm() < 1e-9 * direct.norm().max(1.0));
     }

@@ -52,7 +52,13 @@ fn input_keys(graph: &Graph, i: usize) -> IndexMap<String, Vec<String>> {
 }
 
 impl Manifest {
-    pub fn build(recipe: &Recipe, recipe_path: &str, graph: &Graph, result: &RunResult, outputs: Vec<String>) -> Manifest {
+    pub fn build(
+        recipe: &Recipe,
+        recipe_path: &str,
+        graph: &Graph,
+        result: &RunResult,
+        outputs: Vec<String>,
+    ) -> Manifest {
         let nodes: Vec<ManifestNode> = graph
             .instances
             .iter()
@@ -101,7 +107,10 @@ impl Manifest {
 pub enum PlanReason {
     Cached,
     New,
-    NewVersion { from: u32, to: u32 },
+    NewVersion {
+        from: u32,
+        to: u32,
+    },
     ChangedParams(Vec<String>),
     ChangedInputs(Vec<String>),
     /// The previous run did not finish it, or the cache was cleared or bypassed.
@@ -114,8 +123,14 @@ impl std::fmt::Display for PlanReason {
             PlanReason::Cached => write!(f, "from cache"),
             PlanReason::New => write!(f, "run: new node"),
             PlanReason::NewVersion { from, to } => write!(f, "run: node version {from} → {to}"),
-            PlanReason::ChangedParams(p) => write!(f, "run: changed parameter {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")),
-            PlanReason::ChangedInputs(p) => write!(f, "run: changed input {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")),
+            PlanReason::ChangedParams(p) => write!(
+                f,
+                "run: changed parameter {}",
+                p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")
+            ),
+            PlanReason::ChangedInputs(p) => {
+                write!(f, "run: changed input {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", "))
+            }
             PlanReason::NotInCache => write!(f, "run: not in cache"),
         }
     }
@@ -142,7 +157,9 @@ pub fn plan(graph: &Graph, out_dir: &Path, cache: Option<&Cache>) -> Vec<PlanEnt
             } else {
                 match previous.as_ref().and_then(|m| m.nodes.iter().find(|n| n.id == inst.id)) {
                     None => PlanReason::New,
-                    Some(prev) if prev.version != inst.version => PlanReason::NewVersion { from: prev.version, to: inst.version },
+                    Some(prev) if prev.version != inst.version => {
+                        PlanReason::NewVersion { from: prev.version, to: inst.version }
+                    }
                     Some(prev) => {
                         let mut changed: Vec<String> = inst
                             .param_digests
@@ -155,8 +172,11 @@ pub fn plan(graph: &Graph, out_dir: &Path, cache: Option<&Cache>) -> Vec<PlanEnt
                             PlanReason::ChangedParams(changed)
                         } else {
                             let now = input_keys(graph, i);
-                            let ports: Vec<String> =
-                                now.iter().filter(|(p, keys)| prev.inputs.get(*p) != Some(*keys)).map(|(p, _)| p.clone()).collect();
+                            let ports: Vec<String> = now
+                                .iter()
+                                .filter(|(p, keys)| prev.inputs.get(*p) != Some(*keys))
+                                .map(|(p, _)| p.clone())
+                                .collect();
                             if ports.is_empty() { PlanReason::NotInCache } else { PlanReason::ChangedInputs(ports) }
                         }
                     }

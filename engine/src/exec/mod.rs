@@ -50,8 +50,13 @@ pub fn cache_dir(out_dir: &Path) -> PathBuf {
 /// What happened to one instance.
 #[derive(Debug, Clone)]
 pub enum Outcome {
-    Computed { outputs: Arc<Outputs>, seconds: f64 },
-    Cached { outputs: Arc<Outputs> },
+    Computed {
+        outputs: Arc<Outputs>,
+        seconds: f64,
+    },
+    Cached {
+        outputs: Arc<Outputs>,
+    },
     Failed(NodeError),
     /// Not run because an input failed (or the run stopped).
     Skipped,
@@ -113,8 +118,13 @@ pub fn execute(
             wave.par_iter()
                 .map(|&i| {
                     let inst = &graph.instances[i];
-                    let blocked = stop || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
-                    let outcome = if blocked { Outcome::Skipped } else { run_one(recipe, graph, registry, cache.as_ref(), &outcomes, i) };
+                    let blocked =
+                        stop || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
+                    let outcome = if blocked {
+                        Outcome::Skipped
+                    } else {
+                        run_one(recipe, graph, registry, cache.as_ref(), &outcomes, i)
+                    };
                     progress(i, &inst.id);
                     (i, outcome)
                 })
@@ -129,10 +139,20 @@ pub fn execute(
         }
     }
     debug_assert_eq!(done_count, n);
-    RunResult { outcomes: outcomes.into_iter().map(|o| o.expect("settled")).collect(), seconds: start.elapsed().as_secs_f64() }
+    RunResult {
+        outcomes: outcomes.into_iter().map(|o| o.expect("settled")).collect(),
+        seconds: start.elapsed().as_secs_f64(),
+    }
 }
 
-fn run_one(recipe: &Recipe, graph: &Graph, registry: &Registry, cache: Option<&Cache>, outcomes: &[Option<Outcome>], i: usize) -> Outcome {
+fn run_one(
+    recipe: &Recipe,
+    graph: &Graph,
+    registry: &Registry,
+    cache: Option<&Cache>,
+    outcomes: &[Option<Outcome>],
+    i: usize,
+) -> Outcome {
     let inst = &graph.instances[i];
     if let Some(c) = cache
         && let Some(outputs) = c.get(&inst.key)
@@ -146,17 +166,26 @@ fn run_one(recipe: &Recipe, graph: &Graph, registry: &Registry, cache: Option<&C
         for (src, out_port) in srcs {
             let outputs = outcomes[*src].as_ref().and_then(Outcome::outputs).expect("dependency finished");
             let Some(v) = outputs.get(out_port) else {
-                return Outcome::Failed(NodeError::input(port, format!("`{}` produced no `{out_port}`", graph.instances[*src].id)));
+                return Outcome::Failed(NodeError::input(
+                    port,
+                    format!("`{}` produced no `{out_port}`", graph.instances[*src].id),
+                ));
             };
             let coords = graph.instances[*src]
                 .assignments
                 .iter()
                 .filter_map(|(k, v)| match v {
                     crate::spec::ParamValue::Quantity { value, dim } => {
-                        let unit = if *dim == spindlelab_grammar::Dimension::DIMENSIONLESS { String::new() } else { dim.si_unit() };
+                        let unit = if *dim == spindlelab_grammar::Dimension::DIMENSIONLESS {
+                            String::new()
+                        } else {
+                            dim.si_unit()
+                        };
                         Some(crate::node::Coord { name: k.clone(), value: *value, unit })
                     }
-                    crate::spec::ParamValue::Int(i) => Some(crate::node::Coord { name: k.clone(), value: *i as f64, unit: String::new() }),
+                    crate::spec::ParamValue::Int(i) => {
+                        Some(crate::node::Coord { name: k.clone(), value: *i as f64, unit: String::new() })
+                    }
                     _ => None,
                 })
                 .collect();
@@ -184,7 +213,12 @@ fn run_one(recipe: &Recipe, graph: &Graph, registry: &Registry, cache: Option<&C
                         )));
                     }
                     None if p.optional => {}
-                    None => return Outcome::Failed(NodeError::Failed(format!("declared output `{}` was not produced", p.name))),
+                    None => {
+                        return Outcome::Failed(NodeError::Failed(format!(
+                            "declared output `{}` was not produced",
+                            p.name
+                        )));
+                    }
                 }
             }
             if let Some(c) = cache {

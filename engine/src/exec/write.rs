@@ -4,8 +4,8 @@
 use crate::graph::Instance;
 use crate::model::OutputFormat;
 use crate::spec::ParamValue;
-use spindlelab_grammar::Dimension;
 use crate::value::{Frf, Table, TimeSeries, Value};
+use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
 
 /// One value to write, with the sweep assignments of the instance that made it.
@@ -51,7 +51,8 @@ fn num(v: f64) -> String {
 fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
     let mut out = String::new();
     let swept = !axes.is_empty() || rows.len() > 1;
-    let prefix_header: String = axes.iter().map(|(n, u)| if u.is_empty() { format!("{n},") } else { format!("{n}_{u},") }).collect();
+    let prefix_header: String =
+        axes.iter().map(|(n, u)| if u.is_empty() { format!("{n},") } else { format!("{n}_{u},") }).collect();
     let prefix_header = if swept && axes.is_empty() { "label,".to_string() } else { prefix_header };
     let prefix = |r: &Row| -> String {
         if swept && axes.is_empty() {
@@ -88,7 +89,7 @@ fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
 }
 
 fn unit_tag(symbol: &str) -> String {
-    symbol.replace('/', "_per_").replace('*', "").replace('^', "")
+    symbol.replace('/', "_per_").replace(['*', '^'], "")
 }
 
 fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut bool) {
@@ -96,7 +97,13 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
         let cols: Vec<String> = t
             .columns
             .iter()
-            .map(|c| if c.unit.symbol.is_empty() { c.name.clone() } else { format!("{}_{}", c.name, unit_tag(&c.unit.symbol)) })
+            .map(|c| {
+                if c.unit.symbol.is_empty() {
+                    c.name.clone()
+                } else {
+                    format!("{}_{}", c.name, unit_tag(&c.unit.symbol))
+                }
+            })
             .collect();
         let _ = writeln!(out, "{ph}{}", cols.join(","));
         *header_done = true;

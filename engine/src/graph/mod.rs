@@ -9,8 +9,8 @@ mod render;
 
 pub use render::{to_dot, to_mermaid};
 
-use crate::model::{Recipe, Step};
 use crate::diag::Diagnostics;
+use crate::model::{Recipe, Step};
 use crate::node::{NodeError, Registry};
 use crate::spec::{ParamValue, Params};
 use indexmap::IndexMap;
@@ -65,7 +65,8 @@ fn step_order(recipe: &Recipe) -> Vec<&Step> {
             if done[i] {
                 continue;
             }
-            let ready = s.inputs.iter().all(|b| recipe.steps.iter().position(|t| t.id == b.from.step).is_none_or(|j| done[j]));
+            let ready =
+                s.inputs.iter().all(|b| recipe.steps.iter().position(|t| t.id == b.from.step).is_none_or(|j| done[j]));
             if ready {
                 done[i] = true;
                 order.push(s);
@@ -116,7 +117,8 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                 continue;
             }
             let labels: Vec<&str> = producers.iter().map(|&i| instances[i].label.as_str()).collect();
-            let found = families.iter().position(|f| f.iter().map(|&i| instances[i].label.as_str()).eq(labels.iter().copied()));
+            let found =
+                families.iter().position(|f| f.iter().map(|&i| instances[i].label.as_str()).eq(labels.iter().copied()));
             let idx = found.unwrap_or_else(|| {
                 families.push(producers.clone());
                 families.len() - 1
@@ -131,11 +133,13 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
         let points = sweep_points(step);
         let mut ids = Vec::new();
         for combo in &combos {
-            let up_label: Vec<String> = combo.iter().enumerate().map(|(f, &k)| instances[families[f][k]].label.clone()).collect();
+            let up_label: Vec<String> =
+                combo.iter().enumerate().map(|(f, &k)| instances[families[f][k]].label.clone()).collect();
             let up_assigned: Vec<(String, ParamValue)> =
                 combo.iter().enumerate().flat_map(|(f, &k)| instances[families[f][k]].assignments.clone()).collect();
             for (own_label, assigned) in &points {
-                let mut label_parts: Vec<&str> = up_label.iter().map(String::as_str).filter(|l| !l.is_empty()).collect();
+                let mut label_parts: Vec<&str> =
+                    up_label.iter().map(String::as_str).filter(|l| !l.is_empty()).collect();
                 if !own_label.is_empty() {
                     label_parts.push(own_label);
                 }

@@ -73,7 +73,12 @@ pub const SENSOR: &[Field] = &[
         T::Choice(&["capacitance_probe", "laser_vibrometer", "accelerometer", "force_sensor"]),
         "sensor type",
     ),
-    Field::def("phase_slope", T::Quantity(D::PHASE_SLOPE), "0 deg/kHz", "phase lag slope of the measuring chain (Eq. 2.11)"),
+    Field::def(
+        "phase_slope",
+        T::Quantity(D::PHASE_SLOPE),
+        "0 deg/kHz",
+        "phase lag slope of the measuring chain (Eq. 2.11)",
+    ),
     Field::def("mass", T::Quantity(D::MASS), "0 kg", "mass added at the measurement point"),
     Field::def("location", T::Text, "tool tip", "where the sensor measures"),
     Field::opt("noise", T::Quantity(D::DIMENSIONLESS), "noise level relative to the signal"),

@@ -7,7 +7,8 @@ mod entities;
 mod resolve;
 
 pub use entities::{
-    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode, fields as entity_fields,
+    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
+    fields as entity_fields,
 };
 pub use resolve::resolve;
 

@@ -1,6 +1,8 @@
 //! Raw tree → resolved recipe. Collects every diagnostic; returns a recipe only when there are no errors.
 
-use super::entities::{self, Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode};
+use super::entities::{
+    self, Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
+};
 use super::{Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis};
 use crate::diag::{Diagnostics, Span};
 use crate::node::Registry;
@@ -9,8 +11,19 @@ use crate::syntax::{Raw, RawKind};
 use indexmap::IndexMap;
 use spindlelab_grammar::Dimension;
 
-const TOP_KEYS: &[&str] =
-    &["spindlelab", "name", "description", "materials", "machines", "assemblies", "sensors", "cutting", "speeds", "steps", "outputs"];
+const TOP_KEYS: &[&str] = &[
+    "spindlelab",
+    "name",
+    "description",
+    "materials",
+    "machines",
+    "assemblies",
+    "sensors",
+    "cutting",
+    "speeds",
+    "steps",
+    "outputs",
+];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file"];
 
@@ -53,7 +66,9 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
             format!("unsupported recipe version `{}`", v.scalar_text().unwrap_or_else(|| v.describe().into())),
             format!("this spindlelab reads `spindlelab: {FORMAT_VERSION}`"),
         ),
-        None => diags.error_help(Some(&raw.span), "missing the version key `spindlelab`", "add `spindlelab: 1` at the top"),
+        None => {
+            diags.error_help(Some(&raw.span), "missing the version key `spindlelab`", "add `spindlelab: 1` at the top")
+        }
     }
     let name = match raw.get("name") {
         Some(Raw { kind: RawKind::Str(s), .. }) => s.clone(),
@@ -83,7 +98,10 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
                         set.insert(k.name.clone());
                     }
                 }
-                None => diags.error(Some(&section.span), format!("`{}` must be a mapping of names to {}s", kind.section(), kind.noun())),
+                None => diags.error(
+                    Some(&section.span),
+                    format!("`{}` must be a mapping of names to {}s", kind.section(), kind.noun()),
+                ),
             }
         }
     }
@@ -104,16 +122,21 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
         checked[&EntityKind::Material].iter().map(|(n, p)| (n.clone(), Material::from_params(p))).collect();
 
     let speeds = match raw.get("speeds") {
-        Some(v) => match spec::check_value(v, &FieldType::QuantityList(Dimension::ROTATIONAL_SPEED), "`speeds`", &ctx, diags) {
-            Some(ParamValue::List { values, .. }) => values,
-            _ => Vec::new(),
-        },
+        Some(v) => {
+            match spec::check_value(v, &FieldType::QuantityList(Dimension::ROTATIONAL_SPEED), "`speeds`", &ctx, diags) {
+                Some(ParamValue::List { values, .. }) => values,
+                _ => Vec::new(),
+            }
+        }
         None => Vec::new(),
     };
 
     let steps = resolve_steps(raw.get("steps"), &raw.span, registry, &ctx, diags);
-    let step_names: Vec<String> =
-        raw.get("steps").and_then(Raw::as_map).map(|m| m.iter().map(|(k, _)| k.name.clone()).collect()).unwrap_or_default();
+    let step_names: Vec<String> = raw
+        .get("steps")
+        .and_then(Raw::as_map)
+        .map(|m| m.iter().map(|(k, _)| k.name.clone()).collect())
+        .unwrap_or_default();
     let outputs = resolve_outputs(raw.get("outputs"), &steps, &step_names, registry, diags);
     check_cycles(&steps, diags);
 
@@ -127,8 +150,14 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
         name,
         description,
         hash,
-        machines: checked[&EntityKind::Machine].iter().map(|(n, p)| (n.clone(), build_machine(p, &materials))).collect(),
-        assemblies: checked[&EntityKind::Assembly].iter().map(|(n, p)| (n.clone(), build_assembly(p, &materials))).collect(),
+        machines: checked[&EntityKind::Machine]
+            .iter()
+            .map(|(n, p)| (n.clone(), build_machine(p, &materials)))
+            .collect(),
+        assemblies: checked[&EntityKind::Assembly]
+            .iter()
+            .map(|(n, p)| (n.clone(), build_assembly(p, &materials)))
+            .collect(),
         sensors: checked[&EntityKind::Sensor].iter().map(|(n, p)| (n.clone(), build_sensor(p))).collect(),
         cutting: checked[&EntityKind::Cutting].iter().map(|(n, p)| (n.clone(), build_cutting(p))).collect(),
         materials,
@@ -166,7 +195,10 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
                     );
                 }
                 if d_out <= 0.0 || d_tip <= 0.0 {
-                    diags.error(Some(&at("d_out")), format!("section `{sname}` of assembly `{name}`: outer diameter must be positive"));
+                    diags.error(
+                        Some(&at("d_out")),
+                        format!("section `{sname}` of assembly `{name}`: outer diameter must be positive"),
+                    );
                 }
                 if d_in < 0.0 || d_in >= d_out.min(d_tip) {
                     diags.error_help(
@@ -180,10 +212,16 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
                     );
                 }
                 if s.get("inner").is_some() && d_in <= 0.0 {
-                    diags.error(Some(&at("inner")), format!("section `{sname}` of assembly `{name}` has a core material but no bore (`d_in`)"));
+                    diags.error(
+                        Some(&at("inner")),
+                        format!("section `{sname}` of assembly `{name}` has a core material but no bore (`d_in`)"),
+                    );
                 }
                 if s.get("d_equivalent").is_some() && s.text("kind") != Some("fluted") {
-                    diags.error(Some(&at("d_equivalent")), format!("section `{sname}`: `d_equivalent` applies to a fluted section only"));
+                    diags.error(
+                        Some(&at("d_equivalent")),
+                        format!("section `{sname}`: `d_equivalent` applies to a fluted section only"),
+                    );
                 }
             }
         }
@@ -191,7 +229,11 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
             let a = p.f64("radial_immersion").unwrap_or(0.0);
             if !(a > 0.0 && a <= 1.0) {
                 let at = raw.get("radial_immersion").map(|r| r.span.clone());
-                diags.error_help(at.as_ref(), format!("cutting `{name}`: radial immersion {a} is outside (0, 1]"), "write it as a fraction or a percentage, e.g. `25 %`");
+                diags.error_help(
+                    at.as_ref(),
+                    format!("cutting `{name}`: radial immersion {a} is outside (0, 1]"),
+                    "write it as a fraction or a percentage, e.g. `25 %`",
+                );
             }
             let ks = p.get("Ks").is_some() && p.get("beta").is_some();
             let ktn = p.get("Kt").is_some() && p.get("Kn").is_some();
@@ -210,10 +252,10 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
         }
         EntityKind::Sensor => {}
     }
-    if kind == EntityKind::Assembly {
-        if let Some(jraw) = raw.get("tool_joint") {
-            check_joint(name, jraw, p.object("tool_joint"), diags);
-        }
+    if kind == EntityKind::Assembly
+        && let Some(jraw) = raw.get("tool_joint")
+    {
+        check_joint(name, jraw, p.object("tool_joint"), diags);
     }
 }
 
@@ -223,7 +265,7 @@ fn check_joint(owner: &str, raw: &Raw, p: Option<&Params>, diags: &mut Diagnosti
     let has_k = p.get("kt").is_some() || p.get("kr").is_some();
     if rigid && has_k {
         diags.error(Some(&raw.span), format!("joint of `{owner}` is both rigid and has stiffness; keep one"));
-    } else if !rigid && !(p.get("kt").is_some() && p.get("kr").is_some()) {
+    } else if !rigid && (p.get("kt").is_none() || p.get("kr").is_none()) {
         diags.error_help(Some(&raw.span), format!("joint of `{owner}` needs `kt` and `kr`"), "or write `rigid: true`");
     }
 }
@@ -348,27 +390,43 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         return Vec::new();
     };
     let Some(entries) = raw.as_map() else {
-        diags.error(Some(&raw.span), format!("`steps` must be a mapping of step names to steps, found {}", raw.describe()));
+        diags.error(
+            Some(&raw.span),
+            format!("`steps` must be a mapping of step names to steps, found {}", raw.describe()),
+        );
         return Vec::new();
     };
     // Kinds first, so input references can be checked against the producer's ports.
     let kinds: IndexMap<&str, Option<&str>> = entries
         .iter()
-        .map(|(k, v)| (k.name.as_str(), v.get("kind").and_then(Raw::as_str).filter(|kind| registry.get(kind).is_some())))
+        .map(|(k, v)| {
+            (k.name.as_str(), v.get("kind").and_then(Raw::as_str).filter(|kind| registry.get(kind).is_some()))
+        })
         .collect();
     let mut steps = Vec::new();
     for (key, sraw) in entries {
         let id = key.name.clone();
         if !valid_name(&id) {
-            diags.error_help(Some(&key.span), format!("`{id}` is not a valid step name"), "use letters, digits, `_` and `-`, starting with a letter");
+            diags.error_help(
+                Some(&key.span),
+                format!("`{id}` is not a valid step name"),
+                "use letters, digits, `_` and `-`, starting with a letter",
+            );
         }
         if sraw.as_map().is_none() {
-            diags.error(Some(&sraw.span), format!("step `{id}` must be a mapping with `kind`, found {}", sraw.describe()));
+            diags.error(
+                Some(&sraw.span),
+                format!("step `{id}` must be a mapping with `kind`, found {}", sraw.describe()),
+            );
             continue;
         }
         unknown_keys(sraw, STEP_KEYS, &format!("step `{id}`"), diags);
         let Some(kind_raw) = sraw.get("kind") else {
-            diags.error_help(Some(&key.span), format!("step `{id}` has no `kind`"), "add `kind: …`; `spindlelab nodes` lists the kinds");
+            diags.error_help(
+                Some(&key.span),
+                format!("step `{id}` has no `kind`"),
+                "add `kind: …`; `spindlelab nodes` lists the kinds",
+            );
             continue;
         };
         let Some(kind) = kind_raw.as_str() else {
@@ -401,12 +459,14 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                         };
                         let what = format!("sweep `{}` of step `{id}`", pk.name);
                         let values = match field.ty {
-                            FieldType::Quantity(dim) => match spec::check_value(pv, &FieldType::QuantityList(dim), &what, ctx, diags) {
-                                Some(ParamValue::List { values, dim }) => {
-                                    values.into_iter().map(|value| ParamValue::Quantity { value, dim }).collect()
+                            FieldType::Quantity(dim) => {
+                                match spec::check_value(pv, &FieldType::QuantityList(dim), &what, ctx, diags) {
+                                    Some(ParamValue::List { values, dim }) => {
+                                        values.into_iter().map(|value| ParamValue::Quantity { value, dim }).collect()
+                                    }
+                                    _ => continue,
                                 }
-                                _ => continue,
-                            },
+                            }
                             ty => match &pv.kind {
                                 RawKind::Seq(items) => {
                                     let vals: Option<Vec<_>> =
@@ -429,24 +489,23 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                         sweep.push(SweepAxis { param: pk.name.clone(), values });
                     }
                 }
-                None => diags.error(Some(&sw.span), format!("`sweep` of step `{id}` must map parameter names to values")),
+                None => {
+                    diags.error(Some(&sw.span), format!("`sweep` of step `{id}` must map parameter names to values"))
+                }
             }
         }
 
         // Parameters: a swept parameter is neither required nor defaulted here, even when
         // its sweep values were rejected (that error is already reported).
-        let swept: Vec<&str> =
-            sraw.get("sweep").and_then(Raw::as_map).map(|m| m.iter().map(|(k, _)| k.name.as_str()).collect()).unwrap_or_default();
+        let swept: Vec<&str> = sraw
+            .get("sweep")
+            .and_then(Raw::as_map)
+            .map(|m| m.iter().map(|(k, _)| k.name.as_str()).collect())
+            .unwrap_or_default();
         let fields: Vec<Field> = spec
             .params
             .iter()
-            .map(|f| {
-                if swept.contains(&f.name) {
-                    Field { required: false, default: None, ..*f }
-                } else {
-                    *f
-                }
-            })
+            .map(|f| if swept.contains(&f.name) { Field { required: false, default: None, ..*f } } else { *f })
             .collect();
         let empty = Raw { span: key.span.clone(), kind: RawKind::Map(Vec::new()) };
         let praw = sraw.get("params").unwrap_or(&empty);
@@ -454,7 +513,11 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         for axis in &sweep {
             if params.as_ref().is_some_and(|p| p.get(&axis.param).is_some()) {
                 let at = praw.get(&axis.param).map(|r| r.span.clone());
-                diags.error_help(at.as_ref(), format!("step `{id}` both sets and sweeps `{}`", axis.param), "keep one of them");
+                diags.error_help(
+                    at.as_ref(),
+                    format!("step `{id}` both sets and sweeps `{}`", axis.param),
+                    "keep one of them",
+                );
             }
         }
 
@@ -469,26 +532,45 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                             let known: Vec<&str> = spec.inputs.iter().map(|p| p.name).collect();
                             match suggest(&pk.name, known.iter().copied()) {
                                 Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
-                                None => diags.error_help(Some(&pk.span), msg, format!("its inputs: {}", if known.is_empty() { "none".into() } else { known.join(", ") })),
+                                None => diags.error_help(
+                                    Some(&pk.span),
+                                    msg,
+                                    format!(
+                                        "its inputs: {}",
+                                        if known.is_empty() { "none".into() } else { known.join(", ") }
+                                    ),
+                                ),
                             }
                             continue;
                         };
                         let Some(text) = pv.as_str() else {
-                            diags.error(Some(&pv.span), format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name));
+                            diags.error(
+                                Some(&pv.span),
+                                format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name),
+                            );
                             continue;
                         };
                         let Some(r) = parse_port_ref(text) else {
-                            diags.error_help(Some(&pv.span), format!("`{text}` is not a reference"), "write `@step.port`, e.g. `@hit.force`");
+                            diags.error_help(
+                                Some(&pv.span),
+                                format!("`{text}` is not a reference"),
+                                "write `@step.port`, e.g. `@hit.force`",
+                            );
                             continue;
                         };
                         if r.step == id {
-                            diags.error(Some(&pv.span), format!("step `{id}` takes its own output `{r}` as input: a cycle"));
+                            diags.error(
+                                Some(&pv.span),
+                                format!("step `{id}` takes its own output `{r}` as input: a cycle"),
+                            );
                             continue;
                         }
                         let Some(producer_kind) = kinds.get(r.step.as_str()) else {
                             let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
                             match suggest(&r.step, kinds.keys().copied()) {
-                                Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
+                                Some(s) => {
+                                    diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port))
+                                }
                                 None => diags.error_help(
                                     Some(&pv.span),
                                     msg,
@@ -503,15 +585,22 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                             let msg = format!("step `{}` ({producer_kind}) has no output `{}`", r.step, r.port);
                             let known: Vec<&str> = pspec.outputs.iter().map(|p| p.name).collect();
                             match suggest(&r.port, known.iter().copied()) {
-                                Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
-                                None => diags.error_help(Some(&pv.span), msg, format!("its outputs: {}", known.join(", "))),
+                                Some(s) => {
+                                    diags.error_help(Some(&pv.span), msg, format!("did you mean `@{}.{s}`?", r.step))
+                                }
+                                None => {
+                                    diags.error_help(Some(&pv.span), msg, format!("its outputs: {}", known.join(", ")))
+                                }
                             }
                             continue;
                         };
                         if out.ty != port.ty {
                             diags.error_help(
                                 Some(&pv.span),
-                                format!("type mismatch: input `{}` of step `{id}` takes a {}, but `{r}` is a {}", pk.name, port.ty, out.ty),
+                                format!(
+                                    "type mismatch: input `{}` of step `{id}` takes a {}, but `{r}` is a {}",
+                                    pk.name, port.ty, out.ty
+                                ),
                                 format!("connect an output of type {}", port.ty),
                             );
                             continue;
@@ -519,7 +608,9 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                         inputs.push(Binding { port: pk.name.clone(), from: r, span: pv.span.clone() });
                     }
                 }
-                None => diags.error(Some(&iraw.span), format!("`inputs` of step `{id}` must map input names to references")),
+                None => {
+                    diags.error(Some(&iraw.span), format!("`inputs` of step `{id}` must map input names to references"))
+                }
             }
         }
         for port in &spec.inputs {
@@ -532,28 +623,30 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                 );
             }
         }
-        let mut param_spans: IndexMap<String, Span> =
-            praw.as_map().map(|m| m.iter().map(|(k, v)| (k.name.clone(), v.span.clone())).collect()).unwrap_or_default();
+        let mut param_spans: IndexMap<String, Span> = praw
+            .as_map()
+            .map(|m| m.iter().map(|(k, v)| (k.name.clone(), v.span.clone())).collect())
+            .unwrap_or_default();
         if let Some(axes) = sraw.get("sweep").and_then(Raw::as_map) {
             param_spans.extend(axes.iter().map(|(k, v)| (k.name.clone(), v.span.clone())));
         }
         // A node's own checks on values (ranges, combinations); swept steps are checked per
         // instance when the graph is built.
-        if let Some(p) = params.as_ref().filter(|_| swept.is_empty()) {
-            if let Err(e) = node.validate(p) {
-                let at = match &e {
-                    crate::node::NodeError::InvalidParam { param, .. } => param_spans.get(param).unwrap_or(&key.span),
-                    _ => &key.span,
-                };
-                let help = match &e {
-                    crate::node::NodeError::InvalidParam { param, .. } => spec
-                        .param(param)
-                        .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
-                        .unwrap_or_else(|| "check the step's parameters".into()),
-                    _ => "check the step's parameters".into(),
-                };
-                diags.error_help(Some(at), format!("step `{id}` ({kind}): {e}"), help);
-            }
+        if let Some(p) = params.as_ref().filter(|_| swept.is_empty())
+            && let Err(e) = node.validate(p)
+        {
+            let at = match &e {
+                crate::node::NodeError::InvalidParam { param, .. } => param_spans.get(param).unwrap_or(&key.span),
+                _ => &key.span,
+            };
+            let help = match &e {
+                crate::node::NodeError::InvalidParam { param, .. } => spec
+                    .param(param)
+                    .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
+                    .unwrap_or_else(|| "check the step's parameters".into()),
+                _ => "check the step's parameters".into(),
+            };
+            diags.error_help(Some(at), format!("step `{id}` ({kind}): {e}"), help);
         }
         if let Some(params) = params {
             steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep, param_spans });
@@ -562,21 +655,38 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
     steps
 }
 
-fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], step_names: &[String], registry: &Registry, diags: &mut Diagnostics) -> Vec<Output> {
+fn resolve_outputs(
+    raw: Option<&Raw>,
+    steps: &[Step],
+    step_names: &[String],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Vec<Output> {
     let Some(raw) = raw else { return Vec::new() };
     let RawKind::Seq(items) = &raw.kind else {
-        diags.error_help(Some(&raw.span), "`outputs` must be a list", "write `outputs: [{ from: \"@step.port\", file: name.csv }]`");
+        diags.error_help(
+            Some(&raw.span),
+            "`outputs` must be a list",
+            "write `outputs: [{ from: \"@step.port\", file: name.csv }]`",
+        );
         return Vec::new();
     };
     let mut outputs = Vec::new();
     for item in items {
         if item.as_map().is_none() {
-            diags.error(Some(&item.span), format!("an output must be a mapping with `from` and `file`, found {}", item.describe()));
+            diags.error(
+                Some(&item.span),
+                format!("an output must be a mapping with `from` and `file`, found {}", item.describe()),
+            );
             continue;
         }
         unknown_keys(item, OUTPUT_KEYS, "an output", diags);
         let (Some(from), Some(file)) = (item.get("from"), item.get("file")) else {
-            diags.error_help(Some(&item.span), "an output needs `from` and `file`", "e.g. `{ from: \"@hit.force\", file: force.csv }`");
+            diags.error_help(
+                Some(&item.span),
+                "an output needs `from` and `file`",
+                "e.g. `{ from: \"@hit.force\", file: force.csv }`",
+            );
             continue;
         };
         let Some(r) = from.as_str().and_then(parse_port_ref) else {
@@ -588,8 +698,15 @@ fn resolve_outputs(raw: Option<&Raw>, steps: &[Step], step_names: &[String], reg
             continue;
         };
         let path = std::path::Path::new(fname);
-        if path.is_absolute() || path.components().any(|c| matches!(c, std::path::Component::ParentDir)) || fname.is_empty() {
-            diags.error_help(Some(&file.span), format!("output file `{fname}` must stay inside the output directory"), "use a relative name without `..`");
+        if path.is_absolute()
+            || path.components().any(|c| matches!(c, std::path::Component::ParentDir))
+            || fname.is_empty()
+        {
+            diags.error_help(
+                Some(&file.span),
+                format!("output file `{fname}` must stay inside the output directory"),
+                "use a relative name without `..`",
+            );
             continue;
         }
         let format = match path.extension().and_then(|e| e.to_str()) {
@@ -643,7 +760,14 @@ fn check_cycles(steps: &[Step], diags: &mut Diagnostics) {
     // 0 = unvisited, 1 = on the stack, 2 = done.
     let mut state = vec![0u8; steps.len()];
     let mut stack: Vec<usize> = Vec::new();
-    fn visit(i: usize, steps: &[Step], index: &IndexMap<&str, usize>, state: &mut [u8], stack: &mut Vec<usize>, diags: &mut Diagnostics) {
+    fn visit(
+        i: usize,
+        steps: &[Step],
+        index: &IndexMap<&str, usize>,
+        state: &mut [u8],
+        stack: &mut Vec<usize>,
+        diags: &mut Diagnostics,
+    ) {
         state[i] = 1;
         stack.push(i);
         for b in &steps[i].inputs {

@@ -8,10 +8,10 @@ mod rhai_recipe;
 mod yaml;
 
 pub use raw::{Key, Raw, RawKind};
-pub use rhai_recipe::{RhaiLimits, load_rhai, sandboxed_engine};
-pub use yaml::load_yaml;
 /// The Rhai crate, so nodes that evaluate expressions use the same version and sandbox.
 pub use rhai;
+pub use rhai_recipe::{RhaiLimits, load_rhai, sandboxed_engine};
+pub use yaml::load_yaml;
 
 use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
 use std::path::Path;
@@ -33,7 +33,9 @@ pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
     let meta = match std::fs::metadata(path) {
         Ok(m) => m,
         Err(e) => {
-            diags.push(Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")).with_help("check the path"));
+            diags.push(
+                Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")).with_help("check the path"),
+            );
             return None;
         }
     };

@@ -62,7 +62,9 @@ fn fmt_num(v: f64) -> String {
 
 fn position_span(file: &Arc<str>, pos: Position) -> Span {
     match (pos.line(), pos.position()) {
-        (Some(line), col) => Span { file: file.clone(), line: line as u32, column: col.unwrap_or(1) as u32, bytes: None },
+        (Some(line), col) => {
+            Span { file: file.clone(), line: line as u32, column: col.unwrap_or(1) as u32, bytes: None }
+        }
         _ => Span::file_only(file.clone()),
     }
 }
@@ -76,8 +78,11 @@ pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics
             let root = Span::file_only(file.path.clone());
             if !value.is_map() {
                 diags.push(
-                    Diagnostic::error(Some(root), format!("a Rhai recipe must end with an object map, found {}", value.type_name()))
-                        .with_help("end the script with `#{ spindlelab: 1, steps: #{ ... } }`"),
+                    Diagnostic::error(
+                        Some(root),
+                        format!("a Rhai recipe must end with an object map, found {}", value.type_name()),
+                    )
+                    .with_help("end the script with `#{ spindlelab: 1, steps: #{ ... } }`"),
                 );
                 return None;
             }
@@ -108,11 +113,8 @@ pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics
 /// Converts a Rhai value into the raw tree. Values built by a script have no line, so
 /// their span names the file and the key path is kept in the message context.
 fn to_raw(file: &Arc<str>, path: &str, value: Dynamic) -> Raw {
-    let span = Span::file_only(Arc::from(if path.is_empty() {
-        file.to_string()
-    } else {
-        format!("{file} (at {path})")
-    }));
+    let span =
+        Span::file_only(Arc::from(if path.is_empty() { file.to_string() } else { format!("{file} (at {path})") }));
     let kind = if value.is_unit() {
         RawKind::Null
     } else if let Some(b) = value.clone().try_cast::<bool>() {
@@ -125,12 +127,7 @@ fn to_raw(file: &Arc<str>, path: &str, value: Dynamic) -> Raw {
         RawKind::Str(value.into_string().unwrap_or_default())
     } else if value.is_array() {
         let arr = value.into_array().unwrap_or_default();
-        RawKind::Seq(
-            arr.into_iter()
-                .enumerate()
-                .map(|(i, v)| to_raw(file, &format!("{path}[{i}]"), v))
-                .collect(),
-        )
+        RawKind::Seq(arr.into_iter().enumerate().map(|(i, v)| to_raw(file, &format!("{path}[{i}]"), v)).collect())
     } else if value.is_map() {
         let map = value.cast::<rhai::Map>();
         RawKind::Map(

@@ -120,14 +120,17 @@ pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
     match serde_saphyr::from_str_with_options::<Spanned<Node>>(&file.text, options) {
         Ok(node) => Some(convert(&file.path, node)),
         Err(e) => {
-            let span = e.location().map(|l| span_of(&file.path, &l)).unwrap_or_else(|| Span::file_only(file.path.clone()));
+            let span =
+                e.location().map(|l| span_of(&file.path, &l)).unwrap_or_else(|| Span::file_only(file.path.clone()));
             let msg = e.to_string();
             let msg = msg.lines().next().unwrap_or("invalid YAML");
             // The location is shown with the quoted line; keep the sentence free of it.
             let msg = msg.split(" at line ").next().unwrap_or(msg).to_string();
-            diags.push(Diagnostic::error(Some(span), format!("invalid YAML: {msg}")).with_help(
-                "a recipe is a YAML mapping; quote values that contain `:` or start with `@`, `[` or `{`",
-            ));
+            diags.push(
+                Diagnostic::error(Some(span), format!("invalid YAML: {msg}")).with_help(
+                    "a recipe is a YAML mapping; quote values that contain `:` or start with `@`, `[` or `{`",
+                ),
+            );
             None
         }
     }

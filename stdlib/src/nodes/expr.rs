@@ -50,7 +50,10 @@ impl Node for RhaiEval {
 
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
         let expr = params.text("expr").unwrap_or_default();
-        sandboxed_engine(&limits()).compile_expression(expr).map(|_| ()).map_err(|e| NodeError::param("expr", format!("`{expr}` is not a Rhai expression: {e}")))
+        sandboxed_engine(&limits())
+            .compile_expression(expr)
+            .map(|_| ())
+            .map_err(|e| NodeError::param("expr", format!("`{expr}` is not a Rhai expression: {e}")))
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {

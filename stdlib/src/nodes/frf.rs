@@ -25,17 +25,41 @@ impl FrfEstimate {
                 description: "H = X/F with a rectangular force window and an exponential response window (§3.1.2), averaged over records, with coherence (Eqs. 3.1–3.2).",
                 inputs: vec![
                     PortSpec::new("force", PortType::TimeSeries, "force records (N), one channel per impact"),
-                    PortSpec::new("response", PortType::TimeSeries, "response records, one channel per impact (m, or m/s with `response: velocity`)"),
+                    PortSpec::new(
+                        "response",
+                        PortType::TimeSeries,
+                        "response records, one channel per impact (m, or m/s with `response: velocity`)",
+                    ),
                 ],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "receptance (m/N) with coherence")],
                 params: vec![
                     Field::def("windows", T::Bool, "true", "apply the §3.1.2 windows"),
                     Field::def("force_window", T::Quantity(D::TIME), "6.5 ms", "rectangular force window length"),
-                    Field::def("response_decay", T::Quantity(D::TIME), "0.113 s", "time constant of the exponential response window, starting at the force window's end"),
-                    Field::def("trigger", T::Choice(&["force-peak", "record-start"]), "force-peak", "where each analysis frame starts"),
+                    Field::def(
+                        "response_decay",
+                        T::Quantity(D::TIME),
+                        "0.113 s",
+                        "time constant of the exponential response window, starting at the force window's end",
+                    ),
+                    Field::def(
+                        "trigger",
+                        T::Choice(&["force-peak", "record-start"]),
+                        "force-peak",
+                        "where each analysis frame starts",
+                    ),
                     Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before the force peak"),
-                    Field::def("averaging", T::Choice(&["h1", "time-synchronous"]), "h1", "H1 spectral averaging, or impact-synchronous time averaging (§3.1.3)"),
-                    Field::def("response", T::Choice(&["displacement", "velocity"]), "displacement", "velocity responses become receptance by Eq. 3.3"),
+                    Field::def(
+                        "averaging",
+                        T::Choice(&["h1", "time-synchronous"]),
+                        "h1",
+                        "H1 spectral averaging, or impact-synchronous time averaging (§3.1.3)",
+                    ),
+                    Field::def(
+                        "response",
+                        T::Choice(&["displacement", "velocity"]),
+                        "displacement",
+                        "velocity responses become receptance by Eq. 3.3",
+                    ),
                     Field::opt("max_frequency", T::Quantity(D::FREQUENCY), "keep lines up to this frequency"),
                 ],
             },
@@ -45,7 +69,10 @@ impl FrfEstimate {
 
 fn options(p: &Params) -> FrfOptions {
     let windows = if p.bool("windows").unwrap_or(true) {
-        Windows { force_window: p.f64("force_window").unwrap_or(6.5e-3), response_decay: p.f64("response_decay").unwrap_or(0.113) }
+        Windows {
+            force_window: p.f64("force_window").unwrap_or(6.5e-3),
+            response_decay: p.f64("response_decay").unwrap_or(0.113),
+        }
     } else {
         Windows::NONE
     };
@@ -63,9 +90,10 @@ fn options(p: &Params) -> FrfOptions {
 fn err(e: FrfError) -> NodeError {
     match e {
         FrfError::InvalidParameter { field, .. } => NodeError::param(field, e.to_string()),
-        FrfError::NonFinite { .. } | FrfError::TooShort { .. } | FrfError::ChannelLengthMismatch { .. } | FrfError::RecordLengthMismatch { .. } => {
-            NodeError::input("response", e.to_string())
-        }
+        FrfError::NonFinite { .. }
+        | FrfError::TooShort { .. }
+        | FrfError::ChannelLengthMismatch { .. }
+        | FrfError::RecordLengthMismatch { .. } => NodeError::input("response", e.to_string()),
         FrfError::NoRecords => NodeError::input("force", e.to_string()),
         other => NodeError::Failed(other.to_string()),
     }
@@ -91,7 +119,8 @@ impl Node for FrfEstimate {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (Value::TimeSeries(force), Value::TimeSeries(response)) = (ctx.input("force")?, ctx.input("response")?) else {
+        let (Value::TimeSeries(force), Value::TimeSeries(response)) = (ctx.input("force")?, ctx.input("response")?)
+        else {
             return Err(NodeError::input("force", "expected time series"));
         };
         if force.channels.is_empty() || force.is_empty() {
@@ -100,7 +129,11 @@ impl Node for FrfEstimate {
         if force.channels.len() != response.channels.len() {
             return Err(NodeError::input(
                 "response",
-                format!("{} force channel(s) but {} response channel(s): one of each per impact", force.channels.len(), response.channels.len()),
+                format!(
+                    "{} force channel(s) but {} response channel(s): one of each per impact",
+                    force.channels.len(),
+                    response.channels.len()
+                ),
             ));
         }
         if (force.sample_rate - response.sample_rate).abs() > 1e-9 * force.sample_rate {
@@ -109,8 +142,12 @@ impl Node for FrfEstimate {
                 format!("sample rate {} Hz differs from the force's {} Hz", response.sample_rate, force.sample_rate),
             ));
         }
-        let records: Vec<ImpactRecord> =
-            force.channels.iter().zip(&response.channels).map(|(f, r)| ImpactRecord { force: &f.samples, response: &r.samples }).collect();
+        let records: Vec<ImpactRecord> = force
+            .channels
+            .iter()
+            .zip(&response.channels)
+            .map(|(f, r)| ImpactRecord { force: &f.samples, response: &r.samples })
+            .collect();
         let mut est = FrfEstimator::new(force.len(), force.sample_rate).map_err(err)?;
         // One thread inside the node: the executor runs nodes in parallel, and a fixed
         // summation order keeps the numbers identical whatever the machine.

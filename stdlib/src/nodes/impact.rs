@@ -1,8 +1,8 @@
 //! `impact.simulate`: the Hertz hammer–target model of dissertation §2.1 as a recipe node.
 
 use crate::impact::{
-    Contact, Hammer, ImpactError, ImpactSetup, ModalTarget, Mode, SensorNoise, Sphere, Table21Target, first_contact, simulate,
-    table_2_1_target,
+    Contact, Hammer, ImpactError, ImpactSetup, ModalTarget, Mode, SensorNoise, Sphere, Table21Target, first_contact,
+    simulate, table_2_1_target,
 };
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -35,12 +35,28 @@ impl ImpactSimulate {
                 inputs: vec![],
                 outputs: vec![
                     PortSpec::new("force", PortType::TimeSeries, "contact force, one channel per impact (N)"),
-                    PortSpec::new("displacement", PortType::TimeSeries, "target displacement at the impact point, one channel per impact (m)"),
+                    PortSpec::new(
+                        "displacement",
+                        PortType::TimeSeries,
+                        "target displacement at the impact point, one channel per impact (m)",
+                    ),
                     PortSpec::new("impulse_time", PortType::Scalar, "first to last contact (s), §2.1 (ii)"),
-                    PortSpec::new("excited_bandwidth", PortType::Scalar, "where the force spectrum first falls 10 dB below DC (Hz), §2.1 (i)"),
-                    PortSpec::new("response_magnitude", PortType::Scalar, "|X| at the target's first natural frequency (m), §2.1 (iii)"),
+                    PortSpec::new(
+                        "excited_bandwidth",
+                        PortType::Scalar,
+                        "where the force spectrum first falls 10 dB below DC (Hz), §2.1 (i)",
+                    ),
+                    PortSpec::new(
+                        "response_magnitude",
+                        PortType::Scalar,
+                        "|X| at the target's first natural frequency (m), §2.1 (iii)",
+                    ),
                     PortSpec::new("peak_force", PortType::Scalar, "largest contact force (N)"),
-                    PortSpec::new("contacts", PortType::Scalar, "number of separate contacts (2 or more is a double hit)"),
+                    PortSpec::new(
+                        "contacts",
+                        PortType::Scalar,
+                        "number of separate contacts (2 or more is a double hit)",
+                    ),
                 ],
                 params: vec![
                     Field::req("hammer_mass", T::Quantity(D::MASS), "hammer mass M_h"),
@@ -50,22 +66,54 @@ impl ImpactSimulate {
                     Field::opt("target_stiffness", T::Quantity(D::STIFFNESS), "single-DOF target stiffness K_t"),
                     Field::def("target_damping", T::Quantity(D::DAMPING), "0 N*s/m", "single-DOF target damping C_t"),
                     Field::opt("target_modes", T::ObjectList(TARGET_MODE), "multi-DOF target as modes in modal space"),
-                    Field::opt("target_preset", T::Choice(&["table-2.1-target-1", "table-2.1-target-2"]), "a 10-mode target of Table 2.1"),
+                    Field::opt(
+                        "target_preset",
+                        T::Choice(&["table-2.1-target-1", "table-2.1-target-2"]),
+                        "a 10-mode target of Table 2.1",
+                    ),
                     Field::def("tip_radius", T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius r1"),
                     Field::def("target_radius", T::Quantity(D::LENGTH), "1 mm", "target sphere radius r2"),
-                    Field::opt("tip_material", T::Entity(EntityKind::Material), "hammer tip material (default steel 200 GPa, 0.29)"),
-                    Field::opt("target_material", T::Entity(EntityKind::Material), "target material (default steel 200 GPa, 0.29)"),
-                    Field::def("restitution", T::Quantity(D::DIMENSIONLESS), "0.95", "coefficient of restitution e of Eq. 2.4"),
+                    Field::opt(
+                        "tip_material",
+                        T::Entity(EntityKind::Material),
+                        "hammer tip material (default steel 200 GPa, 0.29)",
+                    ),
+                    Field::opt(
+                        "target_material",
+                        T::Entity(EntityKind::Material),
+                        "target material (default steel 200 GPa, 0.29)",
+                    ),
+                    Field::def(
+                        "restitution",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "0.95",
+                        "coefficient of restitution e of Eq. 2.4",
+                    ),
                     Field::def("release", T::Quantity(D::LENGTH), "10 mm", "hammer position at release X_hi"),
                     Field::def("contact", T::Quantity(D::LENGTH), "-3 mm", "target contact point X_t0"),
                     Field::def("dt", T::Quantity(D::TIME), "1e-8 s", "integration step of Eq. 2.7"),
                     Field::def("duration", T::Quantity(D::TIME), "10 ms", "record length after first contact"),
                     Field::def("pre_trigger", T::Quantity(D::TIME), "0 s", "record kept before first contact"),
                     Field::def("sample_rate", T::Quantity(D::FREQUENCY), "100 kHz", "output sampling rate"),
-                    Field::def("noise", T::Quantity(D::LENGTH), "0 m", "standard deviation of sensor noise on the displacement"),
-                    Field::def("impacts", T::Integer { min: 1, max: 1000 }, "1", "records to make, each with its own noise"),
+                    Field::def(
+                        "noise",
+                        T::Quantity(D::LENGTH),
+                        "0 m",
+                        "standard deviation of sensor noise on the displacement",
+                    ),
+                    Field::def(
+                        "impacts",
+                        T::Integer { min: 1, max: 1000 },
+                        "1",
+                        "records to make, each with its own noise",
+                    ),
                     Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "noise seed"),
-                    Field::def("integrator", T::Choice(&["exact-free-flight", "euler"]), "exact-free-flight", "free flight between contacts solved exactly, or Eq. 2.7 throughout"),
+                    Field::def(
+                        "integrator",
+                        T::Choice(&["exact-free-flight", "euler"]),
+                        "exact-free-flight",
+                        "free flight between contacts solved exactly, or Eq. 2.7 throughout",
+                    ),
                 ],
             },
         }
@@ -80,7 +128,10 @@ fn setup_from(params: &Params, recipe: Option<&spindlelab_engine::model::Recipe>
     let f = |n: &str| params.f64(n).unwrap_or(f64::NAN);
     let target = if let Some(preset) = params.text("target_preset") {
         if params.get("target_modes").is_some() || params.get("target_mass").is_some() {
-            return Err(NodeError::param("target_preset", "give one target: a preset, `target_modes`, or `target_mass` with `target_stiffness`"));
+            return Err(NodeError::param(
+                "target_preset",
+                "give one target: a preset, `target_modes`, or `target_mass` with `target_stiffness`",
+            ));
         }
         table_2_1_target(if preset.ends_with('1') { Table21Target::Target1 } else { Table21Target::Target2 })
     } else if let Some(modes) = params.objects("target_modes") {
@@ -155,10 +206,13 @@ fn to_node_error(e: ImpactError, spec: &NodeSpec) -> NodeError {
                 Some(T::Quantity(d)) if d != D::DIMENSIONLESS => format!(" {}", d.si_unit()),
                 _ => String::new(),
             };
-            let requirement = requirement.replace("release_position", "`release`").replace("contact_position", "`contact`");
+            let requirement =
+                requirement.replace("release_position", "`release`").replace("contact_position", "`contact`");
             NodeError::param(&param, format!("{value}{unit} {requirement}"))
         }
-        ImpactError::NoContact => NodeError::param("release", "the hammer never reaches the target: move `release` or `contact`"),
+        ImpactError::NoContact => {
+            NodeError::param("release", "the hammer never reaches the target: move `release` or `contact`")
+        }
         ImpactError::TooManySteps { .. } => NodeError::param("dt", format!("{e}: raise `dt` or shorten `duration`")),
         ImpactError::EmptyTarget => NodeError::param("target_modes", e.to_string()),
     }
@@ -192,7 +246,11 @@ impl Node for ImpactSimulate {
             let r = simulate(&setup).map_err(|e| to_node_error(e, &self.spec))?;
             let name = |base: &str| if impacts == 1 { base.to_string() } else { format!("{base}_{}", k + 1) };
             forces.push(Channel { name: name("force"), unit: UnitLabel::new("N"), samples: r.force.clone() });
-            disps.push(Channel { name: name("displacement"), unit: UnitLabel::new("m"), samples: r.target_displacement.clone() });
+            disps.push(Channel {
+                name: name("displacement"),
+                unit: UnitLabel::new("m"),
+                samples: r.target_displacement.clone(),
+            });
             if first.is_none() {
                 first = Some(r);
             }

@@ -16,8 +16,14 @@ impl TableCollect {
                 kind: "table.collect",
                 version: 1,
                 description: "Collects a swept scalar into a table: one row per sweep point, sweep values first.",
-                inputs: vec![PortSpec::new("values", PortType::Scalar, "the scalar to collect, from a swept step").collecting()],
-                outputs: vec![PortSpec::new("table", PortType::Table, "sweep coordinates (SI) and the collected value")],
+                inputs: vec![
+                    PortSpec::new("values", PortType::Scalar, "the scalar to collect, from a swept step").collecting(),
+                ],
+                outputs: vec![PortSpec::new(
+                    "table",
+                    PortType::Table,
+                    "sweep coordinates (SI) and the collected value",
+                )],
                 params: vec![Field::def("name", FieldType::Text, "value", "name of the value column")],
             },
         }
@@ -41,8 +47,10 @@ impl Node for TableCollect {
             return Err(NodeError::input("values", "no values to collect"));
         }
         let axes = &items[0].coords;
-        let mut columns: Vec<Column> =
-            axes.iter().map(|a| Column { name: a.name.clone(), unit: UnitLabel::new(a.unit.clone()), values: Vec::new() }).collect();
+        let mut columns: Vec<Column> = axes
+            .iter()
+            .map(|a| Column { name: a.name.clone(), unit: UnitLabel::new(a.unit.clone()), values: Vec::new() })
+            .collect();
         let mut unit = String::new();
         let mut values = Vec::new();
         for item in items {
