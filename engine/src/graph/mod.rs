@@ -11,7 +11,7 @@ pub use render::{to_dot, to_mermaid};
 
 use crate::diag::Diagnostics;
 use crate::model::{Recipe, Step};
-use crate::node::{NodeError, Registry};
+use crate::node::Registry;
 use crate::spec::{ParamValue, Params};
 use indexmap::IndexMap;
 
@@ -187,19 +187,14 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                 // Unswept steps were checked by the resolver already.
                 let checked = if step.sweep.is_empty() { Ok(()) } else { node.validate(&params) };
                 if let Err(e) = checked {
-                    let which = if label.is_empty() { String::new() } else { format!(" at {label}") };
-                    let help = match &e {
-                        NodeError::InvalidParam { param, .. } => spec
-                            .param(param)
-                            .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
-                            .unwrap_or_else(|| "check the step's parameters".into()),
-                        _ => "check the step's parameters".into(),
-                    };
-                    let at = match &e {
-                        NodeError::InvalidParam { param, .. } => step.param_spans.get(param).unwrap_or(&step.span),
-                        _ => &step.span,
-                    };
-                    diags.error_help(Some(at), format!("step `{}` ({}){which}: {e}", step.id, step.kind), help);
+                    crate::model::report_invalid(
+                        diags,
+                        (&step.id, &step.kind, &step.span),
+                        &label,
+                        &e,
+                        spec,
+                        &step.param_spans,
+                    );
                 }
                 ids.push(instances.len());
                 instances.push(Instance {

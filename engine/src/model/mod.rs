@@ -101,3 +101,29 @@ pub struct Output {
     pub format: OutputFormat,
     pub span: Span,
 }
+
+/// Reports a node's rejection of a step's parameter values at the parameter's place.
+/// `at` names the sweep point (empty for an unswept step).
+pub(crate) fn report_invalid(
+    diags: &mut crate::diag::Diagnostics,
+    step: (&str, &str, &Span),
+    at: &str,
+    error: &crate::node::NodeError,
+    spec: &crate::node::NodeSpec,
+    param_spans: &IndexMap<String, Span>,
+) {
+    let (id, kind, step_span) = step;
+    let which = if at.is_empty() { String::new() } else { format!(" at {at}") };
+    let (span, help) = match error {
+        crate::node::NodeError::InvalidParam { param, .. } => (
+            param_spans.get(param).unwrap_or(step_span),
+            spec.param(param).map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc)),
+        ),
+        _ => (step_span, None),
+    };
+    diags.error_help(
+        Some(span),
+        format!("step `{id}` ({kind}){which}: {error}"),
+        help.unwrap_or_else(|| "check the step's parameters".into()),
+    );
+}

@@ -635,18 +635,7 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         if let Some(p) = params.as_ref().filter(|_| swept.is_empty())
             && let Err(e) = node.validate(p)
         {
-            let at = match &e {
-                crate::node::NodeError::InvalidParam { param, .. } => param_spans.get(param).unwrap_or(&key.span),
-                _ => &key.span,
-            };
-            let help = match &e {
-                crate::node::NodeError::InvalidParam { param, .. } => spec
-                    .param(param)
-                    .map(|f| format!("`{param}`: {} — {}", f.ty.describe(), f.doc))
-                    .unwrap_or_else(|| "check the step's parameters".into()),
-                _ => "check the step's parameters".into(),
-            };
-            diags.error_help(Some(at), format!("step `{id}` ({kind}): {e}"), help);
+            super::report_invalid(diags, (&id, kind, &key.span), "", &e, spec, &param_spans);
         }
         if let Some(params) = params {
             steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep, param_spans });
