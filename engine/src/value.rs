@@ -5,7 +5,6 @@
 
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
-use spindlelab_grammar::Dimension;
 use std::fmt;
 
 /// The type of a port, checked at compile time.
@@ -22,17 +21,6 @@ pub enum PortType {
 }
 
 impl PortType {
-    pub const ALL: [PortType; 8] = [
-        PortType::TimeSeries,
-        PortType::Frf,
-        PortType::ReceptanceSet,
-        PortType::ModalModel,
-        PortType::BeamModel,
-        PortType::Lobes,
-        PortType::Table,
-        PortType::Scalar,
-    ];
-
     pub fn name(self) -> &'static str {
         match self {
             PortType::TimeSeries => "time series",
@@ -214,9 +202,4 @@ impl Value {
             Value::Scalar(_) => PortType::Scalar,
         }
     }
-}
-
-/// The SI symbol for a dimension, used to label values that a node computes from parameters.
-pub fn si_symbol(dim: Dimension) -> String {
-    dim.si_unit()
 }

@@ -6,7 +6,7 @@
 use crate::node::Outputs;
 use crate::value::Value;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 const MAGIC: &[u8; 8] = b"SPLCACH1";
 
@@ -19,10 +19,6 @@ pub struct Cache {
 impl Cache {
     pub fn new(dir: impl Into<PathBuf>) -> Self {
         Cache { dir: dir.into() }
-    }
-
-    pub fn dir(&self) -> &Path {
-        &self.dir
     }
 
     fn path(&self, key: &str) -> PathBuf {

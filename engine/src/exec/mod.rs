@@ -47,15 +47,22 @@ pub fn cache_dir(out_dir: &Path) -> PathBuf {
     out_dir.join(".spindlelab-cache")
 }
 
+/// A finished instance's outputs, each shared so consumers read it without copying.
+pub type Produced = IndexMap<String, Arc<crate::value::Value>>;
+
+fn share(outputs: Outputs) -> Arc<Produced> {
+    Arc::new(outputs.into_iter().map(|(k, v)| (k, Arc::new(v))).collect())
+}
+
 /// What happened to one instance.
 #[derive(Debug, Clone)]
 pub enum Outcome {
     Computed {
-        outputs: Arc<Outputs>,
+        outputs: Arc<Produced>,
         seconds: f64,
     },
     Cached {
-        outputs: Arc<Outputs>,
+        outputs: Arc<Produced>,
     },
     Failed(NodeError),
     /// Not run because an input failed (or the run stopped).
@@ -63,7 +70,7 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    pub fn outputs(&self) -> Option<&Arc<Outputs>> {
+    pub fn outputs(&self) -> Option<&Arc<Produced>> {
         match self {
             Outcome::Computed { outputs, .. } | Outcome::Cached { outputs } => Some(outputs),
             _ => None,
@@ -157,7 +164,7 @@ fn run_one(
     if let Some(c) = cache
         && let Some(outputs) = c.get(&inst.key)
     {
-        return Outcome::Cached { outputs: Arc::new(outputs) };
+        return Outcome::Cached { outputs: share(outputs) };
     }
     let node = registry.get(&inst.kind).expect("compiled kind");
     let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
@@ -189,7 +196,7 @@ fn run_one(
                     _ => None,
                 })
                 .collect();
-            vals.push(Labelled { label: graph.instances[*src].label.clone(), coords, value: Arc::new(v.clone()) });
+            vals.push(Labelled { label: graph.instances[*src].label.clone(), coords, value: Arc::clone(v) });
         }
         inputs.insert(port.clone(), vals);
     }
@@ -225,7 +232,7 @@ fn run_one(
                 // A cache that cannot be written costs speed next time, not correctness now.
                 let _ = c.put(&inst.key, &outputs);
             }
-            Outcome::Computed { outputs: Arc::new(outputs), seconds }
+            Outcome::Computed { outputs: share(outputs), seconds }
         }
         Ok(Err(e)) => Outcome::Failed(e),
         Err(panic) => {
