@@ -74,9 +74,12 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
     for (inst, outcome) in graph.instances.iter().zip(&result.outcomes) {
         let _ = writeln!(out, "{} ({})", inst.id, inst.kind);
         match outcome {
-            Outcome::Computed { outputs, .. } | Outcome::Cached { outputs } => {
+            Outcome::Computed { outputs, .. } | Outcome::Cached { outputs, .. } => {
                 for (port, v) in outputs.iter() {
                     let _ = writeln!(out, "  {port}: {}", describe(v));
+                }
+                for w in outcome.warnings() {
+                    let _ = writeln!(out, "  warning: {w}");
                 }
             }
             Outcome::Failed(e) => {

@@ -14,7 +14,7 @@ use crate::model::Recipe;
 use crate::spec::{Field, Params};
 use crate::value::{PortType, Value};
 use indexmap::IndexMap;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// A named, typed port of a node.
 #[derive(Debug, Clone, Copy)]
@@ -93,9 +93,31 @@ pub struct NodeContext<'a> {
     pub inputs: &'a IndexMap<String, Vec<Labelled>>,
     /// The resolved recipe, for the entities that parameters name.
     pub recipe: &'a Recipe,
+    /// Warnings raised while running (see [`NodeContext::warn`]).
+    pub warnings: Mutex<Vec<String>>,
 }
 
-impl NodeContext<'_> {
+impl<'a> NodeContext<'a> {
+    pub fn new(
+        instance: &'a str,
+        params: &'a Params,
+        inputs: &'a IndexMap<String, Vec<Labelled>>,
+        recipe: &'a Recipe,
+    ) -> Self {
+        NodeContext { instance, params, inputs, recipe, warnings: Mutex::new(Vec::new()) }
+    }
+
+    /// Records a warning that does not stop the node, such as a rejected record: the run
+    /// summary and the manifest show it, and a cached result replays it.
+    pub fn warn(&self, message: impl Into<String>) {
+        self.warnings.lock().unwrap_or_else(|e| e.into_inner()).push(message.into());
+    }
+
+    /// The warnings raised so far.
+    pub fn take_warnings(&self) -> Vec<String> {
+        std::mem::take(&mut *self.warnings.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
     /// The single value at an ordinary input port.
     pub fn input(&self, port: &str) -> Result<&Value, NodeError> {
         self.inputs
@@ -153,6 +175,12 @@ pub trait Node: Send + Sync {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError>;
+
+    /// Whether outputs go to the cache. Nodes whose outputs are large and cheap to remake
+    /// from their parameters (simulated raw records) say no, so the cache stays small.
+    fn cacheable(&self) -> bool {
+        true
+    }
 }
 
 /// Every node kind the engine can compile, by kind name.

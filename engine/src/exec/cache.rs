@@ -8,7 +8,13 @@ use crate::value::Value;
 use std::io::Write;
 use std::path::PathBuf;
 
-const MAGIC: &[u8; 8] = b"SPLCACH1";
+const MAGIC: &[u8; 8] = b"SPLCACH2";
+
+/// A cache entry: a node's outputs and the warnings it raised making them.
+pub struct Entry {
+    pub outputs: Outputs,
+    pub warnings: Vec<String>,
+}
 
 /// A directory of cache entries keyed by instance key.
 #[derive(Debug, Clone)]
@@ -31,7 +37,7 @@ impl Cache {
     }
 
     /// The outputs stored under `key`, if present and intact.
-    pub fn get(&self, key: &str) -> Option<Outputs> {
+    pub fn get(&self, key: &str) -> Option<Entry> {
         let bytes = std::fs::read(self.path(key)).ok()?;
         if bytes.len() < 40 || &bytes[..8] != MAGIC {
             return None;
@@ -40,17 +46,17 @@ impl Cache {
         if blake3::hash(payload).as_bytes() != sum {
             return None;
         }
-        let pairs: Vec<(String, Value)> = postcard::from_bytes(payload).ok()?;
-        Some(pairs.into_iter().collect())
+        let (warnings, pairs): (Vec<String>, Vec<(String, Value)>) = postcard::from_bytes(payload).ok()?;
+        Some(Entry { outputs: pairs.into_iter().collect(), warnings })
     }
 
     /// Stores outputs under `key` atomically.
-    pub fn put(&self, key: &str, outputs: &Outputs) -> std::io::Result<()> {
+    pub fn put(&self, key: &str, outputs: &Outputs, warnings: &[String]) -> std::io::Result<()> {
         let path = self.path(key);
         let parent = path.parent().expect("entry has a parent");
         std::fs::create_dir_all(parent)?;
         let pairs: Vec<(&String, &Value)> = outputs.iter().collect();
-        let payload = postcard::to_stdvec(&pairs).map_err(std::io::Error::other)?;
+        let payload = postcard::to_stdvec(&(warnings, pairs)).map_err(std::io::Error::other)?;
         let mut tmp = tempfile::NamedTempFile::new_in(parent)?;
         tmp.write_all(MAGIC)?;
         tmp.write_all(blake3::hash(&payload).as_bytes())?;

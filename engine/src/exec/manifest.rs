@@ -25,6 +25,9 @@ pub struct ManifestNode {
     pub inputs: IndexMap<String, Vec<String>>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub error: Option<String>,
+    /// Warnings the node raised, such as rejected records.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub warnings: Vec<String>,
 }
 
 /// What a run did, written as `manifest.json` in the output directory.
@@ -80,6 +83,7 @@ impl Manifest {
                     params: inst.param_digests.clone(),
                     inputs: input_keys(graph, i),
                     error,
+                    warnings: result.outcomes[i].warnings().to_vec(),
                 }
             })
             .collect();

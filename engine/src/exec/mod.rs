@@ -60,9 +60,12 @@ pub enum Outcome {
     Computed {
         outputs: Arc<Produced>,
         seconds: f64,
+        /// Warnings the node raised (rejected records and the like).
+        warnings: Vec<String>,
     },
     Cached {
         outputs: Arc<Produced>,
+        warnings: Vec<String>,
     },
     Failed(NodeError),
     /// Not run because an input failed (or the run stopped).
@@ -72,8 +75,16 @@ pub enum Outcome {
 impl Outcome {
     pub fn outputs(&self) -> Option<&Arc<Produced>> {
         match self {
-            Outcome::Computed { outputs, .. } | Outcome::Cached { outputs } => Some(outputs),
+            Outcome::Computed { outputs, .. } | Outcome::Cached { outputs, .. } => Some(outputs),
             _ => None,
+        }
+    }
+
+    /// Warnings raised by the node, replayed from the cache when it was not rerun.
+    pub fn warnings(&self) -> &[String] {
+        match self {
+            Outcome::Computed { warnings, .. } | Outcome::Cached { warnings, .. } => warnings,
+            _ => &[],
         }
     }
 }
@@ -161,12 +172,13 @@ fn run_one(
     i: usize,
 ) -> Outcome {
     let inst = &graph.instances[i];
-    if let Some(c) = cache
-        && let Some(outputs) = c.get(&inst.key)
-    {
-        return Outcome::Cached { outputs: share(outputs) };
-    }
     let node = registry.get(&inst.kind).expect("compiled kind");
+    let cache = cache.filter(|_| node.cacheable());
+    if let Some(c) = cache
+        && let Some(entry) = c.get(&inst.key)
+    {
+        return Outcome::Cached { outputs: share(entry.outputs), warnings: entry.warnings };
+    }
     let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
     for (port, srcs) in &inst.inputs {
         let mut vals = Vec::new();
@@ -200,7 +212,7 @@ fn run_one(
         }
         inputs.insert(port.clone(), vals);
     }
-    let ctx = NodeContext { instance: &inst.id, params: &inst.params, inputs: &inputs, recipe };
+    let ctx = NodeContext::new(&inst.id, &inst.params, &inputs, recipe);
     let t = Instant::now();
     // A panic in a node is a bug in that node; contain it and report it as that node's failure.
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| node.run(&ctx)));
@@ -228,11 +240,12 @@ fn run_one(
                     }
                 }
             }
+            let warnings = ctx.take_warnings();
             if let Some(c) = cache {
                 // A cache that cannot be written costs speed next time, not correctness now.
-                let _ = c.put(&inst.key, &outputs);
+                let _ = c.put(&inst.key, &outputs, &warnings);
             }
-            Outcome::Computed { outputs: share(outputs), seconds }
+            Outcome::Computed { outputs: share(outputs), seconds, warnings }
         }
         Ok(Err(e)) => Outcome::Failed(e),
         Err(panic) => {
