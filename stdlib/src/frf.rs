@@ -62,9 +62,13 @@ impl Default for Trigger {
 /// How records are combined.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Averaging {
-    /// H1 estimator `Σ X F* / Σ |F|²` (Eq. 3.1 with spectral averaging).
+    /// H1 estimator `Σ X F* / Σ |F|²` (Eq. 3.1 with spectral averaging): unbiased by
+    /// noise on the response.
     #[default]
     H1,
+    /// H2 estimator `Σ |X|² / Σ F X*`: unbiased by noise on the force; `|H1| ≤ |H2|`, and
+    /// their ratio is the coherence.
+    H2,
     /// Impact-synchronous time-domain averaging of §3.1.3: records aligned by the trigger,
     /// averaged, then `X̄ / F̄` (equal to `Σ X / Σ F` by linearity of the FFT).
     TimeSynchronous,
@@ -557,6 +561,7 @@ impl FrfEstimator {
             let Line { sff, sxx, sxf } = *line;
             let (num, den) = match options.averaging {
                 Averaging::H1 => (sxf, Complex64::new(sff, 0.0)),
+                Averaging::H2 => (Complex64::new(sxx, 0.0), sxf.conj()),
                 Averaging::TimeSynchronous => acc.sums[k],
             };
             let product = sxx * sff;
@@ -830,6 +835,59 @@ mod tests {
         assert!(mean_high < 0.9, "coherence far above resonance {mean_high}");
         let k_res = (fn_hz() * N as f64 / FS).round() as usize;
         assert!(est.coherence[k_res] > 0.99, "coherence at resonance {}", est.coherence[k_res]);
+    }
+
+    #[test]
+    fn h2_is_unbiased_by_force_noise_and_h1_by_response_noise() {
+        let c = damping();
+        let f = pulse(50, 10, 500.0);
+        let x = response(&f, c);
+        let k_res = (fn_hz() * N as f64 / FS).round() as usize;
+        // Lines around resonance where the exact value is known.
+        let band: Vec<usize> = (k_res - 40..k_res + 40).collect();
+        let mean_ratio = |est: &FrfEstimate| {
+            band.iter().map(|&k| est.h[k].norm() / aliased(c, est.freq[k]).norm()).sum::<f64>() / band.len() as f64
+        };
+        let records = |noisy_force: bool| -> Vec<(Vec<f64>, Vec<f64>)> {
+            (0..16)
+                .map(|s| {
+                    let mut rng = ChaCha8Rng::seed_from_u64(100 + s);
+                    if noisy_force {
+                        let n = Normal::new(0.0, 4.0).unwrap();
+                        (f.iter().map(|v| v + n.sample(&mut rng)).collect(), x.clone())
+                    } else {
+                        let n = Normal::new(0.0, 2.0e-6).unwrap();
+                        (f.clone(), x.iter().map(|v| v + n.sample(&mut rng)).collect())
+                    }
+                })
+                .collect()
+        };
+        let mut est = FrfEstimator::new(N, FS).unwrap();
+        let opts = |averaging| FrfOptions {
+            windows: Windows::NONE,
+            trigger: Trigger::RecordStart,
+            averaging,
+        };
+        for noisy_force in [true, false] {
+            let data = records(noisy_force);
+            let recs: Vec<ImpactRecord<'_>> =
+                data.iter().map(|(f, x)| ImpactRecord { force: f, response: x }).collect();
+            let h1 = est.estimate(&recs, &opts(Averaging::H1)).unwrap();
+            let h2 = est.estimate(&recs, &opts(Averaging::H2)).unwrap();
+            // |H1| ≤ |H2| on every line, and H1/H2 is the coherence.
+            for &k in &band {
+                assert!(h1.h[k].norm() <= h2.h[k].norm() * (1.0 + 1e-12));
+                assert!((h1.h[k].norm() / h2.h[k].norm() - h1.coherence[k]).abs() < 1e-9);
+            }
+            let (r1, r2) = (mean_ratio(&h1), mean_ratio(&h2));
+            if noisy_force {
+                assert!((r2 - 1.0).abs() < 0.01, "H2 with force noise: {r2}");
+                assert!(r1 < 0.97, "H1 should be biased low by force noise: {r1}");
+            } else {
+                assert!((r1 - 1.0).abs() < 0.01, "H1 with response noise: {r1}");
+                assert!(r2 > 1.03, "H2 should be biased high by response noise: {r2}");
+            }
+        }
     }
 
     #[test]

@@ -50,9 +50,9 @@ impl FrfEstimate {
                     Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before the force peak"),
                     Field::def(
                         "averaging",
-                        T::Choice(&["h1", "time-synchronous"]),
+                        T::Choice(&["h1", "h2", "time-synchronous"]),
                         "h1",
-                        "H1 spectral averaging, or impact-synchronous time averaging (§3.1.3)",
+                        "H1 or H2 spectral averaging, or impact-synchronous time averaging (§3.1.3)",
                     ),
                     Field::def(
                         "response",
@@ -82,6 +82,7 @@ fn options(p: &Params) -> FrfOptions {
     };
     let averaging = match p.text("averaging") {
         Some("time-synchronous") => Averaging::TimeSynchronous,
+        Some("h2") => Averaging::H2,
         _ => Averaging::H1,
     };
     FrfOptions { windows, trigger, averaging }
