@@ -7,6 +7,8 @@
 pub mod frf;
 pub mod impact;
 pub mod nodes;
+pub mod runout;
+pub mod segment;
 pub mod signal;
 
 use spindlelab_engine::node::Registry;
