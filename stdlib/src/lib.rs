@@ -4,12 +4,15 @@
 //! I/O; [`nodes`] adapts them to the engine's node trait. [`register`] is the one place
 //! where built-in kinds are listed.
 
+pub mod error_motion;
+pub mod filter;
 pub mod frf;
 pub mod impact;
 pub mod nodes;
 pub mod runout;
 pub mod segment;
 pub mod signal;
+pub mod tach;
 
 use spindlelab_engine::node::Registry;
 use std::sync::Arc;
