@@ -88,6 +88,10 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
             Outcome::Skipped => {
                 let _ = writeln!(out, "  skipped");
             }
+            Outcome::Unneeded { cached } => {
+                let how = if *cached { "cached" } else { "not cached" };
+                let _ = writeln!(out, "  not loaded ({how}; every consumer came from the cache)");
+            }
         }
     }
     out

@@ -863,11 +863,7 @@ mod tests {
                 .collect()
         };
         let mut est = FrfEstimator::new(N, FS).unwrap();
-        let opts = |averaging| FrfOptions {
-            windows: Windows::NONE,
-            trigger: Trigger::RecordStart,
-            averaging,
-        };
+        let opts = |averaging| FrfOptions { windows: Windows::NONE, trigger: Trigger::RecordStart, averaging };
         for noisy_force in [true, false] {
             let data = records(noisy_force);
             let recs: Vec<ImpactRecord<'_>> =

@@ -9,6 +9,7 @@ pub mod filter;
 pub mod frf;
 pub mod impact;
 pub mod nodes;
+pub mod phase;
 pub mod runout;
 pub mod segment;
 pub mod signal;
@@ -21,6 +22,9 @@ use std::sync::Arc;
 pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ImpactSimulate::new()));
     registry.register(Arc::new(nodes::FrfEstimate::new()));
+    registry.register(Arc::new(nodes::ImpactSegment::new()));
+    registry.register(Arc::new(nodes::PhaseCorrect::new()));
+    registry.register(Arc::new(nodes::PhaseMeasure::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
 }

@@ -31,6 +31,10 @@ pub enum PhaseError {
     BadFrequency(f64),
     #[error("the phase slope {0} rad/Hz is not finite")]
     BadSlope(f64),
+    #[error("{which} sample {index} is not a finite number")]
+    NonFinite { which: &'static str, index: usize },
+    #[error("band-pass filter: {0}")]
+    Filter(String),
 }
 
 /// The phase lag (rad, negative for a lag) of the sensor signal relative to the motion
@@ -92,6 +96,68 @@ pub fn correct(freq_hz: &[f64], h: &mut [Complex64], slope: f64) -> Result<(), P
     Ok(())
 }
 
+/// Drive frequency (Hz) of a sinusoidal record: the largest FFT line, refined by
+/// fitting a parabola to the log magnitudes of it and its neighbours (the Hann window
+/// keeps leakage from biasing the fit).
+pub fn drive_frequency(x: &[f64], sample_rate: f64) -> Result<f64, PhaseError> {
+    let n = x.len();
+    if n < 16 {
+        return Err(PhaseError::NoSignal { which: "accelerometer" });
+    }
+    let mut buf: Vec<Complex64> = x
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            let w = 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / n as f64).cos();
+            Complex64::new(v * w, 0.0)
+        })
+        .collect();
+    rustfft::FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    let half = n / 2;
+    let k = (1..half).max_by(|&a, &b| buf[a].norm().total_cmp(&buf[b].norm())).unwrap_or(1);
+    if !(buf[k].norm() > 0.0 && buf[k].norm().is_finite()) {
+        return Err(PhaseError::NoSignal { which: "accelerometer" });
+    }
+    let (a, b, c) = (buf[k - 1].norm().ln(), buf[k].norm().ln(), buf[(k + 1).min(half)].norm().ln());
+    let denom = a - 2.0 * b + c;
+    let shift = if denom.abs() > 0.0 { (0.5 * (a - c) / denom).clamp(-0.5, 0.5) } else { 0.0 };
+    Ok((k as f64 + shift) * sample_rate / n as f64)
+}
+
+/// One shaker record: its drive frequency and the sensor's phase lag there, measured with
+/// Eq. 2.8 on both channels band-passed (Butterworth of `order`, zero phase, `bandwidth`
+/// wide around the drive frequency) with the filter's start-up tenth cut off each end.
+pub fn measure_record(
+    accel: &[f64],
+    sensor: &[f64],
+    sample_rate: f64,
+    bandwidth: f64,
+    order: usize,
+    kind: SensorKind,
+) -> Result<(f64, f64), PhaseError> {
+    if accel.len() != sensor.len() {
+        return Err(PhaseError::LengthMismatch { accel: accel.len(), sensor: sensor.len() });
+    }
+    if let Some(i) = accel.iter().chain(sensor).position(|v| !v.is_finite()) {
+        let (which, index) = if i < accel.len() { ("accelerometer", i) } else { ("sensor", i - accel.len()) };
+        return Err(PhaseError::NonFinite { which, index });
+    }
+    let f = drive_frequency(accel, sample_rate)?;
+    let lo = (f - 0.5 * bandwidth).max(0.25 * bandwidth);
+    let hi = (f + 0.5 * bandwidth).min(0.49 * sample_rate);
+    let filter = crate::filter::Sos::butter_bandpass(order as u32, lo, hi, sample_rate)
+        .map_err(|e| PhaseError::Filter(e.to_string()))?;
+    let (a, x) = (filter.filtfilt(accel), filter.filtfilt(sensor));
+    let n = a.len();
+    // Whole periods of the middle part, so the dot products of Eq. 2.8 hold no half cycles.
+    let period = sample_rate / f;
+    let (start, avail) = (n / 10, n - 2 * (n / 10));
+    let periods = (avail as f64 / period).floor();
+    let len = if periods >= 1.0 { (periods * period).round() as usize } else { avail };
+    let phase = phase_lag(&a[start..start + len], &x[start..start + len], kind)?;
+    Ok((f, phase))
+}
+
 /// The slope (rad/Hz) of a pure delay `tau` (s): `−2πτ`.
 pub fn slope_of_delay(tau: f64) -> f64 {
     -std::f64::consts::TAU * tau
@@ -128,6 +194,37 @@ mod tests {
     }
 
     #[test]
+    fn shaker_records_give_the_chain_slope_through_the_band_pass() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let (fs, slope) = (100.0e3, -13.84 * DEG_PER_KHZ);
+        let tau = -slope / TAU;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut points = Vec::new();
+        for f in [150.0, 733.0, 1500.0, 2900.0, 4700.0] {
+            let n = 20_000; // 0.2 s, not a whole number of periods
+            let w = TAU * f;
+            let noise_a = Normal::new(0.0, 0.05).unwrap();
+            let noise_x = Normal::new(0.0, 0.05 / (w * w)).unwrap();
+            // Acceleration amplitude 1 m/s²; the gauge sees the displacement τ late, plus
+            // a slow drift the band-pass must remove.
+            let accel: Vec<f64> = (0..n).map(|k| (w * k as f64 / fs).cos() + noise_a.sample(&mut rng)).collect();
+            let sensor: Vec<f64> = (0..n)
+                .map(|k| {
+                    let t = k as f64 / fs;
+                    -(w * (t - tau)).cos() / (w * w) + 1e-6 * t + noise_x.sample(&mut rng)
+                })
+                .collect();
+            let (fd, phase) = measure_record(&accel, &sensor, fs, 100.0, 3, SensorKind::Displacement).unwrap();
+            assert!((fd - f).abs() < 0.5, "drive frequency {fd} vs {f}");
+            assert!((phase - slope * f).abs() < 0.3f64.to_radians(), "{f} Hz: {} deg", phase.to_degrees());
+            points.push((fd, phase));
+        }
+        let (fit, _) = fit_slope(&points).unwrap();
+        assert!((fit / slope - 1.0).abs() < 0.01, "{} deg/kHz", fit / DEG_PER_KHZ);
+    }
+
+    #[test]
     fn slope_fit_and_correction_round_trip() {
         let slope = -13.84 * DEG_PER_KHZ;
         assert!((slope_of_delay(-slope / TAU) - slope).abs() < 1e-15);
@@ -147,7 +244,10 @@ mod tests {
 
     #[test]
     fn bad_input_is_an_error() {
-        assert!(matches!(phase_lag(&[1.0, 2.0], &[1.0], SensorKind::Displacement), Err(PhaseError::LengthMismatch { .. })));
+        assert!(matches!(
+            phase_lag(&[1.0, 2.0], &[1.0], SensorKind::Displacement),
+            Err(PhaseError::LengthMismatch { .. })
+        ));
         assert!(matches!(phase_lag(&[0.0; 4], &[1.0; 4], SensorKind::Displacement), Err(PhaseError::NoSignal { .. })));
         assert!(matches!(phase_lag(&[1.0; 4], &[f64::NAN; 4], SensorKind::Velocity), Err(PhaseError::NoSignal { .. })));
         assert_eq!(fit_slope(&[]), Err(PhaseError::NoPoints));

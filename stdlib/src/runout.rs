@@ -94,11 +94,8 @@ pub fn average(
         return Err(RunoutError::NonFinite { index });
     }
     let t_end = sampling.time(signal.len().saturating_sub(1));
-    let complete: Vec<(f64, f64)> = edges
-        .windows(2)
-        .map(|w| (w[0], w[1]))
-        .filter(|&(a, b)| a >= sampling.t0 && b <= t_end)
-        .collect();
+    let complete: Vec<(f64, f64)> =
+        edges.windows(2).map(|w| (w[0], w[1])).filter(|&(a, b)| a >= sampling.t0 && b <= t_end).collect();
     if complete.is_empty() {
         return Err(RunoutError::NoRevolution);
     }
@@ -192,7 +189,8 @@ mod tests {
         let s = Sampling { rate: FS, t0: 0.0 };
         let n = 200_000;
         // A decaying 700 Hz response starting at 1.0 s.
-        let response = |t: f64| if t >= 1.0 { 2e-6 * (-60.0 * (t - 1.0)).exp() * (4398.0 * (t - 1.0)).sin() } else { 0.0 };
+        let response =
+            |t: f64| if t >= 1.0 { 2e-6 * (-60.0 * (t - 1.0)).exp() * (4398.0 * (t - 1.0)).sin() } else { 0.0 };
         let signal: Vec<f64> = (0..n)
             .map(|k| {
                 let t = s.time(k);

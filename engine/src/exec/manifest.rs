@@ -18,7 +18,8 @@ pub struct ManifestNode {
     pub kind: String,
     pub version: u32,
     pub key: String,
-    /// `computed`, `cached`, `failed` or `skipped`.
+    /// `computed`, `cached`, `failed`, `skipped` (an input failed) or `unneeded` (not
+    /// cached, and every consumer came from the cache).
     pub status: String,
     pub seconds: f64,
     pub params: IndexMap<String, String>,
@@ -72,6 +73,8 @@ impl Manifest {
                     Outcome::Cached { .. } => ("cached", 0.0, None),
                     Outcome::Failed(e) => ("failed", 0.0, Some(e.to_string())),
                     Outcome::Skipped => ("skipped", 0.0, None),
+                    Outcome::Unneeded { cached: true } => ("cached", 0.0, None),
+                    Outcome::Unneeded { cached: false } => ("unneeded", 0.0, None),
                 };
                 ManifestNode {
                     id: inst.id.clone(),

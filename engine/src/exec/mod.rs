@@ -70,6 +70,11 @@ pub enum Outcome {
     Failed(NodeError),
     /// Not run because an input failed (or the run stopped).
     Skipped,
+    /// Not run or loaded: no output file reads it and every consumer came from the cache.
+    /// `cached` says whether a valid cache entry exists for it.
+    Unneeded {
+        cached: bool,
+    },
 }
 
 impl Outcome {
@@ -124,8 +129,17 @@ pub fn execute(
     let cache = opts.use_cache.then(|| opts.cache());
     let n = graph.instances.len();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
+    if let Some(c) = &cache {
+        settle_from_cache(recipe, graph, registry, c, &mut outcomes);
+    }
     let mut stop = false;
     let mut done_count = 0usize;
+    for (i, o) in outcomes.iter().enumerate() {
+        if o.is_some() {
+            progress(i, &graph.instances[i].id);
+            done_count += 1;
+        }
+    }
     while outcomes.iter().any(Option::is_none) {
         // The next wave: every instance whose inputs are all settled.
         let wave: Vec<usize> = (0..n)
@@ -163,6 +177,60 @@ pub fn execute(
     }
 }
 
+/// Reads the cache entry of every cacheable instance and settles those that need not run.
+/// An instance is needed when an output file reads it, when nothing consumes it (its
+/// outputs are the point of the step), or when a consumer that must run needs it; a needed
+/// instance with a cache entry is settled from it. So a rerun does not remake large
+/// uncached intermediates (simulated raw records) whose consumers all come from the cache.
+fn settle_from_cache(
+    recipe: &Recipe,
+    graph: &Graph,
+    registry: &Registry,
+    cache: &Cache,
+    outcomes: &mut [Option<Outcome>],
+) {
+    let n = graph.instances.len();
+    let mut entries: Vec<Option<cache::Entry>> = graph
+        .instances
+        .iter()
+        .map(|inst| {
+            let node = registry.get(&inst.kind).expect("compiled kind");
+            if node.cacheable() { cache.get(&inst.key) } else { None }
+        })
+        .collect();
+    let mut needed = vec![false; n];
+    let mut consumed = vec![false; n];
+    for inst in &graph.instances {
+        for d in inst.deps() {
+            consumed[d] = true;
+        }
+    }
+    for out in &recipe.outputs {
+        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
+            needed[i] = true;
+        }
+    }
+    // Instances are in topological order: consumers come after their inputs.
+    for i in (0..n).rev() {
+        let cached = entries[i].is_some();
+        if !consumed[i] && !cached {
+            needed[i] = true;
+        }
+        if needed[i] && !cached {
+            for d in graph.instances[i].deps() {
+                needed[d] = true;
+            }
+        }
+    }
+    for i in 0..n {
+        match (needed[i], entries[i].take()) {
+            (true, Some(e)) => outcomes[i] = Some(Outcome::Cached { outputs: share(e.outputs), warnings: e.warnings }),
+            (false, e) => outcomes[i] = Some(Outcome::Unneeded { cached: e.is_some() }),
+            (true, None) => {}
+        }
+    }
+}
+
 fn run_one(
     recipe: &Recipe,
     graph: &Graph,
@@ -173,12 +241,8 @@ fn run_one(
 ) -> Outcome {
     let inst = &graph.instances[i];
     let node = registry.get(&inst.kind).expect("compiled kind");
+    // Cache hits were settled before the waves; what reaches here runs.
     let cache = cache.filter(|_| node.cacheable());
-    if let Some(c) = cache
-        && let Some(entry) = c.get(&inst.key)
-    {
-        return Outcome::Cached { outputs: share(entry.outputs), warnings: entry.warnings };
-    }
     let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
     for (port, srcs) in &inst.inputs {
         let mut vals = Vec::new();

@@ -3,9 +3,13 @@
 mod expr;
 mod frf;
 mod impact;
+mod phase;
+mod segment;
 mod table;
 
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
+pub use phase::{PhaseCorrect, PhaseMeasure};
+pub use segment::ImpactSegment;
 pub use table::TableCollect;

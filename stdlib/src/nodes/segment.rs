@@ -1,0 +1,192 @@
+//! `impact.segment`: one record per accepted impact from a continuous recording (§3.1.3),
+//! rejecting double hits and clipped force pulses with a warning that names each.
+
+use crate::segment::{self, DetectOptions, SegmentError};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{Channel, Column, PortType, Table, TimeSeries, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct ImpactSegment {
+    spec: NodeSpec,
+}
+
+impl Default for ImpactSegment {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ImpactSegment {
+    pub fn new() -> Self {
+        ImpactSegment {
+            spec: NodeSpec {
+                kind: "impact.segment",
+                version: 1,
+                description: "Finds the impacts in a continuous recording, rejects double hits and saturated force pulses, and cuts one record per accepted impact aligned on its force peak (§3.1.3).",
+                inputs: vec![PortSpec::new(
+                    "signal",
+                    PortType::TimeSeries,
+                    "continuous recording with force and response channels",
+                )],
+                outputs: vec![
+                    PortSpec::new("force", PortType::TimeSeries, "force records (N), one channel per accepted impact"),
+                    PortSpec::new(
+                        "response",
+                        PortType::TimeSeries,
+                        "response records, one channel per accepted impact",
+                    ),
+                    PortSpec::new(
+                        "impacts",
+                        PortType::Table,
+                        "every impact found: time, peak force, rejection code (0 used, 1 double hit, 2 saturated, 3 truncated)",
+                    ),
+                ],
+                params: vec![
+                    Field::def("force_channel", T::Text, "force", "channel holding the force"),
+                    Field::def("response_channel", T::Text, "a", "channel holding the response"),
+                    Field::def("record_length", T::Integer { min: 64, max: 1 << 24 }, "65536", "samples per record"),
+                    Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before each force peak"),
+                    Field::opt(
+                        "trigger_level",
+                        T::Quantity(D::FORCE),
+                        "force that starts an impact (default 10 % of the largest)",
+                    ),
+                    Field::def(
+                        "double_hit_ratio",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "5 %",
+                        "a second pulse above this fraction of the peak is a double hit",
+                    ),
+                    Field::def(
+                        "double_hit_window",
+                        T::Quantity(D::TIME),
+                        "6.5 ms",
+                        "time after the peak in which a second pulse is a double hit",
+                    ),
+                    Field::def("dead_time", T::Quantity(D::TIME), "50 ms", "shortest time between two impacts"),
+                    Field::opt(
+                        "full_scale",
+                        T::Quantity(D::FORCE),
+                        "range of the force channel; a pulse reaching it is clipped",
+                    ),
+                    Field::def("min_records", T::Integer { min: 1, max: 100_000 }, "1", "fewest accepted impacts"),
+                ],
+            },
+        }
+    }
+}
+
+fn options(p: &Params) -> DetectOptions {
+    let d = DetectOptions::default();
+    DetectOptions {
+        trigger_level: p.f64("trigger_level"),
+        double_hit_ratio: p.f64("double_hit_ratio").unwrap_or(d.double_hit_ratio),
+        double_hit_window: p.f64("double_hit_window").unwrap_or(d.double_hit_window),
+        dead_time: p.f64("dead_time").unwrap_or(d.dead_time),
+        full_scale: p.f64("full_scale"),
+        ..d
+    }
+}
+
+impl Node for ImpactSegment {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        if let Some(r) = p.f64("double_hit_ratio")
+            && !(r > 0.0 && r < 1.0)
+        {
+            return Err(NodeError::param("double_hit_ratio", format!("must lie between 0 and 100 %, got {r}")));
+        }
+        for name in ["trigger_level", "full_scale", "double_hit_window", "dead_time"] {
+            if let Some(v) = p.f64(name)
+                && v <= 0.0
+            {
+                return Err(NodeError::param(name, format!("must be positive, got {v}")));
+            }
+        }
+        if p.f64("pre_trigger").is_some_and(|v| v < 0.0) {
+            return Err(NodeError::param("pre_trigger", "must not be negative"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let Value::TimeSeries(signal) = ctx.input("signal")? else {
+            return Err(NodeError::input("signal", "expected a time series"));
+        };
+        let p = ctx.params;
+        let channel = |param: &str, default: &str| -> Result<&Channel, NodeError> {
+            let name = p.text(param).unwrap_or(default);
+            signal.channel(name).ok_or_else(|| {
+                let names: Vec<&str> = signal.channels.iter().map(|c| c.name.as_str()).collect();
+                NodeError::param(param, format!("no channel `{name}` in the recording (it has: {})", names.join(", ")))
+            })
+        };
+        let force = channel("force_channel", "force")?;
+        let response = channel("response_channel", "a")?;
+        let fs = signal.sample_rate;
+        let len = p.int("record_length").unwrap_or(65_536) as usize;
+        let pre = (p.f64("pre_trigger").unwrap_or(0.5e-3) * fs).round() as usize;
+        if pre >= len {
+            return Err(NodeError::param(
+                "pre_trigger",
+                format!("{pre} samples is not shorter than the record ({len})"),
+            ));
+        }
+        let impacts = segment::detect(&force.samples, fs, signal.t0, pre, len, &options(p)).map_err(|e| match e {
+            SegmentError::InvalidOption { field, .. } => NodeError::param(field, e.to_string()),
+            other => NodeError::input("signal", format!("channel `{}`: {other}", force.name)),
+        })?;
+        if let Some(i) = response.samples.iter().position(|v| !v.is_finite()) {
+            return Err(NodeError::input(
+                "signal",
+                format!("channel `{}`: sample {i} is not a finite number", response.name),
+            ));
+        }
+        for (k, imp) in impacts.iter().enumerate() {
+            if let Some(r) = imp.rejection {
+                ctx.warn(format!("impact {} at {:.4} s rejected: {r}", k + 1, imp.time));
+            }
+        }
+        let accepted = impacts.iter().filter(|i| i.rejection.is_none()).count();
+        let min = p.int("min_records").unwrap_or(1) as usize;
+        if accepted < min {
+            return Err(NodeError::input(
+                "signal",
+                format!(
+                    "{accepted} of {} impacts usable, fewer than min_records = {min}; see the warnings for why each was rejected",
+                    impacts.len()
+                ),
+            ));
+        }
+        let records = |ch: &Channel| TimeSeries {
+            sample_rate: fs,
+            t0: -(pre as f64) / fs,
+            channels: segment::cut(&ch.samples, &impacts, pre, len)
+                .into_iter()
+                .enumerate()
+                .map(|(k, samples)| Channel { name: format!("impact_{}", k + 1), unit: ch.unit.clone(), samples })
+                .collect(),
+        };
+        let col =
+            |name: &str, unit: &str, values: Vec<f64>| Column { name: name.into(), unit: UnitLabel::new(unit), values };
+        let table = Table {
+            columns: vec![
+                col("impact", "", (1..=impacts.len()).map(|k| k as f64).collect()),
+                col("time", "s", impacts.iter().map(|i| i.time).collect()),
+                col("peak_force", "N", impacts.iter().map(|i| i.peak).collect()),
+                col("rejection", "", impacts.iter().map(|i| i.rejection.map_or(0.0, |r| r.code() as f64)).collect()),
+            ],
+        };
+        Ok([
+            ("force".to_string(), Value::TimeSeries(records(force))),
+            ("response".to_string(), Value::TimeSeries(records(response))),
+            ("impacts".to_string(), Value::Table(table)),
+        ]
+        .into_iter()
+        .collect())
+    }
+}
