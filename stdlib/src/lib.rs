@@ -25,6 +25,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ImpactSegment::new()));
     registry.register(Arc::new(nodes::PhaseCorrect::new()));
     registry.register(Arc::new(nodes::PhaseMeasure::new()));
+    registry.register(Arc::new(nodes::RunoutRemove::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
 }

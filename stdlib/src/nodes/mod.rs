@@ -4,6 +4,7 @@ mod expr;
 mod frf;
 mod impact;
 mod phase;
+mod runout;
 mod segment;
 mod table;
 
@@ -11,5 +12,6 @@ pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
 pub use phase::{PhaseCorrect, PhaseMeasure};
+pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use table::TableCollect;

@@ -94,6 +94,11 @@ impl Node for ImpactSegment {
         &self.spec
     }
 
+    /// Records are large and cut in milliseconds: not worth the cache's disk.
+    fn cacheable(&self) -> bool {
+        false
+    }
+
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         if let Some(r) = p.f64("double_hit_ratio")
             && !(r > 0.0 && r < 1.0)

@@ -1,0 +1,195 @@
+//! `runout.remove`: once-per-revolution removal of §3.1.1 on a continuous recording.
+
+use crate::runout::{self, Sampling};
+use crate::segment::{self, DetectOptions};
+use crate::tach::{self, TachOptions};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{Column, PortType, Table, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct RunoutRemove {
+    spec: NodeSpec,
+}
+
+impl Default for RunoutRemove {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RunoutRemove {
+    pub fn new() -> Self {
+        RunoutRemove {
+            spec: NodeSpec {
+                kind: "runout.remove",
+                version: 1,
+                description: "Removes the once-per-revolution content (form error and synchronous error motion) from response channels: revolutions free of impact response are mapped onto an angle grid through the tachometer, averaged, mapped back and subtracted (§3.1.1).",
+                inputs: vec![PortSpec::new(
+                    "signal",
+                    PortType::TimeSeries,
+                    "continuous recording with tachometer, force and response channels",
+                )],
+                outputs: vec![
+                    PortSpec::new(
+                        "signal",
+                        PortType::TimeSeries,
+                        "the recording with the once-per-revolution content removed from the cleaned channels",
+                    ),
+                    PortSpec::new(
+                        "runout",
+                        PortType::Table,
+                        "the averaged once-per-revolution content per angle and channel",
+                    ),
+                ],
+                params: vec![
+                    Field::def("channels", T::Text, "a", "channels to clean, comma-separated"),
+                    Field::def("tach_channel", T::Text, "tach", "tachometer channel (falling edge at θ = 0)"),
+                    Field::def(
+                        "force_channel",
+                        T::Text,
+                        "force",
+                        "force channel whose impacts are kept out of the average; empty for none",
+                    ),
+                    Field::def(
+                        "before",
+                        T::Quantity(D::TIME),
+                        "5 ms",
+                        "time before each impact kept out of the average",
+                    ),
+                    Field::def(
+                        "settle",
+                        T::Quantity(D::TIME),
+                        "0.2 s",
+                        "time after each impact kept out of the average, while the response rings",
+                    ),
+                    Field::def(
+                        "max_drift",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "2 %",
+                        "largest speed deviation of one revolution from the mean",
+                    ),
+                    Field::opt(
+                        "samples_per_rev",
+                        T::Integer { min: 8, max: 1 << 20 },
+                        "angle grid size (default: fewest samples in a revolution)",
+                    ),
+                    Field::def(
+                        "stationary",
+                        T::Choice(&["error", "pass"]),
+                        "error",
+                        "a tachometer without edges: an error, or pass the signal through unchanged with a warning (a spindle at rest has no runout)",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+impl Node for RunoutRemove {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn cacheable(&self) -> bool {
+        false
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        for name in ["before", "settle"] {
+            if p.f64(name).is_some_and(|v| v < 0.0) {
+                return Err(NodeError::param(name, "must not be negative"));
+            }
+        }
+        if p.f64("max_drift").is_some_and(|v| v <= 0.0) {
+            return Err(NodeError::param("max_drift", "must be positive"));
+        }
+        if p.text("channels").is_some_and(|c| c.split(',').all(|s| s.trim().is_empty())) {
+            return Err(NodeError::param("channels", "name at least one channel"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let Value::TimeSeries(signal) = ctx.input("signal")? else {
+            return Err(NodeError::input("signal", "expected a time series"));
+        };
+        let p = ctx.params;
+        let names: Vec<&str> = signal.channels.iter().map(|c| c.name.as_str()).collect();
+        let find = |param: &str, name: &str| {
+            signal.channels.iter().position(|c| c.name == name).ok_or_else(|| {
+                NodeError::param(param, format!("no channel `{name}` in the recording (it has: {})", names.join(", ")))
+            })
+        };
+        let tach_ch = &signal.channels[find("tach_channel", p.text("tach_channel").unwrap_or("tach"))?];
+        let targets: Vec<usize> = p
+            .text("channels")
+            .unwrap_or("a")
+            .split(',')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .map(|name| find("channels", name))
+            .collect::<Result<_, _>>()?;
+        let fs = signal.sample_rate;
+        let opts = TachOptions { max_drift: p.f64("max_drift").unwrap_or(0.02), ..TachOptions::default() };
+        let revs = match tach::decode(&tach_ch.samples, fs, signal.t0, &opts) {
+            Ok(r) => r,
+            Err(e @ (tach::TachError::Flat { .. } | tach::TachError::TooFewEdges { .. }))
+                if p.text("stationary") == Some("pass") =>
+            {
+                ctx.warn(format!("no revolution in `{}` ({e}): the spindle is at rest, nothing removed", tach_ch.name));
+                let empty = Table { columns: Vec::new() };
+                return Ok([
+                    ("signal".to_string(), Value::TimeSeries(signal.clone())),
+                    ("runout".to_string(), Value::Table(empty)),
+                ]
+                .into_iter()
+                .collect());
+            }
+            Err(e) => return Err(NodeError::input("signal", format!("channel `{}`: {e}", tach_ch.name))),
+        };
+        let edges = revs.edges();
+        let mut exclude = Vec::new();
+        let force_name = p.text("force_channel").unwrap_or("force");
+        if !force_name.is_empty() {
+            let force = &signal.channels[find("force_channel", force_name)?];
+            let (before, settle) = (p.f64("before").unwrap_or(5e-3), p.f64("settle").unwrap_or(0.2));
+            match segment::detect(&force.samples, fs, signal.t0, 0, 1, &DetectOptions::default()) {
+                Ok(impacts) => exclude.extend(impacts.iter().map(|i| (i.time - before, i.time + settle))),
+                Err(segment::SegmentError::NoImpact { .. }) => {}
+                Err(e) => return Err(NodeError::input("signal", format!("channel `{force_name}`: {e}"))),
+            }
+        }
+        let sampling = Sampling { rate: fs, t0: signal.t0 };
+        let grid = p.int("samples_per_rev").map(|n| n as usize);
+        let mut out = signal.clone();
+        let mut columns = Vec::new();
+        for &c in &targets {
+            let ch = &mut out.channels[c];
+            let opr = runout::average(&ch.samples, sampling, edges, &exclude, grid)
+                .map_err(|e| NodeError::input("signal", format!("channel `{}`: {e}", ch.name)))?;
+            opr.subtract(&mut ch.samples, sampling, edges)
+                .map_err(|e| NodeError::input("signal", format!("channel `{}`: {e}", ch.name)))?;
+            if columns.is_empty() {
+                let n = opr.profile.len();
+                columns.push(Column {
+                    name: "angle".into(),
+                    unit: UnitLabel::new("rad"),
+                    values: (0..n).map(|j| std::f64::consts::TAU * j as f64 / n as f64).collect(),
+                });
+            }
+            if opr.profile.len() == columns[0].values.len() {
+                columns.push(Column { name: ch.name.clone(), unit: ch.unit.clone(), values: opr.profile });
+            }
+            if opr.revolutions < 3 {
+                ctx.warn(format!(
+                    "channel `{}`: only {} revolution(s) free of impact response were averaged",
+                    ch.name, opr.revolutions
+                ));
+            }
+        }
+        Ok([("signal".to_string(), Value::TimeSeries(out)), ("runout".to_string(), Value::Table(Table { columns }))]
+            .into_iter()
+            .collect())
+    }
+}
