@@ -1,10 +1,12 @@
-//! Output writers: CSV and JSON, written to a staging directory and moved into place only
-//! when every output of the run is ready.
+//! Output writers: CSV, JSON and UFF dataset 58, written to a staging directory and moved
+//! into place only when every output of the run is ready. Time series and FRFs are written by
+//! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
 use crate::graph::Instance;
 use crate::model::OutputFormat;
 use crate::spec::ParamValue;
-use crate::value::{Frf, Table, TimeSeries, Value};
+use crate::formats::{csv, uff};
+use crate::value::{Table, Value};
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
 
@@ -21,7 +23,22 @@ pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> 
     match format {
         OutputFormat::Json => render_json(axes, rows),
         OutputFormat::Csv => render_csv(axes, rows),
+        OutputFormat::Uff => render_uff(rows),
     }
+}
+
+/// One dataset 58 per FRF, one per channel of a time series, each with its sweep label in
+/// ID line 2. The resolver admits only FRF and time-series outputs to a `.uff` file.
+fn render_uff(rows: &[Row]) -> String {
+    let mut out = String::new();
+    for r in rows {
+        match r.value {
+            Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
+            Value::TimeSeries(ts) => uff::write_time_series(&mut out, ts, r.label),
+            other => debug_assert!(false, "no UFF form for a {}", other.port_type()),
+        }
+    }
+    out
 }
 
 fn render_json(axes: &[(String, String)], rows: &[Row]) -> String {
@@ -72,8 +89,8 @@ fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
                 let _ = writeln!(out, "{}{}", prefix(r), num(s.value));
             }
             Value::Table(t) => table_rows(&mut out, t, &prefix_header, &prefix(r), &mut header_done),
-            Value::TimeSeries(ts) => time_series(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
-            Value::Frf(f) => frf(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
+            Value::TimeSeries(ts) => csv::time_series_rows(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
+            Value::Frf(f) => csv::frf_rows(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
             other => {
                 // Structured values without a tabular form go out as one JSON cell per row.
                 if !header_done {
@@ -111,41 +128,6 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
     for i in 0..t.rows() {
         let cells: Vec<String> = t.columns.iter().map(|c| num(c.values[i])).collect();
         let _ = writeln!(out, "{p}{}", cells.join(","));
-    }
-}
-
-fn time_series(out: &mut String, ts: &TimeSeries, ph: &str, p: &str, header_done: &mut bool) {
-    if !*header_done {
-        let _ = writeln!(out, "# sample_rate: {} Hz", ts.sample_rate);
-        let _ = writeln!(out, "# t0: {} s", ts.t0);
-        let units: Vec<String> = ts.channels.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
-        let _ = writeln!(out, "# units: {}", units.join(", "));
-        let names: Vec<&str> = ts.channels.iter().map(|c| c.name.as_str()).collect();
-        let _ = writeln!(out, "{ph}{}", names.join(","));
-        *header_done = true;
-    }
-    for i in 0..ts.len() {
-        let cells: Vec<String> = ts.channels.iter().map(|c| num(c.samples[i])).collect();
-        let _ = writeln!(out, "{p}{}", cells.join(","));
-    }
-}
-
-fn frf(out: &mut String, f: &Frf, ph: &str, p: &str, header_done: &mut bool) {
-    if !*header_done {
-        let _ = writeln!(out, "# units: {}", f.unit.symbol);
-        if let Some(d) = &f.direction {
-            let _ = writeln!(out, "# direction: {d}");
-        }
-        if let Some(s) = f.speed_rpm {
-            let _ = writeln!(out, "# speed_rpm: {s}");
-        }
-        let coh = if f.coherence.is_some() { ",coherence" } else { "" };
-        let _ = writeln!(out, "{ph}freq_hz,real,imag{coh}");
-        *header_done = true;
-    }
-    for (i, (fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
-        let coh = f.coherence.as_ref().map(|c| format!(",{}", num(c[i]))).unwrap_or_default();
-        let _ = writeln!(out, "{p}{},{},{}{coh}", num(*fr), num(v.re), num(v.im));
     }
 }
 
