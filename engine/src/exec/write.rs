@@ -155,3 +155,91 @@ pub fn coords_of(inst: &Instance) -> Vec<f64> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::{self, uff::Dataset58};
+    use crate::value::{Channel, Frf, TimeSeries, UnitLabel};
+    use num_complex::Complex64;
+
+    fn series(scale: f64) -> Value {
+        Value::TimeSeries(TimeSeries {
+            sample_rate: 100_000.0,
+            t0: -0.001,
+            channels: vec![
+                Channel {
+                    name: "force".into(),
+                    unit: UnitLabel::new("N"),
+                    samples: (0..20).map(|i| scale * (i as f64 / 3.0).sin()).collect(),
+                },
+                Channel {
+                    name: "response".into(),
+                    unit: UnitLabel::new("m"),
+                    samples: (0..20).map(|i| scale * 1e-6 / (i as f64 + 7.0)).collect(),
+                },
+            ],
+        })
+    }
+
+    fn frf(k: f64) -> Value {
+        Value::Frf(Frf {
+            freq_hz: (0..64).map(|i| i as f64 * 12.5).collect(),
+            values: (0..64).map(|i| Complex64::new(1.0, -(i as f64) / k) / (1e7 * k)).collect(),
+            coherence: None,
+            unit: UnitLabel::new("m/N"),
+            direction: Some("x".into()),
+            speed_rpm: None,
+            sensor: None,
+        })
+    }
+
+    #[test]
+    fn an_unswept_csv_output_reads_back_exactly() {
+        let v = series(1.0 / 3.0);
+        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &v }]);
+        let Value::TimeSeries(ts) = &v else { unreachable!() };
+        assert_eq!(text, formats::csv::write_time_series(ts));
+        assert_eq!(&formats::csv::read_time_series(text.as_bytes(), "o.csv").unwrap(), ts);
+        let f = frf(3.0);
+        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &f }]);
+        assert_eq!(Value::Frf(formats::csv::read_frf(text.as_bytes(), "o.csv").unwrap()), f);
+    }
+
+    #[test]
+    fn a_swept_uff_output_has_one_dataset_per_point_and_channel_with_its_label() {
+        let ks = [1.0, 2.0, 3.0];
+        let values: Vec<Value> = ks.iter().map(|k| frf(*k)).collect();
+        let labels: Vec<String> = ks.iter().map(|k| format!("k={k}")).collect();
+        let rows: Vec<Row> = values
+            .iter()
+            .zip(&labels)
+            .zip(ks)
+            .map(|((value, label), k)| Row { coords: vec![k], label, value })
+            .collect();
+        let axes = [("k".to_string(), String::new())];
+        let text = render(OutputFormat::Uff, &axes, &rows);
+        let file = formats::uff::parse(text.as_bytes(), "s.uff").unwrap();
+        assert_eq!(file.datasets.len(), 3);
+        for ((d, label), v) in file.datasets.iter().zip(&labels).zip(&values) {
+            assert_eq!(&d.id[1], label);
+            let (Value::Frf(want), got) = (v, d.to_frf("s.uff").unwrap()) else { unreachable!() };
+            for (a, b) in got.values.iter().zip(&want.values) {
+                assert!((a - b).norm() <= 1e-12 * b.norm(), "{a} vs {b}");
+            }
+            assert_eq!(got.freq_hz, want.freq_hz);
+        }
+
+        let ts = [series(1.0), series(2.0)];
+        let rows: Vec<Row> =
+            ts.iter().zip(["a=1", "a=2"]).map(|(value, label)| Row { coords: vec![], label, value }).collect();
+        let text = render(OutputFormat::Uff, &[], &rows);
+        let file = formats::uff::parse(text.as_bytes(), "t.uff").unwrap();
+        let ids: Vec<(&str, &str)> = file.datasets.iter().map(|d| (d.id[0].as_str(), d.id[1].as_str())).collect();
+        assert_eq!(ids, [("force", "a=1"), ("response", "a=1"), ("force", "a=2"), ("response", "a=2")]);
+        let Value::TimeSeries(second) = &ts[1] else { unreachable!() };
+        let mut expect = String::new();
+        formats::uff::write_dataset(&mut expect, &Dataset58::from_channel(second, &second.channels[1], "a=2"));
+        assert!(text.ends_with(&expect));
+    }
+}
