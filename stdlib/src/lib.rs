@@ -18,4 +18,6 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::FrfEstimate::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
+    registry.register(Arc::new(nodes::ReadTimeSeries::new()));
+    registry.register(Arc::new(nodes::ReadFrf::new()));
 }

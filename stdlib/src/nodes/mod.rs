@@ -3,9 +3,11 @@
 mod expr;
 mod frf;
 mod impact;
+mod read;
 mod table;
 
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
+pub use read::{ReadFrf, ReadTimeSeries};
 pub use table::TableCollect;
