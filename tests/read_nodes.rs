@@ -40,10 +40,13 @@ fn a_recipe_reads_a_measured_frf_and_its_outputs_read_back() {
     let out = tempfile::tempdir().unwrap();
     let report = run(&c, out.path(), false).unwrap_or_else(|e| panic!("{e}"));
     let frf = frf_of(&report.result.outcomes[c.graph.by_step["measured"][0]]);
-    let direct =
-        formats::read_frf(&fixture("frf_xy_binary.uff"), FileFormat::Uff, &FrfSelect { direction: Some("y".into()), ..Default::default() })
-            .unwrap()
-            .value;
+    let direct = formats::read_frf(
+        &fixture("frf_xy_binary.uff"),
+        FileFormat::Uff,
+        &FrfSelect { direction: Some("y".into()), ..Default::default() },
+    )
+    .unwrap()
+    .value;
     assert_eq!(frf, direct);
     assert_eq!(frf.direction.as_deref(), Some("y"));
 
@@ -66,7 +69,8 @@ fn the_data_file_content_keys_the_cache_and_a_missing_file_is_reported_where_it_
     let text = std::fs::read_to_string(fixture("frf_x_ascii.uff")).unwrap();
     std::fs::write(data.join("h.uff"), &text).unwrap();
     let recipe = dir.path().join("r.yaml");
-    std::fs::write(&recipe, "spindlelab: 1\nsteps:\n  h:\n    kind: read.frf\n    params: { file: data/h.uff }\n").unwrap();
+    std::fs::write(&recipe, "spindlelab: 1\nsteps:\n  h:\n    kind: read.frf\n    params: { file: data/h.uff }\n")
+        .unwrap();
     let out = dir.path().join("out");
 
     let first = compile(&recipe);
@@ -90,16 +94,22 @@ fn the_data_file_content_keys_the_cache_and_a_missing_file_is_reported_where_it_
 
     // The same recipe as Rhai resolves the path against its own folder too.
     let rhai = dir.path().join("r.rhai");
-    std::fs::write(&rhai, r#"#{ spindlelab: 1, steps: #{ h: #{ kind: "read.frf", params: #{ file: "data/h.uff" } } } }"#).unwrap();
+    std::fs::write(
+        &rhai,
+        r#"#{ spindlelab: 1, steps: #{ h: #{ kind: "read.frf", params: #{ file: "data/h.uff" } } } }"#,
+    )
+    .unwrap();
     assert_eq!(compile(&rhai).graph.instances[0].key, second.graph.instances[0].key);
 
-    std::fs::write(&recipe, "spindlelab: 1\nsteps:\n  h:\n    kind: read.frf\n    params: { file: data/nope.uff }\n").unwrap();
+    std::fs::write(&recipe, "spindlelab: 1\nsteps:\n  h:\n    kind: read.frf\n    params: { file: data/nope.uff }\n")
+        .unwrap();
     let e = engine::compile_file(&recipe, &spindlelab::registry()).err().expect("a missing file fails");
     let d = e.diagnostics.iter().next().unwrap();
     let span = d.span.as_ref().unwrap();
     assert_eq!((span.line, span.column), (5, 21), "{}", e.render(false));
     assert!(
-        d.message.starts_with("file not found: ") && d.message.ends_with("nope.uff (paths are relative to the recipe's folder)"),
+        d.message.starts_with("file not found: ")
+            && d.message.ends_with("nope.uff (paths are relative to the recipe's folder)"),
         "{}",
         d.message
     );
@@ -121,7 +131,8 @@ fn read_problems_point_into_the_data_file_and_skipped_datasets_warn() {
     let mut opts = RunOptions::new(dir.path().join("out"));
     opts.keep_going = true;
     opts.use_cache = false;
-    let Err(engine::RunError::NodesFailed { failures, report }) = engine::run(&c, &spindlelab::registry(), &opts, &|_, _| {})
+    let Err(engine::RunError::NodesFailed { failures, report }) =
+        engine::run(&c, &spindlelab::registry(), &opts, &|_, _| {})
     else {
         panic!("the NaN sample must fail the run");
     };
@@ -131,4 +142,29 @@ fn read_problems_point_into_the_data_file_and_skipped_datasets_warn() {
     let Outcome::Computed { warnings, .. } = &report.result.outcomes[c.graph.by_step["skip"][0]] else { panic!() };
     assert_eq!(warnings.len(), 3, "{warnings:?}");
     assert!(warnings[1].contains("dataset 15 at line 11"), "{warnings:?}");
+}
+
+#[test]
+fn a_uff_output_takes_only_frfs_and_time_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("r.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nsteps:\n  hit:\n    kind: impact.simulate\n    params: { hammer_mass: 0.01 kg, target_mass: 0.1 kg, \
+         target_stiffness: 1e7 N/m, duration: 1 ms }\noutputs:\n  - { from: \"@hit.force\", file: force.uff }\n  \
+         - { from: \"@hit.peak_force\", file: peak.uff }\n  - { from: \"@hit.force\", file: force.mat }\n",
+    )
+    .unwrap();
+    let e = engine::compile_file(&recipe, &spindlelab::registry()).err().expect("rejected");
+    let messages: Vec<String> =
+        e.diagnostics.iter().map(|d| format!("{} | {}", d.message, d.help.clone().unwrap_or_default())).collect();
+    assert_eq!(messages.len(), 2, "{messages:?}");
+    assert!(
+        messages[0].starts_with("a UFF file holds FRFs and time series; `@hit.peak_force` is a scalar"),
+        "{messages:?}"
+    );
+    assert!(
+        messages[1].contains("unsupported output format `mat`") && messages[1].contains("`.csv`, `.json` or `.uff`"),
+        "{messages:?}"
+    );
 }

@@ -35,7 +35,9 @@ fn field_schema(ty: &FieldType) -> Value {
         FieldType::Object(fields) => object_schema(fields),
         FieldType::ObjectList(fields) => json!({"type": "array", "items": object_schema(fields)}),
         FieldType::MapOf(inner) => json!({"type": "object", "additionalProperties": field_schema(inner)}),
-        FieldType::File => json!({"type": "string", "description": "path of a data file, relative to the recipe's folder"}),
+        FieldType::File => {
+            json!({"type": "string", "description": "path of a data file, relative to the recipe's folder"})
+        }
     }
 }
 

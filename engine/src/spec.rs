@@ -130,19 +130,31 @@ impl Field {
 /// A checked value, in SI.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamValue {
-    Quantity { value: f64, dim: Dimension },
-    List { values: Vec<f64>, dim: Dimension },
+    Quantity {
+        value: f64,
+        dim: Dimension,
+    },
+    List {
+        values: Vec<f64>,
+        dim: Dimension,
+    },
     Int(i64),
     Bool(bool),
     Text(String),
     Words(Vec<String>),
-    Entity { kind: EntityKind, name: String },
+    Entity {
+        kind: EntityKind,
+        name: String,
+    },
     Object(Params),
     Objects(Vec<Params>),
     Map(IndexMap<String, ParamValue>),
     /// A data file: its path (the recipe's folder joined with what the recipe wrote) and
     /// the blake3 hash of its contents when the recipe was loaded.
-    File { path: PathBuf, hash: String },
+    File {
+        path: PathBuf,
+        hash: String,
+    },
 }
 
 impl ParamValue {

@@ -2,10 +2,10 @@
 //! into place only when every output of the run is ready. Time series and FRFs are written by
 //! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
+use crate::formats::{csv, uff};
 use crate::graph::Instance;
 use crate::model::OutputFormat;
 use crate::spec::ParamValue;
-use crate::formats::{csv, uff};
 use crate::value::{Table, Value};
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;

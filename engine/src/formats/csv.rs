@@ -91,6 +91,9 @@ struct Meta<'a> {
     column: usize,
 }
 
+/// A `channel=unit` entry of `# units`, with the column where it starts.
+type UnitEntry = (String, String, usize);
+
 /// The pieces of a CSV file: `#` header lines, the column header row and the data rows.
 struct Sheet<'a> {
     meta: Vec<Meta<'a>>,
@@ -217,7 +220,8 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
     let sheet = split_sheet(bytes, path)?;
     let mut sample_rate = None;
     let mut t0 = 0.0;
-    let mut units: Option<(&Meta, Vec<(String, String, usize)>)> = None;
+    // The `# units` line and its `(channel, unit, column)` entries.
+    let mut units: Option<(&Meta, Vec<UnitEntry>)> = None;
     for m in &sheet.meta {
         match m.key {
             "sample_rate" => {
@@ -372,7 +376,9 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
                 let at = Loc::new(path, m.line, m.column);
                 speed_rpm = Some(match text.parse::<f64>() {
                     Ok(v) if v.is_finite() => v,
-                    Ok(_) => return Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() }),
+                    Ok(_) => {
+                        return Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() });
+                    }
                     Err(_) => {
                         return Err(FormatError::Expected {
                             at,
@@ -411,7 +417,8 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
             found: "the end of the file".into(),
         });
     }
-    let names: &[&str] = if with_coherence { &["freq_hz", "real", "imag", "coherence"] } else { &["freq_hz", "real", "imag"] };
+    let names: &[&str] =
+        if with_coherence { &["freq_hz", "real", "imag", "coherence"] } else { &["freq_hz", "real", "imag"] };
     let n = sheet.rows.len();
     let mut freq_hz = Vec::with_capacity(n);
     let mut values = Vec::with_capacity(n);
@@ -543,7 +550,10 @@ mod tests {
         assert_eq!(e.line_column(), (1, 16));
         let e = err("# sample_rate: 1000 Hz\na,b\n");
         assert!(e.to_string().contains("rows of samples"), "{e}");
-        assert!(matches!(read_time_series(b"# sample_rate: 1 Hz\na\n\xff\n", "x.csv"), Err(FormatError::Expected { .. })));
+        assert!(matches!(
+            read_time_series(b"# sample_rate: 1 Hz\na\n\xff\n", "x.csv"),
+            Err(FormatError::Expected { .. })
+        ));
     }
 
     #[test]

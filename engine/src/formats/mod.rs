@@ -141,8 +141,11 @@ impl FileFormat {
             Some("uff" | "unv" | "uf") => return Ok(FileFormat::Uff),
             _ => {}
         }
-        let bytes = read_bytes(path)?;
-        let first = bytes.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
+        let mut head = Vec::new();
+        let opened = std::fs::File::open(path)
+            .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, 4096), &mut head));
+        opened.map_err(|source| FormatError::Io { path: path.display().to_string(), source })?;
+        let first = head.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
         Ok(if first == Some(b"-1".as_slice()) { FileFormat::Uff } else { FileFormat::Csv })
     }
 }
@@ -302,7 +305,10 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                         ds.line,
                         uff::function_name(ds.function_type)
                     ));
-                } else if select.direction.as_deref().is_none_or(|d| uff::direction_name(ds.response.direction) == Some(d))
+                } else if select
+                    .direction
+                    .as_deref()
+                    .is_none_or(|d| uff::direction_name(ds.response.direction) == Some(d))
                 {
                     frfs.push(ds);
                 }
@@ -348,11 +354,15 @@ fn pick<'a>(file: &'a uff::UffFile, k: usize, path: &str) -> Result<&'a uff::Dat
 
 /// A unit label as found in a file, brought to SI: the factor to multiply values by and the
 /// SI symbol. Labels the unit grammar does not read, or whose dimension contradicts `expected`,
-/// are kept as written with factor 1.
+/// are kept as written with factor 1, and so is any label with a bare `g`, which data files
+/// use for standard gravity as often as for grams.
 pub(crate) fn unit_to_si(label: &str, expected: Option<spindlelab_grammar::Dimension>) -> (f64, String) {
     let label = label.trim();
     if label.is_empty() {
         return (1.0, String::new());
+    }
+    if label.split(|c: char| !c.is_alphabetic()).any(|w| w == "g") {
+        return (1.0, label.to_string());
     }
     match spindlelab_grammar::parse_unit(label) {
         Ok(u) if expected.is_none_or(|d| d == u.dim) => {
@@ -377,6 +387,8 @@ mod tests {
         assert_eq!((s, sym.as_str()), (1e-3, "m"));
         // `g` parses as grams; where an acceleration is expected it stays as written.
         assert_eq!(unit_to_si("g", Some(spindlelab_grammar::Dimension::ACCELERATION)), (1.0, "g".to_string()));
+        assert_eq!(unit_to_si("g/N", None), (1.0, "g/N".to_string()));
+        assert_eq!(unit_to_si("kg", None), (1.0, "kg".to_string()));
         assert_eq!(unit_to_si("NONE?", None), (1.0, "NONE?".to_string()));
     }
 

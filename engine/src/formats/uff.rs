@@ -261,7 +261,7 @@ impl Dataset58 {
                 (x[0], dt)
             }
         };
-        if !(dt > 0.0) {
+        if dt <= 0.0 || !dt.is_finite() {
             return Err(FormatError::Unsupported {
                 at: self.at(path),
                 message: format!("abscissa increment {dt:e}: a time series needs a positive time step"),
@@ -328,10 +328,8 @@ impl Dataset58 {
             Some((n, d)) => (n, d),
             None => (frf.unit.symbol.as_str(), ""),
         };
-        let abscissa = even_grid(&frf.freq_hz).map_or_else(
-            || Abscissa::Uneven(frf.freq_hz.clone()),
-            |(min, step)| Abscissa::Even { min, step },
-        );
+        let abscissa = even_grid(&frf.freq_hz)
+            .map_or_else(|| Abscissa::Uneven(frf.freq_hz.clone()), |(min, step)| Abscissa::Even { min, step });
         let title = frf.direction.as_deref().map_or_else(|| "FRF".to_string(), |d| format!("FRF {d}"));
         Dataset58 {
             line: 0,
@@ -528,7 +526,11 @@ impl<'a> Cursor<'a> {
     }
 
     fn eof(&self, expected: impl Into<String>) -> FormatError {
-        FormatError::Expected { at: self.loc(self.line, 0), expected: expected.into(), found: "the end of the file".into() }
+        FormatError::Expected {
+            at: self.loc(self.line, 0),
+            expected: expected.into(),
+            found: "the end of the file".into(),
+        }
     }
 
     /// The next line, which must be a record of the dataset (not its end).
@@ -667,13 +669,12 @@ pub fn parse(bytes: &[u8], path: &str) -> Result<UffFile, FormatError> {
             Some(b'b' | b'B') => (&first[..first.len() - 1], true),
             _ => (first, false),
         };
-        let number: u32 = std::str::from_utf8(digits).ok().and_then(|s| s.parse().ok()).ok_or_else(|| {
-            FormatError::Expected {
+        let number: u32 =
+            std::str::from_utf8(digits).ok().and_then(|s| s.parse().ok()).ok_or_else(|| FormatError::Expected {
                 at: cur.loc(hl, col),
                 expected: "a dataset number after `-1` (e.g. `58` or `58b`)".into(),
                 found: shown(first),
-            }
-        })?;
+            })?;
         if number == 58 {
             datasets.push(parse58(&mut cur, hl, head, binary)?);
         } else {
@@ -782,8 +783,11 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
     let function_id = r6.int(6, 10, "the function identification number")?;
     let version = r6.int(16, 5, "the version number")?;
     let load_case = r6.int(21, 10, "the load case")?;
-    let response =
-        Dof { entity: r6.text(32, 10), node: r6.int(42, 10, "the response node")?, direction: r6.int32(52, 4, "the response direction")? };
+    let response = Dof {
+        entity: r6.text(32, 10),
+        node: r6.int(42, 10, "the response node")?,
+        direction: r6.int32(52, 4, "the response direction")?,
+    };
     let reference = Dof {
         entity: r6.text(57, 10),
         node: r6.int(67, 10, "the reference node")?,
@@ -871,8 +875,7 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
         (Abscissa::Even { min: floats[0], step: floats[1] }, values)
     } else {
         let x: Vec<f64> = values.iter().step_by(per_point).copied().collect();
-        let ys: Vec<f64> =
-            values.chunks_exact(per_point).flat_map(|c| c[1..].iter().copied()).collect();
+        let ys: Vec<f64> = values.chunks_exact(per_point).flat_map(|c| c[1..].iter().copied()).collect();
         (Abscissa::Uneven(x), ys)
     };
     let ordinate = if ordinate_type.is_complex() {
@@ -972,11 +975,7 @@ fn read_binary(
     let nbytes = needed * width;
     let start = cur.pos;
     let available = cur.bytes.len() - start;
-    let what = format!(
-        "dataset 58b ({points} points, {}{})",
-        ty.name(),
-        if even { "" } else { " with abscissa" }
-    );
+    let what = format!("dataset 58b ({points} points, {}{})", ty.name(), if even { "" } else { " with abscissa" });
     let data = cur.take(nbytes).ok_or_else(|| FormatError::Truncated {
         at: cur.loc(hl, 0),
         what: what.clone(),
@@ -1027,7 +1026,11 @@ fn read_binary(
     Err(FormatError::Expected {
         at: Loc::new(cur.path, line, 0),
         expected: format!("`-1` closing the {what} of line {hl} after {nbytes} bytes of data"),
-        found: if after.is_empty() { "the end of the file".into() } else { format!("{} more bytes", cur.bytes.len() - pos) },
+        found: if after.is_empty() {
+            "the end of the file".into()
+        } else {
+            format!("{} more bytes", cur.bytes.len() - pos)
+        },
     })
 }
 
@@ -1179,7 +1182,7 @@ pub fn write_time_series(out: &mut String, ts: &TimeSeries, label: &str) {
 mod tests {
     use super::*;
 
-    pub(super) fn frf() -> Frf {
+    fn frf() -> Frf {
         let n = 257;
         Frf {
             freq_hz: (0..n).map(|i| i as f64 * 100_000.0 / 4096.0).collect(),
@@ -1214,7 +1217,10 @@ mod tests {
         assert_eq!(d.id[1], "hammer_mass=0.03 kg");
         let back = d.to_frf("f.uff").unwrap();
         assert_eq!(back.unit, f.unit);
-        assert_eq!((back.direction.as_deref(), back.speed_rpm, back.sensor.as_deref()), (Some("y"), Some(12_000.0), Some("laser")));
+        assert_eq!(
+            (back.direction.as_deref(), back.speed_rpm, back.sensor.as_deref()),
+            (Some("y"), Some(12_000.0), Some("laser"))
+        );
         assert_eq!(back.values.len(), f.values.len());
         for (a, b) in back.values.iter().zip(&f.values) {
             assert!(close(a.re, b.re, 1e-12) && close(a.im, b.im, 1e-12), "{a} vs {b}");
@@ -1231,8 +1237,16 @@ mod tests {
             sample_rate: 102_400.0,
             t0: -0.001,
             channels: vec![
-                Channel { name: "force".into(), unit: UnitLabel::new("N"), samples: vec![0.0, 1.0 / 3.0, -2e-300, 4e5] },
-                Channel { name: "response".into(), unit: UnitLabel::new("m"), samples: vec![1e-9, -2.0 / 7.0, 0.0, 1.5] },
+                Channel {
+                    name: "force".into(),
+                    unit: UnitLabel::new("N"),
+                    samples: vec![0.0, 1.0 / 3.0, -2e-300, 4e5],
+                },
+                Channel {
+                    name: "response".into(),
+                    unit: UnitLabel::new("m"),
+                    samples: vec![1e-9, -2.0 / 7.0, 0.0, 1.5],
+                },
             ],
         };
         let mut text = String::new();
@@ -1257,7 +1271,12 @@ mod tests {
         // (6E13.5, 4E20.12, 2(E13.5,E20.12), E13.5 2E20.12) all read back.
         let x: Vec<f64> = vec![0.0, 0.5, 1.25, 2.0, 4.0, 8.0, 8.5];
         let re: Vec<f64> = x.iter().map(|v| v * 3.0 - 1.0).collect();
-        for ty in [OrdinateType::RealSingle, OrdinateType::RealDouble, OrdinateType::ComplexSingle, OrdinateType::ComplexDouble] {
+        for ty in [
+            OrdinateType::RealSingle,
+            OrdinateType::RealDouble,
+            OrdinateType::ComplexSingle,
+            OrdinateType::ComplexDouble,
+        ] {
             for even in [true, false] {
                 let mut d = Dataset58::from_frf(&frf(), "");
                 d.ordinate_type = ty;
@@ -1346,13 +1365,17 @@ mod tests {
             l.join("\n") + "\n"
         };
         // Record 7 with an unknown ordinate type, at its column.
-        let e = parse(with(8, "         3       257         1  0.00000e+00  1.00000e+00  0.00000e+00").as_bytes(), "e.uff")
-            .unwrap_err();
+        let e =
+            parse(with(8, "         3       257         1  0.00000e+00  1.00000e+00  0.00000e+00").as_bytes(), "e.uff")
+                .unwrap_err();
         assert!(matches!(e, FormatError::Unsupported { .. }), "{e}");
         assert_eq!(e.line_column(), (9, 10));
         // Record 6 with text in the function type.
-        let e = parse(with(7, "    x         0    0         0       NONE         1   2       NONE         1   2").as_bytes(), "e.uff")
-            .unwrap_err();
+        let e = parse(
+            with(7, "    x         0    0         0       NONE         1   2       NONE         1   2").as_bytes(),
+            "e.uff",
+        )
+        .unwrap_err();
         assert_eq!(e.line_column(), (8, 1));
         assert!(e.to_string().contains("function type"), "{e}");
         // A bad number in the data.

@@ -27,7 +27,9 @@ fn format_param() -> Field {
 fn dataset_param(what: &str) -> Field {
     let doc: &'static str = match what {
         "frf" => "UFF only: which dataset 58 of the file to read, counting from 1",
-        _ => "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel",
+        _ => {
+            "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel"
+        }
     };
     Field::opt("dataset", T::Integer { min: 1, max: 1_000_000 }, doc)
 }
