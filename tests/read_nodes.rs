@@ -168,3 +168,19 @@ fn a_uff_output_takes_only_frfs_and_time_series() {
         "{messages:?}"
     );
 }
+
+#[test]
+fn file_parameters_are_documented_in_the_schema() {
+    let s = spindlelab::engine::schema::recipe_schema(&spindlelab::registry());
+    let read = s["properties"]["steps"]["additionalProperties"]["allOf"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["if"]["properties"]["kind"]["const"] == "read.frf")
+        .expect("read.frf variant");
+    let file = &read["then"]["properties"]["params"]["properties"]["file"];
+    assert_eq!(file["type"], "string");
+    assert!(file["description"].as_str().unwrap().contains("recipe's folder"), "{file}");
+    let pattern = s["properties"]["outputs"]["items"]["properties"]["file"]["pattern"].as_str().unwrap();
+    assert!(pattern.contains("uff"), "{pattern}");
+}

@@ -1036,28 +1036,45 @@ fn read_binary(
 
 // ---------------------------------------------------------------- writing
 
-/// `v` in Fortran `E` style with `decimals` digits after the point and a two-digit exponent.
-fn fortran_e(v: f64, decimals: usize) -> String {
-    let s = format!("{v:.decimals$e}");
-    let (mantissa, exp) = s.split_once('e').expect("exponent");
-    let exp: i32 = exp.parse().expect("integer exponent");
-    format!("{mantissa}e{}{:02}", if exp < 0 { '-' } else { '+' }, exp.abs())
+/// Appends `v` in Fortran `E` style: `decimals` digits after the point and an exponent of at
+/// least two digits, right-aligned in `width` (0: no field). In a field, a three-digit
+/// exponent costs a decimal, so a blank always leads the number. `scratch` is reused.
+fn push_e(out: &mut String, scratch: &mut String, v: f64, width: usize, decimals: usize) {
+    scratch.clear();
+    let _ = write!(scratch, "{v:.decimals$e}");
+    let (mantissa, exp) = scratch.split_once('e').expect("exponent");
+    let (sign, digits) = match exp.strip_prefix('-') {
+        Some(d) => ('-', d),
+        None => ('+', exp),
+    };
+    let len = mantissa.len() + 2 + digits.len().max(2);
+    if width > 0 && len >= width && decimals > 0 {
+        let fewer = decimals.saturating_sub(len + 1 - width);
+        return push_e(out, scratch, v, width, fewer);
+    }
+    for _ in len..width {
+        out.push(' ');
+    }
+    out.push_str(mantissa);
+    out.push('e');
+    out.push(sign);
+    if digits.len() < 2 {
+        out.push('0');
+    }
+    out.push_str(digits);
 }
 
-/// `v` in a field of `width` with `decimals` digits, one fewer when a three-digit exponent
-/// would leave no blank before the number.
-fn fortran_field(v: f64, width: usize, decimals: usize) -> String {
-    let mut s = fortran_e(v, decimals);
-    if s.len() >= width {
-        s = fortran_e(v, decimals - (s.len() + 1 - width));
-    }
-    format!("{s:>width$}")
+fn fortran_e(v: f64, decimals: usize) -> String {
+    let mut out = String::new();
+    push_e(&mut out, &mut String::new(), v, 0, decimals);
+    out
 }
 
 /// An E13.5 field. A positive value that needs a 7th digit gets it (`E13.6` still leaves a
 /// blank before the number), so binary-friendly steps such as 1/102400 s are kept exactly.
 fn e13(v: f64) -> String {
-    let five = fortran_field(v, 13, 5);
+    let mut five = String::new();
+    push_e(&mut five, &mut String::new(), v, 13, 5);
     if v <= 0.0 || five.trim().parse::<f64>().ok() == Some(v) {
         return five;
     }
@@ -1065,8 +1082,11 @@ fn e13(v: f64) -> String {
     if six.len() <= 12 { format!("{six:>13}") } else { five }
 }
 
+#[cfg(test)]
 fn e20(v: f64) -> String {
-    fortran_field(v, 20, 12)
+    let mut out = String::new();
+    push_e(&mut out, &mut String::new(), v, 20, 12);
+    out
 }
 
 fn clip(s: &str, n: usize) -> String {
@@ -1137,10 +1157,17 @@ pub fn write_dataset(out: &mut String, d: &Dataset58) {
         (true, false, false) => 4,
         (true, false, true) => 3,
     };
-    let number = |v: f64| if double { e20(v) } else { e13(v) };
+    let mut scratch = String::new();
     let mut on_line = 0;
-    let mut field = |out: &mut String, text: String| {
-        out.push_str(&text);
+    // One field of record 12: an abscissa (E13.5) or an ordinate (E20.12 double, E13.5 single).
+    let mut field = |out: &mut String, v: f64, abscissa: bool| {
+        if abscissa {
+            out.push_str(&e13(v));
+        } else if double {
+            push_e(out, &mut scratch, v, 20, 12);
+        } else {
+            push_e(out, &mut scratch, v, 13, 5);
+        }
         on_line += 1;
         if on_line == per_line {
             out.push('\n');
@@ -1149,13 +1176,13 @@ pub fn write_dataset(out: &mut String, d: &Dataset58) {
     };
     for i in 0..d.len() {
         if let Abscissa::Uneven(x) = &d.abscissa {
-            field(out, e13(x[i]));
+            field(out, x[i], true);
         }
         match &d.ordinate {
-            Ordinate::Real(v) => field(out, number(v[i])),
+            Ordinate::Real(v) => field(out, v[i], false),
             Ordinate::Complex(v) => {
-                field(out, number(v[i].re));
-                field(out, number(v[i].im));
+                field(out, v[i].re, false);
+                field(out, v[i].im, false);
             }
         }
     }
