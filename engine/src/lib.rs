@@ -6,6 +6,7 @@
 
 pub mod diag;
 pub mod exec;
+pub mod formats;
 pub mod graph;
 pub mod model;
 pub mod node;

@@ -35,6 +35,9 @@ fn field_schema(ty: &FieldType) -> Value {
         FieldType::Object(fields) => object_schema(fields),
         FieldType::ObjectList(fields) => json!({"type": "array", "items": object_schema(fields)}),
         FieldType::MapOf(inner) => json!({"type": "object", "additionalProperties": field_schema(inner)}),
+        FieldType::File => {
+            json!({"type": "string", "description": "path of a data file, relative to the recipe's folder"})
+        }
     }
 }
 
@@ -110,7 +113,7 @@ pub fn recipe_schema(registry: &Registry) -> Value {
     props.insert(
         "outputs".into(),
         json!({"type": "array", "items": {"type": "object", "required": ["from", "file"], "additionalProperties": false,
-            "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json)$"}}}}),
+            "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json|uff)$"}}}}),
     );
     json!({
         "$schema": "http://json-schema.org/draft-07/schema#",

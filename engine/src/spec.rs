@@ -9,6 +9,7 @@ use indexmap::IndexMap;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 /// The kinds of named entity a recipe declares and steps refer to by name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -72,6 +73,10 @@ pub enum FieldType {
     ObjectList(&'static [Field]),
     /// A mapping from free names (for example directions `x`, `y`) to values of one type.
     MapOf(&'static FieldType),
+    /// The path of a data file, relative to the recipe's folder. It must exist when the
+    /// recipe is loaded; its contents are hashed into the cache key, so editing it reruns
+    /// the steps that read it.
+    File,
 }
 
 impl FieldType {
@@ -90,6 +95,7 @@ impl FieldType {
             FieldType::Object(_) => "mapping".into(),
             FieldType::ObjectList(_) => "list of mappings".into(),
             FieldType::MapOf(t) => format!("mapping of name to {}", t.describe()),
+            FieldType::File => "path of a data file, relative to the recipe's folder".into(),
         }
     }
 }
@@ -124,16 +130,31 @@ impl Field {
 /// A checked value, in SI.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamValue {
-    Quantity { value: f64, dim: Dimension },
-    List { values: Vec<f64>, dim: Dimension },
+    Quantity {
+        value: f64,
+        dim: Dimension,
+    },
+    List {
+        values: Vec<f64>,
+        dim: Dimension,
+    },
     Int(i64),
     Bool(bool),
     Text(String),
     Words(Vec<String>),
-    Entity { kind: EntityKind, name: String },
+    Entity {
+        kind: EntityKind,
+        name: String,
+    },
     Object(Params),
     Objects(Vec<Params>),
     Map(IndexMap<String, ParamValue>),
+    /// A data file: its path (the recipe's folder joined with what the recipe wrote) and
+    /// the blake3 hash of its contents when the recipe was loaded.
+    File {
+        path: PathBuf,
+        hash: String,
+    },
 }
 
 impl ParamValue {
@@ -183,6 +204,10 @@ impl ParamValue {
                 }
                 out.push('}');
             }
+            // The contents, not the place: moving a file keeps the key, editing it changes it.
+            ParamValue::File { hash, .. } => {
+                let _ = write!(out, "file:{hash}");
+            }
         }
     }
 
@@ -202,6 +227,7 @@ impl ParamValue {
             ParamValue::Object(_) => "{…}".into(),
             ParamValue::Objects(l) => format!("[{} items]", l.len()),
             ParamValue::Map(m) => format!("{{{} keys}}", m.len()),
+            ParamValue::File { path, .. } => path.display().to_string(),
         }
     }
 }
@@ -253,6 +279,13 @@ impl Params {
         match self.values.get(name)? {
             ParamValue::Text(t) => Some(t),
             ParamValue::Entity { name, .. } => Some(name),
+            _ => None,
+        }
+    }
+    /// The path of a file parameter, resolved against the recipe's folder.
+    pub fn file(&self, name: &str) -> Option<&Path> {
+        match self.values.get(name)? {
+            ParamValue::File { path, .. } => Some(path),
             _ => None,
         }
     }
@@ -312,6 +345,8 @@ pub fn suggest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) ->
 /// Where a value is being checked, for messages: `steps.hit.params.hammer_mass`.
 pub struct Ctx<'a> {
     pub entities: &'a EntityNames,
+    /// The folder of the recipe file, against which file parameters are resolved.
+    pub base_dir: Option<&'a Path>,
 }
 
 /// Checks a raw mapping against a field table, pushing every problem; unknown keys, missing
@@ -391,7 +426,7 @@ fn default_raw(def: &str, ty: &FieldType) -> Raw {
 /// Checks that every default in a field table is valid for its field; a registry test calls it.
 pub fn check_defaults(fields: &[Field]) -> Result<(), String> {
     let names = EntityNames::default();
-    let ctx = Ctx { entities: &names };
+    let ctx = Ctx { entities: &names, base_dir: None };
     for f in fields {
         if let Some(def) = f.default {
             let mut d = Diagnostics::new();
@@ -640,6 +675,7 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
                 .collect();
             checked.into_iter().collect::<Option<Vec<_>>>().map(ParamValue::Objects)
         }
+        FieldType::File => check_file(raw, what, ctx, diags),
         FieldType::MapOf(inner) => {
             let Some(entries) = raw.as_map() else {
                 diags.error(Some(&raw.span), format!("{what} must be a mapping, found {}", raw.describe()));
@@ -658,6 +694,46 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
             ok.then_some(ParamValue::Map(out))
         }
     }
+}
+
+/// Resolves a file parameter against the recipe's folder, checks that it is a readable file
+/// and hashes its contents.
+fn check_file(raw: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<ParamValue> {
+    let RawKind::Str(written) = &raw.kind else {
+        diags.error(Some(&raw.span), format!("{what} must be a file path, found {}", raw.describe()));
+        return None;
+    };
+    if written.trim().is_empty() {
+        diags.error(Some(&raw.span), format!("{what} is an empty file path"));
+        return None;
+    }
+    let path = match ctx.base_dir {
+        Some(base) => base.join(written),
+        None => PathBuf::from(written),
+    };
+    let folder = match ctx.base_dir {
+        Some(b) if !b.as_os_str().is_empty() => format!("`{}`", b.display()),
+        _ => "the current folder".to_string(),
+    };
+    if !path.exists() {
+        diags.error_help(
+            Some(&raw.span),
+            format!("file not found: {} (paths are relative to the recipe's folder)", path.display()),
+            format!("the recipe's folder is {folder}"),
+        );
+        return None;
+    }
+    if !path.is_file() {
+        diags.error(Some(&raw.span), format!("{what}: {} is not a file", path.display()));
+        return None;
+    }
+    let mut hasher = blake3::Hasher::new();
+    let hashed = std::fs::File::open(&path).and_then(|f| hasher.update_reader(f).map(|_| ()));
+    if let Err(e) = hashed {
+        diags.error(Some(&raw.span), format!("cannot read {}: {e}", path.display()));
+        return None;
+    }
+    Some(ParamValue::File { path, hash: hasher.finalize().to_hex().to_string() })
 }
 
 fn check_word(raw: &Raw, choices: &[&str], what: &str, diags: &mut Diagnostics) -> Option<String> {

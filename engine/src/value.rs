@@ -98,6 +98,9 @@ pub struct Frf {
     pub direction: Option<String>,
     /// Spindle speed (rpm) at which it was measured or predicted.
     pub speed_rpm: Option<f64>,
+    /// Name of the sensor that measured the response, when known.
+    #[serde(default)]
+    pub sensor: Option<String>,
 }
 
 /// The 2x2 receptance blocks `[[h, l], [n, p]]` (displacement and rotation per force and moment) on a grid.

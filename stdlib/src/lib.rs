@@ -28,4 +28,6 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::RunoutRemove::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
+    registry.register(Arc::new(nodes::ReadTimeSeries::new()));
+    registry.register(Arc::new(nodes::ReadFrf::new()));
 }

@@ -8,7 +8,7 @@ use crate::value::Value;
 use std::io::Write;
 use std::path::PathBuf;
 
-const MAGIC: &[u8; 8] = b"SPLCACH2";
+const MAGIC: &[u8; 8] = b"SPLCACH3";
 
 /// A cache entry: a node's outputs and the warnings it raised making them.
 pub struct Entry {

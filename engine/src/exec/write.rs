@@ -1,10 +1,12 @@
-//! Output writers: CSV and JSON, written to a staging directory and moved into place only
-//! when every output of the run is ready.
+//! Output writers: CSV, JSON and UFF dataset 58, written to a staging directory and moved
+//! into place only when every output of the run is ready. Time series and FRFs are written by
+//! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
+use crate::formats::{csv, uff};
 use crate::graph::Instance;
 use crate::model::OutputFormat;
 use crate::spec::ParamValue;
-use crate::value::{Frf, Table, TimeSeries, Value};
+use crate::value::{Table, Value};
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
 
@@ -21,7 +23,22 @@ pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> 
     match format {
         OutputFormat::Json => render_json(axes, rows),
         OutputFormat::Csv => render_csv(axes, rows),
+        OutputFormat::Uff => render_uff(rows),
     }
+}
+
+/// One dataset 58 per FRF, one per channel of a time series, each with its sweep label in
+/// ID line 2. The resolver admits only FRF and time-series outputs to a `.uff` file.
+fn render_uff(rows: &[Row]) -> String {
+    let mut out = String::new();
+    for r in rows {
+        match r.value {
+            Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
+            Value::TimeSeries(ts) => uff::write_time_series(&mut out, ts, r.label),
+            other => debug_assert!(false, "no UFF form for a {}", other.port_type()),
+        }
+    }
+    out
 }
 
 fn render_json(axes: &[(String, String)], rows: &[Row]) -> String {
@@ -72,8 +89,8 @@ fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
                 let _ = writeln!(out, "{}{}", prefix(r), num(s.value));
             }
             Value::Table(t) => table_rows(&mut out, t, &prefix_header, &prefix(r), &mut header_done),
-            Value::TimeSeries(ts) => time_series(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
-            Value::Frf(f) => frf(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
+            Value::TimeSeries(ts) => csv::time_series_rows(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
+            Value::Frf(f) => csv::frf_rows(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
             other => {
                 // Structured values without a tabular form go out as one JSON cell per row.
                 if !header_done {
@@ -114,41 +131,6 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
     }
 }
 
-fn time_series(out: &mut String, ts: &TimeSeries, ph: &str, p: &str, header_done: &mut bool) {
-    if !*header_done {
-        let _ = writeln!(out, "# sample_rate: {} Hz", ts.sample_rate);
-        let _ = writeln!(out, "# t0: {} s", ts.t0);
-        let units: Vec<String> = ts.channels.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
-        let _ = writeln!(out, "# units: {}", units.join(", "));
-        let names: Vec<&str> = ts.channels.iter().map(|c| c.name.as_str()).collect();
-        let _ = writeln!(out, "{ph}{}", names.join(","));
-        *header_done = true;
-    }
-    for i in 0..ts.len() {
-        let cells: Vec<String> = ts.channels.iter().map(|c| num(c.samples[i])).collect();
-        let _ = writeln!(out, "{p}{}", cells.join(","));
-    }
-}
-
-fn frf(out: &mut String, f: &Frf, ph: &str, p: &str, header_done: &mut bool) {
-    if !*header_done {
-        let _ = writeln!(out, "# units: {}", f.unit.symbol);
-        if let Some(d) = &f.direction {
-            let _ = writeln!(out, "# direction: {d}");
-        }
-        if let Some(s) = f.speed_rpm {
-            let _ = writeln!(out, "# speed_rpm: {s}");
-        }
-        let coh = if f.coherence.is_some() { ",coherence" } else { "" };
-        let _ = writeln!(out, "{ph}freq_hz,real,imag{coh}");
-        *header_done = true;
-    }
-    for (i, (fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
-        let coh = f.coherence.as_ref().map(|c| format!(",{}", num(c[i]))).unwrap_or_default();
-        let _ = writeln!(out, "{p}{},{},{}{coh}", num(*fr), num(v.re), num(v.im));
-    }
-}
-
 /// The numeric sweep assignments of an instance as (name, SI unit) pairs, for column headers.
 pub fn axes_of(inst: &Instance) -> Vec<(String, String)> {
     inst.assignments
@@ -172,4 +154,92 @@ pub fn coords_of(inst: &Instance) -> Vec<f64> {
             _ => None,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::{self, uff::Dataset58};
+    use crate::value::{Channel, Frf, TimeSeries, UnitLabel};
+    use num_complex::Complex64;
+
+    fn series(scale: f64) -> Value {
+        Value::TimeSeries(TimeSeries {
+            sample_rate: 100_000.0,
+            t0: -0.001,
+            channels: vec![
+                Channel {
+                    name: "force".into(),
+                    unit: UnitLabel::new("N"),
+                    samples: (0..20).map(|i| scale * (i as f64 / 3.0).sin()).collect(),
+                },
+                Channel {
+                    name: "response".into(),
+                    unit: UnitLabel::new("m"),
+                    samples: (0..20).map(|i| scale * 1e-6 / (i as f64 + 7.0)).collect(),
+                },
+            ],
+        })
+    }
+
+    fn frf(k: f64) -> Value {
+        Value::Frf(Frf {
+            freq_hz: (0..64).map(|i| i as f64 * 12.5).collect(),
+            values: (0..64).map(|i| Complex64::new(1.0, -(i as f64) / k) / (1e7 * k)).collect(),
+            coherence: None,
+            unit: UnitLabel::new("m/N"),
+            direction: Some("x".into()),
+            speed_rpm: None,
+            sensor: None,
+        })
+    }
+
+    #[test]
+    fn an_unswept_csv_output_reads_back_exactly() {
+        let v = series(1.0 / 3.0);
+        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &v }]);
+        let Value::TimeSeries(ts) = &v else { unreachable!() };
+        assert_eq!(text, formats::csv::write_time_series(ts));
+        assert_eq!(&formats::csv::read_time_series(text.as_bytes(), "o.csv").unwrap(), ts);
+        let f = frf(3.0);
+        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &f }]);
+        assert_eq!(Value::Frf(formats::csv::read_frf(text.as_bytes(), "o.csv").unwrap()), f);
+    }
+
+    #[test]
+    fn a_swept_uff_output_has_one_dataset_per_point_and_channel_with_its_label() {
+        let ks = [1.0, 2.0, 3.0];
+        let values: Vec<Value> = ks.iter().map(|k| frf(*k)).collect();
+        let labels: Vec<String> = ks.iter().map(|k| format!("k={k}")).collect();
+        let rows: Vec<Row> = values
+            .iter()
+            .zip(&labels)
+            .zip(ks)
+            .map(|((value, label), k)| Row { coords: vec![k], label, value })
+            .collect();
+        let axes = [("k".to_string(), String::new())];
+        let text = render(OutputFormat::Uff, &axes, &rows);
+        let file = formats::uff::parse(text.as_bytes(), "s.uff").unwrap();
+        assert_eq!(file.datasets.len(), 3);
+        for ((d, label), v) in file.datasets.iter().zip(&labels).zip(&values) {
+            assert_eq!(&d.id[1], label);
+            let (Value::Frf(want), got) = (v, d.to_frf("s.uff").unwrap()) else { unreachable!() };
+            for (a, b) in got.values.iter().zip(&want.values) {
+                assert!((a - b).norm() <= 1e-12 * b.norm(), "{a} vs {b}");
+            }
+            assert_eq!(got.freq_hz, want.freq_hz);
+        }
+
+        let ts = [series(1.0), series(2.0)];
+        let rows: Vec<Row> =
+            ts.iter().zip(["a=1", "a=2"]).map(|(value, label)| Row { coords: vec![], label, value }).collect();
+        let text = render(OutputFormat::Uff, &[], &rows);
+        let file = formats::uff::parse(text.as_bytes(), "t.uff").unwrap();
+        let ids: Vec<(&str, &str)> = file.datasets.iter().map(|d| (d.id[0].as_str(), d.id[1].as_str())).collect();
+        assert_eq!(ids, [("force", "a=1"), ("response", "a=1"), ("force", "a=2"), ("response", "a=2")]);
+        let Value::TimeSeries(second) = &ts[1] else { unreachable!() };
+        let mut expect = String::new();
+        formats::uff::write_dataset(&mut expect, &Dataset58::from_channel(second, &second.channels[1], "a=2"));
+        assert!(text.ends_with(&expect));
+    }
 }

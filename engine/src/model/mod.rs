@@ -90,6 +90,8 @@ pub struct Step {
 pub enum OutputFormat {
     Csv,
     Json,
+    /// Universal File Format dataset 58 (ASCII): FRFs and time series only.
+    Uff,
 }
 
 /// A step output written to a file in the output directory.

@@ -8,6 +8,7 @@ use crate::diag::{Diagnostics, Span};
 use crate::node::Registry;
 use crate::spec::{self, Ctx, EntityKind, EntityNames, Field, FieldType, ParamValue, Params, suggest};
 use crate::syntax::{Raw, RawKind};
+use crate::value::PortType;
 use indexmap::IndexMap;
 use spindlelab_grammar::Dimension;
 
@@ -105,7 +106,10 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
             }
         }
     }
-    let ctx = Ctx { entities: &names };
+    // File parameters are relative to the recipe's folder, for YAML and Rhai recipes alike
+    // (the root value's span names the recipe file).
+    let recipe_path = std::path::Path::new(&*raw.span.file);
+    let ctx = Ctx { entities: &names, base_dir: recipe_path.parent() };
     let mut checked: IndexMap<EntityKind, IndexMap<String, Params>> = IndexMap::new();
     for kind in EntityKind::ALL {
         let out = checked.entry(kind).or_default();
@@ -701,11 +705,12 @@ fn resolve_outputs(
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some("csv") => OutputFormat::Csv,
             Some("json") => OutputFormat::Json,
+            Some("uff") => OutputFormat::Uff,
             other => {
                 diags.error_help(
                     Some(&file.span),
                     format!("unsupported output format `{}`", other.unwrap_or("")),
-                    "name the file `.csv` or `.json`",
+                    "name the file `.csv`, `.json` or `.uff`",
                 );
                 continue;
             }
@@ -713,13 +718,21 @@ fn resolve_outputs(
         match steps.iter().find(|s| s.id == r.step) {
             Some(step) => {
                 let spec = registry.get(&step.kind).expect("checked kind").spec();
-                if spec.output(&r.port).is_none() {
+                let Some(port) = spec.output(&r.port) else {
                     let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
                     let msg = format!("step `{}` has no output `{}`", r.step, r.port);
                     match suggest(&r.port, known.iter().copied()) {
                         Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
                         None => diags.error_help(Some(&from.span), msg, format!("its outputs: {}", known.join(", "))),
                     }
+                    continue;
+                };
+                if format == OutputFormat::Uff && !matches!(port.ty, PortType::Frf | PortType::TimeSeries) {
+                    diags.error_help(
+                        Some(&file.span),
+                        format!("a UFF file holds FRFs and time series; `{r}` is a {}", port.ty),
+                        "name the file `.csv` or `.json`",
+                    );
                     continue;
                 }
             }

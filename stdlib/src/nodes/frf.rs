@@ -169,6 +169,7 @@ impl Node for FrfEstimate {
             unit: UnitLabel::new(unit),
             direction: None,
             speed_rpm: None,
+            sensor: None,
         };
         Ok([("frf".to_string(), Value::Frf(frf))].into_iter().collect())
     }

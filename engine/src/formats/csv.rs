@@ -1,0 +1,571 @@
+//! CSV time series and FRFs, as the output writer produces them.
+//!
+//! Time series: `# sample_rate: 100000 Hz`, `# t0: -0.001 s`, `# units: force=N, ...`, a row
+//! of channel names, then one column per channel. FRF: `# units`, `# direction`,
+//! `# speed_rpm`, `# sensor`, then `freq_hz,real,imag[,coherence]`. Numbers are written
+//! with `{:e}`, the shortest text that reads back as the same double, so a round trip is exact.
+
+use super::{FormatError, Loc, unit_to_si};
+use crate::value::{Channel, Frf, TimeSeries, UnitLabel};
+use num_complex::Complex64;
+use spindlelab_grammar::{self as grammar, Dimension};
+use std::fmt::Write as _;
+
+/// Writes a time series: the `#` header lines and the column header when `*header_done` is
+/// false, then one row per sample. `prefix_header` and `prefix` lead the header and each row
+/// (the sweep columns of a swept output; empty otherwise).
+pub(crate) fn time_series_rows(
+    out: &mut String,
+    ts: &TimeSeries,
+    prefix_header: &str,
+    prefix: &str,
+    header_done: &mut bool,
+) {
+    if !*header_done {
+        let _ = writeln!(out, "# sample_rate: {} Hz", ts.sample_rate);
+        let _ = writeln!(out, "# t0: {} s", ts.t0);
+        let units: Vec<String> = ts.channels.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
+        let _ = writeln!(out, "# units: {}", units.join(", "));
+        let names: Vec<&str> = ts.channels.iter().map(|c| c.name.as_str()).collect();
+        let _ = writeln!(out, "{prefix_header}{}", names.join(","));
+        *header_done = true;
+    }
+    for i in 0..ts.len() {
+        out.push_str(prefix);
+        for (k, c) in ts.channels.iter().enumerate() {
+            if k > 0 {
+                out.push(',');
+            }
+            let _ = write!(out, "{:e}", c.samples[i]);
+        }
+        out.push('\n');
+    }
+}
+
+/// Writes an FRF: `#` header lines and the column header when `*header_done` is false, then
+/// one row per frequency line, each led by `prefix`.
+pub(crate) fn frf_rows(out: &mut String, f: &Frf, prefix_header: &str, prefix: &str, header_done: &mut bool) {
+    if !*header_done {
+        let _ = writeln!(out, "# units: {}", f.unit.symbol);
+        if let Some(d) = &f.direction {
+            let _ = writeln!(out, "# direction: {d}");
+        }
+        if let Some(s) = f.speed_rpm {
+            let _ = writeln!(out, "# speed_rpm: {s}");
+        }
+        if let Some(s) = &f.sensor {
+            let _ = writeln!(out, "# sensor: {s}");
+        }
+        let coh = if f.coherence.is_some() { ",coherence" } else { "" };
+        let _ = writeln!(out, "{prefix_header}freq_hz,real,imag{coh}");
+        *header_done = true;
+    }
+    for (i, (fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
+        let _ = write!(out, "{prefix}{fr:e},{:e},{:e}", v.re, v.im);
+        if let Some(c) = &f.coherence {
+            let _ = write!(out, ",{:e}", c[i]);
+        }
+        out.push('\n');
+    }
+}
+
+/// A time series as CSV text.
+pub fn write_time_series(ts: &TimeSeries) -> String {
+    let mut out = String::new();
+    time_series_rows(&mut out, ts, "", "", &mut false);
+    out
+}
+
+/// An FRF as CSV text.
+pub fn write_frf(f: &Frf) -> String {
+    let mut out = String::new();
+    frf_rows(&mut out, f, "", "", &mut false);
+    out
+}
+
+/// A `# key: value` line, with the 1-based line number and the column of the value.
+struct Meta<'a> {
+    key: &'a str,
+    value: &'a str,
+    line: usize,
+    column: usize,
+}
+
+/// A `channel=unit` entry of `# units`, with the column where it starts.
+type UnitEntry = (String, String, usize);
+
+/// The pieces of a CSV file: `#` header lines, the column header row and the data rows.
+struct Sheet<'a> {
+    meta: Vec<Meta<'a>>,
+    header: Option<(usize, &'a str)>,
+    rows: Vec<(usize, &'a str)>,
+    last_line: usize,
+}
+
+fn as_text<'a>(bytes: &'a [u8], path: &str) -> Result<&'a str, FormatError> {
+    match std::str::from_utf8(bytes) {
+        Ok(t) => Ok(t),
+        Err(e) => {
+            let before = &bytes[..e.valid_up_to()];
+            let line = before.iter().filter(|b| **b == b'\n').count() + 1;
+            let line_start = before.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);
+            let column = String::from_utf8_lossy(&before[line_start..]).chars().count() + 1;
+            Err(FormatError::Expected {
+                at: Loc::new(path, line, column),
+                expected: "UTF-8 text".into(),
+                found: format!("the byte 0x{:02x}", bytes[e.valid_up_to()]),
+            })
+        }
+    }
+}
+
+fn split_sheet<'a>(bytes: &'a [u8], path: &str) -> Result<Sheet<'a>, FormatError> {
+    let text = as_text(bytes, path)?;
+    if text.trim().is_empty() {
+        return Err(FormatError::Empty { at: Loc::new(path, 0, 0) });
+    }
+    let mut sheet = Sheet { meta: Vec::new(), header: None, rows: Vec::new(), last_line: 0 };
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        sheet.last_line = line;
+        let trimmed = raw.trim();
+        if trimmed.is_empty() {
+            continue;
+        }
+        if let Some(comment) = trimmed.strip_prefix('#') {
+            if let Some((key, value)) = comment.split_once(':') {
+                let key = key.trim();
+                // Only `# word: …` lines are header lines; any other `#` line is a comment.
+                if !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                    let value_start = raw.len() - value.trim_start().len();
+                    let column = raw[..value_start].chars().count() + 1;
+                    sheet.meta.push(Meta { key, value: value.trim(), line, column });
+                }
+            }
+            continue;
+        }
+        if sheet.header.is_none() {
+            sheet.header = Some((line, raw));
+        } else {
+            sheet.rows.push((line, raw));
+        }
+    }
+    Ok(sheet)
+}
+
+fn column_of(line: &str, byte: usize) -> usize {
+    line[..byte].chars().count() + 1
+}
+
+/// The cells of a row with the byte offset where each (trimmed) cell starts.
+fn cells(line: &str) -> impl Iterator<Item = (usize, &str)> {
+    let mut start = 0;
+    line.split(',').map(move |cell| {
+        let lead = cell.len() - cell.trim_start().len();
+        let at = start + lead;
+        start += cell.len() + 1;
+        (at, cell.trim())
+    })
+}
+
+/// Parses one finite number in a cell; `what` names the column for messages.
+fn number(text: &str, path: &str, line: usize, raw: &str, at: usize, what: &str) -> Result<f64, FormatError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(FormatError::NonFinite {
+            at: Loc::new(path, line, column_of(raw, at)),
+            text: text.to_string(),
+            what: what.to_string(),
+        }),
+        Err(_) => Err(FormatError::Expected {
+            at: Loc::new(path, line, column_of(raw, at)),
+            expected: format!("a number in {what}"),
+            found: if text.is_empty() { "an empty cell".into() } else { format!("`{text}`") },
+        }),
+    }
+}
+
+/// A header value: a number with an optional unit of `dim` (a plain number is taken as SI).
+fn quantity(m: &Meta, dim: Dimension, example: &str, path: &str) -> Result<f64, FormatError> {
+    let err = |found: String| FormatError::Expected {
+        at: Loc::new(path, m.line, m.column),
+        expected: format!("a number with a unit of {} (e.g. `{example}`) after `# {}:`", dim.describe(), m.key),
+        found,
+    };
+    let (num, unit) = match m.value.split_once(char::is_whitespace) {
+        Some((n, u)) => (n, u.trim()),
+        None => (m.value, ""),
+    };
+    let v: f64 = num.parse().map_err(|_| err(format!("`{}`", m.value)))?;
+    if !v.is_finite() {
+        return Err(FormatError::NonFinite {
+            at: Loc::new(path, m.line, m.column),
+            text: num.to_string(),
+            what: format!("`# {}`", m.key),
+        });
+    }
+    if unit.is_empty() {
+        return Ok(v);
+    }
+    match grammar::parse_unit(unit) {
+        Ok(u) if u.dim == dim => Ok(if u.scale == 1.0 { v } else { v * u.scale }),
+        _ => Err(err(format!("`{}`", m.value))),
+    }
+}
+
+/// Reads a time series written as [`write_time_series`] writes it. Header lines may come in
+/// any order and other `#` lines are comments; the sample rate is required, `t0` defaults
+/// to 0 and a channel missing from `# units` has no unit. Units are brought to SI.
+pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatError> {
+    let sheet = split_sheet(bytes, path)?;
+    let mut sample_rate = None;
+    let mut t0 = 0.0;
+    // The `# units` line and its `(channel, unit, column)` entries.
+    let mut units: Option<(&Meta, Vec<UnitEntry>)> = None;
+    for m in &sheet.meta {
+        match m.key {
+            "sample_rate" => {
+                let fs = quantity(m, Dimension::FREQUENCY, "100000 Hz", path)?;
+                if fs <= 0.0 {
+                    return Err(FormatError::Expected {
+                        at: Loc::new(path, m.line, m.column),
+                        expected: "a positive sample rate".into(),
+                        found: format!("`{}`", m.value),
+                    });
+                }
+                sample_rate = Some(fs);
+            }
+            "t0" => t0 = quantity(m, Dimension::TIME, "-0.001 s", path)?,
+            "units" => {
+                let mut list = Vec::new();
+                let mut offset = 0;
+                for item in m.value.split(',') {
+                    let col = m.column + m.value[..offset].chars().count() + (item.len() - item.trim_start().len());
+                    offset += item.len() + 1;
+                    let item = item.trim();
+                    if item.is_empty() {
+                        continue;
+                    }
+                    let Some((name, unit)) = item.split_once('=') else {
+                        return Err(FormatError::Expected {
+                            at: Loc::new(path, m.line, col),
+                            expected: "`channel=unit` in `# units:`".into(),
+                            found: format!("`{item}`"),
+                        });
+                    };
+                    list.push((name.trim().to_string(), unit.trim().to_string(), col));
+                }
+                units = Some((m, list));
+            }
+            _ => {}
+        }
+    }
+    let Some((hline, hraw)) = sheet.header else {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line, 0),
+            expected: "a row of channel names".into(),
+            found: "only `#` lines".into(),
+        });
+    };
+    let Some(sample_rate) = sample_rate else {
+        return Err(FormatError::MissingSampleRate { at: Loc::new(path, 0, 0) });
+    };
+    let mut names: Vec<String> = Vec::new();
+    for (at, cell) in cells(hraw) {
+        let name = cell.trim_matches('"').to_string();
+        if name.is_empty() {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, hline, column_of(hraw, at)),
+                expected: "a channel name".into(),
+                found: "an empty cell".into(),
+            });
+        }
+        if names.contains(&name) {
+            return Err(FormatError::ChannelMismatch {
+                at: Loc::new(path, hline, column_of(hraw, at)),
+                message: format!("channel `{name}` appears twice in the header row"),
+            });
+        }
+        names.push(name);
+    }
+    let mut unit_of: Vec<String> = vec![String::new(); names.len()];
+    if let Some((m, list)) = &units {
+        for (name, unit, col) in list {
+            match names.iter().position(|n| n == name) {
+                Some(k) => unit_of[k] = unit.clone(),
+                None => {
+                    return Err(FormatError::ChannelMismatch {
+                        at: Loc::new(path, m.line, *col),
+                        message: format!(
+                            "`# units` names channel `{name}`, which the header row (line {hline}) does not have: {}",
+                            names.join(", ")
+                        ),
+                    });
+                }
+            }
+        }
+        if list.len() != names.len() {
+            return Err(FormatError::ChannelMismatch {
+                at: Loc::new(path, m.line, m.column),
+                message: format!(
+                    "`# units` gives {} channel(s), the header row (line {hline}) has {}: {}",
+                    list.len(),
+                    names.len(),
+                    names.join(", ")
+                ),
+            });
+        }
+    }
+    if sheet.rows.is_empty() {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line + 1, 0),
+            expected: "rows of samples after the channel names".into(),
+            found: "the end of the file".into(),
+        });
+    }
+    let mut samples: Vec<Vec<f64>> = vec![Vec::with_capacity(sheet.rows.len()); names.len()];
+    for &(line, raw) in &sheet.rows {
+        let mut n = 0;
+        for (at, cell) in cells(raw) {
+            if n < names.len() {
+                let what = format!("channel `{}`", names[n]);
+                samples[n].push(number(cell, path, line, raw, at, &what)?);
+            }
+            n += 1;
+        }
+        if n != names.len() {
+            return Err(FormatError::Ragged {
+                at: Loc::new(path, line, 0),
+                found: n,
+                expected: names.len(),
+                columns: format!("one per channel: {}", names.join(", ")),
+            });
+        }
+    }
+    let channels = names
+        .into_iter()
+        .zip(unit_of)
+        .zip(samples)
+        .map(|((name, unit), mut samples)| {
+            let (scale, symbol) = unit_to_si(&unit, None);
+            if scale != 1.0 {
+                samples.iter_mut().for_each(|v| *v *= scale);
+            }
+            Channel { name, unit: UnitLabel::new(symbol), samples }
+        })
+        .collect();
+    Ok(TimeSeries { sample_rate, t0, channels })
+}
+
+/// Reads an FRF written as [`write_frf`] writes it: header `freq_hz,real,imag` with an
+/// optional `coherence` column; `# units`, `# direction`, `# speed_rpm` and `# sensor`
+/// header lines are optional and may come in any order.
+pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
+    let sheet = split_sheet(bytes, path)?;
+    let mut unit = String::new();
+    let mut direction = None;
+    let mut speed_rpm = None;
+    let mut sensor = None;
+    for m in &sheet.meta {
+        match m.key {
+            "units" => unit = m.value.to_string(),
+            "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
+            "sensor" if !m.value.is_empty() => sensor = Some(m.value.to_string()),
+            "speed_rpm" => {
+                let text = m.value.strip_suffix("rpm").unwrap_or(m.value).trim();
+                let at = Loc::new(path, m.line, m.column);
+                speed_rpm = Some(match text.parse::<f64>() {
+                    Ok(v) if v.is_finite() => v,
+                    Ok(_) => {
+                        return Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() });
+                    }
+                    Err(_) => {
+                        return Err(FormatError::Expected {
+                            at,
+                            expected: "a speed in rpm after `# speed_rpm:`".into(),
+                            found: format!("`{}`", m.value),
+                        });
+                    }
+                });
+            }
+            _ => {}
+        }
+    }
+    let Some((hline, hraw)) = sheet.header else {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line, 0),
+            expected: "the header row `freq_hz,real,imag[,coherence]`".into(),
+            found: "only `#` lines".into(),
+        });
+    };
+    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
+    let with_coherence = match header.as_slice() {
+        ["freq_hz", "real", "imag"] => false,
+        ["freq_hz", "real", "imag", "coherence"] => true,
+        _ => {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, hline, 1),
+                expected: "the header row `freq_hz,real,imag` or `freq_hz,real,imag,coherence`".into(),
+                found: format!("`{}`", hraw.trim()),
+            });
+        }
+    };
+    if sheet.rows.is_empty() {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line + 1, 0),
+            expected: "rows of `freq_hz,real,imag` values after the header row".into(),
+            found: "the end of the file".into(),
+        });
+    }
+    let names: &[&str] =
+        if with_coherence { &["freq_hz", "real", "imag", "coherence"] } else { &["freq_hz", "real", "imag"] };
+    let n = sheet.rows.len();
+    let mut freq_hz = Vec::with_capacity(n);
+    let mut values = Vec::with_capacity(n);
+    let mut coherence = with_coherence.then(|| Vec::with_capacity(n));
+    let mut row = [0.0; 4];
+    for &(line, raw) in &sheet.rows {
+        let mut k = 0;
+        for (at, cell) in cells(raw) {
+            if k < names.len() {
+                row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
+            }
+            k += 1;
+        }
+        if k != names.len() {
+            return Err(FormatError::Ragged {
+                at: Loc::new(path, line, 0),
+                found: k,
+                expected: names.len(),
+                columns: names.join(","),
+            });
+        }
+        freq_hz.push(row[0]);
+        values.push(Complex64::new(row[1], row[2]));
+        if let Some(c) = coherence.as_mut() {
+            c.push(row[3]);
+        }
+    }
+    let (scale, symbol) = unit_to_si(&unit, None);
+    if scale != 1.0 {
+        values.iter_mut().for_each(|v| *v *= scale);
+    }
+    Ok(Frf { freq_hz, values, coherence, unit: UnitLabel::new(symbol), direction, speed_rpm, sensor })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series() -> TimeSeries {
+        // Values chosen to need all 17 digits: a lossy writer would not read back bit for bit.
+        let force: Vec<f64> = (0..50).map(|i| (i as f64 * 0.37).sin() * 123.456_789_012_345_67 + 1e-300).collect();
+        let resp: Vec<f64> = (0..50).map(|i| -(i as f64 / 7.0).exp() * 1.234_567_890_123_456_7e-7).collect();
+        TimeSeries {
+            sample_rate: 102_400.0 / 3.0,
+            t0: -0.001 / 3.0,
+            channels: vec![
+                Channel { name: "force".into(), unit: UnitLabel::new("N"), samples: force },
+                Channel { name: "response".into(), unit: UnitLabel::new("m"), samples: resp },
+            ],
+        }
+    }
+
+    #[test]
+    fn time_series_round_trips_bit_for_bit() {
+        let ts = series();
+        let text = write_time_series(&ts);
+        assert!(text.starts_with("# sample_rate: "), "{text}");
+        let back = read_time_series(text.as_bytes(), "t.csv").unwrap();
+        assert_eq!(back.sample_rate.to_bits(), ts.sample_rate.to_bits());
+        assert_eq!(back.t0.to_bits(), ts.t0.to_bits());
+        assert_eq!(back, ts);
+    }
+
+    #[test]
+    fn time_series_header_lines_in_any_order_with_comments_and_units_to_si() {
+        let text = "# measured on rig 2\n# units: f=kN, x=mm\n# t0: 2 ms\n#\n# sample_rate: 10 kHz\nf,x\n1,2\n3,4\n";
+        let ts = read_time_series(text.as_bytes(), "t.csv").unwrap();
+        assert_eq!(ts.sample_rate, 10_000.0);
+        assert_eq!(ts.t0, 0.002);
+        assert_eq!(ts.channels[0].unit.symbol, "N");
+        assert_eq!(ts.channels[0].samples, [1000.0, 3000.0]);
+        assert_eq!(ts.channels[1].unit.symbol, "m");
+        assert_eq!(ts.channels[1].samples, [0.002, 0.004]);
+    }
+
+    #[test]
+    fn frf_round_trips_bit_for_bit_with_all_header_fields() {
+        let n = 40;
+        let frf = Frf {
+            freq_hz: (0..n).map(|i| i as f64 * 24.414_062_5).collect(),
+            values: (0..n).map(|i| Complex64::new(1.0 / (i as f64 + 3.0), -(i as f64).sqrt() * 1e-7 / 3.0)).collect(),
+            coherence: Some((0..n).map(|i| 1.0 - 1.0 / (i as f64 + 7.0)).collect()),
+            unit: UnitLabel::new("m/N"),
+            direction: Some("y".into()),
+            speed_rpm: Some(12_345.678_9),
+            sensor: Some("laser 1".into()),
+        };
+        let back = read_frf(write_frf(&frf).as_bytes(), "f.csv").unwrap();
+        assert_eq!(back, frf);
+        let bare = Frf { coherence: None, direction: None, speed_rpm: None, sensor: None, ..frf };
+        assert_eq!(read_frf(write_frf(&bare).as_bytes(), "f.csv").unwrap(), bare);
+    }
+
+    fn err(text: &str) -> FormatError {
+        read_time_series(text.as_bytes(), "bad.csv").unwrap_err()
+    }
+
+    #[test]
+    fn bad_time_series_files_name_the_place() {
+        assert!(matches!(err(""), FormatError::Empty { .. }));
+        assert!(matches!(err(" \n\n"), FormatError::Empty { .. }));
+        let e = err("# t0: 0 s\na,b\n1,2\n");
+        assert!(matches!(e, FormatError::MissingSampleRate { .. }), "{e}");
+        assert!(e.to_string().contains("sample_rate"), "{e}");
+
+        let e = err("# sample_rate: 1000 Hz\na,b\n1,2\n3\n");
+        assert!(matches!(e, FormatError::Ragged { found: 1, expected: 2, .. }), "{e}");
+        assert_eq!(e.line_column(), (4, 0));
+
+        let e = err("# sample_rate: 1000 Hz\na,b\n1,2\n3, 4x\n");
+        assert!(matches!(e, FormatError::Expected { .. }), "{e}");
+        assert_eq!(e.line_column(), (4, 4));
+        assert!(e.to_string().starts_with("bad.csv:4:4: expected a number in channel `b`"), "{e}");
+
+        let e = err("# sample_rate: 1000 Hz\na,b\n1,2\n3,NaN\n");
+        assert!(matches!(e, FormatError::NonFinite { .. }), "{e}");
+        assert_eq!(e.line_column(), (4, 3));
+        assert!(e.to_string().contains("NaN samples"), "{e}");
+        assert!(matches!(err("# sample_rate: 1000 Hz\na\ninf\n"), FormatError::NonFinite { .. }));
+
+        let e = err("# sample_rate: 1000 Hz\n# units: a=N, b=m, c=m\na,b\n1,2\n");
+        assert!(matches!(e, FormatError::ChannelMismatch { .. }), "{e}");
+        assert_eq!(e.line_column().0, 2);
+        let e = err("# sample_rate: 1000 Hz\n# units: a=N\na,b\n1,2\n");
+        assert!(matches!(e, FormatError::ChannelMismatch { .. }), "{e}");
+
+        let e = err("# sample_rate: 1000 m\na\n1\n");
+        assert!(matches!(e, FormatError::Expected { .. }), "{e}");
+        assert_eq!(e.line_column(), (1, 16));
+        let e = err("# sample_rate: 1000 Hz\na,b\n");
+        assert!(e.to_string().contains("rows of samples"), "{e}");
+        assert!(matches!(
+            read_time_series(b"# sample_rate: 1 Hz\na\n\xff\n", "x.csv"),
+            Err(FormatError::Expected { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_frf_files_name_the_place() {
+        let e = read_frf(b"# units: m/N\nfreq,re,im\n1,2,3\n", "f.csv").unwrap_err();
+        assert_eq!(e.line_column(), (2, 1));
+        let e = read_frf(b"freq_hz,real,imag\n1,2,3\n2,nan,3\n", "f.csv").unwrap_err();
+        assert!(matches!(e, FormatError::NonFinite { .. }), "{e}");
+        assert_eq!(e.line_column(), (3, 3));
+        let e = read_frf(b"freq_hz,real,imag,coherence\n1,2,3\n", "f.csv").unwrap_err();
+        assert!(matches!(e, FormatError::Ragged { found: 3, expected: 4, .. }), "{e}");
+        let e = read_frf(b"# speed_rpm: fast\nfreq_hz,real,imag\n1,2,3\n", "f.csv").unwrap_err();
+        assert_eq!(e.line_column(), (1, 14));
+    }
+}

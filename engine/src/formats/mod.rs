@@ -1,0 +1,401 @@
+//! Data files: time series and FRFs as CSV, and Universal File Format dataset 58 (ASCII and
+//! binary 58b), read into and written from the engine's typed values.
+//!
+//! Readers convert to SI where a unit label says how (`mm` → m) and reject what they cannot
+//! read with the file, line and column and what was expected there; `docs/formats.md`
+//! describes the layouts as implemented.
+
+pub mod csv;
+pub mod uff;
+
+use crate::value::{Frf, TimeSeries};
+use std::fmt;
+use std::path::Path;
+
+/// Where in a data file a problem sits. `line` and `column` are 1-based; 0 when not applicable.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Loc {
+    pub path: String,
+    pub line: usize,
+    pub column: usize,
+}
+
+impl Loc {
+    pub fn new(path: &str, line: usize, column: usize) -> Self {
+        Loc { path: path.to_string(), line, column }
+    }
+}
+
+impl fmt::Display for Loc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (self.line, self.column) {
+            (0, _) => write!(f, "{}", self.path),
+            (l, 0) => write!(f, "{}:{l}", self.path),
+            (l, c) => write!(f, "{}:{l}:{c}", self.path),
+        }
+    }
+}
+
+/// A dataset of a UFF file that the reader does not interpret (for example 15, 55, 151, 164).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Skipped {
+    /// Dataset number, e.g. 151.
+    pub dataset: u32,
+    /// Line of the dataset number.
+    pub line: usize,
+}
+
+impl fmt::Display for Skipped {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "dataset {} at line {}", self.dataset, self.line)
+    }
+}
+
+/// Why a data file could not be read or did not hold what was asked for.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    #[error("{path}: cannot read the file: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{at}: the file is empty")]
+    Empty { at: Loc },
+    #[error("{at}: no sample rate: add a header line `# sample_rate: 100000 Hz`")]
+    MissingSampleRate { at: Loc },
+    #[error("{at}: expected {expected}, found {found}")]
+    Expected { at: Loc, expected: String, found: String },
+    #[error("{at}: `{text}` in {what}: NaN samples and infinite values are not accepted")]
+    NonFinite { at: Loc, text: String, what: String },
+    #[error("{at}: ragged row: {found} values, expected {expected} ({columns})")]
+    Ragged { at: Loc, found: usize, expected: usize, columns: String },
+    #[error("{at}: mismatched channels: {message}")]
+    ChannelMismatch { at: Loc, message: String },
+    #[error("{at}: truncated binary data: {what} needs {needed} bytes, the file holds {available} more")]
+    Truncated { at: Loc, what: String, needed: usize, available: usize },
+    #[error("{at}: {message}")]
+    Unsupported { at: Loc, message: String },
+    #[error("{path}: no dataset 58 or 58b (function data) in the file{}", skipped_list(.skipped))]
+    NoSupportedDataset { path: String, skipped: Vec<Skipped> },
+    #[error("{path}: {message}")]
+    Selection { path: String, message: String },
+}
+
+fn skipped_list(skipped: &[Skipped]) -> String {
+    if skipped.is_empty() {
+        String::new()
+    } else {
+        let items: Vec<String> = skipped.iter().map(Skipped::to_string).collect();
+        format!("; skipped {}", items.join(", "))
+    }
+}
+
+impl FormatError {
+    /// The file the error is about.
+    pub fn path(&self) -> &str {
+        match self {
+            FormatError::Io { path, .. }
+            | FormatError::NoSupportedDataset { path, .. }
+            | FormatError::Selection { path, .. } => path,
+            FormatError::Empty { at }
+            | FormatError::MissingSampleRate { at }
+            | FormatError::Expected { at, .. }
+            | FormatError::NonFinite { at, .. }
+            | FormatError::Ragged { at, .. }
+            | FormatError::ChannelMismatch { at, .. }
+            | FormatError::Truncated { at, .. }
+            | FormatError::Unsupported { at, .. } => &at.path,
+        }
+    }
+
+    /// 1-based line and column of the problem; 0 where it has none.
+    pub fn line_column(&self) -> (usize, usize) {
+        match self {
+            FormatError::Empty { at }
+            | FormatError::MissingSampleRate { at }
+            | FormatError::Expected { at, .. }
+            | FormatError::NonFinite { at, .. }
+            | FormatError::Ragged { at, .. }
+            | FormatError::ChannelMismatch { at, .. }
+            | FormatError::Truncated { at, .. }
+            | FormatError::Unsupported { at, .. } => (at.line, at.column),
+            _ => (0, 0),
+        }
+    }
+}
+
+/// The layout of a data file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FileFormat {
+    Csv,
+    Uff,
+}
+
+impl FileFormat {
+    /// The format named by a file's extension (`.csv`, `.txt`; `.uff`, `.unv`, `.uf`), else by its
+    /// first non-blank line: a UFF file opens with the delimiter `-1`.
+    pub fn detect(path: &Path) -> Result<FileFormat, FormatError> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("csv" | "txt") => return Ok(FileFormat::Csv),
+            Some("uff" | "unv" | "uf") => return Ok(FileFormat::Uff),
+            _ => {}
+        }
+        let mut head = Vec::new();
+        let opened = std::fs::File::open(path)
+            .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, 4096), &mut head));
+        opened.map_err(|source| FormatError::Io { path: path.display().to_string(), source })?;
+        let first = head.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
+        Ok(if first == Some(b"-1".as_slice()) { FileFormat::Uff } else { FileFormat::Csv })
+    }
+}
+
+/// A value read from a file, with notes on what was passed over (skipped datasets).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded<T> {
+    pub value: T,
+    pub notes: Vec<String>,
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {
+    std::fs::read(path).map_err(|source| FormatError::Io { path: path.display().to_string(), source })
+}
+
+fn skipped_notes(path: &str, skipped: &[Skipped]) -> Vec<String> {
+    skipped.iter().map(|s| format!("{path}: {s} is not read (only datasets 58 and 58b are)")).collect()
+}
+
+/// Reads a time series from a CSV or UFF file. For UFF, `dataset` (1-based, counting the
+/// datasets 58 of the file) picks one; without it every time response of the file becomes
+/// one channel, which requires them to share sample rate, start time and length.
+pub fn read_time_series(
+    path: &Path,
+    format: FileFormat,
+    dataset: Option<usize>,
+) -> Result<Loaded<TimeSeries>, FormatError> {
+    let bytes = read_bytes(path)?;
+    let shown = path.display().to_string();
+    match format {
+        FileFormat::Csv => Ok(Loaded { value: csv::read_time_series(&bytes, &shown)?, notes: Vec::new() }),
+        FileFormat::Uff => {
+            let file = uff::parse(&bytes, &shown)?;
+            let mut notes = skipped_notes(&shown, &file.skipped);
+            if let Some(k) = dataset {
+                let ds = pick(&file, k, &shown)?;
+                if ds.function_type != uff::FUNCTION_TIME {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!(
+                            "dataset {k} (line {}) is {}, not a time response (function type 1)",
+                            ds.line,
+                            uff::function_name(ds.function_type)
+                        ),
+                    });
+                }
+                return Ok(Loaded { value: ds.to_time_series(&shown)?, notes });
+            }
+            let mut series: Vec<TimeSeries> = Vec::new();
+            for ds in &file.datasets {
+                if ds.function_type == uff::FUNCTION_TIME {
+                    series.push(ds.to_time_series(&shown)?);
+                } else {
+                    notes.push(format!(
+                        "{shown}: dataset 58 at line {} is {}, not a time response; skipped",
+                        ds.line,
+                        uff::function_name(ds.function_type)
+                    ));
+                }
+            }
+            let Some(first) = series.first() else {
+                return Err(FormatError::Selection {
+                    path: shown,
+                    message: format!("no time response (function type 1) among its datasets: {}", file.summary()),
+                });
+            };
+            let (rate, t0, len) = (first.sample_rate, first.t0, first.len());
+            let same = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(f64::MIN_POSITIVE);
+            if let Some(odd) =
+                series.iter().position(|s| !same(s.sample_rate, rate) || !same(s.t0, t0) || s.len() != len)
+            {
+                return Err(FormatError::Selection {
+                    path: shown,
+                    message: format!(
+                        "its time responses differ in sample rate, start time or length (the first and number {}); \
+                         choose one with `dataset`",
+                        odd + 1
+                    ),
+                });
+            }
+            let mut value = series.remove(0);
+            for s in series {
+                value.channels.extend(s.channels);
+            }
+            Ok(Loaded { value, notes })
+        }
+    }
+}
+
+/// Which FRF of a UFF file to take: by position among the datasets 58 (1-based), or by
+/// response direction; with neither, the file must hold exactly one FRF.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrfSelect {
+    pub dataset: Option<usize>,
+    pub direction: Option<String>,
+}
+
+/// Reads an FRF from a CSV or UFF file.
+///
+/// For CSV, a `direction` in `select` fills in a file without `# direction` and must agree
+/// with one that has it.
+pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<Loaded<Frf>, FormatError> {
+    let bytes = read_bytes(path)?;
+    let shown = path.display().to_string();
+    match format {
+        FileFormat::Csv => {
+            let mut frf = csv::read_frf(&bytes, &shown)?;
+            if let Some(want) = &select.direction {
+                match &frf.direction {
+                    Some(d) if d != want => {
+                        return Err(FormatError::Selection {
+                            path: shown,
+                            message: format!("the file holds the `{d}` direction, `{want}` was asked for"),
+                        });
+                    }
+                    Some(_) => {}
+                    None => frf.direction = Some(want.clone()),
+                }
+            }
+            Ok(Loaded { value: frf, notes: Vec::new() })
+        }
+        FileFormat::Uff => {
+            let file = uff::parse(&bytes, &shown)?;
+            let mut notes = skipped_notes(&shown, &file.skipped);
+            if let Some(k) = select.dataset {
+                let ds = pick(&file, k, &shown)?;
+                if ds.function_type != uff::FUNCTION_FRF {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!(
+                            "dataset {k} (line {}) is {}, not an FRF (function type 4)",
+                            ds.line,
+                            uff::function_name(ds.function_type)
+                        ),
+                    });
+                }
+                let frf = ds.to_frf(&shown)?;
+                if let Some(want) = &select.direction
+                    && frf.direction.as_deref() != Some(want.as_str())
+                {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!(
+                            "dataset {k} (line {}) responds in direction {}, `{want}` was asked for",
+                            ds.line,
+                            frf.direction.as_deref().map_or("none (scalar)".to_string(), |d| format!("`{d}`"))
+                        ),
+                    });
+                }
+                return Ok(Loaded { value: frf, notes });
+            }
+            let mut frfs = Vec::new();
+            for ds in &file.datasets {
+                if ds.function_type != uff::FUNCTION_FRF {
+                    notes.push(format!(
+                        "{shown}: dataset 58 at line {} is {}, not an FRF; skipped",
+                        ds.line,
+                        uff::function_name(ds.function_type)
+                    ));
+                } else if select
+                    .direction
+                    .as_deref()
+                    .is_none_or(|d| uff::direction_name(ds.response.direction) == Some(d))
+                {
+                    frfs.push(ds);
+                }
+            }
+            match frfs.as_slice() {
+                [one] => Ok(Loaded { value: one.to_frf(&shown)?, notes }),
+                [] => Err(FormatError::Selection {
+                    path: shown,
+                    message: match &select.direction {
+                        Some(d) => format!("no FRF in direction `{d}` among its datasets: {}", file.summary()),
+                        None => format!("no FRF (function type 4) among its datasets: {}", file.summary()),
+                    },
+                }),
+                many => {
+                    let list: Vec<String> = many.iter().map(|d| d.describe()).collect();
+                    Err(FormatError::Selection {
+                        path: shown,
+                        message: format!(
+                            "{} FRFs match ({}); choose one with `direction` or `dataset`",
+                            many.len(),
+                            list.join(", ")
+                        ),
+                    })
+                }
+            }
+        }
+    }
+}
+
+fn pick<'a>(file: &'a uff::UffFile, k: usize, path: &str) -> Result<&'a uff::Dataset58, FormatError> {
+    if k == 0 || k > file.datasets.len() {
+        return Err(FormatError::Selection {
+            path: path.to_string(),
+            message: format!(
+                "dataset {k} was asked for; the file holds {} dataset(s) 58, numbered from 1: {}",
+                file.datasets.len(),
+                file.summary()
+            ),
+        });
+    }
+    Ok(&file.datasets[k - 1])
+}
+
+/// A unit label as found in a file, brought to SI: the factor to multiply values by and the
+/// SI symbol. Labels the unit grammar does not read, or whose dimension contradicts `expected`,
+/// are kept as written with factor 1, and so is any label with a bare `g`, which data files
+/// use for standard gravity as often as for grams.
+pub(crate) fn unit_to_si(label: &str, expected: Option<spindlelab_grammar::Dimension>) -> (f64, String) {
+    let label = label.trim();
+    if label.is_empty() {
+        return (1.0, String::new());
+    }
+    if label.split(|c: char| !c.is_alphabetic()).any(|w| w == "g") {
+        return (1.0, label.to_string());
+    }
+    match spindlelab_grammar::parse_unit(label) {
+        Ok(u) if expected.is_none_or(|d| d == u.dim) => {
+            if u.scale == 1.0 {
+                (1.0, label.to_string())
+            } else {
+                (u.scale, u.dim.si_unit())
+            }
+        }
+        _ => (1.0, label.to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_labels_come_to_si() {
+        assert_eq!(unit_to_si("m/N", None), (1.0, "m/N".to_string()));
+        let (s, sym) = unit_to_si("mm", None);
+        assert_eq!((s, sym.as_str()), (1e-3, "m"));
+        // `g` parses as grams; where an acceleration is expected it stays as written.
+        assert_eq!(unit_to_si("g", Some(spindlelab_grammar::Dimension::ACCELERATION)), (1.0, "g".to_string()));
+        assert_eq!(unit_to_si("g/N", None), (1.0, "g/N".to_string()));
+        assert_eq!(unit_to_si("kg", None), (1.0, "kg".to_string()));
+        assert_eq!(unit_to_si("NONE?", None), (1.0, "NONE?".to_string()));
+    }
+
+    #[test]
+    fn locations_print_as_path_line_column() {
+        assert_eq!(Loc::new("a.csv", 3, 7).to_string(), "a.csv:3:7");
+        assert_eq!(Loc::new("a.csv", 3, 0).to_string(), "a.csv:3");
+        assert_eq!(Loc::new("a.csv", 0, 0).to_string(), "a.csv");
+    }
+}

@@ -1,0 +1,155 @@
+//! `read.time_series` and `read.frf`: measured data from CSV or UFF (dataset 58/58b) files.
+//!
+//! The file is a parameter: the recipe names it relative to its own folder, and its
+//! contents are hashed into the cache key, so editing the data reruns what depends on it.
+
+use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{PortType, Value};
+use std::path::Path;
+
+const FORMATS: &[&str] = &["auto", "csv", "uff"];
+
+fn file_param() -> Field {
+    Field::req("file", T::File, "the data file, relative to the recipe's folder")
+}
+
+fn format_param() -> Field {
+    Field::def(
+        "format",
+        T::Choice(FORMATS),
+        "auto",
+        "file layout; `auto` goes by the extension (`.csv`, `.uff`/`.unv`), else by the contents",
+    )
+}
+
+fn dataset_param(what: &str) -> Field {
+    let doc: &'static str = match what {
+        "frf" => "UFF only: which dataset 58 of the file to read, counting from 1",
+        _ => {
+            "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel"
+        }
+    };
+    Field::opt("dataset", T::Integer { min: 1, max: 1_000_000 }, doc)
+}
+
+/// The file and its layout, as the parameters give them.
+fn source(params: &Params) -> Result<(&Path, FileFormat), NodeError> {
+    let path = params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
+    let format = match params.text("format") {
+        Some("csv") => FileFormat::Csv,
+        Some("uff") => FileFormat::Uff,
+        _ => FileFormat::detect(path).map_err(read_error)?,
+    };
+    if format == FileFormat::Csv && params.int("dataset").is_some() {
+        return Err(NodeError::param("dataset", format!("applies to UFF files; {} is CSV", path.display())));
+    }
+    Ok((path, format))
+}
+
+fn read_error(e: FormatError) -> NodeError {
+    NodeError::param("file", e.to_string())
+}
+
+fn dataset(params: &Params) -> Option<usize> {
+    params.int("dataset").and_then(|k| usize::try_from(k).ok())
+}
+
+/// `read.time_series`: a time series from a CSV or UFF file.
+pub struct ReadTimeSeries {
+    spec: NodeSpec,
+}
+
+impl Default for ReadTimeSeries {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ReadTimeSeries {
+    pub fn new() -> Self {
+        ReadTimeSeries {
+            spec: NodeSpec {
+                kind: "read.time_series",
+                version: 1,
+                description: "Reads a time series from a CSV file (as outputs write it) or from UFF dataset 58/58b time responses; units to SI.",
+                inputs: vec![],
+                outputs: vec![PortSpec::new("series", PortType::TimeSeries, "the channels of the file, in SI units")],
+                params: vec![file_param(), format_param(), dataset_param("time")],
+            },
+        }
+    }
+}
+
+impl Node for ReadTimeSeries {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (path, format) = source(ctx.params)?;
+        let loaded = formats::read_time_series(path, format, dataset(ctx.params)).map_err(read_error)?;
+        for note in loaded.notes {
+            ctx.warn(note);
+        }
+        Ok([("series".to_string(), Value::TimeSeries(loaded.value))].into_iter().collect())
+    }
+
+    /// Raw records are large and as quick to read again from the file as from the cache.
+    fn cacheable(&self) -> bool {
+        false
+    }
+}
+
+/// `read.frf`: an FRF from a CSV or UFF file.
+pub struct ReadFrf {
+    spec: NodeSpec,
+}
+
+impl Default for ReadFrf {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ReadFrf {
+    pub fn new() -> Self {
+        ReadFrf {
+            spec: NodeSpec {
+                kind: "read.frf",
+                version: 1,
+                description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4); units to SI.",
+                inputs: vec![],
+                outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF, frequencies in Hz, values in SI units")],
+                params: vec![
+                    file_param(),
+                    format_param(),
+                    dataset_param("frf"),
+                    Field::opt(
+                        "direction",
+                        T::Choice(&["x", "y", "z"]),
+                        "UFF: take the FRF whose response is in this direction; CSV: the direction of a file without `# direction`",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+impl Node for ReadFrf {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (path, format) = source(ctx.params)?;
+        let select =
+            FrfSelect { dataset: dataset(ctx.params), direction: ctx.params.text("direction").map(str::to_string) };
+        let loaded = formats::read_frf(path, format, &select).map_err(read_error)?;
+        for note in loaded.notes {
+            ctx.warn(note);
+        }
+        Ok([("frf".to_string(), Value::Frf(loaded.value))].into_iter().collect())
+    }
+}
