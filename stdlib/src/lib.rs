@@ -4,6 +4,7 @@
 //! I/O; [`nodes`] adapts them to the engine's node trait. [`register`] is the one place
 //! where built-in kinds are listed.
 
+pub mod compare;
 pub mod error_motion;
 pub mod filter;
 pub mod frf;
@@ -22,6 +23,7 @@ use std::sync::Arc;
 pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ImpactSimulate::new()));
     registry.register(Arc::new(nodes::FrfEstimate::new()));
+    registry.register(Arc::new(nodes::FrfCompare::new()));
     registry.register(Arc::new(nodes::ImpactSegment::new()));
     registry.register(Arc::new(nodes::PhaseCorrect::new()));
     registry.register(Arc::new(nodes::PhaseMeasure::new()));

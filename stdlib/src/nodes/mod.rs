@@ -1,5 +1,6 @@
 //! Node adapters: each wraps a physics kernel of this crate as a recipe node kind.
 
+mod compare;
 mod expr;
 mod frf;
 mod impact;
@@ -9,6 +10,7 @@ mod runout;
 mod segment;
 mod table;
 
+pub use compare::FrfCompare;
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;

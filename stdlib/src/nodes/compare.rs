@@ -1,0 +1,111 @@
+//! `frf.compare`: an FRF against a reference, judged in the reference's mode bands.
+
+use crate::compare::{self, Region};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{Column, PortType, Scalar, Table, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct FrfCompare {
+    spec: NodeSpec,
+}
+
+impl Default for FrfCompare {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrfCompare {
+    pub fn new() -> Self {
+        FrfCompare {
+            spec: NodeSpec {
+                kind: "frf.compare",
+                version: 1,
+                description: "Compares an FRF with a reference (rig truth, model or another measurement): magnitude ratio and phase error per line, and their worst values in the reference's mode bands where the coherence is high.",
+                inputs: vec![
+                    PortSpec::new("frf", PortType::Frf, "the FRF under test"),
+                    PortSpec::new(
+                        "reference",
+                        PortType::Frf,
+                        "the reference; interpolated onto the FRF's grid if needed",
+                    ),
+                ],
+                outputs: vec![
+                    PortSpec::new(
+                        "lines",
+                        PortType::Table,
+                        "per line: frequency, magnitude ratio, phase error, judged (0/1)",
+                    ),
+                    PortSpec::new("magnitude_error", PortType::Scalar, "largest | |H|/|H_ref| − 1 | over judged lines"),
+                    PortSpec::new("phase_error", PortType::Scalar, "largest |arg(H/H_ref)| over judged lines (rad)"),
+                ],
+                params: vec![
+                    Field::def(
+                        "region",
+                        T::Choice(&["modes", "all"]),
+                        "modes",
+                        "judge the half-power band of each reference mode, or every line",
+                    ),
+                    Field::def(
+                        "min_coherence",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "0.9",
+                        "lines with lower coherence are not judged",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+impl Node for FrfCompare {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        if p.f64("min_coherence").is_some_and(|c| !(0.0..=1.0).contains(&c)) {
+            return Err(NodeError::param("min_coherence", "must lie in [0, 1]"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (Value::Frf(a), Value::Frf(b)) = (ctx.input("frf")?, ctx.input("reference")?) else {
+            return Err(NodeError::input("frf", "expected FRFs"));
+        };
+        let region = if ctx.params.text("region") == Some("all") { Region::All } else { Region::Modes };
+        let min_coherence = ctx.params.f64("min_coherence").unwrap_or(0.9);
+        let c = compare::compare(
+            &a.freq_hz,
+            &a.values,
+            a.coherence.as_deref(),
+            &b.freq_hz,
+            &b.values,
+            region,
+            min_coherence,
+        )
+        .map_err(|e| NodeError::input("frf", e.to_string()))?;
+        if c.resampled {
+            ctx.warn("the reference is on another frequency grid: interpolated linearly onto the FRF's lines");
+        }
+        let col =
+            |name: &str, unit: &str, values: Vec<f64>| Column { name: name.into(), unit: UnitLabel::new(unit), values };
+        let table = Table {
+            columns: vec![
+                col("frequency", "Hz", c.freq_hz),
+                col("magnitude_ratio", "", c.magnitude_ratio),
+                col("phase_error", "rad", c.phase_error),
+                col("judged", "", c.judged.iter().map(|&j| if j { 1.0 } else { 0.0 }).collect()),
+            ],
+        };
+        Ok([
+            ("lines".to_string(), Value::Table(table)),
+            ("magnitude_error".to_string(), Value::Scalar(Scalar::new(c.max_magnitude_error, ""))),
+            ("phase_error".to_string(), Value::Scalar(Scalar::new(c.max_phase_error, "rad"))),
+        ]
+        .into_iter()
+        .collect())
+    }
+}
