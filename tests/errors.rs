@@ -540,7 +540,7 @@ fn output_files_must_stay_inside_be_supported_and_distinct() {
     assert_at(&e, f, 14, 33);
     assert_has(&e, &["output file `/tmp/absolute.csv` must stay inside the output directory"]);
     assert_at(&e, f, 15, 33);
-    assert_has(&e, &["unsupported output format `txt`", "name the file `.csv` or `.json`"]);
+    assert_has(&e, &["unsupported output format `txt`", "name the file `.csv`, `.json` or `.uff`"]);
     assert_at(&e, f, 16, 33);
     assert_has(&e, &["two outputs write `force.csv`"]);
     assert_at(&e, f, 18, 40);
