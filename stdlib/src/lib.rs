@@ -21,4 +21,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::FrfEstimate::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
+    registry.register(Arc::new(nodes::TachDecode::new()));
+    registry.register(Arc::new(nodes::ErrorsSeparate::new()));
+    registry.register(Arc::new(nodes::LdvIntegrate::new()));
 }
