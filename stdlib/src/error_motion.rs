@@ -95,7 +95,9 @@ impl Default for SeparationOptions {
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SeparationError {
     /// The probe records differ in length.
-    #[error("probe `{probe}` has {len} samples but probe `a` has {expected}: the three probes must be sampled together")]
+    #[error(
+        "probe `{probe}` has {len} samples but probe `a` has {expected}: the three probes must be sampled together"
+    )]
     LengthMismatch {
         /// The probe that differs.
         probe: &'static str,
@@ -105,7 +107,9 @@ pub enum SeparationError {
         expected: usize,
     },
     /// Probes and tachometer were sampled at different rates.
-    #[error("the probes are sampled at {probes} Hz but the tachometer at {tach} Hz: decode the tachometer of the same record")]
+    #[error(
+        "the probes are sampled at {probes} Hz but the tachometer at {tach} Hz: decode the tachometer of the same record"
+    )]
     SampleRateMismatch {
         /// Probe sample rate, Hz.
         probes: f64,
@@ -123,7 +127,9 @@ pub enum SeparationError {
         value: f64,
     },
     /// Fewer than two complete revolutions.
-    #[error("{found} complete revolution(s) in the record; at least 2 are needed to separate synchronous from asynchronous motion")]
+    #[error(
+        "{found} complete revolution(s) in the record; at least 2 are needed to separate synchronous from asynchronous motion"
+    )]
     TooFewRevolutions {
         /// Complete revolutions available.
         found: usize,
@@ -214,7 +220,8 @@ pub fn unrecoverable_harmonics(sigma: f64, rho: f64, max_k: usize, tolerance: f6
     (2..=max_k)
         .filter(|&k| {
             let (al, be) = harmonic_gain(k, sigma, rho);
-            !(al * al + be * be >= tolerance)
+            let g = al * al + be * be;
+            g.is_nan() || g < tolerance
         })
         .collect()
 }
@@ -499,9 +506,8 @@ impl Spectral {
         // R and the form part of y share one inverse transform: R + i·Ry, both real.
         self.buf.fill(Complex64::new(0.0, 0.0));
         let i = Complex64::new(0.0, 1.0);
-        for k in 1..n / 2 {
-            let r = form_hat[k];
-            let ry = r * self.yk[k];
+        for (k, (&r, &yk)) in form_hat.iter().zip(&self.yk).enumerate().take(n / 2).skip(1) {
+            let ry = r * yk;
             self.buf[k] = r + i * ry;
             self.buf[n - k] = r.conj() + i * ry.conj();
         }
@@ -566,7 +572,7 @@ fn ptv(v: &[f64]) -> f64 {
 fn fft_friendly_floor(m: usize) -> usize {
     let smooth = |mut v: usize| {
         for p in [2, 3, 5, 7] {
-            while v % p == 0 {
+            while v.is_multiple_of(p) {
                 v /= p;
             }
         }
@@ -891,7 +897,7 @@ impl Accumulators {
                 let len = BLOCK.min(n - jb);
                 let r = jb..jb + len;
                 let (va, vb, vc) = (&mut self.va[..len], &mut self.vb[..len], &mut self.vc[..len]);
-                interpolate3(probes, offsets, p0 + jb as f64 * step, step, &self.ramp, va, vb, vc);
+                interpolate3(probes, offsets, p0 + jb as f64 * step, step, &self.ramp, [&mut *va, &mut *vb, &mut *vc]);
                 let (sa, sb, sc) = (&mut self.seg.a[r.clone()], &mut self.seg.b[r.clone()], &mut self.seg.c[r.clone()]);
                 let sq_x = &mut self.sq_x[r.clone()];
                 let sq_y = &mut self.sq_y[r.clone()];
@@ -945,16 +951,8 @@ impl Accumulators {
 /// `p + j·step`, j = 0..len. Between two carries of the fraction the sample index advances by
 /// the whole part of the step, so each run is a plain strided loop (contiguous for step < 2)
 /// that the compiler vectorizes.
-fn interpolate3(
-    probes: &ProbeRecords<'_>,
-    offsets: [f64; 3],
-    p: f64,
-    step: f64,
-    ramp: &[f64],
-    va: &mut [f64],
-    vb: &mut [f64],
-    vc: &mut [f64],
-) {
+fn interpolate3(probes: &ProbeRecords<'_>, offsets: [f64; 3], p: f64, step: f64, ramp: &[f64], out: [&mut [f64]; 3]) {
+    let [va, vb, vc] = out;
     let len = va.len();
     let [oa, ob, oc] = offsets;
     let whole = step.floor();
@@ -1395,7 +1393,9 @@ mod tests {
             let r = sep.sync_x[j] * t.cos() + sep.sync_y[j] * t.sin();
             assert!((r - sep.sync_r[j]).abs() < 1e-15);
         }
-        assert!((sep.ptv.form - ptv(&sep.angle.iter().map(|&t| rig.expected_form(t)).collect::<Vec<_>>())).abs() < 2e-9);
+        assert!(
+            (sep.ptv.form - ptv(&sep.angle.iter().map(|&t| rig.expected_form(t)).collect::<Vec<_>>())).abs() < 2e-9
+        );
         assert!((sep.ptv.x - ptv(&ex)).abs() < 2e-9 && (sep.ptv.y - ptv(&ey)).abs() < 2e-9);
         // Spectrum: 44 UPR in y with 25 nm, in the form with |0.1 − 0.2i| µm; nothing at 45.
         assert!((sep.sync_spectrum.y[44] - 25e-9).abs() < 0.5e-9, "{}", sep.sync_spectrum.y[44]);
@@ -1425,7 +1425,8 @@ mod tests {
         // Rotating-sensitive σ² = cos²θ σx² + sin²θ σy² for uncorrelated x and y.
         let j = sep.samples_per_rev / 8;
         let t = sep.angle[j];
-        let pred = (t.cos().powi(2) * sep.async_sigma_x[j].powi(2) + t.sin().powi(2) * sep.async_sigma_y[j].powi(2)).sqrt();
+        let pred =
+            (t.cos().powi(2) * sep.async_sigma_x[j].powi(2) + t.sin().powi(2) * sep.async_sigma_y[j].powi(2)).sqrt();
         assert!((sep.async_sigma_r[j] / pred - 1.0).abs() < 0.3);
         assert!(sep.async_value_x > 1.7 * ax && sep.async_value_x <= 2.0 * ax + 1e-12, "{}", sep.async_value_x);
         assert!(sep.async_value_y > 1.7 * ay && sep.async_value_y <= 2.0 * ay + 1e-12);
@@ -1455,7 +1456,7 @@ mod tests {
         assert!(st.revolutions.iter().all(|&c| c == sep.revolutions / 10 || c == sep.revolutions / 10 + 1));
         let mut ex: Vec<f64> = sep.angle.iter().map(|&t| rig.expected_sync(t).0).collect();
         remove_mean(&mut ex);
-        for j in 0..sep.samples_per_rev {
+        for (j, &truth_x) in ex.iter().enumerate() {
             let truth_form = rig.expected_form(sep.angle[j]);
             assert!(
                 (truth_form - st.form_mean[j]).abs() <= 3.0 * st.form_sigma[j],
@@ -1463,7 +1464,7 @@ mod tests {
                 st.form_mean[j],
                 st.form_sigma[j]
             );
-            assert!((ex[j] - st.x_mean[j]).abs() <= 3.0 * st.x_sigma[j], "x at {j}");
+            assert!((truth_x - st.x_mean[j]).abs() <= 3.0 * st.x_sigma[j], "x at {j}");
         }
         // The band is informative: a few nm against a micrometre of form.
         assert!(st.form_sigma_mean > 1e-9 && st.form_sigma_mean < 15e-9, "form σ {}", st.form_sigma_mean);
@@ -1525,10 +1526,12 @@ mod tests {
         assert!(!sep.nyquist_exceeded);
         let revs = decode(&s.tach, rig.fs, 0.0, &TachOptions::default()).unwrap();
         let probes = ProbeRecords { a: &s.a, b: &s.b, c: &s.c, sample_rate: rig.fs, t0: 0.0 };
-        let over = separate(&probes, &revs, &SeparationOptions { samples_per_rev: Some(2000), ..opts.clone() }).unwrap();
+        let over =
+            separate(&probes, &revs, &SeparationOptions { samples_per_rev: Some(2000), ..opts.clone() }).unwrap();
         assert!(over.nyquist_exceeded && over.samples_per_rev == 2000);
         // Any even grid size is accepted when asked for.
-        let plain = separate(&probes, &revs, &SeparationOptions { samples_per_rev: Some(1234), ..opts.clone() }).unwrap();
+        let plain =
+            separate(&probes, &revs, &SeparationOptions { samples_per_rev: Some(1234), ..opts.clone() }).unwrap();
         assert_eq!(plain.samples_per_rev, 1234);
         let odd = separate(&probes, &revs, &SeparationOptions { samples_per_rev: Some(1001), ..opts.clone() });
         assert!(matches!(odd, Err(SeparationError::InvalidSamplesPerRev { n: 1001, .. })));
@@ -1569,7 +1572,10 @@ mod tests {
         let e = separate(&ok(&s.a, &s.b, &s.c), &revs, &many).unwrap_err();
         assert!(matches!(e, SeparationError::InvalidSegments { segments: 10, .. }), "{e}");
         let tilted = SeparationOptions { angles: [0.1, 1.7, 3.5], ..opts.clone() };
-        assert!(matches!(separate(&ok(&s.a, &s.b, &s.c), &revs, &tilted), Err(SeparationError::DegenerateAngles { .. })));
+        assert!(matches!(
+            separate(&ok(&s.a, &s.b, &s.c), &revs, &tilted),
+            Err(SeparationError::DegenerateAngles { .. })
+        ));
         let line = SeparationOptions { angles: [0.0, 90f64.to_radians(), 270f64.to_radians()], ..opts.clone() };
         assert!(matches!(separate(&ok(&s.a, &s.b, &s.c), &revs, &line), Err(SeparationError::DegenerateAngles { .. })));
         let late = crate::tach::Revolutions::from_edges(vec![0.01, 0.03, 0.05, 10.0], rig.fs).unwrap();

@@ -277,7 +277,11 @@ mod tests {
         let x = sine(f, 0.7, n);
         // The causal pass delays the sine ...
         let causal = phasor(&s.filter(&x), f, 5000, n) / phasor(&x, f, 5000, n);
-        assert!((causal.arg() - s.response(f).arg()).abs() < 1e-6 && causal.arg() < -0.1, "causal phase {}", causal.arg());
+        assert!(
+            (causal.arg() - s.response(f).arg()).abs() < 1e-6 && causal.arg() < -0.1,
+            "causal phase {}",
+            causal.arg()
+        );
         // ... the zero-phase pass does not, and the gain is |H|².
         let y = s.filtfilt(&x);
         let p = phasor(&y, f, 2000, 8000) / phasor(&x, f, 2000, 8000);
@@ -285,7 +289,8 @@ mod tests {
         assert!((p.norm() - s.response(f).norm_sqr()).abs() < 1e-9);
         // Away from the ends the output is the input; the ends stay within a small transient
         // thanks to the odd extension and the steady-state start.
-        let dev = |r: std::ops::Range<usize>| x[r.clone()].iter().zip(&y[r]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let dev =
+            |r: std::ops::Range<usize>| x[r.clone()].iter().zip(&y[r]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(dev(500..n - 500) < 1e-6, "interior {}", dev(500..n - 500));
         assert!(dev(0..n) < 5e-3, "ends {}", dev(0..n));
     }

@@ -107,7 +107,7 @@ impl Revolutions {
         if edges.len() < 2 {
             return Err(TachError::TooFewEdges { found: edges.len(), threshold: f64::NAN });
         }
-        if let Some(i) = edges.windows(2).position(|w| !(w[1] > w[0]) || !w[0].is_finite() || !w[1].is_finite()) {
+        if let Some(i) = edges.windows(2).position(|w| !w[0].is_finite() || !w[1].is_finite() || w[1] <= w[0]) {
             return Err(TachError::InvalidOption {
                 name: "edges",
                 value: edges[i + 1],
@@ -213,7 +213,11 @@ pub fn decode(samples: &[f64], sample_rate: f64, t0: f64, opts: &TachOptions) ->
         });
     }
     if !(opts.max_drift.is_finite() && opts.max_drift > 0.0) {
-        return Err(TachError::InvalidOption { name: "max_drift", value: opts.max_drift, requirement: "must be positive" });
+        return Err(TachError::InvalidOption {
+            name: "max_drift",
+            value: opts.max_drift,
+            requirement: "must be positive",
+        });
     }
     if samples.len() < 2 {
         return Err(TachError::TooShort { len: samples.len() });
@@ -267,7 +271,7 @@ fn levels(samples: &[f64]) -> Result<(f64, f64), TachError> {
         min = min.min(value);
         max = max.max(value);
     }
-    if !(max - min > 1e-12 * max.abs().max(min.abs()).max(1e-300)) {
+    if max - min <= 1e-12 * max.abs().max(min.abs()).max(1e-300) {
         return Err(TachError::Flat { min, max });
     }
     const BINS: usize = 4096;
@@ -479,18 +483,12 @@ mod tests {
     fn bad_records_are_errors() {
         let mut x = record(3000.0, 0.3, 10_000, 2.0, 0.0);
         x[1234] = f64::NAN;
-        assert!(matches!(
-            decode(&x, FS, 0.0, &TachOptions::default()),
-            Err(TachError::NonFinite { index: 1234, .. })
-        ));
+        assert!(matches!(decode(&x, FS, 0.0, &TachOptions::default()), Err(TachError::NonFinite { index: 1234, .. })));
         x[1234] = 5.0;
         assert!(matches!(decode(&[5.0; 1000], FS, 0.0, &TachOptions::default()), Err(TachError::Flat { .. })));
         // One revolution's worth: a single edge.
         let one = record(600.0, 0.5, 12_000, 2.0, 0.0);
-        assert!(matches!(
-            decode(&one, FS, 0.0, &TachOptions::default()),
-            Err(TachError::TooFewEdges { found: 1, .. })
-        ));
+        assert!(matches!(decode(&one, FS, 0.0, &TachOptions::default()), Err(TachError::TooFewEdges { found: 1, .. })));
         assert!(matches!(decode(&[1.0], FS, 0.0, &TachOptions::default()), Err(TachError::TooShort { len: 1 })));
         let fixed = decode(&x[2000..], FS, 0.0, &TachOptions { threshold: Some(9.0), ..Default::default() });
         assert!(matches!(fixed, Err(TachError::TooFewEdges { found: 0, .. })));

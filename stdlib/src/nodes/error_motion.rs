@@ -38,7 +38,7 @@ fn tach_options(p: &Params) -> TachOptions {
 
 fn validate_tach(p: &Params) -> Result<(), NodeError> {
     if let Some(d) = p.f64("max_drift")
-        && !(d > 0.0)
+        && (d.is_nan() || d <= 0.0)
     {
         return Err(NodeError::param("max_drift", format!("must be positive, got {d}")));
     }
@@ -98,9 +98,17 @@ impl TachDecode {
                 kind: "tach.decode",
                 version: 1,
                 description: "Revolutions from the once-per-revolution tachometer: sub-sample falling edges (θ = 0, §3.1.1), speed per revolution and mean speed.",
-                inputs: vec![PortSpec::new("signal", PortType::TimeSeries, "record holding the tachometer channel (V)")],
+                inputs: vec![PortSpec::new(
+                    "signal",
+                    PortType::TimeSeries,
+                    "record holding the tachometer channel (V)",
+                )],
                 outputs: vec![
-                    PortSpec::new("revolutions", PortType::Table, "index, start time (s) and speed (rpm) of each complete revolution"),
+                    PortSpec::new(
+                        "revolutions",
+                        PortType::Table,
+                        "index, start time (s) and speed (rpm) of each complete revolution",
+                    ),
                     PortSpec::new("speed", PortType::Scalar, "mean spindle speed (rad/s)"),
                 ],
                 params: TACH_FIELDS.to_vec(),
@@ -162,14 +170,26 @@ impl ErrorsSeparate {
                     "record with the tachometer (V) and three probe channels (m, or m/s with `sensor: velocity`)",
                 )],
                 outputs: vec![
-                    PortSpec::new("form", PortType::Table, "artifact form error per angle with the segment σ and the ±3σ band"),
+                    PortSpec::new(
+                        "form",
+                        PortType::Table,
+                        "artifact form error per angle with the segment σ and the ±3σ band",
+                    ),
                     PortSpec::new(
                         "motion",
                         PortType::Table,
                         "synchronous x, y, r and asynchronous σ per angle, with the segment σ of synchronous x and y",
                     ),
-                    PortSpec::new("spectrum", PortType::Table, "synchronous amplitudes and form amplitude per undulation per revolution"),
-                    PortSpec::new("async_spectrum", PortType::Table, "amplitude spectrum of the asynchronous x and y (Hz)"),
+                    PortSpec::new(
+                        "spectrum",
+                        PortType::Table,
+                        "synchronous amplitudes and form amplitude per undulation per revolution",
+                    ),
+                    PortSpec::new(
+                        "async_spectrum",
+                        PortType::Table,
+                        "amplitude spectrum of the asynchronous x and y (Hz)",
+                    ),
                     PortSpec::new("summary", PortType::Table, "one row of figures of merit"),
                 ],
                 params: vec![
@@ -239,7 +259,9 @@ fn separation_err(e: SeparationError) -> NodeError {
         SeparationError::Unrecoverable { .. } => {
             NodeError::param("angles", format!("{e} (`allow_unrecoverable: true`)"))
         }
-        SeparationError::InvalidOption { name: "gain_tolerance", .. } => NodeError::param("gain_tolerance", e.to_string()),
+        SeparationError::InvalidOption { name: "gain_tolerance", .. } => {
+            NodeError::param("gain_tolerance", e.to_string())
+        }
         _ => NodeError::input("signal", e.to_string()),
     }
 }
@@ -268,17 +290,17 @@ impl Node for ErrorsSeparate {
             return Err(NodeError::param("angles", "probe A must be at 0: angles count from probe A"));
         }
         if let Some(n) = p.int("samples_per_rev")
-            && n % 2 == 1
+            && n.rem_euclid(2) == 1
         {
             return Err(NodeError::param("samples_per_rev", format!("must be even, got {n}")));
         }
         if let Some(t) = p.f64("gain_tolerance")
-            && !(t >= 0.0)
+            && (t.is_nan() || t < 0.0)
         {
             return Err(NodeError::param("gain_tolerance", format!("must not be negative, got {t}")));
         }
         if let Some(f) = p.f64("async_max_frequency")
-            && !(f > 0.0)
+            && (f.is_nan() || f <= 0.0)
         {
             return Err(NodeError::param("async_max_frequency", format!("must be positive, got {f}")));
         }
@@ -490,7 +512,7 @@ impl Node for LdvIntegrate {
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         validate_tach(p)?;
         if let Some(w) = p.f64("spindle_speed")
-            && !(w > 0.0)
+            && (w.is_nan() || w <= 0.0)
         {
             return Err(NodeError::param("spindle_speed", format!("must be positive, got {w}")));
         }
@@ -519,10 +541,12 @@ impl Node for LdvIntegrate {
         if wanted.is_empty() {
             return Err(NodeError::param("channels", "no channel to integrate"));
         }
-        let mut out = TimeSeries { sample_rate: ts.sample_rate, t0: ts.t0, channels: Vec::with_capacity(ts.channels.len()) };
+        let mut out =
+            TimeSeries { sample_rate: ts.sample_rate, t0: ts.t0, channels: Vec::with_capacity(ts.channels.len()) };
         for ch in &ts.channels {
-            if wanted.iter().any(|w| *w == ch.name) {
-                let samples = integrate_velocity(&ch.samples, ts.sample_rate, spindle_hz).map_err(|e| ldv_err(e, &ch.name))?;
+            if wanted.contains(&ch.name) {
+                let samples =
+                    integrate_velocity(&ch.samples, ts.sample_rate, spindle_hz).map_err(|e| ldv_err(e, &ch.name))?;
                 out.channels.push(Channel { name: ch.name.clone(), unit: UnitLabel::new("m"), samples });
             } else {
                 out.channels.push(ch.clone());
@@ -581,7 +605,11 @@ mod tests {
     }
 
     /// Runs `node` on `signal` with parameters `set`; the outputs and the warnings.
-    fn run_node(node: &dyn Node, signal: TimeSeries, set: &[(&str, &str)]) -> (Result<Outputs, NodeError>, Vec<String>) {
+    fn run_node(
+        node: &dyn Node,
+        signal: TimeSeries,
+        set: &[(&str, &str)],
+    ) -> (Result<Outputs, NodeError>, Vec<String>) {
         let p = params(node.spec(), set);
         node.validate(&p).expect("valid parameters");
         let mut inputs = IndexMap::new();
@@ -598,7 +626,11 @@ mod tests {
     fn record(rig: &Rig) -> TimeSeries {
         let s = rig.generate();
         let unit = if rig.velocity { "m/s" } else { "m" };
-        let ch = |name: &str, unit: &str, samples: Vec<f64>| Channel { name: name.into(), unit: UnitLabel::new(unit), samples };
+        let ch = |name: &str, unit: &str, samples: Vec<f64>| Channel {
+            name: name.into(),
+            unit: UnitLabel::new(unit),
+            samples,
+        };
         TimeSeries {
             sample_rate: rig.fs,
             t0: 0.0,
@@ -647,7 +679,7 @@ mod tests {
         let out = out.unwrap();
         let form = table(&out, "form");
         let n = form.rows();
-        assert!(n > 1900 && n % 2 == 0);
+        assert!(n > 1900 && n.is_multiple_of(2));
         assert_eq!(column(form, "angle").unit.symbol, "rad");
         let angle = &column(form, "angle").values;
         let err = column(form, "form")
@@ -730,7 +762,8 @@ mod tests {
             t2 += truth * truth;
         }
         assert!((e2 / t2).sqrt() < 0.01, "relative error {}", (e2 / t2).sqrt());
-        let (out, _) = run_node(&LdvIntegrate::new(), signal.clone(), &[("channels", "b"), ("spindle_speed", "3000 rpm")]);
+        let (out, _) =
+            run_node(&LdvIntegrate::new(), signal.clone(), &[("channels", "b"), ("spindle_speed", "3000 rpm")]);
         let Value::TimeSeries(ts) = &out.unwrap()["signal"] else { panic!() };
         assert_eq!(ts.channel("b").unwrap().unit.symbol, "m");
         assert_eq!(ts.channel("a").unwrap().unit.symbol, "m/s");
