@@ -550,8 +550,8 @@ fn split_amplitudes(z: &[Complex64]) -> (Vec<f64>, Vec<f64>) {
         let xk = (zk + zc) * 0.5;
         let yk = (zk - zc) * Complex64::new(0.0, -0.5);
         let s = if k == 0 || 2 * k == n { 1.0 } else { 2.0 } / n as f64;
-        ax.push(s * xk.norm());
-        ay.push(s * yk.norm());
+        ax.push(s * xk.norm_sqr().sqrt());
+        ay.push(s * yk.norm_sqr().sqrt());
     }
     (ax, ay)
 }
@@ -709,10 +709,6 @@ pub fn separate(
         }));
         acc.segment(probes, offsets, &place, r0, geo.ky);
         let sums = &acc.seg;
-        if sums.a.iter().chain(&sums.b).chain(&sums.c).any(|v| !v.is_finite()) {
-            let to = (pos(edges[r1]).ceil() as usize).min(len - 1);
-            return Err(first_non_finite(probes, pos(edges[r0]).max(0.0) as usize, to));
-        }
         let inv_count = 1.0 / (r1 - r0) as f64;
         let mut mean = Means::zeros(n);
         for (t, (m, v)) in [
@@ -734,6 +730,12 @@ pub fn separate(
                 keep(r_this.expect("second set solved"));
             }
         }
+    }
+
+    // A non-finite sample that entered the interpolation has spread into the sums.
+    if total.a.iter().chain(&total.b).chain(&total.c).any(|v| !v.is_finite()) {
+        let to = (pos(edges[n_rev]).ceil() as usize).min(len - 1);
+        return Err(first_non_finite(probes, first, to));
     }
 
     // The whole record (with the last segment when their number is odd).
@@ -798,7 +800,7 @@ pub fn separate(
     let (sx, sy) = spec.amplitudes2(&all.x, &all.y);
     let (sr, _) = spec.amplitudes2(&sync_r, &all.form);
     let scale = 2.0 / n as f64;
-    let form_amp: Vec<f64> = all.form_hat.iter().map(|h| scale * h.norm()).collect();
+    let form_amp: Vec<f64> = all.form_hat.iter().map(|h| scale * h.norm_sqr().sqrt()).collect();
     let form_harmonics: Vec<(f64, f64)> = all.form_hat.iter().map(|h| (scale * h.re, -scale * h.im)).collect();
     let mean_period = revs.mean_period();
     let async_spectrum = opts.async_spectrum.then(|| acc.async_spectrum(ma, &mqy, n, n_rev, mean_period));
@@ -857,6 +859,10 @@ struct Accumulators {
     va: Vec<f64>,
     vb: Vec<f64>,
     vc: Vec<f64>,
+    /// Same for the second revolution of a pair.
+    wa: Vec<f64>,
+    wb: Vec<f64>,
+    wc: Vec<f64>,
     /// 0, 1, 2, … as f64 (the position within an interpolation run).
     ramp: Vec<f64>,
 }
@@ -879,12 +885,16 @@ impl Accumulators {
             va: vec![0.0; block],
             vb: vec![0.0; block],
             vc: vec![0.0; block],
+            wa: vec![0.0; block],
+            wb: vec![0.0; block],
+            wc: vec![0.0; block],
             ramp: (0..block).map(|q| q as f64).collect(),
         }
     }
 
     /// Accumulates the revolutions of one segment, given as `(p0, step)`: grid point `j` of a
     /// revolution sits at sample position `p0 + j·step`. `r0` is the first revolution's index.
+    /// Revolutions are taken two at a time, so each accumulator is loaded and stored once per pair.
     fn segment(&mut self, probes: &ProbeRecords<'_>, offsets: [f64; 3], place: &[(f64, f64)], r0: usize, ky: [f64; 3]) {
         let n = self.n;
         self.seg.a.fill(0.0);
@@ -892,12 +902,27 @@ impl Accumulators {
         self.seg.c.fill(0.0);
         let [ka, kb, kc] = ky;
         let keep = !self.rec_x.is_empty();
-        for (q, &(p0, step)) in place.iter().enumerate() {
+        let mut q = 0;
+        while q < place.len() {
+            let pair = q + 1 < place.len();
             for jb in (0..n).step_by(BLOCK) {
                 let len = BLOCK.min(n - jb);
                 let r = jb..jb + len;
+                let (p0, step) = place[q];
                 let (va, vb, vc) = (&mut self.va[..len], &mut self.vb[..len], &mut self.vc[..len]);
                 interpolate3(probes, offsets, p0 + jb as f64 * step, step, &self.ramp, [&mut *va, &mut *vb, &mut *vc]);
+                let (wa, wb, wc) = (&mut self.wa[..len], &mut self.wb[..len], &mut self.wc[..len]);
+                if pair {
+                    let (p0, step) = place[q + 1];
+                    interpolate3(
+                        probes,
+                        offsets,
+                        p0 + jb as f64 * step,
+                        step,
+                        &self.ramp,
+                        [&mut *wa, &mut *wb, &mut *wc],
+                    );
+                }
                 let (sa, sb, sc) = (&mut self.seg.a[r.clone()], &mut self.seg.b[r.clone()], &mut self.seg.c[r.clone()]);
                 let sq_x = &mut self.sq_x[r.clone()];
                 let sq_y = &mut self.sq_y[r.clone()];
@@ -906,29 +931,54 @@ impl Accumulators {
                 let max_x = &mut self.max_x[r.clone()];
                 let min_y = &mut self.min_y[r.clone()];
                 let max_y = &mut self.max_y[r];
-                for j in 0..len {
-                    let (xa, xb, xc) = (va[j], vb[j], vc[j]);
-                    sa[j] += xa;
-                    sb[j] += xb;
-                    sc[j] += xc;
-                    let qy = ka * xa + kb * xb + kc * xc;
-                    sq_x[j] += xa * xa;
-                    sq_y[j] += qy * qy;
-                    sxy[j] += xa * qy;
-                    min_x[j] = if xa < min_x[j] { xa } else { min_x[j] };
-                    max_x[j] = if xa > max_x[j] { xa } else { max_x[j] };
-                    min_y[j] = if qy < min_y[j] { qy } else { min_y[j] };
-                    max_y[j] = if qy > max_y[j] { qy } else { max_y[j] };
+                if pair {
+                    for j in 0..len {
+                        let (xa, xb, xc) = (va[j], vb[j], vc[j]);
+                        let (ya, yb, yc) = (wa[j], wb[j], wc[j]);
+                        sa[j] += xa + ya;
+                        sb[j] += xb + yb;
+                        sc[j] += xc + yc;
+                        let qx = ka * xa + kb * xb + kc * xc;
+                        let qw = ka * ya + kb * yb + kc * yc;
+                        sq_x[j] += xa * xa + ya * ya;
+                        sq_y[j] += qx * qx + qw * qw;
+                        sxy[j] += xa * qx + ya * qw;
+                        let (lo, hi) = if xa < ya { (xa, ya) } else { (ya, xa) };
+                        min_x[j] = if lo < min_x[j] { lo } else { min_x[j] };
+                        max_x[j] = if hi > max_x[j] { hi } else { max_x[j] };
+                        let (lo, hi) = if qx < qw { (qx, qw) } else { (qw, qx) };
+                        min_y[j] = if lo < min_y[j] { lo } else { min_y[j] };
+                        max_y[j] = if hi > max_y[j] { hi } else { max_y[j] };
+                    }
+                } else {
+                    for j in 0..len {
+                        let (xa, xb, xc) = (va[j], vb[j], vc[j]);
+                        sa[j] += xa;
+                        sb[j] += xb;
+                        sc[j] += xc;
+                        let qy = ka * xa + kb * xb + kc * xc;
+                        sq_x[j] += xa * xa;
+                        sq_y[j] += qy * qy;
+                        sxy[j] += xa * qy;
+                        min_x[j] = if xa < min_x[j] { xa } else { min_x[j] };
+                        max_x[j] = if xa > max_x[j] { xa } else { max_x[j] };
+                        min_y[j] = if qy < min_y[j] { qy } else { min_y[j] };
+                        max_y[j] = if qy > max_y[j] { qy } else { max_y[j] };
+                    }
                 }
                 if keep {
-                    let at = (r0 + q) * n + jb;
-                    let (rx, ry) = (&mut self.rec_x[at..at + len], &mut self.rec_y[at..at + len]);
-                    for j in 0..len {
-                        rx[j] = va[j];
-                        ry[j] = ka * va[j] + kb * vb[j] + kc * vc[j];
+                    let revs: &[[&[f64]; 3]] = if pair { &[[va, vb, vc], [wa, wb, wc]] } else { &[[va, vb, vc]] };
+                    for (g, [a, b, c]) in revs.iter().enumerate() {
+                        let at = (r0 + q + g) * n + jb;
+                        let (rx, ry) = (&mut self.rec_x[at..at + len], &mut self.rec_y[at..at + len]);
+                        for j in 0..len {
+                            rx[j] = a[j];
+                            ry[j] = ka * a[j] + kb * b[j] + kc * c[j];
+                        }
                     }
                 }
             }
+            q += if pair { 2 } else { 1 };
         }
     }
 
@@ -975,7 +1025,14 @@ fn interpolate3(probes: &ProbeRecords<'_>, offsets: [f64; 3], p: f64, step: f64,
     }
     let mut j = 0;
     while j < len {
-        let run = if sf > 0.0 { ((1.0 - f) / sf).ceil().clamp(1.0, (len - j) as f64) as usize } else { len - j };
+        // Points before the fraction carries: the smallest m with f + m·sf ≥ 1.
+        let run = if sf > 0.0 {
+            let t = (1.0 - f) / sf;
+            let m = t as usize;
+            (if (m as f64) < t { m + 1 } else { m }).clamp(1, len - j)
+        } else {
+            len - j
+        };
         let (oa_, ob_, oc_) = (&mut va[j..j + run], &mut vb[j..j + run], &mut vc[j..j + run]);
         let ramp = &ramp[..run];
         if si == 1 {
