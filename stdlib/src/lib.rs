@@ -32,4 +32,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::RhaiEval::new()));
     registry.register(Arc::new(nodes::ReadTimeSeries::new()));
     registry.register(Arc::new(nodes::ReadFrf::new()));
+    registry.register(Arc::new(nodes::TachDecode::new()));
+    registry.register(Arc::new(nodes::ErrorsSeparate::new()));
+    registry.register(Arc::new(nodes::LdvIntegrate::new()));
 }

@@ -107,7 +107,7 @@ impl Revolutions {
         if edges.len() < 2 {
             return Err(TachError::TooFewEdges { found: edges.len(), threshold: f64::NAN });
         }
-        if let Some(i) = edges.windows(2).position(|w| !(w[1] > w[0]) || !w[0].is_finite() || !w[1].is_finite()) {
+        if let Some(i) = edges.windows(2).position(|w| !w[0].is_finite() || !w[1].is_finite() || w[1] <= w[0]) {
             return Err(TachError::InvalidOption {
                 name: "edges",
                 value: edges[i + 1],
@@ -271,7 +271,7 @@ fn levels(samples: &[f64]) -> Result<(f64, f64), TachError> {
         min = min.min(value);
         max = max.max(value);
     }
-    if !(max - min > 1e-12 * max.abs().max(min.abs()).max(1e-300)) {
+    if max - min <= 1e-12 * max.abs().max(min.abs()).max(1e-300) {
         return Err(TachError::Flat { min, max });
     }
     const BINS: usize = 4096;

@@ -1,6 +1,7 @@
 //! Node adapters: each wraps a physics kernel of this crate as a recipe node kind.
 
 mod compare;
+mod error_motion;
 mod expr;
 mod frf;
 mod impact;
@@ -11,6 +12,7 @@ mod segment;
 mod table;
 
 pub use compare::FrfCompare;
+pub use error_motion::{ErrorsSeparate, LdvIntegrate, TachDecode};
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
