@@ -7,6 +7,7 @@
 pub mod frf;
 pub mod impact;
 pub mod nodes;
+pub mod rig;
 pub mod signal;
 
 use spindlelab_engine::node::Registry;
@@ -18,4 +19,6 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::FrfEstimate::new()));
     registry.register(Arc::new(nodes::TableCollect::new()));
     registry.register(Arc::new(nodes::RhaiEval::new()));
+    registry.register(Arc::new(nodes::RigSimulate::new()));
+    registry.register(Arc::new(nodes::RigShaker::new()));
 }

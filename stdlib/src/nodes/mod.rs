@@ -3,9 +3,11 @@
 mod expr;
 mod frf;
 mod impact;
+mod rig;
 mod table;
 
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
+pub use rig::{RigShaker, RigSimulate};
 pub use table::TableCollect;
