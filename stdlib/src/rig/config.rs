@@ -19,6 +19,8 @@ pub const MAX_SAMPLES: usize = 50_000_000;
 pub const MAX_PROBES: usize = 26;
 /// Impact times are placed on a grid this many times finer than the sampling interval.
 pub const IMPACT_SUBSAMPLES: u32 = 16;
+/// Record length of the §2.1 model for each hit, s: a contact must end within it.
+pub const PULSE_WINDOW: f64 = 3.0e-3;
 /// Time after a first contact kept free for the pulse and a possible second hit, s
 /// (checked against `impact_offset` and `impact_interval`).
 pub const IMPACT_SPAN: f64 = 12.0e-3;
@@ -513,7 +515,7 @@ impl RigConfig {
         s.contact_position = h.contact;
         s.dt = h.dt;
         s.sample_rate = self.sample_rate * IMPACT_SUBSAMPLES as f64;
-        s.duration = 3.0e-3;
+        s.duration = PULSE_WINDOW;
         s
     }
 

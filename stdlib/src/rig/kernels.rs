@@ -146,25 +146,27 @@ struct Section {
 }
 
 /// Modes driven by one sampled input that is linear between samples. Each call of
-/// [`Chain::step`] with the inputs `F_j`, `F_{j+1}` returns the summed displacement and
-/// velocity at `t_j + span` (the delayed output instant) and advances every mode from `t_j`
-/// to `t_{j+1}`; both are exact for the piecewise-linear input.
+/// [`Chain::step`] with the inputs `F_j`, `F_{j+1}` returns the summed displacement (or
+/// velocity) at `t_j + span` (the delayed output instant) and advances every mode from
+/// `t_j` to `t_{j+1}`; both are exact for the piecewise-linear input.
 #[derive(Debug, Clone)]
 pub(crate) struct Chain {
     sections: Vec<Section>,
     states: Vec<[f64; 2]>,
+    /// Row of the fractional step that gives the output: 0 displacement, 1 velocity.
+    row: usize,
 }
 
 impl Chain {
     /// Modes `(ω rad/s, ζ, k N/m)` sampled every `h` s, with outputs `span ∈ (0, h]` after
-    /// each sample instant.
-    pub(crate) fn new(modes: &[(f64, f64, f64)], h: f64, span: f64) -> Chain {
+    /// each sample instant: displacements, or velocities when `velocity` is set.
+    pub(crate) fn new(modes: &[(f64, f64, f64)], h: f64, span: f64, velocity: bool) -> Chain {
         let sections: Vec<Section> = modes
             .iter()
             .map(|&(w, z, k)| Section { full: Step::new(w, z, k, h, h), frac: Step::new(w, z, k, h, span), omega: w })
             .collect();
         let states = vec![[0.0; 2]; sections.len()];
-        Chain { sections, states }
+        Chain { sections, states, row: usize::from(velocity) }
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -178,16 +180,16 @@ impl Chain {
 
     /// Output at `t_j + span`, then advance to `t_{j+1}`.
     #[inline(always)]
-    pub(crate) fn step(&mut self, f0: f64, f1: f64) -> (f64, f64) {
-        let mut q = 0.0;
-        let mut v = 0.0;
+    pub(crate) fn step(&mut self, f0: f64, f1: f64) -> f64 {
+        let r = self.row;
+        let mut out = 0.0;
         for (s, x) in self.sections.iter().zip(self.states.iter_mut()) {
-            let d = s.frac.apply(*x, f0, f1);
-            q += d[0];
-            v += d[1] * s.omega;
+            let p = &s.frac;
+            let d = p.phi[r][0] * x[0] + p.phi[r][1] * x[1] + p.a[r] * f0 + p.b[r] * f1;
+            out += if r == 0 { d } else { d * s.omega };
             *x = s.full.apply(*x, f0, f1);
         }
-        (q, v)
+        out
     }
 
     /// Stationary covariance of `(q, q̇/ω, F_j)` of a single-mode chain driven by independent

@@ -56,12 +56,12 @@ mod shaker;
 
 pub use config::{
     Adc, CAPACITANCE_PHASE_SLOPE, Direction, HammerConfig, IMPACT_SPAN, IMPACT_SUBSAMPLES, MAX_DELAY, MAX_PROBES,
-    MAX_SAMPLES, ModeAtSpeed, Noise, RigConfig, RigError, RigMode, SensorKind, TachConfig, Tone, Undulation,
-    VIBROMETER_PHASE_SLOPE, delay_from_phase_slope, harmonic_slope, harmonic_sum, rpm,
+    MAX_SAMPLES, ModeAtSpeed, Noise, PULSE_WINDOW, RigConfig, RigError, RigMode, SensorKind, TachConfig, Tone,
+    Undulation, VIBROMETER_PHASE_SLOPE, delay_from_phase_slope, harmonic_slope, harmonic_sum, rpm,
 };
 pub use shaker::{ShakerConfig, ShakerError, ShakerRecording, shaker};
 
-use crate::impact::{ImpactError, ImpactResult, simulate as impact_simulate, simulate_from_contact};
+use crate::impact::{ImpactError, ImpactResult, simulate_records};
 use kernels::{Chain, cholesky3, sincos_turns, wrap_turns};
 use num_complex::Complex64;
 use rand::rngs::Xoshiro256PlusPlus;
@@ -340,23 +340,36 @@ pub fn simulate(config: &RigConfig, seed: u64) -> Result<RigRecording, RigError>
     let mut plan = stream(seed, STREAM_PLAN);
     let rotation = Rotation::draw(config.speed, config.speed_drift, &mut plan);
 
-    let (force_true, mut impacts) = impact_forces(config, n, &mut plan)?;
+    let (segments, mut impacts) = impact_forces(config, n, &mut plan)?;
     let (tach, tach_edges) = tach_channel(config, &rotation, n, seed);
 
-    // Force channel: noise, ADC range (clipped, flat-topped), quantisation.
-    let mut rng = stream(seed, STREAM_FORCE);
+    // Force channel: noise, the impacts, ADC range (clipped, flat-topped), quantisation.
+    let mut force = vec![0.0; n];
+    if config.noise.force > 0.0 {
+        let mut rng = stream(seed, STREAM_FORCE);
+        let sigma = config.noise.force;
+        for f in force.iter_mut() {
+            *f = sigma * normal(&mut rng);
+        }
+    }
+    for seg in &segments {
+        for (f, v) in force[seg.start..seg.end()].iter_mut().zip(&seg.values) {
+            *f += v;
+        }
+    }
     let range = config.force_range;
-    let sigma = config.noise.force;
-    let lsb = config.adc.force_lsb;
-    let force: Vec<f64> =
-        force_true.iter().map(|f| quantise((f + sigma * normal(&mut rng)).clamp(-range, range), lsb)).collect();
+    if range.is_finite() || config.adc.force_lsb > 0.0 {
+        for f in force.iter_mut() {
+            *f = quantise(f.clamp(-range, range), config.adc.force_lsb);
+        }
+    }
     for imp in &mut impacts {
         imp.saturated = force[imp.sample..imp.end_sample].iter().any(|f| f.abs() >= range);
     }
 
     let frame = ProbeFrame::new(config);
     let modes = config.modes_at_speed();
-    let (probes, async_input_std) = probe_channels(config, &frame, &rotation, &modes, &force_true, n, seed);
+    let (probes, async_input_std) = probe_channels(config, &frame, &rotation, &modes, &segments, n, seed);
 
     let truth = RigTruth {
         direction: config.direction,
@@ -377,66 +390,57 @@ pub fn simulate(config: &RigConfig, seed: u64) -> Result<RigRecording, RigError>
     Ok(RigRecording { sample_rate: fs, tach, force, probes, truth })
 }
 
-/// Runs the §2.1 model with a window long enough to hold the whole contact.
-fn hit(setup: &mut crate::impact::ImpactSetup, approach: Option<f64>, index: usize) -> Result<ImpactResult, RigError> {
+/// Runs the §2.1 model over its pulse window; a contact still open at the window's end is
+/// an error (such a hammer cannot be told apart from a press).
+fn hit(setup: &crate::impact::ImpactSetup, approach: Option<f64>, index: usize) -> Result<ImpactResult, RigError> {
+    let r = simulate_records(setup, approach).map_err(|source| RigError::Impact { index, source })?;
     let step = 1.0 / setup.sample_rate;
-    loop {
-        let r = match approach {
-            None => impact_simulate(setup),
-            Some(v) => simulate_from_contact(setup, v),
-        }
-        .map_err(|source| RigError::Impact { index, source })?;
-        let open = r.contacts.last().is_some_and(|c| c.end >= setup.duration - 2.0 * step);
-        if !open {
-            return Ok(r);
-        }
-        if setup.duration >= 0.5 * IMPACT_SPAN {
-            return Err(RigError::Impact {
-                index,
-                source: ImpactError::InvalidParameter {
-                    name: "contact",
-                    field: "duration",
-                    value: setup.duration,
-                    requirement: "the contact lasts longer than the time allowed for a pulse: stiffen the tip or lighten the hammer",
-                },
-            });
-        }
-        setup.duration *= 2.0;
+    if r.contacts.last().is_some_and(|c| c.end >= setup.duration - 2.0 * step) {
+        return Err(RigError::Impact {
+            index,
+            source: ImpactError::InvalidParameter {
+                name: "contact",
+                field: "duration",
+                value: setup.duration,
+                requirement: "is shorter than the contact: stiffen the tip or lighten the hammer",
+            },
+        });
+    }
+    Ok(r)
+}
+
+/// The noise-free force of one impact on the record's samples `start..start + values.len()`.
+#[derive(Debug, Clone)]
+struct Segment {
+    start: usize,
+    values: Vec<f64>,
+}
+
+impl Segment {
+    fn end(&self) -> usize {
+        self.start + self.values.len()
     }
 }
 
-/// Adds a pulse sampled at `IMPACT_SUBSAMPLES × fs` starting at fine index `start` to the
-/// record; returns the last record sample it touched with a non-zero value.
-fn place(force: &mut [f64], pulse: &[f64], start: i64, peak: &mut f64) -> Option<usize> {
+/// Samples a pulse given at `IMPACT_SUBSAMPLES × fs` from fine index `start` onto the
+/// record's grid: `(record sample, value)` pairs.
+fn on_grid(pulse: &[f64], start: i64) -> impl Iterator<Item = (i64, f64)> + '_ {
     let o = IMPACT_SUBSAMPLES as i64;
     let first = (o - start.rem_euclid(o)) % o;
-    let mut last = None;
-    let mut i = first;
-    while (i as usize) < pulse.len() {
-        let n = (start + i) / o;
-        if n >= 0 && (n as usize) < force.len() {
-            let v = pulse[i as usize];
-            force[n as usize] += v;
-            if v != 0.0 {
-                last = Some(n as usize);
-                *peak = peak.max(force[n as usize]);
-            }
-        }
-        i += o;
-    }
-    last
+    (first..pulse.len() as i64).step_by(o as usize).map(move |i| ((start + i) / o, pulse[i as usize]))
 }
 
-/// The noise-free force record and the impact truths (saturation filled in later).
+/// The noise-free force of every impact (one segment each) and the impact truths
+/// (saturation filled in later).
 fn impact_forces(
     config: &RigConfig,
     n: usize,
     plan: &mut Xoshiro256PlusPlus,
-) -> Result<(Vec<f64>, Vec<ImpactTruth>), RigError> {
-    let mut force = vec![0.0; n];
+) -> Result<(Vec<Segment>, Vec<ImpactTruth>), RigError> {
+    let mut segments = Vec::with_capacity(config.impacts);
     let mut out = Vec::with_capacity(config.impacts);
     if config.impacts == 0 {
-        return Ok((force, out));
+        return Ok((segments, out));
     }
     let fine_rate = config.sample_rate * IMPACT_SUBSAMPLES as f64;
     let base = config.impact_setup();
@@ -452,42 +456,58 @@ fn impact_forces(
         let start = (t_nominal * fine_rate).round() as i64;
         let mut setup = base.clone();
         setup.release_position = h.contact + (h.release - h.contact) * (1.0 + h.release_scatter * scatter);
-        let first = hit(&mut setup, None, k)?;
-        let mut peak_sample = 0.0f64;
-        let mut last = place(&mut force, &first.force, start, &mut peak_sample);
+        let first = hit(&setup, None, k)?;
         let approach_speed = first.contacts.first().map_or(0.0, |c| c.approach_velocity);
+        let mut pulses = vec![(start, first.force)];
         let mut peak = first.peak_force;
-        let mut contacts = first.contact_count();
+        let mut contacts = first.contacts.len();
         let mut second_hit_time = None;
         if config.double_hits.contains(&k) {
             let end = first.contacts.last().map_or(0.0, |c| c.end);
             let start2 = start + ((end + gap) * fine_rate).round() as i64;
-            let mut setup2 = base.clone();
-            let second = hit(&mut setup2, Some(rebound * approach_speed), k)?;
-            if let Some(l) = place(&mut force, &second.force, start2, &mut peak_sample) {
-                last = Some(last.map_or(l, |p| p.max(l)));
-            }
+            let second = hit(&base, Some(rebound * approach_speed), k)?;
             peak = peak.max(second.peak_force);
-            contacts += second.contact_count();
+            contacts += second.contacts.len();
             second_hit_time = Some(start2 as f64 / fine_rate);
+            pulses.push((start2, second.force));
         }
+        // One segment from the first sample at or after contact to the last non-zero one.
         let o = IMPACT_SUBSAMPLES as i64;
-        let sample = ((start + o - 1).div_euclid(o)).max(0) as usize;
+        let first_sample = start.div_euclid(o) + i64::from(start.rem_euclid(o) != 0);
+        let last = pulses
+            .iter()
+            .flat_map(|(s, p)| on_grid(p, *s))
+            .filter(|(_, v)| *v != 0.0)
+            .map(|(m, _)| m)
+            .max()
+            .unwrap_or(first_sample - 1);
+        let lo = first_sample.clamp(0, n as i64) as usize;
+        let hi = (last + 1).clamp(lo as i64, n as i64) as usize;
+        let mut values = vec![0.0; hi - lo];
+        for (s, p) in &pulses {
+            for (m, v) in on_grid(p, *s) {
+                if m >= lo as i64 && m < hi as i64 {
+                    values[m as usize - lo] += v;
+                }
+            }
+        }
+        let sampled_peak_force = values.iter().copied().fold(0.0, f64::max);
         out.push(ImpactTruth {
             index: k,
             time: start as f64 / fine_rate,
-            sample: sample.min(n),
-            end_sample: last.map_or(sample, |l| l + 1).min(n),
+            sample: lo,
+            end_sample: hi,
             approach_speed,
             peak_force: peak,
-            sampled_peak_force: peak_sample,
+            sampled_peak_force,
             contacts,
             double_hit: contacts > 1,
             second_hit_time,
             saturated: false,
         });
+        segments.push(Segment { start: lo, values });
     }
-    Ok((force, out))
+    Ok((segments, out))
 }
 
 /// Tach voltage: a trapezoidal low pulse per revolution with edges centred on θ = 0 and
@@ -576,16 +596,27 @@ fn nonzero(u: &Undulation) -> bool {
     u.amplitude != 0.0
 }
 
-/// Per distinct harmonic order, the complex coefficient `E` of each probe such that the
-/// probe's synchronous reading is `Σ_k Re(E_k e^{ikθ})`.
+/// Per distinct harmonic order, the coefficient `E` of each probe such that the probe's
+/// synchronous reading is `Σ_k Re(E_k e^{ikθ})` (for a vibrometer, `D_k = ik·E_k`, to be
+/// multiplied by Ω), and how each power `e^{ikθ}` is obtained from earlier ones.
 struct Harmonics {
     orders: Vec<u32>,
-    /// `[order][probe]`.
-    coef: Vec<Vec<Complex64>>,
+    /// `[order][probe]`: `(Re, Im)` of `E_k` (or `D_k`).
+    coef: Vec<Vec<(f64, f64)>>,
+    plan: Vec<Power>,
+}
+
+/// How `e^{ikθ}` of one order is computed: `e^{iθ}` itself, the product of two earlier
+/// powers (`None` is `e^{iθ}`), or directly from the angle.
+#[derive(Debug, Clone, Copy)]
+enum Power {
+    Base,
+    Product(Option<usize>, Option<usize>),
+    Direct,
 }
 
 impl Harmonics {
-    fn new(frame: &ProbeFrame, angles: &[f64]) -> Harmonics {
+    fn new(frame: &ProbeFrame, angles: &[f64], velocity: bool) -> Harmonics {
         let mut orders: Vec<u32> = frame.form.iter().chain(&frame.sync_x).chain(&frame.sync_y).map(|u| u.upr).collect();
         orders.sort_unstable();
         orders.dedup();
@@ -603,7 +634,33 @@ impl Harmonics {
                 coef[slot(u.upr)][p] += Complex64::from_polar(u.amplitude, -u.phase) * phi.sin();
             }
         }
-        Harmonics { orders, coef }
+        let coef = coef
+            .iter()
+            .zip(&orders)
+            .map(|(row, &k)| {
+                row.iter()
+                    .map(|e| {
+                        // d/dt Re(E e^{ikθ}) = Ω Re(ik E e^{ikθ}).
+                        let e = if velocity { Complex64::new(0.0, k as f64) * e } else { *e };
+                        (e.re, e.im)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut plan = Vec::with_capacity(orders.len());
+        for (s, &k) in orders.iter().enumerate() {
+            // Sources: e^{iθ} (order 1) and every earlier slot.
+            let known = |o: u32| -> Option<Option<usize>> {
+                if o == 1 { Some(None) } else { orders[..s].binary_search(&o).ok().map(Some) }
+            };
+            let step = if k == 1 {
+                Power::Base
+            } else {
+                (1..=k / 2).rev().find_map(|a| Some(Power::Product(known(a)?, known(k - a)?))).unwrap_or(Power::Direct)
+            };
+            plan.push(step);
+        }
+        Harmonics { orders, coef, plan }
     }
 }
 
@@ -622,7 +679,8 @@ impl AsyncMotion {
             return None;
         }
         let w = TAU * config.async_bandwidth;
-        let chain = Chain::new(&[(w, std::f64::consts::FRAC_1_SQRT_2, 1.0)], h, span);
+        let velocity = config.sensor == SensorKind::LaserVibrometer;
+        let chain = Chain::new(&[(w, std::f64::consts::FRAC_1_SQRT_2, 1.0)], h, span, velocity);
         let p = chain.stationary_covariance();
         let std = config.async_rms / p[0][0].sqrt();
         let l = cholesky3(&p);
@@ -636,7 +694,7 @@ impl AsyncMotion {
 
     /// Output at the delayed instant after the current sample, then advance one sample.
     #[inline(always)]
-    fn step(&mut self) -> (f64, f64) {
+    fn step(&mut self) -> f64 {
         let next = self.std * normal(&mut self.rng);
         let out = self.chain.step(self.w, next);
         self.w = next;
@@ -644,223 +702,385 @@ impl AsyncMotion {
     }
 }
 
-/// Probe channels (Eq. 3.4 with the delay), block by block.
+/// `e^{2πi·per·i}` for `i` in `0..BLOCK`: the in-block rotation of a fixed-frequency phasor.
+struct PhasorTable {
+    c: [f64; BLOCK],
+    s: [f64; BLOCK],
+}
+
+impl PhasorTable {
+    fn new(per: f64) -> PhasorTable {
+        let mut t = PhasorTable { c: [0.0; BLOCK], s: [0.0; BLOCK] };
+        for i in 0..BLOCK {
+            let (s, c) = sincos_turns(per * i as f64);
+            t.c[i] = c;
+            t.s[i] = s;
+        }
+        t
+    }
+}
+
+/// A fixed-frequency term evaluated per block as an exact phasor at the block start times
+/// the in-block rotation: `(sin, cos)(2π(at0 + per·n))`.
+struct Periodic {
+    per: f64,
+    at0: f64,
+    table: PhasorTable,
+}
+
+impl Periodic {
+    fn new(per: f64, at0: f64) -> Periodic {
+        Periodic { per, at0, table: PhasorTable::new(per) }
+    }
+
+    /// Phasor at the block start `n0`.
+    #[inline(always)]
+    fn start(&self, n0: f64) -> (f64, f64) {
+        sincos_turns(self.at0 + self.per * n0)
+    }
+}
+
+/// Probe-channel synthesis (Eq. 3.4 with the delay), block by block.
+struct ProbeSynth<'a> {
+    velocity: bool,
+    n: usize,
+    speed: f64,
+    f_rot: f64,
+    r0: f64,
+    a_rev: f64,
+    /// Drift components: phasor, `K = δw/ω`, `cos φ`, `δw`.
+    drift: Vec<(Periodic, f64, f64, f64)>,
+    harmonics: Harmonics,
+    /// Tones: phasor, amplitude (or its derivative factor), along probe-frame x.
+    tones: Vec<(Periodic, f64, bool)>,
+    structure: Chain,
+    async_x: Option<AsyncMotion>,
+    async_y: Option<AsyncMotion>,
+    swap: bool,
+    force: &'a [Segment],
+    cursor: usize,
+    j: i64,
+    cos_p: Vec<f64>,
+    sin_p: Vec<f64>,
+    sigma: f64,
+    lsb: f64,
+    noise: Vec<Xoshiro256PlusPlus>,
+    rev: [f64; BLOCK],
+    omega: [f64; BLOCK],
+    d: [f64; BLOCK],
+    zc: [f64; BLOCK],
+    zs: [f64; BLOCK],
+    pc: Vec<[f64; BLOCK]>,
+    ps: Vec<[f64; BLOCK]>,
+    acc: Vec<[f64; BLOCK]>,
+    xp: [f64; BLOCK],
+    yp: [f64; BLOCK],
+}
+
+impl<'a> ProbeSynth<'a> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        config: &RigConfig,
+        frame: &ProbeFrame,
+        rot: &Rotation,
+        modes: &[ModeAtSpeed],
+        force: &'a [Segment],
+        n: usize,
+        seed: u64,
+    ) -> ProbeSynth<'a> {
+        let fs = config.sample_rate;
+        let h = 1.0 / fs;
+        let tau = config.delay();
+        let velocity = config.sensor == SensorKind::LaserVibrometer;
+        let angles = &config.probe_angles;
+
+        // τ = shift·h + ε, 0 ≤ ε < h; output n is the chain output at j = n − shift − 1,
+        // taken `span = h − ε` after sample j.
+        let mut shift = (tau * fs).floor() as i64;
+        let mut eps = tau - shift as f64 * h;
+        if eps >= h {
+            shift += 1;
+            eps -= h;
+        }
+        let span = h - eps.max(0.0);
+        let j_start = -((MAX_DELAY * fs).ceil() as i64) - 2;
+
+        let mode_list: Vec<(f64, f64, f64)> =
+            modes.iter().map(|m| (TAU * m.freq_hz, m.damping_ratio, m.stiffness)).collect();
+        let structure = Chain::new(if config.impacts > 0 { &mode_list } else { &[] }, h, span, velocity);
+        let async_x = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_X);
+        let async_y = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_Y);
+
+        // Rotation in turns: revs(n) = r0 + a·n + f_rot·D(t'), t' = n h − τ.
+        let f_rot = rot.speed / TAU;
+        let drift = if rot.drift > 0.0 && rot.speed > 0.0 {
+            rot.components
+                .iter()
+                .map(|c| {
+                    let w = TAU * c.freq_hz;
+                    let p = Periodic::new(c.freq_hz * h, c.phase / TAU - c.freq_hz * tau);
+                    (p, rot.drift * c.weight / w, c.phase.cos(), rot.drift * c.weight)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let tones = frame
+            .tones
+            .iter()
+            .map(|t| {
+                let p = Periodic::new(t.freq_hz * h, -t.freq_hz * tau - t.phase / TAU);
+                let scale = if velocity { -t.amplitude * TAU * t.freq_hz } else { t.amplitude };
+                (p, scale, t.direction == Direction::X)
+            })
+            .collect();
+        let harmonics = Harmonics::new(frame, angles, velocity);
+        let nk = harmonics.orders.len();
+        let np = angles.len();
+        let mut synth = ProbeSynth {
+            velocity,
+            n,
+            speed: rot.speed,
+            f_rot,
+            r0: rot.start_angle / TAU - f_rot * tau,
+            a_rev: f_rot * h,
+            drift,
+            harmonics,
+            tones,
+            structure,
+            async_x,
+            async_y,
+            swap: frame.swap,
+            force,
+            cursor: 0,
+            j: j_start,
+            cos_p: angles.iter().map(|a| a.cos()).collect(),
+            sin_p: angles.iter().map(|a| a.sin()).collect(),
+            sigma: config.noise.probe,
+            lsb: config.adc.probe_lsb,
+            noise: (0..np).map(|p| stream(seed, STREAM_PROBE + p as u64)).collect(),
+            rev: [0.0; BLOCK],
+            omega: [0.0; BLOCK],
+            d: [0.0; BLOCK],
+            zc: [0.0; BLOCK],
+            zs: [0.0; BLOCK],
+            pc: vec![[0.0; BLOCK]; nk],
+            ps: vec![[0.0; BLOCK]; nk],
+            acc: vec![[0.0; BLOCK]; np],
+            xp: [0.0; BLOCK],
+            yp: [0.0; BLOCK],
+        };
+        // Advance the chains to the first output index.
+        while synth.j < -shift - 1 {
+            synth.chain_step();
+        }
+        synth
+    }
+
+    /// The noise-free force at sample `j`; calls come with non-decreasing `j`.
+    #[inline(always)]
+    fn force_at(&mut self, j: i64) -> f64 {
+        if j < 0 {
+            return 0.0;
+        }
+        let j = j as usize;
+        while self.cursor < self.force.len() && self.force[self.cursor].end() <= j {
+            self.cursor += 1;
+        }
+        match self.force.get(self.cursor) {
+            Some(seg) if j >= seg.start => seg.values[j - seg.start],
+            _ => 0.0,
+        }
+    }
+
+    /// Structural response plus asynchronous random motion in the probe frame at the next
+    /// output instant; advances every chain one sample.
+    #[inline(always)]
+    fn chain_step(&mut self) -> (f64, f64) {
+        let (mut x, mut y) = (0.0, 0.0);
+        if !self.structure.is_empty() {
+            let (f0, f1) = (self.force_at(self.j), self.force_at(self.j + 1));
+            x += self.structure.step(f0, f1);
+        }
+        if let Some(m) = self.async_x.as_mut() {
+            let v = m.step();
+            if self.swap {
+                y -= v;
+            } else {
+                x += v;
+            }
+        }
+        if let Some(m) = self.async_y.as_mut() {
+            let v = m.step();
+            if self.swap {
+                x += v;
+            } else {
+                y += v;
+            }
+        }
+        self.j += 1;
+        (x, y)
+    }
+
+    /// Samples `n0..n0 + len` of every probe.
+    #[inline(always)]
+    fn block(&mut self, n0: usize, len: usize, out: &mut [Vec<f64>]) {
+        let nf = n0 as f64;
+        // 1. Spindle angle (in turns) and speed at the delayed instants.
+        let rate = &mut self.omega;
+        rate[..len].fill(1.0);
+        self.d[..len].fill(0.0);
+        for (p, k, cphi, dw) in &self.drift {
+            let (s0, c0) = p.start(nf);
+            let (tc, ts) = (&p.table.c, &p.table.s);
+            for i in 0..len {
+                let c = c0 * tc[i] - s0 * ts[i];
+                let s = s0 * tc[i] + c0 * ts[i];
+                self.d[i] += k * (cphi - c);
+                rate[i] += dw * s;
+            }
+        }
+        for i in 0..len {
+            let r = wrap_turns(self.r0 + self.a_rev * (nf + i as f64) + self.f_rot * self.d[i]);
+            self.rev[i] = r;
+            let (s, c) = sincos_turns(r);
+            self.zs[i] = s;
+            self.zc[i] = c;
+            rate[i] *= self.speed;
+        }
+        // 2. Synchronous part: Σ_k Re(E_k e^{ikθ}) per probe.
+        for a in self.acc.iter_mut() {
+            a[..len].fill(0.0);
+        }
+        for slot in 0..self.harmonics.orders.len() {
+            let (before, rest) = self.pc.split_at_mut(slot);
+            let (sbefore, srest) = self.ps.split_at_mut(slot);
+            let (pc, ps) = (&mut rest[0], &mut srest[0]);
+            match self.harmonics.plan[slot] {
+                Power::Base => {
+                    pc[..len].copy_from_slice(&self.zc[..len]);
+                    ps[..len].copy_from_slice(&self.zs[..len]);
+                }
+                Power::Product(a, b) => {
+                    let (ac, as_) = a.map_or((&self.zc, &self.zs), |a| (&before[a], &sbefore[a]));
+                    let (bc, bs) = b.map_or((&self.zc, &self.zs), |b| (&before[b], &sbefore[b]));
+                    for i in 0..len {
+                        pc[i] = ac[i] * bc[i] - as_[i] * bs[i];
+                        ps[i] = ac[i] * bs[i] + as_[i] * bc[i];
+                    }
+                }
+                Power::Direct => {
+                    let k = self.harmonics.orders[slot] as f64;
+                    for i in 0..len {
+                        let (s, c) = sincos_turns(k * self.rev[i]);
+                        pc[i] = c;
+                        ps[i] = s;
+                    }
+                }
+            }
+            for (a, &(er, ei)) in self.acc.iter_mut().zip(&self.harmonics.coef[slot]) {
+                for i in 0..len {
+                    a[i] += er * pc[i] - ei * ps[i];
+                }
+            }
+        }
+        if self.velocity {
+            for a in self.acc.iter_mut() {
+                for i in 0..len {
+                    a[i] *= rate[i];
+                }
+            }
+        }
+        // 3. Structural response and asynchronous motion, then tones, in the probe frame.
+        for i in 0..len {
+            let (x, y) = self.chain_step();
+            self.xp[i] = x;
+            self.yp[i] = y;
+        }
+        for (p, scale, along_x) in &self.tones {
+            let (s0, c0) = p.start(nf);
+            let (tc, ts) = (&p.table.c, &p.table.s);
+            let target = if *along_x { &mut self.xp } else { &mut self.yp };
+            if self.velocity {
+                for i in 0..len {
+                    target[i] += scale * (s0 * tc[i] + c0 * ts[i]);
+                }
+            } else {
+                for i in 0..len {
+                    target[i] += scale * (c0 * tc[i] - s0 * ts[i]);
+                }
+            }
+        }
+        // 4. Combine, add noise, quantise.
+        for (p, o) in out.iter_mut().enumerate() {
+            let (cp, sp) = (self.cos_p[p], self.sin_p[p]);
+            let a = &self.acc[p];
+            let start = o.len();
+            o.extend((0..len).map(|i| a[i] + cp * self.xp[i] + sp * self.yp[i]));
+            if self.sigma > 0.0 {
+                let rng = &mut self.noise[p];
+                for v in o[start..].iter_mut() {
+                    *v += self.sigma * normal(rng);
+                }
+            }
+            if self.lsb > 0.0 {
+                for v in o[start..].iter_mut() {
+                    *v = quantise(*v, self.lsb);
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn fill(&mut self, out: &mut [Vec<f64>]) {
+        let mut n0 = 0;
+        while n0 < self.n {
+            let len = BLOCK.min(self.n - n0);
+            self.block(n0, len, out);
+            n0 += len;
+        }
+    }
+
+    /// The same arithmetic compiled for 256-bit vectors (no fused multiply-add, so the
+    /// results are bit-identical to [`ProbeSynth::fill`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn fill_avx2(&mut self, out: &mut [Vec<f64>]) {
+        self.fill(out)
+    }
+
+    fn run(&mut self, out: &mut [Vec<f64>]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            unsafe { self.fill_avx2(out) };
+            return;
+        }
+        self.fill(out)
+    }
+}
+
+/// Probe channels (Eq. 3.4 with the delay) and the input level of the asynchronous motion.
 fn probe_channels(
     config: &RigConfig,
     frame: &ProbeFrame,
     rot: &Rotation,
     modes: &[ModeAtSpeed],
-    force: &[f64],
+    force: &[Segment],
     n: usize,
     seed: u64,
 ) -> (Vec<ProbeChannel>, f64) {
-    let fs = config.sample_rate;
-    let h = 1.0 / fs;
-    let tau = config.delay();
-    let velocity = config.sensor == SensorKind::LaserVibrometer;
+    let mut synth = ProbeSynth::new(config, frame, rot, modes, force, n, seed);
+    let async_std = synth.async_x.as_ref().map_or(0.0, |a| a.std);
     let angles = &config.probe_angles;
-    let np = angles.len();
-
-    // τ = shift·h + ε, 0 ≤ ε < h; output n is the chain output at j = n − shift − 1,
-    // taken `span = h − ε` after sample j.
-    let mut shift = (tau * fs).floor() as i64;
-    let mut eps = tau - shift as f64 * h;
-    if eps >= h {
-        shift += 1;
-        eps -= h;
-    }
-    let eps = eps.max(0.0);
-    let span = h - eps;
-    let j_start = -((MAX_DELAY * fs).ceil() as i64) - 2;
-
-    let mode_list: Vec<(f64, f64, f64)> =
-        modes.iter().map(|m| (TAU * m.freq_hz, m.damping_ratio, m.stiffness)).collect();
-    let mut structure = Chain::new(if config.impacts > 0 { &mode_list } else { &[] }, h, span);
-    let mut async_x = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_X);
-    let mut async_y = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_Y);
-    let async_std = async_x.as_ref().map_or(0.0, |a| a.std);
-    let f_at = |j: i64| if j >= 0 && (j as usize) < n { force[j as usize] } else { 0.0 };
-    // Advance the chains to the first output index.
-    let mut j = j_start;
-    while j < -shift - 1 {
-        if !structure.is_empty() {
-            structure.step(f_at(j), f_at(j + 1));
-        }
-        for a in [&mut async_x, &mut async_y].into_iter().flatten() {
-            a.step();
-        }
-        j += 1;
-    }
-
-    let harmonics = Harmonics::new(frame, angles);
-    let nk = harmonics.orders.len();
-    let mut outputs: Vec<Vec<f64>> = (0..np).map(|_| Vec::with_capacity(n)).collect();
-    let mut noise: Vec<Xoshiro256PlusPlus> = (0..np).map(|p| stream(seed, STREAM_PROBE + p as u64)).collect();
-    let (cos_p, sin_p): (Vec<f64>, Vec<f64>) = angles.iter().map(|a| (a.cos(), a.sin())).unzip();
-
-    // Rotation in turns: revs(n) = r0 + a·n + f_rot·D(t'), t' = n h − τ.
-    let f_rot = rot.speed / TAU;
-    let r0 = rot.start_angle / TAU - f_rot * tau;
-    let a_rev = f_rot * h;
-    let drifting = rot.drift > 0.0 && rot.speed > 0.0;
-    let drift: Vec<(f64, f64, f64, f64, f64)> = rot
-        .components
-        .iter()
-        .map(|c| {
-            let w = TAU * c.freq_hz;
-            // (turns per sample, turns at n = 0, K = δ w_j/ω_j, cos φ_j, δ w_j)
-            (
-                c.freq_hz * h,
-                c.phase / TAU - c.freq_hz * tau,
-                rot.drift * c.weight / w,
-                c.phase.cos(),
-                rot.drift * c.weight,
-            )
-        })
-        .collect();
-
-    let mut rev = [0.0; BLOCK];
-    let mut omega = [0.0; BLOCK];
-    let mut zc = [0.0; BLOCK];
-    let mut zs = [0.0; BLOCK];
-    let mut ck = [0.0; BLOCK];
-    let mut sk = [0.0; BLOCK];
-    let mut acc = vec![[0.0; BLOCK]; np];
-    let mut xp = [0.0; BLOCK];
-    let mut yp = [0.0; BLOCK];
-
-    let mut n0 = 0;
-    while n0 < n {
-        let len = BLOCK.min(n - n0);
-        // 1. Spindle angle (in turns) and speed at the delayed instants.
-        for i in 0..len {
-            let nn = (n0 + i) as f64;
-            let mut d = 0.0;
-            let mut rate = 1.0;
-            if drifting {
-                for &(per, at0, k, cphi, dw) in &drift {
-                    let (s, c) = sincos_turns(at0 + per * nn);
-                    d += k * (cphi - c);
-                    rate += dw * s;
-                }
-            }
-            let r = wrap_turns(r0 + a_rev * nn + f_rot * d);
-            rev[i] = r;
-            omega[i] = rot.speed * rate;
-            let (s, c) = sincos_turns(r);
-            zs[i] = s;
-            zc[i] = c;
-        }
-        // 2. Synchronous part: Σ_k Re(E_k z^k) per probe (derivative for a vibrometer).
-        for a in acc.iter_mut() {
-            a[..len].fill(0.0);
-        }
-        let mut prev = 0u32;
-        for (slot, &k) in harmonics.orders.iter().enumerate() {
-            let gap = k - prev;
-            if prev > 0 && gap <= 2 {
-                for _ in 0..gap {
-                    for i in 0..len {
-                        let (c, s) = (ck[i] * zc[i] - sk[i] * zs[i], ck[i] * zs[i] + sk[i] * zc[i]);
-                        ck[i] = c;
-                        sk[i] = s;
-                    }
-                }
-            } else if k == 1 {
-                ck[..len].copy_from_slice(&zc[..len]);
-                sk[..len].copy_from_slice(&zs[..len]);
-            } else {
-                let kf = k as f64;
-                for i in 0..len {
-                    let (s, c) = sincos_turns(kf * rev[i]);
-                    ck[i] = c;
-                    sk[i] = s;
-                }
-            }
-            prev = k;
-            for (p, a) in acc.iter_mut().enumerate() {
-                let e = harmonics.coef[slot][p];
-                if velocity {
-                    // d/dt Re(E z^k) = Ω Re(ik E z^k).
-                    let (er, ei) = (-kf64(k) * e.im, kf64(k) * e.re);
-                    for i in 0..len {
-                        a[i] += omega[i] * (er * ck[i] - ei * sk[i]);
-                    }
-                } else {
-                    for i in 0..len {
-                        a[i] += e.re * ck[i] - e.im * sk[i];
-                    }
-                }
-            }
-        }
-        let _ = nk;
-        // 3. Structural response, asynchronous motion and tones in the probe frame.
-        for i in 0..len {
-            let (mut x, mut y) = (0.0, 0.0);
-            if !structure.is_empty() {
-                let (q, v) = structure.step(f_at(j), f_at(j + 1));
-                x += if velocity { v } else { q };
-            }
-            if let Some(m) = async_x.as_mut() {
-                let (q, v) = m.step();
-                let val = if velocity { v } else { q };
-                if frame.swap {
-                    y -= val;
-                } else {
-                    x += val;
-                }
-            }
-            if let Some(m) = async_y.as_mut() {
-                let (q, v) = m.step();
-                let val = if velocity { v } else { q };
-                if frame.swap {
-                    x += val;
-                } else {
-                    y += val;
-                }
-            }
-            j += 1;
-            xp[i] = x;
-            yp[i] = y;
-        }
-        for t in &frame.tones {
-            let per = t.freq_hz * h;
-            let at0 = -t.freq_hz * tau - t.phase / TAU;
-            let target = if t.direction == Direction::X { &mut xp } else { &mut yp };
-            for (i, v) in target.iter_mut().enumerate().take(len) {
-                let (s, c) = sincos_turns(at0 + per * (n0 + i) as f64);
-                *v += if velocity { -t.amplitude * TAU * t.freq_hz * s } else { t.amplitude * c };
-            }
-        }
-        // 4. Combine, add noise, quantise.
-        for p in 0..np {
-            let (cp, sp) = (cos_p[p], sin_p[p]);
-            let a = &acc[p];
-            let out = &mut outputs[p];
-            let rng = &mut noise[p];
-            let sigma = config.noise.probe;
-            let lsb = config.adc.probe_lsb;
-            for i in 0..len {
-                let mut v = a[i] + cp * xp[i] + sp * yp[i];
-                if sigma > 0.0 {
-                    v += sigma * normal(rng);
-                }
-                out.push(quantise(v, lsb));
-            }
-        }
-        n0 += len;
-    }
+    let mut outputs: Vec<Vec<f64>> = (0..angles.len()).map(|_| Vec::with_capacity(n)).collect();
+    synth.run(&mut outputs);
     let probes = outputs
         .into_iter()
         .enumerate()
         .map(|(i, samples)| ProbeChannel { name: probe_name(i), angle: angles[i], samples })
         .collect();
     (probes, async_std)
-}
-
-#[inline(always)]
-fn kf64(k: u32) -> f64 {
-    k as f64
 }
 
 #[cfg(test)]

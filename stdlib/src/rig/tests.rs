@@ -524,3 +524,25 @@ fn bad_configurations_name_the_field() {
     }
     assert_eq!(simulate(&RigConfig { probe_angles: Vec::new(), ..d() }, 0).unwrap_err(), RigError::NoProbes);
 }
+
+#[test]
+#[ignore]
+fn cpu_simulate() {
+    let c = RigConfig::default();
+    for _ in 0..10 {
+        std::hint::black_box(simulate(&c, 7).unwrap());
+    }
+}
+
+#[test]
+#[ignore]
+fn cpu_normals() {
+    let mut v = vec![0.0; 1_310_720];
+    let mut rng = stream(7, 9);
+    for _ in 0..10 {
+        for x in v.iter_mut() {
+            *x = normal(&mut rng);
+        }
+        std::hint::black_box(&v);
+    }
+}
