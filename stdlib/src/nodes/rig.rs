@@ -188,7 +188,7 @@ impl RigSimulate {
                     Field::def("release", T::Quantity(D::LENGTH), "6 mm", "hammer release position X_hi"),
                     Field::def("contact", T::Quantity(D::LENGTH), "-3 mm", "artifact contact point X_t0"),
                     Field::def("release_scatter", RATIO, "0.02", "relative scatter of the release distance"),
-                    Field::def("dt", T::Quantity(D::TIME), "1e-8 s", "integration step of Eq. 2.7 during contact"),
+                    Field::def("dt", T::Quantity(D::TIME), "1e-7 s", "integration step of Eq. 2.7 during contact"),
                     Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "seed of every random part"),
                     Field::def(
                         "record_length",

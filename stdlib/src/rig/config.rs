@@ -208,7 +208,8 @@ pub struct HammerConfig {
     /// Relative standard deviation of the release distance `release − contact` from hit to
     /// hit (clipped at 3σ).
     pub release_scatter: f64,
-    /// Fine integration step of Eq. 2.7, s.
+    /// Fine integration step of Eq. 2.7, s (1e-7 s resolves a 0.4 ms contact in thousands
+    /// of steps).
     pub dt: f64,
 }
 
@@ -226,7 +227,7 @@ impl Default for HammerConfig {
             release: 6.0e-3,
             contact: -3.0e-3,
             release_scatter: 0.02,
-            dt: 1.0e-8,
+            dt: 1.0e-7,
         }
     }
 }

@@ -43,6 +43,151 @@ pub(crate) fn wrap_turns(x: f64) -> f64 {
     x - ((x + ROUND_MAGIC) - ROUND_MAGIC)
 }
 
+// fdlibm `__ieee754_log` constants.
+const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1;
+const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+const LG1: f64 = 6.666_666_666_666_735_130e-1;
+const LG2: f64 = 3.999_999_999_940_941_908e-1;
+const LG3: f64 = 2.857_142_874_366_239_149e-1;
+const LG4: f64 = 2.222_219_843_214_978_396e-1;
+const LG5: f64 = 1.818_357_216_161_805_012e-1;
+const LG6: f64 = 1.531_383_769_920_937_332e-1;
+const LG7: f64 = 1.479_819_860_511_658_591e-1;
+/// Bits of 1.0.
+const ONE_BITS: u64 = 0x3FF0_0000_0000_0000;
+/// `2^52`: adding its bit pattern's integer to it turns a small integer into a double.
+const TWO_52: f64 = 4_503_599_627_370_496.0;
+
+/// Natural logarithm of a positive normal double, branch-free (fdlibm's reduction to
+/// `[√2/2, √2]` and its degree-14 kernel; within an ulp or two).
+#[inline(always)]
+pub(crate) fn ln_positive(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let exp = bits >> 52;
+    let m = f64::from_bits((bits & 0x000F_FFFF_FFFF_FFFF) | ONE_BITS);
+    let big = m > std::f64::consts::SQRT_2;
+    let m = if big { 0.5 * m } else { m };
+    let k = (f64::from_bits(0x4330_0000_0000_0000 | exp) - TWO_52) - 1023.0 + if big { 1.0 } else { 0.0 };
+    let f = m - 1.0;
+    let s = f / (2.0 + f);
+    let z = s * s;
+    let w = z * z;
+    let t1 = w * (LG2 + w * (LG4 + w * LG6));
+    let t2 = z * (LG1 + w * (LG3 + w * (LG5 + w * LG7)));
+    let r = t2 + t1;
+    let hfsq = 0.5 * f * f;
+    k * LN2_HI - ((hfsq - (s * (hfsq + r) + k * LN2_LO)) - f)
+}
+
+/// Normals made per refill (a multiple of 8: four lanes, two normals per pair of draws).
+const NORMAL_BATCH: usize = 512;
+
+/// Seeded standard normal numbers, fast: four interleaved xoshiro256++ generators whose
+/// lane-wise update vectorises, and the Box–Muller transform `√(−2 ln u1)·(cos, sin)(2π u2)`
+/// evaluated in batches with the branch-free kernels above. The same seed gives the same
+/// numbers with or without AVX2 (no fused multiply-add is used).
+pub(crate) struct NormalSource {
+    /// `s[word][lane]`.
+    s: [[u64; 4]; 4],
+    buf: Vec<f64>,
+    pos: usize,
+    avx2: bool,
+}
+
+impl NormalSource {
+    pub(crate) fn new(seed: u64) -> NormalSource {
+        let mut z = seed;
+        let mut next = || {
+            z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut x = z;
+            x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            x ^ (x >> 31)
+        };
+        let mut s = [[0u64; 4]; 4];
+        for lane in 0..4 {
+            for word in s.iter_mut() {
+                word[lane] = next();
+            }
+        }
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        NormalSource { s, buf: vec![0.0; NORMAL_BATCH], pos: NORMAL_BATCH, avx2 }
+    }
+
+    /// Eight draws: two steps of the four lanes (state words held in locals, lane loops that
+    /// vectorise).
+    #[inline(always)]
+    fn next8(&mut self) -> ([u64; 4], [u64; 4]) {
+        let [mut s0, mut s1, mut s2, mut s3] = self.s;
+        let mut out = [[0u64; 4]; 2];
+        for o in out.iter_mut() {
+            for l in 0..4 {
+                let sum = s0[l].wrapping_add(s3[l]);
+                o[l] = ((sum << 23) | (sum >> 41)).wrapping_add(s0[l]);
+                let t = s1[l] << 17;
+                s2[l] ^= s0[l];
+                s3[l] ^= s1[l];
+                s1[l] ^= s2[l];
+                s0[l] ^= s3[l];
+                s2[l] ^= t;
+                s3[l] = (s3[l] << 45) | (s3[l] >> 19);
+            }
+        }
+        self.s = [s0, s1, s2, s3];
+        (out[0], out[1])
+    }
+
+    #[inline(always)]
+    fn refill_body(&mut self) {
+        let mut buf = std::mem::take(&mut self.buf);
+        for chunk in buf.chunks_exact_mut(8) {
+            let (a, b) = self.next8();
+            for l in 0..4 {
+                // u1 in (0, 1], u2 in [0, 1), 52 random bits each.
+                let u1 = 2.0 - f64::from_bits((a[l] >> 12) | ONE_BITS);
+                let u2 = f64::from_bits((b[l] >> 12) | ONE_BITS) - 1.0;
+                let r = (-2.0 * ln_positive(u1)).sqrt();
+                let (s, c) = sincos_turns(u2);
+                chunk[l] = r * c;
+                chunk[4 + l] = r * s;
+            }
+        }
+        self.buf = buf;
+        self.pos = 0;
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn refill_avx2(&mut self) {
+        self.refill_body()
+    }
+
+    #[inline(never)]
+    fn refill(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: AVX2 support was detected when the source was made.
+            unsafe { self.refill_avx2() };
+            return;
+        }
+        self.refill_body()
+    }
+
+    /// The next standard normal number.
+    #[inline(always)]
+    pub(crate) fn next(&mut self) -> f64 {
+        if self.pos == NORMAL_BATCH {
+            self.refill();
+        }
+        let v = self.buf[self.pos];
+        self.pos += 1;
+        v
+    }
+}
+
 type M4 = [[f64; 4]; 4];
 
 fn mul4(a: &M4, b: &M4) -> M4 {
@@ -129,21 +274,51 @@ impl Step {
 
     #[inline(always)]
     fn apply(&self, x: [f64; 2], f0: f64, f1: f64) -> [f64; 2] {
+        // The input terms first: they do not wait for the state.
         [
-            self.phi[0][0] * x[0] + self.phi[0][1] * x[1] + self.a[0] * f0 + self.b[0] * f1,
-            self.phi[1][0] * x[0] + self.phi[1][1] * x[1] + self.a[1] * f0 + self.b[1] * f1,
+            (self.a[0] * f0 + self.b[0] * f1) + (self.phi[0][0] * x[0] + self.phi[0][1] * x[1]),
+            (self.a[1] * f0 + self.b[1] * f1) + (self.phi[1][0] * x[0] + self.phi[1][1] * x[1]),
         ]
     }
 }
 
 /// One mode of a [`Chain`]: the full-interval step, the fractional step to the delayed
-/// instant, and the scale from the state's second component back to a velocity.
-#[derive(Debug, Clone, Copy)]
+/// instant, the scale from the state's second component back to a velocity, and for runs
+/// without input the output row of `frac·Φ^i` for `i < BLOCK` and `Φ^BLOCK`.
+#[derive(Debug, Clone)]
 struct Section {
     full: Step,
     frac: Step,
     omega: f64,
+    free_out: Vec<[f64; 2]>,
+    free_end: [[f64; 2]; 2],
 }
+
+fn mul2(a: &[[f64; 2]; 2], b: &[[f64; 2]; 2]) -> [[f64; 2]; 2] {
+    [
+        [a[0][0] * b[0][0] + a[0][1] * b[1][0], a[0][0] * b[0][1] + a[0][1] * b[1][1]],
+        [a[1][0] * b[0][0] + a[1][1] * b[1][0], a[1][0] * b[0][1] + a[1][1] * b[1][1]],
+    ]
+}
+
+impl Section {
+    fn new(w: f64, z: f64, k: f64, h: f64, span: f64, row: usize) -> Section {
+        let full = Step::new(w, z, k, h, h);
+        let frac = Step::new(w, z, k, h, span);
+        let scale = if row == 0 { 1.0 } else { w };
+        let mut power = [[1.0, 0.0], [0.0, 1.0]];
+        let mut free_out = Vec::with_capacity(BLOCK);
+        for _ in 0..BLOCK {
+            let m = mul2(&frac.phi, &power);
+            free_out.push([m[row][0] * scale, m[row][1] * scale]);
+            power = mul2(&full.phi, &power);
+        }
+        Section { full, frac, omega: w, free_out, free_end: power }
+    }
+}
+
+/// Samples per block of the rig's probe synthesis.
+pub(crate) const BLOCK: usize = 256;
 
 /// Modes driven by one sampled input that is linear between samples. Each call of
 /// [`Chain::step`] with the inputs `F_j`, `F_{j+1}` returns the summed displacement (or
@@ -161,12 +336,10 @@ impl Chain {
     /// Modes `(ω rad/s, ζ, k N/m)` sampled every `h` s, with outputs `span ∈ (0, h]` after
     /// each sample instant: displacements, or velocities when `velocity` is set.
     pub(crate) fn new(modes: &[(f64, f64, f64)], h: f64, span: f64, velocity: bool) -> Chain {
-        let sections: Vec<Section> = modes
-            .iter()
-            .map(|&(w, z, k)| Section { full: Step::new(w, z, k, h, h), frac: Step::new(w, z, k, h, span), omega: w })
-            .collect();
+        let row = usize::from(velocity);
+        let sections: Vec<Section> = modes.iter().map(|&(w, z, k)| Section::new(w, z, k, h, span, row)).collect();
         let states = vec![[0.0; 2]; sections.len()];
-        Chain { sections, states, row: usize::from(velocity) }
+        Chain { sections, states, row }
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -185,11 +358,26 @@ impl Chain {
         let mut out = 0.0;
         for (s, x) in self.sections.iter().zip(self.states.iter_mut()) {
             let p = &s.frac;
-            let d = p.phi[r][0] * x[0] + p.phi[r][1] * x[1] + p.a[r] * f0 + p.b[r] * f1;
+            let d = (p.a[r] * f0 + p.b[r] * f1) + (p.phi[r][0] * x[0] + p.phi[r][1] * x[1]);
             out += if r == 0 { d } else { d * s.omega };
             *x = s.full.apply(*x, f0, f1);
         }
         out
+    }
+
+    /// The next [`BLOCK`] outputs with no input (exact: `frac·Φ^i` applied to the state),
+    /// written to `out`; advances the states by the block.
+    #[inline(always)]
+    pub(crate) fn free_block(&mut self, out: &mut [f64; BLOCK]) {
+        out.fill(0.0);
+        for (s, x) in self.sections.iter().zip(self.states.iter_mut()) {
+            let (x0, x1) = (x[0], x[1]);
+            for (o, c) in out.iter_mut().zip(&s.free_out) {
+                *o += c[0] * x0 + c[1] * x1;
+            }
+            let e = &s.free_end;
+            *x = [e[0][0] * x0 + e[0][1] * x1, e[1][0] * x0 + e[1][1] * x1];
+        }
     }
 
     /// Stationary covariance of `(q, q̇/ω, F_j)` of a single-mode chain driven by independent
@@ -290,6 +478,67 @@ mod tests {
         assert_eq!(sincos_turns(0.0), (0.0, 1.0));
         assert!((sincos_turns(0.25).0 - 1.0).abs() < 1e-15 && sincos_turns(0.25).1.abs() < 1e-15);
         assert!((sincos_turns(-1e6 + 0.5).1 + 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn ln_matches_libm() {
+        let mut worst = 0.0f64;
+        for i in 1..200_000u64 {
+            let x = f64::from_bits(0x3CB0_0000_0000_0000 + i * 0x0000_3A5F_27C1_9D3B);
+            if !(x > 0.0 && x <= 1.0) {
+                continue;
+            }
+            let rel = (ln_positive(x) - x.ln()).abs() / x.ln().abs().max(1e-300);
+            worst = worst.max(rel);
+        }
+        assert!(worst < 4e-16, "{worst}");
+        assert_eq!(ln_positive(1.0), 0.0);
+        assert!((ln_positive(2.0f64.powi(-52)) + 52.0 * std::f64::consts::LN_2).abs() < 1e-13);
+    }
+
+    #[test]
+    fn normal_source_is_standard_normal() {
+        let mut g = NormalSource::new(42);
+        let n = 2_000_000;
+        let x: Vec<f64> = (0..n).map(|_| g.next()).collect();
+        let nf = n as f64;
+        let mean = x.iter().sum::<f64>() / nf;
+        let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / nf;
+        let skew = x.iter().map(|v| (v - mean).powi(3)).sum::<f64>() / nf / var.powf(1.5);
+        let kurt = x.iter().map(|v| (v - mean).powi(4)).sum::<f64>() / nf / (var * var);
+        assert!(mean.abs() < 4.0 / nf.sqrt(), "mean {mean}");
+        assert!((var - 1.0).abs() < 4.0 * (2.0 / nf).sqrt(), "var {var}");
+        assert!(skew.abs() < 4.0 * (6.0 / nf).sqrt(), "skew {skew}");
+        assert!((kurt - 3.0).abs() < 4.0 * (24.0 / nf).sqrt(), "kurtosis {kurt}");
+        // Cumulative frequencies at a few points against Φ (erf by its series).
+        for (z, phi) in
+            [(-3.0, 0.001_349_898), (-1.5, 0.066_807_201), (0.0, 0.5), (0.7, 0.758_036_348), (2.5, 0.993_790_335)]
+        {
+            let p = x.iter().filter(|v| **v < z).count() as f64 / nf;
+            let sd = (phi * (1.0 - phi) / nf).sqrt();
+            assert!((p - phi).abs() < 4.5 * sd, "P(x < {z}) = {p}, expected {phi}");
+        }
+        // Consecutive values (across lanes and the two Box–Muller outputs) are uncorrelated.
+        for lag in [1, 4, 8] {
+            let c = x.windows(lag + 1).map(|w| w[0] * w[lag]).sum::<f64>() / nf;
+            assert!(c.abs() < 4.0 / nf.sqrt(), "lag {lag}: {c}");
+        }
+        // Seeds: same numbers again, different for another seed.
+        let mut a = NormalSource::new(7);
+        let mut b = NormalSource::new(7);
+        let mut c = NormalSource::new(8);
+        let va: Vec<u64> = (0..1000).map(|_| a.next().to_bits()).collect();
+        let vb: Vec<u64> = (0..1000).map(|_| b.next().to_bits()).collect();
+        let vc: Vec<u64> = (0..1000).map(|_| c.next().to_bits()).collect();
+        assert_eq!(va, vb);
+        assert_ne!(va, vc);
+        // The vectorised and the plain refill agree bit for bit.
+        let mut plain = NormalSource::new(9);
+        plain.avx2 = false;
+        let mut fast = NormalSource::new(9);
+        for _ in 0..5000 {
+            assert_eq!(plain.next().to_bits(), fast.next().to_bits());
+        }
     }
 
     #[test]

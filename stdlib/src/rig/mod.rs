@@ -62,15 +62,12 @@ pub use config::{
 pub use shaker::{ShakerConfig, ShakerError, ShakerRecording, shaker};
 
 use crate::impact::{ImpactError, ImpactResult, simulate_records};
-use kernels::{Chain, cholesky3, sincos_turns, wrap_turns};
+use kernels::{BLOCK, Chain, NormalSource, cholesky3, sincos_turns, wrap_turns};
 use num_complex::Complex64;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::f64::consts::{PI, TAU};
-
-/// Samples processed together in the probe loop (fits the L1 cache).
-const BLOCK: usize = 256;
 
 // Random streams.
 const STREAM_PLAN: u64 = 1;
@@ -95,6 +92,11 @@ pub(crate) fn stream(seed: u64, purpose: u64) -> Xoshiro256PlusPlus {
 #[inline(always)]
 fn normal(rng: &mut Xoshiro256PlusPlus) -> f64 {
     StandardNormal.sample(rng)
+}
+
+/// A fast normal source for one bulk purpose of one run.
+pub(crate) fn normals(seed: u64, purpose: u64) -> NormalSource {
+    NormalSource::new(splitmix(splitmix(seed).wrapping_add(purpose)))
 }
 
 #[inline(always)]
@@ -346,10 +348,10 @@ pub fn simulate(config: &RigConfig, seed: u64) -> Result<RigRecording, RigError>
     // Force channel: noise, the impacts, ADC range (clipped, flat-topped), quantisation.
     let mut force = vec![0.0; n];
     if config.noise.force > 0.0 {
-        let mut rng = stream(seed, STREAM_FORCE);
+        let mut rng = normals(seed, STREAM_FORCE);
         let sigma = config.noise.force;
         for f in force.iter_mut() {
-            *f = sigma * normal(&mut rng);
+            *f = sigma * rng.next();
         }
     }
     for seg in &segments {
@@ -542,10 +544,10 @@ fn tach_channel(config: &RigConfig, rot: &Rotation, n: usize, seed: u64) -> (Vec
         }
     }
     if config.noise.tach > 0.0 || config.adc.tach_lsb > 0.0 {
-        let mut rng = stream(seed, STREAM_TACH);
+        let mut rng = normals(seed, STREAM_TACH);
         let s = config.noise.tach;
         for x in v.iter_mut() {
-            *x = quantise(*x + s * normal(&mut rng), config.adc.tach_lsb);
+            *x = quantise(*x + s * rng.next(), config.adc.tach_lsb);
         }
     }
     (v, edges)
@@ -668,7 +670,7 @@ impl Harmonics {
 /// through a 2nd-order Butterworth low-pass, started from its stationary distribution.
 struct AsyncMotion {
     chain: Chain,
-    rng: Xoshiro256PlusPlus,
+    rng: NormalSource,
     std: f64,
     w: f64,
 }
@@ -684,8 +686,8 @@ impl AsyncMotion {
         let p = chain.stationary_covariance();
         let std = config.async_rms / p[0][0].sqrt();
         let l = cholesky3(&p);
-        let mut rng = stream(seed, purpose);
-        let z = [normal(&mut rng), normal(&mut rng), normal(&mut rng)];
+        let mut rng = normals(seed, purpose);
+        let z = [rng.next(), rng.next(), rng.next()];
         let x: Vec<f64> = (0..3).map(|i| std * (0..3).map(|j| l[i][j] * z[j]).sum::<f64>()).collect();
         let mut m = AsyncMotion { chain, rng, std, w: x[2] };
         m.chain.set_state(0, x[0], x[1]);
@@ -695,7 +697,7 @@ impl AsyncMotion {
     /// Output at the delayed instant after the current sample, then advance one sample.
     #[inline(always)]
     fn step(&mut self) -> f64 {
-        let next = self.std * normal(&mut self.rng);
+        let next = self.std * self.rng.next();
         let out = self.chain.step(self.w, next);
         self.w = next;
         out
@@ -764,7 +766,7 @@ struct ProbeSynth<'a> {
     sin_p: Vec<f64>,
     sigma: f64,
     lsb: f64,
-    noise: Vec<Xoshiro256PlusPlus>,
+    noise: Vec<NormalSource>,
     rev: [f64; BLOCK],
     omega: [f64; BLOCK],
     d: [f64; BLOCK],
@@ -858,7 +860,7 @@ impl<'a> ProbeSynth<'a> {
             sin_p: angles.iter().map(|a| a.sin()).collect(),
             sigma: config.noise.probe,
             lsb: config.adc.probe_lsb,
-            noise: (0..np).map(|p| stream(seed, STREAM_PROBE + p as u64)).collect(),
+            noise: (0..np).map(|p| normals(seed, STREAM_PROBE + p as u64)).collect(),
             rev: [0.0; BLOCK],
             omega: [0.0; BLOCK],
             d: [0.0; BLOCK],
@@ -920,6 +922,57 @@ impl<'a> ProbeSynth<'a> {
         }
         self.j += 1;
         (x, y)
+    }
+
+    /// Whether the force is zero at every sample `j0..=j1`.
+    #[inline(always)]
+    fn force_free(&mut self, j0: i64, j1: i64) -> bool {
+        let j0 = j0.max(0) as usize;
+        while self.cursor < self.force.len() && self.force[self.cursor].end() <= j0 {
+            self.cursor += 1;
+        }
+        self.force.get(self.cursor).is_none_or(|seg| (seg.start as i64) > j1)
+    }
+
+    /// The next `len` chain outputs into `xp`, `yp` (probe frame), one loop per chain.
+    #[inline(always)]
+    fn chains(&mut self, len: usize) {
+        let j0 = self.j;
+        if self.structure.is_empty() {
+            self.xp[..len].fill(0.0);
+        } else if len == BLOCK && self.force_free(j0, j0 + len as i64) {
+            self.structure.free_block(&mut self.xp);
+        } else {
+            for i in 0..len {
+                let j = j0 + i as i64;
+                let (f0, f1) = (self.force_at(j), self.force_at(j + 1));
+                self.xp[i] = self.structure.step(f0, f1);
+            }
+        }
+        self.yp[..len].fill(0.0);
+        let (to_x, to_y) = if self.swap { (&mut self.yp, &mut self.xp) } else { (&mut self.xp, &mut self.yp) };
+        let sign = if self.swap { -1.0 } else { 1.0 };
+        match (self.async_x.as_mut(), self.async_y.as_mut()) {
+            // Both chains in one loop, so their recurrences overlap.
+            (Some(mx), Some(my)) => {
+                for i in 0..len {
+                    to_x[i] += sign * mx.step();
+                    to_y[i] += my.step();
+                }
+            }
+            (Some(mx), None) => {
+                for v in to_x[..len].iter_mut() {
+                    *v += sign * mx.step();
+                }
+            }
+            (None, Some(my)) => {
+                for v in to_y[..len].iter_mut() {
+                    *v += my.step();
+                }
+            }
+            (None, None) => {}
+        }
+        self.j += len as i64;
     }
 
     /// Samples `n0..n0 + len` of every probe.
@@ -992,11 +1045,7 @@ impl<'a> ProbeSynth<'a> {
             }
         }
         // 3. Structural response and asynchronous motion, then tones, in the probe frame.
-        for i in 0..len {
-            let (x, y) = self.chain_step();
-            self.xp[i] = x;
-            self.yp[i] = y;
-        }
+        self.chains(len);
         for (p, scale, along_x) in &self.tones {
             let (s0, c0) = p.start(nf);
             let (tc, ts) = (&p.table.c, &p.table.s);
@@ -1020,7 +1069,7 @@ impl<'a> ProbeSynth<'a> {
             if self.sigma > 0.0 {
                 let rng = &mut self.noise[p];
                 for v in o[start..].iter_mut() {
-                    *v += self.sigma * normal(rng);
+                    *v += self.sigma * rng.next();
                 }
             }
             if self.lsb > 0.0 {
