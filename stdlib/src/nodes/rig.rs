@@ -177,8 +177,8 @@ impl RigSimulate {
                         "impact indices (from 0) that get a second hit 2–4 ms after the first",
                     ),
                     Field::opt("force_range", T::Quantity(D::FORCE), "force ADC range: larger forces are clipped"),
-                    Field::def("hammer_mass", T::Quantity(D::MASS), "0.21 kg", "hammer mass (§2.2.1)"),
-                    Field::def("hammer_stiffness", T::Quantity(D::STIFFNESS), "200 N/m", "hammer spring"),
+                    Field::def("hammer_mass", T::Quantity(D::MASS), "0.01 kg", "hammer mass (Setup 2, §2.2.2)"),
+                    Field::def("hammer_stiffness", T::Quantity(D::STIFFNESS), "623 N/m", "hammer spring (flexure)"),
                     Field::def("hammer_damping", T::Quantity(D::DAMPING), "0 N*s/m", "hammer damping"),
                     Field::def("tip_radius", T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius"),
                     Field::def("target_radius", T::Quantity(D::LENGTH), "12.7 mm", "artifact surface radius"),
@@ -569,5 +569,184 @@ impl Node for RigShaker {
 
     fn cacheable(&self) -> bool {
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::signal::dtft_at;
+    use spindlelab_engine::diag::{Diagnostics, SourceFile};
+    use spindlelab_engine::model::Recipe;
+    use spindlelab_engine::spec::{self, Ctx, EntityNames};
+    use spindlelab_engine::syntax::load_yaml;
+
+    /// Node parameters as the compiler makes them from recipe text (defaults filled in).
+    fn params(node: &dyn Node, yaml: &str) -> Params {
+        let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };
+        let mut d = Diagnostics::new();
+        let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
+        let names = EntityNames::default();
+        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names }, &mut d)
+            .unwrap_or_else(|| panic!("{d}"))
+    }
+
+    fn recipe() -> Recipe {
+        Recipe {
+            name: "rig".into(),
+            description: None,
+            hash: String::new(),
+            materials: Default::default(),
+            machines: Default::default(),
+            assemblies: Default::default(),
+            sensors: Default::default(),
+            cutting: Default::default(),
+            speeds: Vec::new(),
+            steps: Vec::new(),
+            outputs: Vec::new(),
+        }
+    }
+
+    fn run(node: &dyn Node, p: &Params) -> Result<Outputs, NodeError> {
+        let r = recipe();
+        let inputs = Default::default();
+        node.run(&NodeContext::new("test", p, &inputs, &r))
+    }
+
+    fn param_error(node: &dyn Node, yaml: &str) -> String {
+        match node.validate(&params(node, yaml)) {
+            Err(NodeError::InvalidParam { param, .. }) => param,
+            other => panic!("{yaml}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn node_defaults_are_the_kernel_defaults() {
+        let node = RigSimulate::new();
+        let mut c = config_from(&params(&node, "{}"), None).unwrap();
+        let d = RigConfig::default();
+        // Unit conversions may differ from the kernel's constants in the last bit.
+        for (a, b) in c.probe_angles.iter().zip(&d.probe_angles) {
+            assert!((a - b).abs() < 1e-15);
+        }
+        for (a, b) in [(c.speed, d.speed), (c.ref_speed, d.ref_speed), (c.phase_slope, d.phase_slope)] {
+            assert!((a / b - 1.0).abs() < 1e-15, "{a} vs {b}");
+        }
+        assert!((c.tach.pulse_angle - d.tach.pulse_angle).abs() < 1e-15);
+        (c.probe_angles, c.speed, c.ref_speed, c.phase_slope) =
+            (d.probe_angles.clone(), d.speed, d.ref_speed, d.phase_slope);
+        c.tach.pulse_angle = d.tach.pulse_angle;
+        assert_eq!(c, d);
+        assert!(!node.cacheable() && !RigShaker::new().cacheable());
+    }
+
+    #[test]
+    fn simulate_node_outputs_the_record_and_its_truth() {
+        let node = RigSimulate::new();
+        let p =
+            params(&node, "{impacts: 2, impact_interval: 0.2 s, record_length: 4096, max_frequency: 2 kHz, seed: 3}");
+        node.validate(&p).unwrap();
+        let out = run(&node, &p).unwrap();
+        let Value::TimeSeries(rec) = &out["record"] else { panic!("record") };
+        let names: Vec<&str> = rec.channels.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["tach", "force", "a", "b", "c"]);
+        let units: Vec<&str> = rec.channels.iter().map(|c| c.unit.symbol.as_str()).collect();
+        assert_eq!(units, ["V", "N", "m", "m", "m"]);
+        assert_eq!(rec.len(), 40_000);
+        assert_eq!((rec.sample_rate, rec.t0), (100.0e3, 0.0));
+        // The same numbers as the kernel with the same configuration and seed.
+        let c = config_from(&p, None).unwrap();
+        let k = simulate(&c, 3).unwrap();
+        assert_eq!(rec.channel("force").unwrap().samples, k.force);
+        assert_eq!(rec.channel("b").unwrap().samples, k.probes[1].samples);
+
+        let Value::Frf(frf) = &out["truth_frf"] else { panic!("frf") };
+        let df = 100.0e3 / 4096.0;
+        assert_eq!(frf.freq_hz.len(), 82);
+        assert_eq!(frf.freq_hz[81], 81.0 * df);
+        assert_eq!((frf.unit.symbol.as_str(), frf.direction.as_deref()), ("m/N", Some("x")));
+        assert!((frf.speed_rpm.unwrap() - 1000.0).abs() < 1e-9);
+        let modes = c.modes_at_speed();
+        let h: num_complex::Complex64 = modes.iter().map(|m| m.receptance(frf.freq_hz[29])).sum();
+        assert_eq!(frf.values[29], h);
+        // Static compliance: Σ 1/k.
+        let static_h: f64 = modes.iter().map(|m| 1.0 / m.stiffness).sum();
+        assert!((frf.values[0].re - static_h).abs() < 1e-20 && frf.values[0].im == 0.0);
+
+        let Value::Table(form) = &out["truth_form"] else { panic!("form") };
+        assert_eq!(form.rows(), 3600);
+        assert_eq!(form.columns[1].values[900], k.truth.form_error(form.columns[0].values[900]));
+        let Value::Table(motion) = &out["truth_motion"] else { panic!("motion") };
+        let names: Vec<&str> = motion.columns.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["angle", "x", "y"]);
+        let Value::Table(imp) = &out["impacts"] else { panic!("impacts") };
+        assert_eq!(imp.rows(), 2);
+        let names: Vec<&str> = imp.columns.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["index", "time", "peak_force", "double_hit", "saturated"]);
+        assert_eq!(imp.columns[1].values[1], k.truth.impacts[1].time);
+    }
+
+    #[test]
+    fn sensor_direction_and_faults_reach_the_kernel() {
+        let node = RigSimulate::new();
+        let p = params(
+            &node,
+            "{impacts: 3, impact_interval: 0.1 s, sensor: laser_vibrometer, direction: y, double_hits: [1], \
+             force_range: 50 N, speed: 2400 rpm, probes: [0 deg, 90 deg]}",
+        );
+        let c = config_from(&p, None).unwrap();
+        assert_eq!(c.sensor, SensorKind::LaserVibrometer);
+        assert!((c.phase_slope / crate::rig::VIBROMETER_PHASE_SLOPE - 1.0).abs() < 1e-15);
+        assert_eq!(c.noise.probe, 20.0e-6);
+        let out = run(&node, &p).unwrap();
+        let Value::TimeSeries(rec) = &out["record"] else { panic!() };
+        assert_eq!(rec.channels.len(), 4);
+        assert_eq!(rec.channels[2].unit.symbol, "m/s");
+        let Value::Frf(frf) = &out["truth_frf"] else { panic!() };
+        assert_eq!(frf.direction.as_deref(), Some("y"));
+        let Value::Table(imp) = &out["impacts"] else { panic!() };
+        assert_eq!(imp.columns[3].values, [0.0, 1.0, 0.0]);
+        assert!(imp.columns[4].values.iter().all(|s| *s == 1.0), "50 N saturates every hit");
+    }
+
+    #[test]
+    fn bad_parameters_name_the_recipe_parameter() {
+        let node = RigSimulate::new();
+        let cases = [
+            ("{modes_x: [{f: 700 Hz, zeta: 1.2, stiffness: 2e7 N/m}]}", "modes_x"),
+            ("{double_hits: [25]}", "double_hits"),
+            ("{double_hits: [1.5]}", "double_hits"),
+            ("{force_noise: -1 N}", "force_noise"),
+            ("{sensor: laser_vibrometer, velocity_noise: -1 m/s}", "velocity_noise"),
+            ("{speed: 30000 rpm, form: [], sync_x: [], sync_y: []}", "tach_pulse"),
+            ("{hammer_mass: 0 kg}", "hammer_mass"),
+            ("{release: -5 mm}", "release"),
+            ("{impacts: 0}", "duration"),
+            ("{max_frequency: 60 kHz}", "max_frequency"),
+            ("{sync_x: [{upr: 5000, amplitude: 1 nm}]}", "sync_x"),
+            ("{phase_slope: -5000 deg/kHz}", "phase_slope"),
+            ("{impact_offset: 0.7 s}", "impact_offset"),
+        ];
+        for (yaml, param) in cases {
+            assert_eq!(param_error(&node, yaml), param, "{yaml}");
+        }
+    }
+
+    #[test]
+    fn shaker_node_delays_the_sensor_only() {
+        let node = RigShaker::new();
+        let p = params(&node, "{frequency: 2 kHz, accel_noise: 0 m/s^2, probe_noise: 0 m, seed: 4}");
+        node.validate(&p).unwrap();
+        let out = run(&node, &p).unwrap();
+        let Value::TimeSeries(rec) = &out["record"] else { panic!() };
+        let names: Vec<&str> = rec.channels.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["accel", "sensor"]);
+        assert_eq!(rec.len(), 10_000);
+        let a = dtft_at(&rec.channels[0].samples, rec.sample_rate, 2000.0);
+        let x = dtft_at(&rec.channels[1].samples, rec.sample_rate, 2000.0);
+        let lag = ((x / a).arg().to_degrees() + 180.0 + 540.0).rem_euclid(360.0) - 180.0;
+        assert!((lag + 2.0 * 13.84).abs() < 1e-9, "{lag}");
+        assert_eq!(param_error(&node, "{frequency: 60 kHz}"), "frequency");
+        assert_eq!(param_error(&node, "{sensor: laser_vibrometer, velocity_noise: -1 m/s}"), "velocity_noise");
     }
 }

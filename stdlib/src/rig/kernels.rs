@@ -9,18 +9,18 @@ use std::f64::consts::FRAC_PI_2;
 const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
 
 // Minimax kernels of sin and cos on [−π/4, π/4] (the fdlibm/musl `__sin`/`__cos` coefficients).
-const S1: f64 = -1.666_666_666_666_663_243_48e-1;
-const S2: f64 = 8.333_333_333_322_489_461_24e-3;
-const S3: f64 = -1.984_126_982_985_794_931_34e-4;
-const S4: f64 = 2.755_731_370_707_006_767_89e-6;
-const S5: f64 = -2.505_076_025_340_686_342_35e-8;
-const S6: f64 = 1.589_690_995_211_550_102_21e-10;
-const C1: f64 = 4.166_666_666_666_660_190_37e-2;
-const C2: f64 = -1.388_888_888_887_410_957_49e-3;
-const C3: f64 = 2.480_158_728_947_672_941_78e-5;
-const C4: f64 = -2.755_731_435_139_066_330_35e-7;
-const C5: f64 = 2.087_572_321_298_174_827_90e-9;
-const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+const S1: f64 = -1.666_666_666_666_663_2e-1;
+const S2: f64 = 8.333_333_333_322_49e-3;
+const S3: f64 = -1.984_126_982_985_795e-4;
+const S4: f64 = 2.755_731_370_707_006_8e-6;
+const S5: f64 = -2.505_076_025_340_686_3e-8;
+const S6: f64 = 1.589_690_995_211_55e-10;
+const C1: f64 = 4.166_666_666_666_66e-2;
+const C2: f64 = -1.388_888_888_887_411e-3;
+const C3: f64 = 2.480_158_728_947_673e-5;
+const C4: f64 = -2.755_731_435_139_066_3e-7;
+const C5: f64 = 2.087_572_321_298_175e-9;
+const C6: f64 = -1.135_964_755_778_819_5e-11;
 
 /// `(sin 2πx, cos 2πx)` for an angle `x` in turns (|x| < 2^51), to a few units in the last
 /// place: the integer part of `x` is dropped exactly, the rest is evaluated at a quarter of
@@ -44,15 +44,15 @@ pub(crate) fn wrap_turns(x: f64) -> f64 {
 }
 
 // fdlibm `__ieee754_log` constants.
-const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1;
-const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
-const LG1: f64 = 6.666_666_666_666_735_130e-1;
-const LG2: f64 = 3.999_999_999_940_941_908e-1;
-const LG3: f64 = 2.857_142_874_366_239_149e-1;
-const LG4: f64 = 2.222_219_843_214_978_396e-1;
-const LG5: f64 = 1.818_357_216_161_805_012e-1;
-const LG6: f64 = 1.531_383_769_920_937_332e-1;
-const LG7: f64 = 1.479_819_860_511_658_591e-1;
+const LN2_HI: f64 = 6.931_471_803_691_238e-1;
+const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+const LG1: f64 = 6.666_666_666_666_735e-1;
+const LG2: f64 = 3.999_999_999_940_942e-1;
+const LG3: f64 = 2.857_142_874_366_239e-1;
+const LG4: f64 = 2.222_219_843_214_978_4e-1;
+const LG5: f64 = 1.818_357_216_161_805e-1;
+const LG6: f64 = 1.531_383_769_920_937_3e-1;
+const LG7: f64 = 1.479_819_860_511_658_6e-1;
 /// Bits of 1.0.
 const ONE_BITS: u64 = 0x3FF0_0000_0000_0000;
 /// `2^52`: adding its bit pattern's integer to it turns a small integer into a double.
@@ -126,14 +126,14 @@ impl NormalSource {
         for o in out.iter_mut() {
             for l in 0..4 {
                 let sum = s0[l].wrapping_add(s3[l]);
-                o[l] = ((sum << 23) | (sum >> 41)).wrapping_add(s0[l]);
+                o[l] = sum.rotate_left(23).wrapping_add(s0[l]);
                 let t = s1[l] << 17;
                 s2[l] ^= s0[l];
                 s3[l] ^= s1[l];
                 s1[l] ^= s2[l];
                 s0[l] ^= s3[l];
                 s2[l] ^= t;
-                s3[l] = (s3[l] << 45) | (s3[l] >> 19);
+                s3[l] = s3[l].rotate_right(19);
             }
         }
         self.s = [s0, s1, s2, s3];

@@ -975,8 +975,10 @@ impl<'a> ProbeSynth<'a> {
         self.j += len as i64;
     }
 
-    /// Samples `n0..n0 + len` of every probe.
+    /// Samples `n0..n0 + len` of every probe. The loops run over several block arrays in
+    /// lockstep, indexed, so that they vectorise.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
     fn block(&mut self, n0: usize, len: usize, out: &mut [Vec<f64>]) {
         let nf = n0 as f64;
         // 1. Spindle angle (in turns) and speed at the delayed instants.
