@@ -33,7 +33,10 @@
 //! **Impacts**: impact k has its first contact near `k·impact_interval + impact_offset`,
 //! with a seeded uniform jitter, on a grid [`IMPACT_SUBSAMPLES`] times finer than the
 //! sampling. Its force is the Hertz hammer model of §2.1 against the struck modes, with a
-//! seeded scatter of the release distance, sampled on the record's grid.
+//! seeded scatter of the release distance, sampled on the record's grid. Each hit is
+//! modelled for [`PULSE_WINDOW`] after first contact (its contact must end within it;
+//! a later swing of the hammer back onto the artifact is not modelled: the hammer is
+//! caught, as in §2.2).
 //!
 //! **Faults**: an impact listed in `double_hits` gets a second hit made as the rebounding
 //! hammer striking again: a second §2.1 impact (structure taken at rest for the contact
@@ -48,7 +51,9 @@
 //!
 //! Random numbers come from separate seeded streams per purpose (plan, force noise, tach
 //! noise, each probe's noise, each asynchronous direction), so changing one setting (the
-//! delay, the sensor, the probe count) leaves the other signals bit-identical.
+//! delay, the sensor, the probe count) leaves the other signals bit-identical. The bulk
+//! normals are Box–Muller on four interleaved xoshiro256++ generators; the hot loops are
+//! also compiled for AVX2 and chosen at run time, with bit-identical results.
 
 mod config;
 mod kernels;
