@@ -506,7 +506,7 @@ pub fn contact_force(
 /// [`simulate_from_contact`] with the approach velocity found.
 pub fn simulate(setup: &ImpactSetup) -> Result<ImpactResult, ImpactError> {
     let fc = first_contact(setup)?;
-    run(setup, -fc.hammer_velocity, Some(fc.time))
+    run(setup, -fc.hammer_velocity, Some(fc.time), true)
 }
 
 /// Simulates the impact starting at first contact, with the hammer touching the resting
@@ -515,7 +515,24 @@ pub fn simulate(setup: &ImpactSetup) -> Result<ImpactResult, ImpactError> {
 pub fn simulate_from_contact(setup: &ImpactSetup, approach_speed: f64) -> Result<ImpactResult, ImpactError> {
     setup.validate()?;
     positive("simulate_from_contact", "approach_speed", approach_speed)?;
-    run(setup, approach_speed, None)
+    run(setup, approach_speed, None, true)
+}
+
+/// [`simulate`] (from release), or [`simulate_from_contact`] when `approach_speed` is given,
+/// without the excited-bandwidth search (left NaN): for callers that need only the force
+/// and response records, since that search dominates the cost of a short impact.
+pub fn simulate_records(setup: &ImpactSetup, approach_speed: Option<f64>) -> Result<ImpactResult, ImpactError> {
+    match approach_speed {
+        None => {
+            let fc = first_contact(setup)?;
+            run(setup, -fc.hammer_velocity, Some(fc.time), false)
+        }
+        Some(v) => {
+            setup.validate()?;
+            positive("simulate_from_contact", "approach_speed", v)?;
+            run(setup, v, None, false)
+        }
+    }
 }
 
 /// Time and hammer velocity at first contact, solved in closed form from the free linear
@@ -993,7 +1010,12 @@ impl FreeFlight {
     }
 }
 
-fn run(setup: &ImpactSetup, approach_speed: f64, release_to_contact: Option<f64>) -> Result<ImpactResult, ImpactError> {
+fn run(
+    setup: &ImpactSetup,
+    approach_speed: f64,
+    release_to_contact: Option<f64>,
+    bandwidth: bool,
+) -> Result<ImpactResult, ImpactError> {
     let fs = setup.sample_rate;
     let ts = 1.0 / fs;
     let n_sub = ((ts / setup.dt) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
@@ -1090,7 +1112,8 @@ fn run(setup: &ImpactSetup, approach_speed: f64, release_to_contact: Option<f64>
         _ => 0.0,
     };
     let peak_force = contacts.iter().map(|c| c.peak_force).fold(0.0, f64::max);
-    let excited_bandwidth = excited_bandwidth(&sim.spectral, spectral_stride as f64 * dt);
+    let excited_bandwidth =
+        if bandwidth { excited_bandwidth(&sim.spectral, spectral_stride as f64 * dt) } else { f64::NAN };
 
     let response_frequency = setup.target.fundamental().map(|m| m.natural_frequency()).unwrap_or(0.0);
     let response_magnitude = amplitude_at(&target[n_pre..], fs, response_frequency);

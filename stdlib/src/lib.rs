@@ -13,6 +13,7 @@ pub mod nodes;
 pub mod phase;
 pub mod runout;
 pub mod segment;
+pub mod rig;
 pub mod signal;
 pub mod tach;
 
@@ -35,4 +36,6 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::TachDecode::new()));
     registry.register(Arc::new(nodes::ErrorsSeparate::new()));
     registry.register(Arc::new(nodes::LdvIntegrate::new()));
+    registry.register(Arc::new(nodes::RigSimulate::new()));
+    registry.register(Arc::new(nodes::RigShaker::new()));
 }

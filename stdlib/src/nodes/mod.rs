@@ -9,6 +9,7 @@ mod phase;
 mod read;
 mod runout;
 mod segment;
+mod rig;
 mod table;
 
 pub use compare::FrfCompare;
@@ -20,4 +21,5 @@ pub use phase::{PhaseCorrect, PhaseMeasure};
 pub use read::{ReadFrf, ReadTimeSeries};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
+pub use rig::{RigShaker, RigSimulate};
 pub use table::TableCollect;
