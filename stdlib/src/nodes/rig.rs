@@ -425,6 +425,7 @@ impl Node for RigSimulate {
             unit: UnitLabel::new("m/N"),
             direction: Some(c.direction.name().into()),
             speed_rpm: Some(c.speed * 60.0 / TAU),
+            sensor: Some("rig truth".into()),
         };
 
         const GRID: usize = 3600;
