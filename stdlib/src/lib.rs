@@ -11,9 +11,9 @@ pub mod frf;
 pub mod impact;
 pub mod nodes;
 pub mod phase;
+pub mod rig;
 pub mod runout;
 pub mod segment;
-pub mod rig;
 pub mod signal;
 pub mod tach;
 

@@ -49,7 +49,9 @@ pub enum TachError {
         value: f64,
     },
     /// The signal does not switch between two levels.
-    #[error("the tachometer signal is flat (between {min} and {max}): no once-per-revolution pulse")]
+    #[error(
+        "the tachometer signal is flat (between {min} and {max}, no level stands out of the noise): no once-per-revolution pulse"
+    )]
     Flat {
         /// Smallest sample.
         min: f64,
@@ -313,6 +315,11 @@ fn levels(samples: &[f64]) -> Result<(f64, f64), TachError> {
         range.end - 1
     };
     let (low, high) = (centre(rank_bin(0..split, below / 2)), centre(rank_bin(split..BINS, above / 2)));
+    // Two real levels sit near the ends of the 0.1–99.9 % span; noise around a single level
+    // puts the two medians well inside it (about 1.35σ apart over a 6.2σ span).
+    if high - low < 0.5 * (q_hi - q_lo) {
+        return Err(TachError::Flat { min, max });
+    }
     // Refine each median to the mean of the samples within 1.5 bins of it: exact for clean
     // levels, unbiased for symmetric noise.
     let near = 1.5 / scale;
@@ -486,6 +493,20 @@ mod tests {
         assert!(matches!(decode(&x, FS, 0.0, &TachOptions::default()), Err(TachError::NonFinite { index: 1234, .. })));
         x[1234] = 5.0;
         assert!(matches!(decode(&[5.0; 1000], FS, 0.0, &TachOptions::default()), Err(TachError::Flat { .. })));
+        // A spindle at rest: the tachometer sits high with noise, which must not read as edges.
+        let mut state = 12345u64;
+        let noisy: Vec<f64> = (0..100_000)
+            .map(|_| {
+                let u: f64 = (0..12)
+                    .map(|_| {
+                        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                        (state >> 11) as f64 / (1u64 << 53) as f64
+                    })
+                    .sum();
+                5.0 + 0.01 * (u - 6.0)
+            })
+            .collect();
+        assert!(matches!(decode(&noisy, FS, 0.0, &TachOptions::default()), Err(TachError::Flat { .. })));
         // One revolution's worth: a single edge.
         let one = record(600.0, 0.5, 12_000, 2.0, 0.0);
         assert!(matches!(decode(&one, FS, 0.0, &TachOptions::default()), Err(TachError::TooFewEdges { found: 1, .. })));
