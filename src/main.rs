@@ -228,7 +228,9 @@ fn main() -> ExitCode {
                         eprintln!(
                             "{} instance(s) computed and cached; {}",
                             r.manifest.computed,
-                            if r.written.is_empty() {
+                            if r.written.is_empty() && keep_going {
+                                "no output was free of the failures, so none was written".to_string()
+                            } else if r.written.is_empty() {
                                 "no outputs written (use --keep-going to write those that succeeded)".to_string()
                             } else {
                                 format!("wrote {} file(s) that did not depend on the failure", r.written.len())

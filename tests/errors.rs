@@ -570,3 +570,42 @@ fn nodes_with_an_unknown_kind_suggests_one() {
     assert_has(&o.stderr, &["unknown node kind `frf.estimat`", "did you mean `frf.estimate`?"]);
     insta::assert_snapshot!("nodes_unknown_kind", o.stderr);
 }
+
+#[test]
+fn bad_measurement_data_is_named_per_channel_record_and_value() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let o = spindlelab(
+        &bad_dir(),
+        [
+            OsStr::new("run"),
+            OsStr::new("measurement-failures.yaml"),
+            OsStr::new("--keep-going"),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ],
+    );
+    assert_rejected(&o);
+    let e = redact(&o.stderr, &[(tmp.path(), "[OUT]"), (&bad_dir(), "[CWD]")]);
+    assert_has(
+        &e,
+        &[
+            // Speed drift beyond tolerance, naming the revolution and the speeds.
+            "node `runout` failed: input `signal`: channel `tach`: revolution 0 runs at",
+            "(tolerance 2.00 %)",
+            // Every record rejected, each with its reason.
+            "0 of 3 impacts usable",
+            "impact 2 at 0.2504 s rejected: double hit: a second pulse of 25 % of the peak",
+            "impact 3 at 0.4483 s rejected: saturated force",
+            // A tachometer without edges.
+            "the tachometer signal is flat",
+            // Probe angles that lose harmonics, with what to do.
+            "harmonic(s) [3, 5, 7",
+            "`allow_unrecoverable: true`",
+            // Mismatched sample rates.
+            "sample rate 50000 Hz differs from the force's 100000 Hz",
+        ],
+    );
+    assert_eq!(error_count(&e), 6, "{e}");
+    assert!(!o.stderr.contains("NaN"), "{e}");
+}

@@ -231,6 +231,25 @@ fn settle_from_cache(
     }
 }
 
+/// A failed node's warnings often say why it failed (every record rejected, say): they go
+/// into its error message, one note per line.
+fn with_warnings(e: NodeError, warnings: Vec<String>) -> NodeError {
+    if warnings.is_empty() {
+        return e;
+    }
+    let notes: String = warnings.iter().map(|w| format!("\n  note: {w}")).collect();
+    match e {
+        NodeError::InvalidInput { port, message } => {
+            NodeError::InvalidInput { port, message: message + notes.as_str() }
+        }
+        NodeError::InvalidParam { param, message } => {
+            NodeError::InvalidParam { param, message: message + notes.as_str() }
+        }
+        NodeError::Failed(message) => NodeError::Failed(message + notes.as_str()),
+        NodeError::MissingInput { port } => NodeError::Failed(format!("{}{notes}", NodeError::MissingInput { port })),
+    }
+}
+
 fn run_one(
     recipe: &Recipe,
     graph: &Graph,
@@ -311,7 +330,7 @@ fn run_one(
             }
             Outcome::Computed { outputs: share(outputs), seconds, warnings }
         }
-        Ok(Err(e)) => Outcome::Failed(e),
+        Ok(Err(e)) => Outcome::Failed(with_warnings(e, ctx.take_warnings())),
         Err(panic) => {
             let msg = panic
                 .downcast_ref::<&str>()

@@ -127,6 +127,12 @@ impl Node for FrfEstimate {
         if force.channels.is_empty() || force.is_empty() {
             return Err(NodeError::input("force", "the force record is empty"));
         }
+        if (force.sample_rate - response.sample_rate).abs() > 1e-9 * force.sample_rate {
+            return Err(NodeError::input(
+                "response",
+                format!("sample rate {} Hz differs from the force's {} Hz", response.sample_rate, force.sample_rate),
+            ));
+        }
         if force.channels.len() != response.channels.len() {
             return Err(NodeError::input(
                 "response",
@@ -135,12 +141,6 @@ impl Node for FrfEstimate {
                     force.channels.len(),
                     response.channels.len()
                 ),
-            ));
-        }
-        if (force.sample_rate - response.sample_rate).abs() > 1e-9 * force.sample_rate {
-            return Err(NodeError::input(
-                "response",
-                format!("sample rate {} Hz differs from the force's {} Hz", response.sample_rate, force.sample_rate),
             ));
         }
         let records: Vec<ImpactRecord> = force
