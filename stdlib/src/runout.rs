@@ -73,7 +73,7 @@ fn check_edges(edges: &[f64]) -> Result<(), RunoutError> {
     if edges.len() < 2 {
         return Err(RunoutError::NoRevolution);
     }
-    match edges.windows(2).position(|w| !(w[1] > w[0])) {
+    match edges.windows(2).position(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater)) {
         Some(i) => Err(RunoutError::EdgesNotIncreasing { index: i + 1 }),
         None => Ok(()),
     }

@@ -160,7 +160,7 @@ pub fn detect(
         max = max.max(value);
     }
     let level = opts.trigger_level.unwrap_or(0.1 * max);
-    if !(level > 0.0) || max < level {
+    if level.is_nan() || level <= 0.0 || max < level {
         return Err(SegmentError::NoImpact { level, max });
     }
     let samples = |t: f64| (t * sample_rate).ceil() as usize;

@@ -588,7 +588,7 @@ mod tests {
         let mut d = Diagnostics::new();
         let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
         let names = EntityNames::default();
-        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names }, &mut d)
+        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
             .unwrap_or_else(|| panic!("{d}"))
     }
 
