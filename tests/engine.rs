@@ -250,3 +250,26 @@ fn a_failure_writes_nothing_but_keeps_what_was_computed_and_keep_going_writes_th
     assert_eq!(report.manifest.cache_hits, 1);
     assert!(dir.path().join("impulse.csv").exists() && !dir.path().join("ratio.csv").exists());
 }
+
+#[test]
+fn a_rerun_does_not_remake_uncached_recordings_whose_consumers_are_cached() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = compile(&data("uncached-upstream.yaml"));
+    let first = run(&c, dir.path(), 2, true);
+    assert_eq!(first.manifest.computed, 3);
+    let frf = std::fs::read(dir.path().join("frf.csv")).unwrap();
+    let second = run(&c, dir.path(), 2, true);
+    assert_eq!(second.manifest.computed, 0, "nothing reruns");
+    for (inst, o) in c.graph.instances.iter().zip(&second.result.outcomes) {
+        match inst.step.as_str() {
+            "frf" => assert!(matches!(o, Outcome::Cached { .. }), "{o:?}"),
+            _ => assert!(matches!(o, Outcome::Unneeded { cached: false }), "{}: {o:?}", inst.id),
+        }
+    }
+    assert_eq!(std::fs::read(dir.path().join("frf.csv")).unwrap(), frf);
+    // Without its cache entry the FRF needs its inputs again, and they are remade.
+    std::fs::remove_dir_all(dir.path().join(".spindlelab-cache")).unwrap();
+    let third = run(&c, dir.path(), 2, true);
+    assert_eq!(third.manifest.computed, 3);
+    assert_eq!(std::fs::read(dir.path().join("frf.csv")).unwrap(), frf);
+}

@@ -179,8 +179,8 @@ pub fn execute(
 
 /// Reads the cache entry of every cacheable instance and settles those that need not run.
 /// An instance is needed when an output file reads it, when nothing consumes it (its
-/// outputs are the point of the step), or when a consumer that must run needs it; a needed
-/// instance with a cache entry is settled from it. So a rerun does not remake large
+/// outputs are the point of the step and the summary shows them), or when a consumer that
+/// must run needs it; a needed instance with a cache entry is settled from it. So a rerun does not remake large
 /// uncached intermediates (simulated raw records) whose consumers all come from the cache.
 fn settle_from_cache(
     recipe: &Recipe,
@@ -213,7 +213,7 @@ fn settle_from_cache(
     // Instances are in topological order: consumers come after their inputs.
     for i in (0..n).rev() {
         let cached = entries[i].is_some();
-        if !consumed[i] && !cached {
+        if !consumed[i] {
             needed[i] = true;
         }
         if needed[i] && !cached {
