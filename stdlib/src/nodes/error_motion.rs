@@ -238,6 +238,12 @@ impl ErrorsSeparate {
                         "0.01",
                         "harmonics with α_k² + β_k² below this are not divided by (Eq. 3.12)",
                     ),
+                    Field::def(
+                        "phase_slope",
+                        T::Quantity(D::PHASE_SLOPE),
+                        "0 deg/kHz",
+                        "phase slope of the probe chain (Eq. 2.11); its delay is taken out of the angle mapping",
+                    ),
                     Field::opt(
                         "async_max_frequency",
                         T::Quantity(D::FREQUENCY),
@@ -310,7 +316,17 @@ impl Node for ErrorsSeparate {
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let p = ctx.params;
         let ts = time_series(ctx)?;
-        let revs = decode_tach(ts, p)?;
+        let mut revs = decode_tach(ts, p)?;
+        // A probe chain that lags by τ shows at t the surface that passed at t − τ: the
+        // probes' revolutions start τ after the tachometer's edges (Eq. 2.11's slope −2πτ).
+        let slope = p.f64("phase_slope").unwrap_or(0.0);
+        if slope != 0.0 {
+            let tau = -slope / std::f64::consts::TAU;
+            let last = ts.t0 + (ts.len().saturating_sub(1)) as f64 / ts.sample_rate;
+            let shifted: Vec<f64> = revs.edges().iter().map(|e| e + tau).filter(|&e| e >= ts.t0 && e <= last).collect();
+            revs = crate::tach::Revolutions::from_edges(shifted, revs.sample_rate())
+                .map_err(|e| NodeError::param("phase_slope", e.to_string()))?;
+        }
         let velocity = p.text("sensor") == Some("velocity");
         let mut records: Vec<Vec<f64>> = Vec::with_capacity(3);
         let mut borrowed: Vec<&[f64]> = Vec::with_capacity(3);
