@@ -89,4 +89,27 @@ fn train_07_baseline_round_trips_through_a_recipe() {
     assert!(close(cut.calibrated_at.unwrap(), f(&c["coefficients_calibrated_at_rpm"]) * 2.0 * PI / 60.0));
     let range: Vec<f64> = c["trial_rpm_range"].as_array().unwrap().iter().map(|v| f(v) * 2.0 * PI / 60.0).collect();
     assert!(cut.trial_speeds.iter().zip(&range).all(|(a, b)| close(*a, *b)));
+
+    // The measurement list: each FRF file read by a step, with its direction, speed and grid.
+    let out = tempfile::tempdir().unwrap();
+    let mut opts = spindlelab::engine::exec::RunOptions::new(out.path());
+    opts.use_cache = false;
+    let report = spindlelab::engine::run(&compiled, &spindlelab::registry(), &opts, &|_, _| {})
+        .unwrap_or_else(|e| panic!("{e}"));
+    let m = &case["measurements"];
+    for (k, meas) in m["frf"].as_array().unwrap().iter().enumerate() {
+        let step = format!("measured_{}", meas["direction"].as_str().unwrap());
+        let i = compiled.graph.by_step[&step][0];
+        let spindlelab::engine::value::Value::Frf(frf) = report.result.outcomes[i].outputs().unwrap()["frf"].as_ref()
+        else {
+            panic!("{step} is not an FRF");
+        };
+        let path = compiled.graph.instances[i].params.file("file").unwrap();
+        assert!(path.ends_with(meas["file"].as_str().unwrap()), "measurement {k}: {}", path.display());
+        assert_eq!(frf.direction.as_deref(), meas["direction"].as_str());
+        assert_eq!(frf.speed_rpm, Some(f(&meas["speed_rpm"])));
+        assert_eq!(frf.unit.symbol, meas["units"].as_str().unwrap());
+        assert_eq!(frf.freq_hz.len() as f64, f(&m["frequency_lines"]));
+        assert!(close(frf.freq_hz[1] - frf.freq_hz[0], f(&m["frequency_step_hz"])));
+    }
 }
