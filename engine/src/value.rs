@@ -160,6 +160,12 @@ pub struct Column {
     pub values: Vec<f64>,
 }
 
+impl Column {
+    pub fn new(name: impl Into<String>, unit: &str, values: Vec<f64>) -> Self {
+        Column { name: name.into(), unit: UnitLabel::new(unit), values }
+    }
+}
+
 impl Table {
     pub fn rows(&self) -> usize {
         self.columns.first().map_or(0, |c| c.values.len())

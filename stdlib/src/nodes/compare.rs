@@ -3,7 +3,7 @@
 use crate::compare::{self, Region};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, PortType, Scalar, Table, UnitLabel, Value};
+use spindlelab_engine::value::{Column, PortType, Scalar, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct FrfCompare {
@@ -90,14 +90,12 @@ impl Node for FrfCompare {
         if c.resampled {
             ctx.warn("the reference is on another frequency grid: interpolated linearly onto the FRF's lines");
         }
-        let col =
-            |name: &str, unit: &str, values: Vec<f64>| Column { name: name.into(), unit: UnitLabel::new(unit), values };
         let table = Table {
             columns: vec![
-                col("frequency", "Hz", c.freq_hz),
-                col("magnitude_ratio", "", c.magnitude_ratio),
-                col("phase_error", "rad", c.phase_error),
-                col("judged", "", c.judged.iter().map(|&j| if j { 1.0 } else { 0.0 }).collect()),
+                Column::new("frequency", "Hz", c.freq_hz),
+                Column::new("magnitude_ratio", "", c.magnitude_ratio),
+                Column::new("phase_error", "rad", c.phase_error),
+                Column::new("judged", "", c.judged.iter().map(|&j| if j { 1.0 } else { 0.0 }).collect()),
             ],
         };
         Ok([

@@ -76,10 +76,6 @@ fn decode_tach(ts: &TimeSeries, p: &Params) -> Result<Revolutions, NodeError> {
     decode(&tach.samples, ts.sample_rate, ts.t0, &tach_options(p)).map_err(tach_err)
 }
 
-fn col(name: &str, unit: &str, values: Vec<f64>) -> Column {
-    Column { name: name.to_string(), unit: UnitLabel::new(unit), values }
-}
-
 /// `tach.decode`: falling edges of the tachometer → revolution table and mean speed.
 pub struct TachDecode {
     spec: NodeSpec,
@@ -132,9 +128,9 @@ impl Node for TachDecode {
         let n = revs.count();
         let table = Table {
             columns: vec![
-                col("index", "", (0..n).map(|r| r as f64).collect()),
-                col("start", "s", (0..n).map(|r| revs.start(r)).collect()),
-                col("speed", "rpm", (0..n).map(|r| revs.speed_rpm(r)).collect()),
+                Column::new("index", "", (0..n).map(|r| r as f64).collect()),
+                Column::new("start", "s", (0..n).map(|r| revs.start(r)).collect()),
+                Column::new("speed", "rpm", (0..n).map(|r| revs.speed_rpm(r)).collect()),
             ],
         };
         Ok([
@@ -405,34 +401,34 @@ fn outputs(sep: &Separation, async_max: Option<f64>) -> Outputs {
     let band = |k: f64| st.form_mean.iter().zip(&st.form_sigma).map(|(m, s)| m + k * s).collect::<Vec<f64>>();
     let form = Table {
         columns: vec![
-            col("angle", "rad", sep.angle.clone()),
-            col("form", "m", sep.form.clone()),
-            col("form_sigma", "m", st.form_sigma.clone()),
-            col("form_lower", "m", band(-3.0)),
-            col("form_upper", "m", band(3.0)),
+            Column::new("angle", "rad", sep.angle.clone()),
+            Column::new("form", "m", sep.form.clone()),
+            Column::new("form_sigma", "m", st.form_sigma.clone()),
+            Column::new("form_lower", "m", band(-3.0)),
+            Column::new("form_upper", "m", band(3.0)),
         ],
     };
     let motion = Table {
         columns: vec![
-            col("angle", "rad", sep.angle.clone()),
-            col("sync_x", "m", sep.sync_x.clone()),
-            col("sync_y", "m", sep.sync_y.clone()),
-            col("sync_r", "m", sep.sync_r.clone()),
-            col("async_sigma_x", "m", sep.async_sigma_x.clone()),
-            col("async_sigma_y", "m", sep.async_sigma_y.clone()),
-            col("async_sigma_r", "m", sep.async_sigma_r.clone()),
-            col("seg_sigma_x", "m", st.x_sigma.clone()),
-            col("seg_sigma_y", "m", st.y_sigma.clone()),
+            Column::new("angle", "rad", sep.angle.clone()),
+            Column::new("sync_x", "m", sep.sync_x.clone()),
+            Column::new("sync_y", "m", sep.sync_y.clone()),
+            Column::new("sync_r", "m", sep.sync_r.clone()),
+            Column::new("async_sigma_x", "m", sep.async_sigma_x.clone()),
+            Column::new("async_sigma_y", "m", sep.async_sigma_y.clone()),
+            Column::new("async_sigma_r", "m", sep.async_sigma_r.clone()),
+            Column::new("seg_sigma_x", "m", st.x_sigma.clone()),
+            Column::new("seg_sigma_y", "m", st.y_sigma.clone()),
         ],
     };
     let sp = &sep.sync_spectrum;
     let spectrum = Table {
         columns: vec![
-            col("upr", "", (0..sp.x.len()).map(|k| k as f64).collect()),
-            col("sync_x", "m", sp.x.clone()),
-            col("sync_y", "m", sp.y.clone()),
-            col("sync_r", "m", sp.r.clone()),
-            col("form", "m", sp.form.clone()),
+            Column::new("upr", "", (0..sp.x.len()).map(|k| k as f64).collect()),
+            Column::new("sync_x", "m", sp.x.clone()),
+            Column::new("sync_y", "m", sp.y.clone()),
+            Column::new("sync_r", "m", sp.r.clone()),
+            Column::new("form", "m", sp.form.clone()),
         ],
     };
     let (freq, ax, ay) = match &sep.async_spectrum {
@@ -442,24 +438,25 @@ fn outputs(sep: &Separation, async_max: Option<f64>) -> Outputs {
         }
         None => (Vec::new(), Vec::new(), Vec::new()),
     };
-    let async_spectrum = Table { columns: vec![col("freq", "Hz", freq), col("x", "m", ax), col("y", "m", ay)] };
+    let async_spectrum =
+        Table { columns: vec![Column::new("freq", "Hz", freq), Column::new("x", "m", ax), Column::new("y", "m", ay)] };
     let one = |v: f64| vec![v];
     let summary = Table {
         columns: vec![
-            col("speed", "rpm", one(sep.mean_speed_rpm)),
-            col("revolutions", "", one(sep.revolutions as f64)),
-            col("samples_per_rev", "", one(sep.samples_per_rev as f64)),
-            col("nyquist_upr", "", one(sep.nyquist_upr)),
-            col("form_ptv", "m", one(sep.ptv.form)),
-            col("sync_x_ptv", "m", one(sep.ptv.x)),
-            col("sync_y_ptv", "m", one(sep.ptv.y)),
-            col("sync_r_ptv", "m", one(sep.ptv.r)),
-            col("async_x", "m", one(sep.async_value_x)),
-            col("async_y", "m", one(sep.async_value_y)),
-            col("form_sigma_mean", "m", one(st.form_sigma_mean)),
-            col("sync_x_sigma_mean", "m", one(st.x_sigma_mean)),
-            col("sync_y_sigma_mean", "m", one(st.y_sigma_mean)),
-            col("unrecoverable", "", one(sep.unrecoverable.len() as f64)),
+            Column::new("speed", "rpm", one(sep.mean_speed_rpm)),
+            Column::new("revolutions", "", one(sep.revolutions as f64)),
+            Column::new("samples_per_rev", "", one(sep.samples_per_rev as f64)),
+            Column::new("nyquist_upr", "", one(sep.nyquist_upr)),
+            Column::new("form_ptv", "m", one(sep.ptv.form)),
+            Column::new("sync_x_ptv", "m", one(sep.ptv.x)),
+            Column::new("sync_y_ptv", "m", one(sep.ptv.y)),
+            Column::new("sync_r_ptv", "m", one(sep.ptv.r)),
+            Column::new("async_x", "m", one(sep.async_value_x)),
+            Column::new("async_y", "m", one(sep.async_value_y)),
+            Column::new("form_sigma_mean", "m", one(st.form_sigma_mean)),
+            Column::new("sync_x_sigma_mean", "m", one(st.x_sigma_mean)),
+            Column::new("sync_y_sigma_mean", "m", one(st.y_sigma_mean)),
+            Column::new("unrecoverable", "", one(sep.unrecoverable.len() as f64)),
         ],
     };
     [

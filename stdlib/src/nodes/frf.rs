@@ -106,17 +106,8 @@ impl Node for FrfEstimate {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        for name in ["force_window", "response_decay", "max_frequency"] {
-            if let Some(v) = p.f64(name)
-                && v <= 0.0
-            {
-                return Err(NodeError::param(name, format!("must be positive, got {v}")));
-            }
-        }
-        if p.f64("pre_trigger").is_some_and(|v| v < 0.0) {
-            return Err(NodeError::param("pre_trigger", "must not be negative"));
-        }
-        Ok(())
+        super::positive(p, &["force_window", "response_decay", "max_frequency"])?;
+        super::non_negative(p, &["pre_trigger"])
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {

@@ -23,3 +23,30 @@ pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use table::TableCollect;
+
+use spindlelab_engine::node::NodeError;
+use spindlelab_engine::spec::Params;
+
+/// Checks that each named parameter, where given, is positive.
+fn positive(p: &Params, names: &[&str]) -> Result<(), NodeError> {
+    for &name in names {
+        if let Some(v) = p.f64(name)
+            && v <= 0.0
+        {
+            return Err(NodeError::param(name, format!("must be positive, got {v}")));
+        }
+    }
+    Ok(())
+}
+
+/// Checks that each named parameter, where given, is not negative.
+fn non_negative(p: &Params, names: &[&str]) -> Result<(), NodeError> {
+    for &name in names {
+        if let Some(v) = p.f64(name)
+            && v < 0.0
+        {
+            return Err(NodeError::param(name, format!("must not be negative, got {v}")));
+        }
+    }
+    Ok(())
+}

@@ -3,7 +3,7 @@
 use crate::phase::{self, PhaseError, SensorKind};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, PortType, Scalar, Table, UnitLabel, Value};
+use spindlelab_engine::value::{Column, PortType, Scalar, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 /// Degrees per kilohertz in rad/Hz, for messages.
@@ -185,13 +185,11 @@ impl Node for PhaseMeasure {
                 slope / DEG_PER_KHZ
             ));
         }
-        let col =
-            |name: &str, unit: &str, values: Vec<f64>| Column { name: name.into(), unit: UnitLabel::new(unit), values };
         let table = Table {
             columns: vec![
-                col("frequency", "Hz", points.iter().map(|p| p.0).collect()),
-                col("phase_lag", "rad", points.iter().map(|p| p.1).collect()),
-                col("residual", "rad", points.iter().map(|p| p.1 - slope * p.0).collect()),
+                Column::new("frequency", "Hz", points.iter().map(|p| p.0).collect()),
+                Column::new("phase_lag", "rad", points.iter().map(|p| p.1).collect()),
+                Column::new("residual", "rad", points.iter().map(|p| p.1 - slope * p.0).collect()),
             ],
         };
         Ok([

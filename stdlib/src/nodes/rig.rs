@@ -369,10 +369,6 @@ fn rig_error(e: RigError, velocity: bool) -> NodeError {
     }
 }
 
-fn column(name: &str, unit: &str, values: Vec<f64>) -> Column {
-    Column { name: name.into(), unit: UnitLabel::new(unit), values }
-}
-
 /// The record as a time series, moving the channel buffers.
 fn record(r: RigRecording, unit: &str) -> (TimeSeries, crate::rig::RigTruth) {
     let mut channels = vec![
@@ -432,20 +428,22 @@ impl Node for RigSimulate {
         let angle: Vec<f64> = (0..GRID).map(|i| TAU * i as f64 / GRID as f64).collect();
         let form = Table {
             columns: vec![
-                column("angle", "rad", angle.clone()),
-                column("form", "m", angle.iter().map(|t| truth.form_error(*t)).collect()),
+                Column::new("angle", "rad", angle.clone()),
+                Column::new("form", "m", angle.iter().map(|t| truth.form_error(*t)).collect()),
             ],
         };
         let (mx, my): (Vec<f64>, Vec<f64>) = angle.iter().map(|t| truth.sync_motion(*t)).unzip();
-        let motion = Table { columns: vec![column("angle", "rad", angle), column("x", "m", mx), column("y", "m", my)] };
+        let motion = Table {
+            columns: vec![Column::new("angle", "rad", angle), Column::new("x", "m", mx), Column::new("y", "m", my)],
+        };
         let imp = &truth.impacts;
         let impacts = Table {
             columns: vec![
-                column("index", "", imp.iter().map(|i| i.index as f64).collect()),
-                column("time", "s", imp.iter().map(|i| i.time).collect()),
-                column("peak_force", "N", imp.iter().map(|i| i.peak_force).collect()),
-                column("double_hit", "", imp.iter().map(|i| f64::from(u8::from(i.double_hit))).collect()),
-                column("saturated", "", imp.iter().map(|i| f64::from(u8::from(i.saturated))).collect()),
+                Column::new("index", "", imp.iter().map(|i| i.index as f64).collect()),
+                Column::new("time", "s", imp.iter().map(|i| i.time).collect()),
+                Column::new("peak_force", "N", imp.iter().map(|i| i.peak_force).collect()),
+                Column::new("double_hit", "", imp.iter().map(|i| f64::from(u8::from(i.double_hit))).collect()),
+                Column::new("saturated", "", imp.iter().map(|i| f64::from(u8::from(i.saturated))).collect()),
             ],
         };
         for i in imp.iter().filter(|i| i.saturated) {

@@ -5,7 +5,7 @@ use crate::segment::{self, DetectOptions};
 use crate::tach::{self, TachOptions};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, PortType, Table, UnitLabel, Value};
+use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct RunoutRemove {
@@ -96,14 +96,8 @@ impl Node for RunoutRemove {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        for name in ["before", "settle"] {
-            if p.f64(name).is_some_and(|v| v < 0.0) {
-                return Err(NodeError::param(name, "must not be negative"));
-            }
-        }
-        if p.f64("max_drift").is_some_and(|v| v <= 0.0) {
-            return Err(NodeError::param("max_drift", "must be positive"));
-        }
+        super::non_negative(p, &["before", "settle"])?;
+        super::positive(p, &["max_drift"])?;
         if p.text("channels").is_some_and(|c| c.split(',').all(|s| s.trim().is_empty())) {
             return Err(NodeError::param("channels", "name at least one channel"));
         }
@@ -172,11 +166,8 @@ impl Node for RunoutRemove {
                 .map_err(|e| NodeError::input("signal", format!("channel `{}`: {e}", ch.name)))?;
             if columns.is_empty() {
                 let n = opr.profile.len();
-                columns.push(Column {
-                    name: "angle".into(),
-                    unit: UnitLabel::new("rad"),
-                    values: (0..n).map(|j| std::f64::consts::TAU * j as f64 / n as f64).collect(),
-                });
+                let angle = (0..n).map(|j| std::f64::consts::TAU * j as f64 / n as f64).collect();
+                columns.push(Column::new("angle", "rad", angle));
             }
             if opr.profile.len() == columns[0].values.len() {
                 columns.push(Column { name: ch.name.clone(), unit: ch.unit.clone(), values: opr.profile });

@@ -4,7 +4,7 @@
 use crate::segment::{self, DetectOptions, SegmentError};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Channel, Column, PortType, Table, TimeSeries, UnitLabel, Value};
+use spindlelab_engine::value::{Channel, Column, PortType, Table, TimeSeries, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct ImpactSegment {
@@ -105,17 +105,8 @@ impl Node for ImpactSegment {
         {
             return Err(NodeError::param("double_hit_ratio", format!("must lie between 0 and 100 %, got {r}")));
         }
-        for name in ["trigger_level", "full_scale", "double_hit_window", "dead_time"] {
-            if let Some(v) = p.f64(name)
-                && v <= 0.0
-            {
-                return Err(NodeError::param(name, format!("must be positive, got {v}")));
-            }
-        }
-        if p.f64("pre_trigger").is_some_and(|v| v < 0.0) {
-            return Err(NodeError::param("pre_trigger", "must not be negative"));
-        }
-        Ok(())
+        super::positive(p, &["trigger_level", "full_scale", "double_hit_window", "dead_time"])?;
+        super::non_negative(p, &["pre_trigger"])
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
@@ -176,14 +167,16 @@ impl Node for ImpactSegment {
                 .map(|(k, samples)| Channel { name: format!("impact_{}", k + 1), unit: ch.unit.clone(), samples })
                 .collect(),
         };
-        let col =
-            |name: &str, unit: &str, values: Vec<f64>| Column { name: name.into(), unit: UnitLabel::new(unit), values };
         let table = Table {
             columns: vec![
-                col("impact", "", (1..=impacts.len()).map(|k| k as f64).collect()),
-                col("time", "s", impacts.iter().map(|i| i.time).collect()),
-                col("peak_force", "N", impacts.iter().map(|i| i.peak).collect()),
-                col("rejection", "", impacts.iter().map(|i| i.rejection.map_or(0.0, |r| r.code() as f64)).collect()),
+                Column::new("impact", "", (1..=impacts.len()).map(|k| k as f64).collect()),
+                Column::new("time", "s", impacts.iter().map(|i| i.time).collect()),
+                Column::new("peak_force", "N", impacts.iter().map(|i| i.peak).collect()),
+                Column::new(
+                    "rejection",
+                    "",
+                    impacts.iter().map(|i| i.rejection.map_or(0.0, |r| r.code() as f64)).collect(),
+                ),
             ],
         };
         Ok([
