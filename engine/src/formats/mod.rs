@@ -181,17 +181,7 @@ pub fn read_time_series(
             let file = uff::parse(&bytes, &shown)?;
             let mut notes = skipped_notes(&shown, &file.skipped);
             if let Some(k) = dataset {
-                let ds = pick(&file, k, &shown)?;
-                if ds.function_type != uff::FUNCTION_TIME {
-                    return Err(FormatError::Selection {
-                        path: shown,
-                        message: format!(
-                            "dataset {k} (line {}) is {}, not a time response (function type 1)",
-                            ds.line,
-                            uff::function_name(ds.function_type)
-                        ),
-                    });
-                }
+                let ds = pick_of_type(&file, k, &shown, uff::FUNCTION_TIME, "a time response (function type 1)")?;
                 return Ok(Loaded { value: ds.to_time_series(&shown)?, notes });
             }
             let mut series: Vec<TimeSeries> = Vec::new();
@@ -271,17 +261,7 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
             let file = uff::parse(&bytes, &shown)?;
             let mut notes = skipped_notes(&shown, &file.skipped);
             if let Some(k) = select.dataset {
-                let ds = pick(&file, k, &shown)?;
-                if ds.function_type != uff::FUNCTION_FRF {
-                    return Err(FormatError::Selection {
-                        path: shown,
-                        message: format!(
-                            "dataset {k} (line {}) is {}, not an FRF (function type 4)",
-                            ds.line,
-                            uff::function_name(ds.function_type)
-                        ),
-                    });
-                }
+                let ds = pick_of_type(&file, k, &shown, uff::FUNCTION_FRF, "an FRF (function type 4)")?;
                 let frf = ds.to_frf(&shown)?;
                 if let Some(want) = &select.direction
                     && frf.direction.as_deref() != Some(want.as_str())
@@ -350,6 +330,24 @@ fn pick<'a>(file: &'a uff::UffFile, k: usize, path: &str) -> Result<&'a uff::Dat
         });
     }
     Ok(&file.datasets[k - 1])
+}
+
+/// Dataset `k` (from 1), which must be of function type `function` (`what` names it).
+fn pick_of_type<'a>(
+    file: &'a uff::UffFile,
+    k: usize,
+    path: &str,
+    function: i32,
+    what: &str,
+) -> Result<&'a uff::Dataset58, FormatError> {
+    let ds = pick(file, k, path)?;
+    if ds.function_type != function {
+        return Err(FormatError::Selection {
+            path: path.to_string(),
+            message: format!("dataset {k} (line {}) is {}, not {what}", ds.line, uff::function_name(ds.function_type)),
+        });
+    }
+    Ok(ds)
 }
 
 /// A unit label as found in a file, brought to SI: the factor to multiply values by and the
