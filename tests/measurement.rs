@@ -102,7 +102,7 @@ fn phase_lag_measured_on_the_shaker_restores_the_phase_within_1_degree() {
 }
 
 #[test]
-fn form_error_is_recovered_to_5_nm_without_noise_and_inside_3_sigma_with_it_and_with_a_lagging_gauge() {
+fn form_error_is_recovered_to_5_nm_without_noise_inside_3_sigma_with_it_and_from_lagging_or_velocity_probes() {
     let r = run("form-vs-truth.yaml");
     let mut rms_of = std::collections::HashMap::new();
     for (rig, sep, noisy) in [
@@ -110,6 +110,7 @@ fn form_error_is_recovered_to_5_nm_without_noise_and_inside_3_sigma_with_it_and_
         ("noisy", "noisy_sep", true),
         ("lagging", "lagging_sep", false),
         ("lagging", "uncorrected_sep", true),
+        ("vibrometer", "vibrometer_sep", false),
     ] {
         let (ta, tf) = (r.column(rig, "truth_form", "angle"), r.column(rig, "truth_form", "form"));
         let angle = r.column(sep, "form", "angle");
