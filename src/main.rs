@@ -133,7 +133,7 @@ fn main() -> ExitCode {
                 let out = out.unwrap_or_else(|| default_out(&c));
                 let opts = RunOptions::new(&out);
                 let cache = (!no_cache).then(|| opts.cache());
-                let entries = plan(&c.graph, &out, cache.as_ref());
+                let entries = plan(&c.recipe, &c.graph, &registry, &out, cache.as_ref());
                 let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
                 for e in &entries {
                     println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);

@@ -95,7 +95,7 @@ fn second_run_comes_from_the_cache_and_a_changed_parameter_reruns_only_its_cone(
     .unwrap();
     let c2 = compile(&recipe);
     let cache = RunOptions::new(&out).cache();
-    let p = plan(&c2.graph, &out, Some(&cache));
+    let p = plan(&c2.recipe, &c2.graph, &spindlelab::registry(), &out, Some(&cache));
     for e in &p {
         match e.id.split('[').next().unwrap() {
             "frf" => assert_eq!(e.reason, PlanReason::ChangedParams(vec!["trigger".into()]), "{}", e.id),
@@ -109,7 +109,7 @@ fn second_run_comes_from_the_cache_and_a_changed_parameter_reruns_only_its_cone(
     let text2 = text.replace("windows: false, trigger: record-start", "windows: false, trigger: force-peak");
     std::fs::write(&recipe, text2.replace("seed: 11", "seed: 12")).unwrap();
     let c3 = compile(&recipe);
-    for e in plan(&c3.graph, &out, Some(&cache)) {
+    for e in plan(&c3.recipe, &c3.graph, &spindlelab::registry(), &out, Some(&cache)) {
         match e.id.split('[').next().unwrap() {
             "hit" => assert_eq!(e.reason, PlanReason::ChangedParams(vec!["seed".into()])),
             "frf" => assert_eq!(e.reason, PlanReason::ChangedInputs(vec!["force".into(), "response".into()])),
@@ -258,6 +258,11 @@ fn a_rerun_does_not_remake_uncached_recordings_whose_consumers_are_cached() {
     let first = run(&c, dir.path(), 2, true);
     assert_eq!(first.manifest.computed, 3);
     let frf = std::fs::read(dir.path().join("frf.csv")).unwrap();
+    let cache = RunOptions::new(dir.path()).cache();
+    for e in plan(&c.recipe, &c.graph, &spindlelab::registry(), dir.path(), Some(&cache)) {
+        let want = if e.id == "frf" { PlanReason::Cached } else { PlanReason::NotNeeded };
+        assert_eq!(e.reason, want, "{}", e.id);
+    }
     let second = run(&c, dir.path(), 2, true);
     assert_eq!(second.manifest.computed, 0, "nothing reruns");
     for (inst, o) in c.graph.instances.iter().zip(&second.result.outcomes) {

@@ -233,10 +233,13 @@ impl ParamValue {
 }
 
 /// Formats an SI value with its SI unit, to 6 significant digits; a rotational speed is
-/// shown in rpm, the unit every spindle speed is written in.
+/// shown in rpm, the unit every spindle speed is written in, and a frequency in Hz.
 pub fn fmt_quantity(value: f64, dim: Dimension) -> String {
     if dim == Dimension::ROTATIONAL_SPEED {
         return format!("{} rpm", crate::round_sig(value * 60.0 / std::f64::consts::TAU, 6));
+    }
+    if dim == Dimension::FREQUENCY {
+        return format!("{} Hz", crate::round_sig(value, 6));
     }
     let num = format!("{}", crate::round_sig(value, 6));
     if dim == Dimension::DIMENSIONLESS { num } else { format!("{num} {}", dim.si_unit()) }

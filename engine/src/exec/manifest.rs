@@ -7,6 +7,7 @@
 use super::{Cache, Outcome, RunResult};
 use crate::graph::Graph;
 use crate::model::Recipe;
+use crate::node::Registry;
 use indexmap::IndexMap;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -122,6 +123,10 @@ pub enum PlanReason {
     ChangedInputs(Vec<String>),
     /// The previous run did not finish it, or the cache was cleared or bypassed.
     NotInCache,
+    /// Not cached, but every consumer is, and no output file reads it.
+    NotNeeded,
+    /// Never cached (large outputs that are cheaper to remake), and needed.
+    Uncacheable,
 }
 
 impl std::fmt::Display for PlanReason {
@@ -139,6 +144,8 @@ impl std::fmt::Display for PlanReason {
                 write!(f, "run: changed input {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", "))
             }
             PlanReason::NotInCache => write!(f, "run: not in cache"),
+            PlanReason::NotNeeded => write!(f, "skip: every consumer comes from the cache"),
+            PlanReason::Uncacheable => write!(f, "run: never cached (large outputs, cheap to remake)"),
         }
     }
 }
@@ -152,15 +159,35 @@ pub struct PlanEntry {
 }
 
 /// Says, without running anything, which instances would run and why.
-pub fn plan(graph: &Graph, out_dir: &Path, cache: Option<&Cache>) -> Vec<PlanEntry> {
+pub fn plan(
+    recipe: &Recipe,
+    graph: &Graph,
+    registry: &Registry,
+    out_dir: &Path,
+    cache: Option<&Cache>,
+) -> Vec<PlanEntry> {
     let previous = Manifest::read(out_dir);
+    let cacheable: Vec<bool> =
+        graph.instances.iter().map(|inst| registry.get(&inst.kind).is_none_or(|node| node.cacheable())).collect();
+    let cached: Vec<bool> = graph
+        .instances
+        .iter()
+        .zip(&cacheable)
+        .map(|(inst, &c)| c && cache.is_some_and(|cache| cache.contains(&inst.key)))
+        .collect();
+    // Without a cache every instance runs.
+    let needed = if cache.is_some() { super::needed(recipe, graph, &cached) } else { vec![true; cached.len()] };
     graph
         .instances
         .iter()
         .enumerate()
         .map(|(i, inst)| {
-            let reason = if cache.is_some_and(|c| c.contains(&inst.key)) {
+            let reason = if cached[i] {
                 PlanReason::Cached
+            } else if !needed[i] {
+                PlanReason::NotNeeded
+            } else if !cacheable[i] {
+                PlanReason::Uncacheable
             } else {
                 match previous.as_ref().and_then(|m| m.nodes.iter().find(|n| n.id == inst.id)) {
                     None => PlanReason::New,

@@ -182,6 +182,36 @@ pub fn execute(
 /// outputs are the point of the step and the summary shows them), or when a consumer that
 /// must run needs it; a needed instance with a cache entry is settled from it. So a rerun does not remake large
 /// uncached intermediates (simulated raw records) whose consumers all come from the cache.
+/// Which instances a run must settle, given which have a cache entry: those an output file
+/// reads, those nothing consumes, and the inputs of every needed instance that is not cached.
+pub fn needed(recipe: &Recipe, graph: &Graph, cached: &[bool]) -> Vec<bool> {
+    let n = graph.instances.len();
+    let mut needed = vec![false; n];
+    let mut consumed = vec![false; n];
+    for inst in &graph.instances {
+        for d in inst.deps() {
+            consumed[d] = true;
+        }
+    }
+    for out in &recipe.outputs {
+        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
+            needed[i] = true;
+        }
+    }
+    // Instances are in topological order: consumers come after their inputs.
+    for i in (0..n).rev() {
+        if !consumed[i] {
+            needed[i] = true;
+        }
+        if needed[i] && !cached[i] {
+            for d in graph.instances[i].deps() {
+                needed[d] = true;
+            }
+        }
+    }
+    needed
+}
+
 fn settle_from_cache(
     recipe: &Recipe,
     graph: &Graph,
@@ -198,30 +228,8 @@ fn settle_from_cache(
             if node.cacheable() { cache.get(&inst.key) } else { None }
         })
         .collect();
-    let mut needed = vec![false; n];
-    let mut consumed = vec![false; n];
-    for inst in &graph.instances {
-        for d in inst.deps() {
-            consumed[d] = true;
-        }
-    }
-    for out in &recipe.outputs {
-        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
-            needed[i] = true;
-        }
-    }
-    // Instances are in topological order: consumers come after their inputs.
-    for i in (0..n).rev() {
-        let cached = entries[i].is_some();
-        if !consumed[i] {
-            needed[i] = true;
-        }
-        if needed[i] && !cached {
-            for d in graph.instances[i].deps() {
-                needed[d] = true;
-            }
-        }
-    }
+    let cached: Vec<bool> = entries.iter().map(Option::is_some).collect();
+    let needed = needed(recipe, graph, &cached);
     for i in 0..n {
         match (needed[i], entries[i].take()) {
             (true, Some(e)) => outcomes[i] = Some(Outcome::Cached { outputs: share(e.outputs), warnings: e.warnings }),
