@@ -182,7 +182,8 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             let out = out.unwrap_or_else(|| default_out(&c));
-            let opts = RunOptions { out_dir: out.clone(), use_cache: !no_cache, keep_going, threads };
+            let opts =
+                RunOptions { out_dir: out.clone(), use_cache: !no_cache, keep_going, threads, release_consumed: true };
             let bar = if std::io::stderr().is_terminal() && !quiet {
                 let b = ProgressBar::new(c.graph.instances.len() as u64);
                 b.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {wide_msg}").expect("template"));

@@ -88,6 +88,12 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
             Outcome::Skipped => {
                 let _ = writeln!(out, "  skipped");
             }
+            Outcome::Released { .. } => {
+                let _ = writeln!(out, "  outputs released once every consumer had run (never cached)");
+                for w in outcome.warnings() {
+                    let _ = writeln!(out, "  warning: {w}");
+                }
+            }
             Outcome::Unneeded { cached } => {
                 let how = if *cached { "cached" } else { "not cached" };
                 let _ = writeln!(out, "  not loaded ({how}; every consumer came from the cache)");

@@ -278,3 +278,23 @@ fn a_rerun_does_not_remake_uncached_recordings_whose_consumers_are_cached() {
     assert_eq!(third.manifest.computed, 3);
     assert_eq!(std::fs::read(dir.path().join("frf.csv")).unwrap(), frf);
 }
+
+#[test]
+fn released_recordings_free_memory_without_changing_results() {
+    let c = compile(&data("uncached-upstream.yaml"));
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let kept = run(&c, a.path(), 2, false);
+    let mut opts = RunOptions::new(b.path());
+    opts.use_cache = false;
+    opts.release_consumed = true;
+    let released = engine::run(&c, &spindlelab::registry(), &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
+    for (inst, o) in c.graph.instances.iter().zip(&released.result.outcomes) {
+        match inst.step.as_str() {
+            "frf" => assert!(matches!(o, Outcome::Computed { .. }), "{o:?}"),
+            _ => assert!(matches!(o, Outcome::Released { .. }), "{}: {o:?}", inst.id),
+        }
+    }
+    assert_eq!(released.manifest.computed, 3);
+    assert_eq!(std::fs::read(a.path().join("frf.csv")).unwrap(), std::fs::read(b.path().join("frf.csv")).unwrap());
+    assert!(kept.result.outcomes.iter().all(|o| matches!(o, Outcome::Computed { .. })));
+}

@@ -70,7 +70,9 @@ impl Manifest {
             .enumerate()
             .map(|(i, inst)| {
                 let (status, seconds, error) = match &result.outcomes[i] {
-                    Outcome::Computed { seconds, .. } => ("computed", *seconds, None),
+                    Outcome::Computed { seconds, .. } | Outcome::Released { seconds, .. } => {
+                        ("computed", *seconds, None)
+                    }
                     Outcome::Cached { .. } => ("cached", 0.0, None),
                     Outcome::Failed(e) => ("failed", 0.0, Some(e.to_string())),
                     Outcome::Skipped => ("skipped", 0.0, None),

@@ -29,11 +29,21 @@ pub struct RunOptions {
     pub keep_going: bool,
     /// Worker threads; `None` uses rayon's default.
     pub threads: Option<usize>,
+    /// Drop the outputs of uncached instances (raw recordings) once every consumer has
+    /// run and no output file reads them, to bound memory; the result then shows them as
+    /// released.
+    pub release_consumed: bool,
 }
 
 impl RunOptions {
     pub fn new(out_dir: impl Into<PathBuf>) -> Self {
-        RunOptions { out_dir: out_dir.into(), use_cache: true, keep_going: false, threads: None }
+        RunOptions {
+            out_dir: out_dir.into(),
+            use_cache: true,
+            keep_going: false,
+            threads: None,
+            release_consumed: false,
+        }
     }
 
     /// The cache directory for this output directory.
@@ -75,6 +85,11 @@ pub enum Outcome {
     Unneeded {
         cached: bool,
     },
+    /// Computed, used by every consumer, then dropped (see [`RunOptions::release_consumed`]).
+    Released {
+        seconds: f64,
+        warnings: Vec<String>,
+    },
 }
 
 impl Outcome {
@@ -88,7 +103,9 @@ impl Outcome {
     /// Warnings raised by the node, replayed from the cache when it was not rerun.
     pub fn warnings(&self) -> &[String] {
         match self {
-            Outcome::Computed { warnings, .. } | Outcome::Cached { warnings, .. } => warnings,
+            Outcome::Computed { warnings, .. }
+            | Outcome::Cached { warnings, .. }
+            | Outcome::Released { warnings, .. } => warnings,
             _ => &[],
         }
     }
@@ -134,6 +151,13 @@ pub fn execute(
     }
     let mut stop = false;
     let mut done_count = 0usize;
+    // Instances whose outputs must stay: read by output files, or never cached.
+    let mut keep = vec![false; n];
+    for out in &recipe.outputs {
+        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
+            keep[i] = true;
+        }
+    }
     for (i, o) in outcomes.iter().enumerate() {
         if o.is_some() {
             progress(i, &graph.instances[i].id);
@@ -169,6 +193,9 @@ pub fn execute(
             done_count += 1;
             outcomes[i] = Some(o);
         }
+        if opts.release_consumed {
+            release(graph, registry, &keep, &mut outcomes);
+        }
     }
     debug_assert_eq!(done_count, n);
     RunResult {
@@ -177,11 +204,6 @@ pub fn execute(
     }
 }
 
-/// Reads the cache entry of every cacheable instance and settles those that need not run.
-/// An instance is needed when an output file reads it, when nothing consumes it (its
-/// outputs are the point of the step and the summary shows them), or when a consumer that
-/// must run needs it; a needed instance with a cache entry is settled from it. So a rerun does not remake large
-/// uncached intermediates (simulated raw records) whose consumers all come from the cache.
 /// Which instances a run must settle, given which have a cache entry: those an output file
 /// reads, those nothing consumes, and the inputs of every needed instance that is not cached.
 pub fn needed(recipe: &Recipe, graph: &Graph, cached: &[bool]) -> Vec<bool> {
@@ -210,6 +232,36 @@ pub fn needed(recipe: &Recipe, graph: &Graph, cached: &[bool]) -> Vec<bool> {
         }
     }
     needed
+}
+
+/// Reads the cache entry of every cacheable instance and settles what need not run: needed
+/// instances with an entry are loaded from it, the others are marked unneeded. So a rerun
+/// does not remake large uncached intermediates (simulated raw records) whose consumers
+/// all come from the cache.
+/// Drops the outputs of uncached computed instances whose consumers have all settled.
+fn release(graph: &Graph, registry: &Registry, keep: &[bool], outcomes: &mut [Option<Outcome>]) {
+    let n = graph.instances.len();
+    let mut pending = vec![false; n];
+    let mut consumed = vec![false; n];
+    for (i, inst) in graph.instances.iter().enumerate() {
+        for d in inst.deps() {
+            consumed[d] = true;
+            if outcomes[i].is_none() {
+                pending[d] = true;
+            }
+        }
+    }
+    for i in 0..n {
+        if keep[i] || pending[i] || !consumed[i] {
+            continue;
+        }
+        if registry.get(&graph.instances[i].kind).is_some_and(|node| node.cacheable()) {
+            continue;
+        }
+        if let Some(Outcome::Computed { seconds, warnings, .. }) = &outcomes[i] {
+            outcomes[i] = Some(Outcome::Released { seconds: *seconds, warnings: warnings.clone() });
+        }
+    }
 }
 
 fn settle_from_cache(
