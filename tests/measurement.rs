@@ -169,3 +169,23 @@ fn unseparable_angles_are_an_error_unless_allowed() {
         other => panic!("expected a failure, got {:?}", other.map(|r| r.written)),
     }
 }
+
+#[test]
+fn an_asynchronous_order_dips_the_coherence_at_its_frequency_after_runout_removal() {
+    let r = run("coherence-dip.yaml");
+    let Value::Frf(frf) = r.value("frf", "frf").as_ref().clone() else { panic!("not an FRF") };
+    let coherence = frf.coherence.expect("coherence");
+    let tone = 44.3 * 1000.0 / 60.0;
+    let (mut at_tone, mut elsewhere) = (1.0f64, Vec::new());
+    for (f, g) in frf.freq_hz.iter().zip(&coherence) {
+        if (f - tone).abs() < 2.0 {
+            at_tone = at_tone.min(*g);
+        } else if (600.0..1300.0).contains(f) {
+            elsewhere.push(*g);
+        }
+    }
+    elsewhere.sort_by(f64::total_cmp);
+    let median = elsewhere[elsewhere.len() / 2];
+    assert!(at_tone < 0.85, "coherence at {tone} Hz: {at_tone}");
+    assert!(median > 0.97, "median coherence around it: {median}");
+}

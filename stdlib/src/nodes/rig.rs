@@ -29,13 +29,49 @@ const UNDULATION: &[Field] = &[
 ];
 
 const TONE: &[Field] = &[
-    Field::req("frequency", T::Quantity(D::FREQUENCY), "frequency of the non-synchronous motion"),
+    Field::opt("frequency", T::Quantity(D::FREQUENCY), "frequency of the non-synchronous motion"),
+    Field::opt(
+        "per_rev",
+        RATIO,
+        "frequency as a multiple of the nominal spindle frequency, not a whole number (a bearing's ball-pass order, say); instead of `frequency`",
+    ),
     Field::req("amplitude", T::Quantity(D::LENGTH), "amplitude of amplitude·cos(2π f t − phase)"),
     Field::def("phase", T::Quantity(D::ANGLE), "0 deg", "phase"),
     Field::def("direction", T::Choice(&["x", "y"]), "x", "machine direction it acts along"),
 ];
 
 const SENSORS: &[&str] = &["capacitance_probe", "laser_vibrometer"];
+
+/// The asynchronous tones; a tone given `per_rev` runs at that multiple of the nominal
+/// spindle frequency (`speed` in rad/s), so it follows the speed like a bearing order (and
+/// is absent when the spindle is at rest).
+fn tones(p: &Params, speed: f64) -> Result<Vec<Tone>, NodeError> {
+    let spindle_hz = speed / std::f64::consts::TAU;
+    p.objects("async_tones")
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let freq_hz = match (t.f64("frequency"), t.f64("per_rev")) {
+                (Some(f), None) => f,
+                (None, Some(order)) => order * spindle_hz,
+                _ => {
+                    return Err(NodeError::param(
+                        "async_tones",
+                        format!("tone {}: give exactly one of `frequency` and `per_rev`", i + 1),
+                    ));
+                }
+            };
+            Ok(Tone {
+                freq_hz,
+                amplitude: t.f64("amplitude").unwrap_or(f64::NAN),
+                phase: t.f64("phase").unwrap_or(0.0),
+                direction: direction(t, "direction"),
+            })
+        })
+        .filter(|t| !matches!(t, Ok(Tone { freq_hz, .. }) if *freq_hz == 0.0 && speed == 0.0))
+        .collect()
+}
 
 pub struct RigSimulate {
     spec: NodeSpec,
@@ -277,17 +313,7 @@ fn config_from(p: &Params, recipe: Option<&spindlelab_engine::model::Recipe>) ->
         sync_y: p.objects("sync_y").map_or(d.sync_y, undulations),
         async_rms: f("async_rms", d.async_rms),
         async_bandwidth: f("async_bandwidth", d.async_bandwidth),
-        async_tones: p
-            .objects("async_tones")
-            .unwrap_or(&[])
-            .iter()
-            .map(|t| Tone {
-                freq_hz: t.f64("frequency").unwrap_or(f64::NAN),
-                amplitude: t.f64("amplitude").unwrap_or(f64::NAN),
-                phase: t.f64("phase").unwrap_or(0.0),
-                direction: direction(t, "direction"),
-            })
-            .collect(),
+        async_tones: tones(p, p.f64("speed").unwrap_or(d.speed))?,
         probe_angles: p.list("probes").map_or(d.probe_angles, <[f64]>::to_vec),
         sensor,
         phase_slope: p.f64("phase_slope").unwrap_or(sensor.default_phase_slope()),
