@@ -4,6 +4,7 @@
 //! I/O; [`nodes`] adapts them to the engine's node trait. [`register`] is the one place
 //! where built-in kinds are listed.
 
+pub mod beam;
 pub mod compare;
 pub mod error_motion;
 pub mod filter;

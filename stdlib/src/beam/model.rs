@@ -1,0 +1,424 @@
+//! Free–free Timoshenko beam assembly of a tool/holder/artifact (dissertation §5.4) and its
+//! receptances (§5.1): direct complex solve per frequency line and modal expansion.
+//!
+//! Tapered segments are subdivided into several elements, each with the cross-section at its
+//! mid-point (a stepped approximation of the cone that converges as elements shrink).
+//! Damping: structural, as complex modulus E(1 + iη) per element (hysteretic stiffness
+//! `i Σ η_e K_e`), plus viscous dampers of node springs (`iωC`).
+
+use super::BeamError;
+use super::element;
+use super::linalg::{complex_solve, generalized_eigen};
+use super::section::{BeamSegment, ShearCoefficient};
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+/// 2×2 receptance block between two nodes, `[[H, L], [N, P]]`: H = y/F, L = y/M, N = θ/F,
+/// P = θ/M (Eq. 5.2), response at the first node, excitation at the second.
+pub type Receptance = [[Complex64; 2]; 2];
+
+/// Meshing options for [`BeamModel::from_segments`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshOptions {
+    /// Longest element, m; each segment is split into `ceil(length / max_element_length)`.
+    pub max_element_length: f64,
+    /// Fewest elements per tapered segment (mid-point properties per element).
+    pub min_taper_elements: usize,
+    /// Shear coefficient model.
+    pub shear: ShearCoefficient,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions { max_element_length: 2e-3, min_taper_elements: 4, shear: ShearCoefficient::Cowper }
+    }
+}
+
+/// Translational and rotational spring with viscous dampers attached between a node and ground.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NodeSpring {
+    /// Translational stiffness, N/m.
+    pub kt: f64,
+    /// Translational damping, N·s/m.
+    pub ct: f64,
+    /// Rotational stiffness, N·m/rad.
+    pub kr: f64,
+    /// Rotational damping, N·m·s/rad.
+    pub cr: f64,
+}
+
+/// Assembled beam: node positions and global matrices (row-major, dof `[y0, θ0, y1, θ1, …]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BeamModel {
+    node_x: Vec<f64>,
+    k: Vec<f64>,
+    k_loss: Vec<f64>,
+    c: Vec<f64>,
+    m: Vec<f64>,
+    springs: Vec<(usize, NodeSpring)>,
+}
+
+impl BeamModel {
+    /// Assembles a free–free beam from segments laid end to end, node 0 at the spindle end.
+    pub fn from_segments(segments: &[BeamSegment], mesh: &MeshOptions) -> Result<BeamModel, BeamError> {
+        if segments.is_empty() {
+            return Err(BeamError::NoSegments);
+        }
+        if !(mesh.max_element_length.is_finite() && mesh.max_element_length > 0.0) {
+            return Err(BeamError::BadElementLength(mesh.max_element_length));
+        }
+        let mut elements = Vec::new();
+        let mut node_x = vec![0.0];
+        for (index, seg) in segments.iter().enumerate() {
+            if !(seg.length.is_finite() && seg.length > 0.0) {
+                return Err(BeamError::BadLength { segment: index, length: seg.length });
+            }
+            let mut count = (seg.length / mesh.max_element_length).ceil().max(1.0) as usize;
+            if seg.is_tapered() {
+                count = count.max(mesh.min_taper_elements.max(1));
+            }
+            let le = seg.length / count as f64;
+            for e in 0..count {
+                let props = seg
+                    .section_at((e as f64 + 0.5) / count as f64)
+                    .properties(mesh.shear)
+                    .map_err(|err| BeamError::Segment { segment: index, source: Box::new(err) })?;
+                elements.push((props, le));
+                let last = *node_x.last().unwrap_or(&0.0);
+                node_x.push(last + le);
+            }
+        }
+        let n = 2 * node_x.len();
+        let mut model = BeamModel {
+            node_x,
+            k: vec![0.0; n * n],
+            k_loss: vec![0.0; n * n],
+            c: vec![0.0; n * n],
+            m: vec![0.0; n * n],
+            springs: Vec::new(),
+        };
+        for (e, (props, le)) in elements.iter().enumerate() {
+            let ke = element::stiffness(props, *le);
+            let me = element::mass(props, *le);
+            let base = 2 * e;
+            for a in 0..4 {
+                for b in 0..4 {
+                    let idx = (base + a) * n + base + b;
+                    model.k[idx] += ke[a][b];
+                    model.k_loss[idx] += props.eta * ke[a][b];
+                    model.m[idx] += me[a][b];
+                }
+            }
+        }
+        Ok(model)
+    }
+
+    /// Number of nodes (the tip is `n_nodes() - 1`).
+    pub fn n_nodes(&self) -> usize {
+        self.node_x.len()
+    }
+
+    /// Number of degrees of freedom (2 per node).
+    pub fn n_dof(&self) -> usize {
+        2 * self.node_x.len()
+    }
+
+    /// Node positions from the spindle end, m.
+    pub fn node_positions(&self) -> &[f64] {
+        &self.node_x
+    }
+
+    /// Node closest to position `x` (m from the spindle end).
+    pub fn node_at(&self, x: f64) -> usize {
+        let mut best = 0;
+        for (i, xi) in self.node_x.iter().enumerate() {
+            if (xi - x).abs() < (self.node_x[best] - x).abs() {
+                best = i;
+            }
+        }
+        best
+    }
+
+    /// Real stiffness matrix K (elastic plus springs), row-major.
+    pub fn stiffness(&self) -> &[f64] {
+        &self.k
+    }
+
+    /// Consistent mass matrix M (including point masses), row-major.
+    pub fn mass(&self) -> &[f64] {
+        &self.m
+    }
+
+    /// Total mass of the model, kg (rigid translation kinetic energy).
+    pub fn total_mass(&self) -> f64 {
+        let n = self.n_dof();
+        let mut s = 0.0;
+        for i in (0..n).step_by(2) {
+            for j in (0..n).step_by(2) {
+                s += self.m[i * n + j];
+            }
+        }
+        s
+    }
+
+    fn check_node(&self, node: usize) -> Result<(), BeamError> {
+        if node < self.n_nodes() { Ok(()) } else { Err(BeamError::NoSuchNode { node, nodes: self.n_nodes() }) }
+    }
+
+    /// Adds a point mass (kg) with rotary inertia (kg·m²) at a node, e.g. an accelerometer.
+    pub fn add_point_mass(&mut self, node: usize, mass: f64, rotary_inertia: f64) -> Result<(), BeamError> {
+        self.check_node(node)?;
+        if !(mass.is_finite() && mass >= 0.0 && rotary_inertia.is_finite() && rotary_inertia >= 0.0) {
+            return Err(BeamError::BadPointMass { node, mass, rotary_inertia });
+        }
+        let n = self.n_dof();
+        self.m[2 * node * n + 2 * node] += mass;
+        self.m[(2 * node + 1) * n + 2 * node + 1] += rotary_inertia;
+        Ok(())
+    }
+
+    /// Adds a grounded translational/rotational spring with viscous dampers at a node.
+    pub fn add_spring(&mut self, node: usize, spring: NodeSpring) -> Result<(), BeamError> {
+        self.check_node(node)?;
+        let vals = [spring.kt, spring.ct, spring.kr, spring.cr];
+        if vals.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(BeamError::BadSpring { node, spring });
+        }
+        let n = self.n_dof();
+        let (t, r) = (2 * node * n + 2 * node, (2 * node + 1) * n + 2 * node + 1);
+        self.k[t] += spring.kt;
+        self.k[r] += spring.kr;
+        self.c[t] += spring.ct;
+        self.c[r] += spring.cr;
+        self.springs.push((node, spring));
+        Ok(())
+    }
+
+    /// Receptances between `response` and `excitation` nodes at each frequency (Hz) by a
+    /// complex LU solve of `(K + iK_η + iωC − ω²M) x = f` per line.
+    pub fn receptance_direct(
+        &self,
+        response: usize,
+        excitation: usize,
+        freqs: &[f64],
+    ) -> Result<Vec<Receptance>, BeamError> {
+        self.check_node(response)?;
+        self.check_node(excitation)?;
+        let n = self.n_dof();
+        let mut a = vec![Complex64::new(0.0, 0.0); n * n];
+        let mut b = vec![Complex64::new(0.0, 0.0); n * 2];
+        let mut out = Vec::with_capacity(freqs.len());
+        for &f in freqs {
+            if !f.is_finite() || f < 0.0 {
+                return Err(BeamError::BadFrequency(f));
+            }
+            let w = TAU * f;
+            for (idx, z) in a.iter_mut().enumerate() {
+                *z = Complex64::new(self.k[idx] - w * w * self.m[idx], self.k_loss[idx] + w * self.c[idx]);
+            }
+            b.fill(Complex64::new(0.0, 0.0));
+            b[2 * excitation * 2] = Complex64::new(1.0, 0.0);
+            b[(2 * excitation + 1) * 2 + 1] = Complex64::new(1.0, 0.0);
+            if !complex_solve(&mut a, n, &mut b, 2) {
+                return Err(BeamError::Singular(f));
+            }
+            let (r0, r1) = (2 * response * 2, (2 * response + 1) * 2);
+            out.push([[b[r0], b[r0 + 1]], [b[r1], b[r1 + 1]]]);
+        }
+        Ok(out)
+    }
+
+    /// Number of rigid-body modes left free by the springs: 2 minus the rank of the springs'
+    /// stiffness against rigid translation and rotation.
+    pub fn rigid_body_modes(&self) -> usize {
+        let (mut tt, mut tr, mut rr) = (0.0, 0.0, 0.0);
+        for (node, s) in &self.springs {
+            let x = self.node_x[*node];
+            tt += s.kt;
+            tr += s.kt * x;
+            rr += s.kt * x * x + s.kr;
+        }
+        if tt + rr == 0.0 {
+            2
+        } else if tt * rr - tr * tr > 1e-10 * tt * rr {
+            0
+        } else {
+            1
+        }
+    }
+
+    /// Undamped modes of the model, for the modal receptance form.
+    pub fn modes(&self) -> Result<ModalModel, BeamError> {
+        ModalModel::new(self)
+    }
+}
+
+/// Modal form of a [`BeamModel`]: undamped modes of `K φ = ω² M φ` (mass-normalised) with the
+/// hysteretic and viscous damping projected onto them. Rigid-body modes (free–free: one
+/// translation, one rotation) have ω = 0 exactly and contribute `φφᵀ / (−ω²)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalModel {
+    n: usize,
+    lambda: Vec<f64>,
+    phi: Vec<f64>,
+    /// Projected hysteretic stiffness Φᵀ K_η Φ (n×n).
+    d: Vec<f64>,
+    /// Projected viscous damping Φᵀ C Φ (n×n).
+    cm: Vec<f64>,
+    diagonal: bool,
+    rigid: usize,
+}
+
+fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
+    let mut t = vec![0.0; n * n];
+    for i in 0..n {
+        for k in 0..n {
+            let aik = a[i * n + k];
+            if aik == 0.0 {
+                continue;
+            }
+            for j in 0..n {
+                t[i * n + j] += aik * phi[k * n + j];
+            }
+        }
+    }
+    let mut p = vec![0.0; n * n];
+    for k in 0..n {
+        for i in 0..n {
+            let pki = phi[k * n + i];
+            for j in 0..n {
+                p[i * n + j] += pki * t[k * n + j];
+            }
+        }
+    }
+    p
+}
+
+impl ModalModel {
+    /// Solves the undamped generalized eigenproblem and projects the damping.
+    pub fn new(model: &BeamModel) -> Result<ModalModel, BeamError> {
+        let n = model.n_dof();
+        let (mut lambda, phi) = generalized_eigen(&model.k, &model.m, n).ok_or(BeamError::MassNotDefinite)?;
+        // Rigid-body modes are the lowest ones; their eigenvalues are roundoff and set to 0.
+        let rigid = model.rigid_body_modes();
+        for l in lambda.iter_mut().take(rigid) {
+            *l = 0.0;
+        }
+        let mut d = project(&model.k_loss, &phi, n);
+        let mut cm = project(&model.c, &phi, n);
+        for r in 0..rigid {
+            for s in 0..n {
+                d[r * n + s] = 0.0;
+                d[s * n + r] = 0.0;
+            }
+        }
+        let small = |mat: &[f64]| {
+            let dmax = (0..n).fold(0.0f64, |a, i| a.max(mat[i * n + i].abs()));
+            let floor = 1e-12 * dmax;
+            (0..n).all(|i| {
+                (0..n).all(|j| {
+                    i == j
+                        || mat[i * n + j].abs()
+                            <= 1e-10 * (mat[i * n + i].abs().max(floor) * mat[j * n + j].abs().max(floor)).sqrt()
+                })
+            })
+        };
+        let diagonal = small(&d) && small(&cm);
+        if diagonal {
+            for i in 0..n {
+                for j in 0..n {
+                    if i != j {
+                        d[i * n + j] = 0.0;
+                        cm[i * n + j] = 0.0;
+                    }
+                }
+            }
+        }
+        Ok(ModalModel { n, lambda, phi, d, cm, diagonal, rigid })
+    }
+
+    /// Natural frequencies, Hz, ascending (rigid-body modes first, at 0 Hz).
+    pub fn natural_frequencies(&self) -> Vec<f64> {
+        self.lambda.iter().map(|l| l.max(0.0).sqrt() / TAU).collect()
+    }
+
+    /// Number of rigid-body (zero-frequency) modes.
+    pub fn rigid_modes(&self) -> usize {
+        self.rigid
+    }
+
+    /// Whether the projected damping is diagonal (uniform η, no dampers), so each mode is
+    /// summed independently; otherwise the coupled modal matrix is solved per line.
+    pub fn is_diagonal(&self) -> bool {
+        self.diagonal
+    }
+
+    /// Receptances between two nodes at each frequency (Hz) by modal expansion over all modes.
+    pub fn receptance(&self, response: usize, excitation: usize, freqs: &[f64]) -> Result<Vec<Receptance>, BeamError> {
+        let nodes = self.n / 2;
+        for node in [response, excitation] {
+            if node >= nodes {
+                return Err(BeamError::NoSuchNode { node, nodes });
+            }
+        }
+        let n = self.n;
+        let row = |dof: usize| &self.phi[dof * n..(dof + 1) * n];
+        let (ay, at) = (row(2 * response), row(2 * response + 1));
+        let (by, bt) = (row(2 * excitation), row(2 * excitation + 1));
+        let mut out = Vec::with_capacity(freqs.len());
+        if self.diagonal {
+            let poles: Vec<(f64, f64, f64)> =
+                (0..n).map(|r| (self.lambda[r], self.d[r * n + r], self.cm[r * n + r])).collect();
+            for &f in freqs {
+                if !f.is_finite() || f < 0.0 {
+                    return Err(BeamError::BadFrequency(f));
+                }
+                let w = TAU * f;
+                let w2 = w * w;
+                let mut h = [[Complex64::new(0.0, 0.0); 2]; 2];
+                for (r, &(l, dr, cr)) in poles.iter().enumerate() {
+                    let den = Complex64::new(l - w2, dr + w * cr);
+                    if den.norm() == 0.0 {
+                        return Err(BeamError::Singular(f));
+                    }
+                    let g = 1.0 / den;
+                    let (gy, gt) = (g * by[r], g * bt[r]);
+                    h[0][0] += ay[r] * gy;
+                    h[0][1] += ay[r] * gt;
+                    h[1][0] += at[r] * gy;
+                    h[1][1] += at[r] * gt;
+                }
+                out.push(h);
+            }
+        } else {
+            let mut z = vec![Complex64::new(0.0, 0.0); n * n];
+            let mut q = vec![Complex64::new(0.0, 0.0); n * 2];
+            for &f in freqs {
+                if !f.is_finite() || f < 0.0 {
+                    return Err(BeamError::BadFrequency(f));
+                }
+                let w = TAU * f;
+                for i in 0..n {
+                    for j in 0..n {
+                        let re = if i == j { self.lambda[i] - w * w } else { 0.0 };
+                        z[i * n + j] = Complex64::new(re, self.d[i * n + j] + w * self.cm[i * n + j]);
+                    }
+                    q[2 * i] = Complex64::new(by[i], 0.0);
+                    q[2 * i + 1] = Complex64::new(bt[i], 0.0);
+                }
+                if !complex_solve(&mut z, n, &mut q, 2) {
+                    return Err(BeamError::Singular(f));
+                }
+                let mut h = [[Complex64::new(0.0, 0.0); 2]; 2];
+                for r in 0..n {
+                    h[0][0] += ay[r] * q[2 * r];
+                    h[0][1] += ay[r] * q[2 * r + 1];
+                    h[1][0] += at[r] * q[2 * r];
+                    h[1][1] += at[r] * q[2 * r + 1];
+                }
+                out.push(h);
+            }
+        }
+        Ok(out)
+    }
+}

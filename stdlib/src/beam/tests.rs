@@ -1,0 +1,302 @@
+//! Model-level checks: closed-form Euler–Bernoulli and exact Timoshenko frequencies, static
+//! cantilever receptances, reciprocity, rigid-body asymptotes, point masses, and agreement of
+//! the direct and modal receptances on the Table 5.1 tool-holder.
+
+use super::*;
+use num_complex::Complex64;
+use spindlelab_engine::model::Component;
+use std::f64::consts::{PI, TAU};
+
+fn steel_no_loss() -> BeamMaterial {
+    BeamMaterial { loss_factor: 0.0, ..BeamMaterial::STEEL }
+}
+
+fn uniform(d: f64, length: f64, material: BeamMaterial, elements: usize) -> BeamModel {
+    let seg = BeamSegment::uniform(CrossSection::solid(d, material), length);
+    let mesh = MeshOptions { max_element_length: length / elements as f64 * (1.0 + 1e-12), ..MeshOptions::default() };
+    BeamModel::from_segments(&[seg], &mesh).unwrap()
+}
+
+fn tool_holder_sections() -> Vec<Section> {
+    let steel = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
+    let carbide = Material { youngs_modulus: 550e9, density: 15000.0, poisson: 0.22, loss_factor: 0.0015 };
+    let d_s = [44.46, 31.76, 31.76, 31.08, 30.98, 28.04, 12.70, 10.99];
+    let d_t = [44.46, 31.76, 31.08, 30.98, 28.04, 24.20, 12.70, 10.99];
+    let d_in = [9.00, 9.00, 9.00, 13.56, 12.70, 12.70, 0.00, 0.00];
+    let len = [15.88, 1.56, 4.24, 6.90, 13.05, 25.05, 19.05, 15.88];
+    (0..8)
+        .map(|i| Section {
+            name: format!("s{}", i + 1),
+            component: if i < 6 { Component::Holder } else { Component::Tool },
+            fluted: i == 7,
+            d_out_spindle_end: d_s[i] * 1e-3,
+            d_out_tip_end: d_t[i] * 1e-3,
+            d_in: d_in[i] * 1e-3,
+            length: len[i] * 1e-3,
+            outer: if i < 6 { steel } else { carbide },
+            inner: if i >= 5 { Some(carbide) } else { None },
+            d_equivalent: if i == 7 { Some(10.99e-3) } else { None },
+        })
+        .collect()
+}
+
+fn rel(a: Complex64, b: Complex64) -> f64 {
+    (a - b).norm() / b.norm()
+}
+
+#[test]
+fn slender_free_free_matches_euler_bernoulli() {
+    let (d, l) = (5e-3, 1.0);
+    let model = uniform(d, l, steel_no_loss(), 100);
+    let modes = model.modes().unwrap();
+    assert_eq!(modes.rigid_modes(), 2);
+    let f = modes.natural_frequencies();
+    let p = CrossSection::solid(d, steel_no_loss()).properties(ShearCoefficient::Cowper).unwrap();
+    for (k, bl) in [4.730_040_745, 7.853_204_624, 10.995_607_838].iter().enumerate() {
+        let exact = bl * bl / (TAU * l * l) * (p.ei / p.rho_a).sqrt();
+        let got = f[2 + k];
+        assert!((got - exact).abs() < 1e-3 * exact, "mode {k}: {got} Hz vs {exact} Hz");
+    }
+}
+
+/// Free–free Timoshenko beam by shooting: state [y, ψ, M, Q] with y' = ψ + Q/κGA,
+/// ψ' = M/EI, M' = −Q − ρIω²ψ, Q' = −ρAω²y; M = Q = 0 at both ends. Returns the 2×2
+/// determinant of the end moment/shear for unit starting y and ψ (RK4).
+fn timoshenko_free_free_det(p: &SectionProperties, l: f64, w: f64) -> f64 {
+    let rhs = |z: [f64; 4]| -> [f64; 4] {
+        [z[1] + z[3] / p.ga_s, z[2] / p.ei, -z[3] - p.rho_i * w * w * z[1], -p.rho_a * w * w * z[0]]
+    };
+    let steps = 4000;
+    let h = l / steps as f64;
+    let mut ends = [[0.0; 2]; 2];
+    for (col, z0) in [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0 / l, 0.0, 0.0]].into_iter().enumerate() {
+        let mut z = z0;
+        for _ in 0..steps {
+            let add =
+                |a: [f64; 4], b: [f64; 4], s: f64| [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2], a[3] + s * b[3]];
+            let k1 = rhs(z);
+            let k2 = rhs(add(z, k1, h / 2.0));
+            let k3 = rhs(add(z, k2, h / 2.0));
+            let k4 = rhs(add(z, k3, h));
+            for i in 0..4 {
+                z[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        ends[0][col] = z[2] * l / p.ei;
+        ends[1][col] = z[3] * l * l / p.ei;
+    }
+    ends[0][0] * ends[1][1] - ends[0][1] * ends[1][0]
+}
+
+#[test]
+fn stubby_free_free_matches_exact_timoshenko_frequency_equation() {
+    let (d, l) = (50e-3, 0.2);
+    let model = uniform(d, l, steel_no_loss(), 100);
+    let f = model.modes().unwrap().natural_frequencies();
+    let p = CrossSection::solid(d, steel_no_loss()).properties(ShearCoefficient::Cowper).unwrap();
+    for k in 0..3 {
+        let fe = f[2 + k];
+        // Bisection of the exact frequency equation in a ±2 % bracket around the FE value.
+        let (mut lo, mut hi) = (0.98 * fe, 1.02 * fe);
+        let g = |f: f64| timoshenko_free_free_det(&p, l, TAU * f);
+        let (mut glo, ghi) = (g(lo), g(hi));
+        assert!(glo * ghi < 0.0, "no root of the frequency equation near mode {k} ({fe} Hz)");
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            let gm = g(mid);
+            if gm * glo <= 0.0 {
+                hi = mid;
+            } else {
+                lo = mid;
+                glo = gm;
+            }
+        }
+        let exact = 0.5 * (lo + hi);
+        assert!((fe - exact).abs() < 1e-3 * exact, "mode {k}: FE {fe} Hz vs exact {exact} Hz");
+        // Shear and rotary inertia matter here: Euler–Bernoulli overestimates by more than 3 %.
+        let bl = [4.730_040_745, 7.853_204_624, 10.995_607_838][k];
+        let eb = bl * bl / (TAU * l * l) * (p.ei / p.rho_a).sqrt();
+        assert!(eb > 1.03 * exact, "mode {k}: EB {eb} vs Timoshenko {exact}");
+    }
+}
+
+#[test]
+fn cantilever_from_base_springs_gives_static_receptances() {
+    let (d, l) = (20e-3, 0.1);
+    let p = CrossSection::solid(d, steel_no_loss()).properties(ShearCoefficient::Cowper).unwrap();
+    for (kt, kr) in [(1e9, 1e7), (1e16, 1e14)] {
+        let mut model = uniform(d, l, steel_no_loss(), 20);
+        model.add_spring(0, NodeSpring { kt, kr, ..NodeSpring::default() }).unwrap();
+        let tip = model.n_nodes() - 1;
+        let r = model.receptance_direct(tip, tip, &[0.0]).unwrap()[0];
+        let h = l.powi(3) / (3.0 * p.ei) + l / p.ga_s + 1.0 / kt + l * l / kr;
+        let lm = l * l / (2.0 * p.ei) + l / kr;
+        let pp = l / p.ei + 1.0 / kr;
+        let tol = 1e-9;
+        assert!(rel(r[0][0], h.into()) < tol, "H {} vs {h}", r[0][0]);
+        assert!(rel(r[0][1], lm.into()) < tol, "L {} vs {lm}", r[0][1]);
+        assert!(rel(r[1][0], lm.into()) < tol, "N {} vs {lm}", r[1][0]);
+        assert!(rel(r[1][1], pp.into()) < tol, "P {} vs {pp}", r[1][1]);
+    }
+    // The stiff-spring limit approaches the clamped values L³/3EI (+ shear), L²/2EI, L/EI.
+    let mut model = uniform(d, l, steel_no_loss(), 20);
+    model.add_spring(0, NodeSpring { kt: 1e16, kr: 1e14, ..NodeSpring::default() }).unwrap();
+    let tip = model.n_nodes() - 1;
+    let r = model.receptance_direct(tip, tip, &[0.0]).unwrap()[0];
+    assert!(rel(r[0][0], (l.powi(3) / (3.0 * p.ei) + l / p.ga_s).into()) < 1e-6);
+    assert!(rel(r[0][1], (l * l / (2.0 * p.ei)).into()) < 1e-6);
+    assert!(rel(r[1][1], (l / p.ei).into()) < 1e-6);
+}
+
+#[test]
+fn tool_holder_matrices_are_symmetric_and_receptances_reciprocal() {
+    let segs = segments_from_sections(&tool_holder_sections());
+    let model = BeamModel::from_segments(&segs, &MeshOptions::default()).unwrap();
+    let n = model.n_dof();
+    for (mat, name) in [(model.stiffness(), "K"), (model.mass(), "M")] {
+        let scale = mat.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        for i in 0..n {
+            for j in 0..n {
+                assert!((mat[i * n + j] - mat[j * n + i]).abs() <= 1e-13 * scale, "{name} not symmetric");
+            }
+        }
+    }
+    let tip = model.n_nodes() - 1;
+    let freqs = [250.0, 1200.0, 3700.0, 9000.0];
+    let tb = model.receptance_direct(tip, 0, &freqs).unwrap();
+    let bt = model.receptance_direct(0, tip, &freqs).unwrap();
+    let tt = model.receptance_direct(tip, tip, &freqs).unwrap();
+    for k in 0..freqs.len() {
+        for a in 0..2 {
+            for b in 0..2 {
+                assert!(rel(tb[k][a][b], bt[k][b][a]) < 1e-9, "R_tb[{a}][{b}] != R_bt[{b}][{a}]");
+            }
+        }
+        assert!(rel(tt[k][0][1], tt[k][1][0]) < 1e-9, "L != N at the tip");
+    }
+    // Total mass equals the stepped-geometry mass (mid-point tapers are exact for a linear d).
+    let mut expected = 0.0;
+    for s in &segs {
+        let mean_area = |d0: f64, d1: f64| PI / 4.0 * (d0 * d0 + d0 * d1 + d1 * d1) / 3.0;
+        let a_out = mean_area(s.d_out_start, s.d_out_end) - PI / 4.0 * s.d_in * s.d_in;
+        let core = s.inner.map_or(0.0, |m| m.density * PI / 4.0 * s.d_in * s.d_in);
+        expected += (s.outer.density * a_out + core) * s.length;
+    }
+    let got = model.total_mass();
+    assert!((got - expected).abs() < 1e-4 * expected, "mass {got} vs {expected}");
+}
+
+#[test]
+fn modal_and_direct_receptances_agree_on_tool_holder() {
+    let segs = segments_from_sections(&tool_holder_sections());
+    let model = BeamModel::from_segments(&segs, &MeshOptions::default()).unwrap();
+    let modes = model.modes().unwrap();
+    assert_eq!(modes.rigid_modes(), 2);
+    assert!(modes.is_diagonal(), "uniform loss factor must give diagonal modal damping");
+    let tip = model.n_nodes() - 1;
+    let freqs: Vec<f64> = (0..300).map(|k| 100.0 * (200.0f64).powf(k as f64 / 299.0)).collect();
+    for (i, j) in [(tip, tip), (0, tip), (tip, 0), (0, 0)] {
+        let direct = model.receptance_direct(i, j, &freqs).unwrap();
+        let modal = modes.receptance(i, j, &freqs).unwrap();
+        for (k, (a, b)) in direct.iter().zip(&modal).enumerate() {
+            for r in 0..2 {
+                for c in 0..2 {
+                    let e = rel(b[r][c], a[r][c]);
+                    assert!(e < 1e-8, "({i},{j}) [{r}][{c}] at {} Hz: rel err {e}", freqs[k]);
+                }
+            }
+        }
+    }
+    // The first bending mode of the free-free holder+tool lies in the kHz range.
+    let f = modes.natural_frequencies();
+    assert!(f[0] == 0.0 && f[1] == 0.0 && f[2] > 1000.0, "{:?}", &f[..4]);
+}
+
+#[test]
+fn free_free_low_frequency_tends_to_rigid_body_asymptote() {
+    let (d, l) = (12.7e-3, 0.1);
+    let mat = BeamMaterial::CARBIDE;
+    let model = uniform(d, l, mat, 40);
+    let modes = model.modes().unwrap();
+    let p = CrossSection::solid(d, mat).properties(ShearCoefficient::Cowper).unwrap();
+    let m = p.rho_a * l;
+    let j = p.rho_a * l.powi(3) / 12.0 + p.rho_i * l;
+    let f = 0.5;
+    let w2 = (TAU * f).powi(2);
+    let tip = model.n_nodes() - 1;
+    let r = modes.receptance(tip, tip, &[f]).unwrap()[0];
+    let arm = l / 2.0;
+    let h = -1.0 / (m * w2) - arm * arm / (j * w2);
+    let lm = -arm / (j * w2);
+    let pp = -1.0 / (j * w2);
+    assert!(rel(r[0][0], h.into()) < 1e-7, "{} vs {h}", r[0][0]);
+    assert!(rel(r[0][1], lm.into()) < 1e-7);
+    assert!(rel(r[1][0], lm.into()) < 1e-7);
+    assert!(rel(r[1][1], pp.into()) < 1e-7);
+    assert!(matches!(modes.receptance(tip, tip, &[0.0]), Err(BeamError::Singular(_))));
+}
+
+#[test]
+fn tip_mass_lowers_cantilever_frequency_as_rayleigh_predicts() {
+    let (d, l) = (10e-3, 0.3);
+    let mat = steel_no_loss();
+    let p = CrossSection::solid(d, mat).properties(ShearCoefficient::Cowper).unwrap();
+    let mut model = uniform(d, l, mat, 30);
+    model.add_spring(0, NodeSpring { kt: 1e14, kr: 1e12, ..NodeSpring::default() }).unwrap();
+    let bare = model.modes().unwrap().natural_frequencies();
+    assert_eq!(model.modes().unwrap().rigid_modes(), 0);
+    // Bare cantilever: β₁L = 1.8751.
+    let exact = 1.875_104_07f64.powi(2) / (TAU * l * l) * (p.ei / p.rho_a).sqrt();
+    assert!((bare[0] - exact).abs() < 2e-3 * exact, "{} vs {exact}", bare[0]);
+    let m_beam = p.rho_a * l;
+    let m_tip = 5.0 * m_beam;
+    let tip = model.n_nodes() - 1;
+    model.add_point_mass(tip, m_tip, 0.0).unwrap();
+    let loaded = model.modes().unwrap().natural_frequencies();
+    let k = 3.0 * p.ei / l.powi(3);
+    let rayleigh = (k / (m_tip + 0.2357 * m_beam)).sqrt() / TAU;
+    assert!((loaded[0] - rayleigh).abs() < 5e-3 * rayleigh, "{} vs {rayleigh}", loaded[0]);
+    // Added mass cannot raise any natural frequency.
+    for (a, b) in loaded.iter().zip(&bare).take(6) {
+        assert!(a < b);
+    }
+}
+
+#[test]
+fn damped_springs_use_coupled_modal_form_and_agree_with_direct() {
+    let mut model = uniform(20e-3, 0.15, BeamMaterial::STEEL, 15);
+    model.add_spring(0, NodeSpring { kt: 5e7, ct: 300.0, kr: 2e5, cr: 2.0 }).unwrap();
+    let tip = model.n_nodes() - 1;
+    model.add_point_mass(tip, 0.01, 1e-7).unwrap();
+    let modes = model.modes().unwrap();
+    assert!(!modes.is_diagonal());
+    let freqs = [0.0, 50.0, 400.0, 2000.0, 7000.0];
+    let d = model.receptance_direct(tip, 0, &freqs).unwrap();
+    let m = modes.receptance(tip, 0, &freqs).unwrap();
+    // Relative to the block's largest entry: at 0 Hz a base force does not rotate the tip (N = 0).
+    for (a, b) in d.iter().zip(&m) {
+        let scale = a.iter().flatten().fold(0.0f64, |s, z| s.max(z.norm()));
+        for r in 0..2 {
+            for c in 0..2 {
+                let e = (b[r][c] - a[r][c]).norm() / scale;
+                assert!(e < 1e-8, "[{r}][{c}]: {} vs {}", b[r][c], a[r][c]);
+            }
+        }
+    }
+}
+
+#[test]
+fn section_conversion_uses_equivalent_diameter_and_drops_core_without_bore() {
+    let segs = segments_from_sections(&tool_holder_sections());
+    assert_eq!(segs.len(), 8);
+    assert!((segs[7].d_out_start - 10.99e-3).abs() < 1e-15 && segs[7].inner.is_none());
+    assert!(segs[5].inner.is_some() && segs[5].is_tapered());
+    assert!(segs[3].inner.is_none());
+    let bad = BeamSegment { length: -1.0, ..segs[0] };
+    assert!(matches!(
+        BeamModel::from_segments(&[bad], &MeshOptions::default()),
+        Err(BeamError::BadLength { segment: 0, .. })
+    ));
+    let model = BeamModel::from_segments(&segs, &MeshOptions::default()).unwrap();
+    assert!(matches!(model.receptance_direct(999, 0, &[10.0]), Err(BeamError::NoSuchNode { .. })));
+}
