@@ -367,28 +367,43 @@ impl ModalModel {
         let (by, bt) = (row(2 * excitation), row(2 * excitation + 1));
         let mut out = Vec::with_capacity(freqs.len());
         if self.diagonal {
-            let poles: Vec<(f64, f64, f64)> =
-                (0..n).map(|r| (self.lambda[r], self.d[r * n + r], self.cm[r * n + r])).collect();
+            // Per mode: pole (λ_r − ω² + i(d_r + ω c_r)) and the four residue products.
+            let modes: Vec<[f64; 7]> = (0..n)
+                .map(|r| {
+                    let (ya, ta, yb, tb) = (ay[r], at[r], by[r], bt[r]);
+                    [self.lambda[r], self.d[r * n + r], self.cm[r * n + r], ya * yb, ya * tb, ta * yb, ta * tb]
+                })
+                .collect();
             for &f in freqs {
                 if !f.is_finite() || f < 0.0 {
                     return Err(BeamError::BadFrequency(f));
                 }
+                if f == 0.0 && self.rigid > 0 {
+                    return Err(BeamError::Singular(f));
+                }
                 let w = TAU * f;
                 let w2 = w * w;
-                let mut h = [[Complex64::new(0.0, 0.0); 2]; 2];
-                for (r, &(l, dr, cr)) in poles.iter().enumerate() {
-                    let den = Complex64::new(l - w2, dr + w * cr);
-                    if den.norm() == 0.0 {
-                        return Err(BeamError::Singular(f));
-                    }
-                    let g = 1.0 / den;
-                    let (gy, gt) = (g * by[r], g * bt[r]);
-                    h[0][0] += ay[r] * gy;
-                    h[0][1] += ay[r] * gt;
-                    h[1][0] += at[r] * gy;
-                    h[1][1] += at[r] * gt;
+                let mut acc = [0.0f64; 8];
+                for m in &modes {
+                    let (re, im) = (m[0] - w2, m[1] + w * m[2]);
+                    let inv = 1.0 / (re * re + im * im);
+                    let (gr, gi) = (re * inv, -im * inv);
+                    acc[0] += gr * m[3];
+                    acc[1] += gi * m[3];
+                    acc[2] += gr * m[4];
+                    acc[3] += gi * m[4];
+                    acc[4] += gr * m[5];
+                    acc[5] += gi * m[5];
+                    acc[6] += gr * m[6];
+                    acc[7] += gi * m[6];
                 }
-                out.push(h);
+                if acc.iter().any(|v| !v.is_finite()) {
+                    return Err(BeamError::Singular(f));
+                }
+                out.push([
+                    [Complex64::new(acc[0], acc[1]), Complex64::new(acc[2], acc[3])],
+                    [Complex64::new(acc[4], acc[5]), Complex64::new(acc[6], acc[7])],
+                ]);
             }
         } else {
             let mut z = vec![Complex64::new(0.0, 0.0); n * n];
