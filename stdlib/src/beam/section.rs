@@ -52,7 +52,9 @@ impl BeamMaterial {
     }
 }
 
-/// Shear coefficient model for circular sections.
+/// Shear coefficient model for circular sections. Only Cowper's form is provided: Hutchinson's
+/// (2001) hollow-circle coefficient is not offered because its exact expression could not be
+/// verified here (his solid-circle value is 6(1+ν)²/(7+12ν+4ν²)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ShearCoefficient {
     /// Cowper (1966) hollow circle:
