@@ -346,3 +346,28 @@ fn tapered_cantilever_converges_to_integrated_compliance() {
     }
     assert!(errs[2].0 < 1e-3 && errs[2].1 < 1e-3, "{errs:?}");
 }
+
+#[test]
+fn mixed_loss_factors_use_coupled_modal_form_and_agree_with_direct() {
+    let carbide = BeamMaterial { loss_factor: 0.02, ..BeamMaterial::CARBIDE };
+    let segs = [
+        BeamSegment::uniform(CrossSection::solid(30e-3, BeamMaterial::STEEL), 40e-3),
+        BeamSegment::uniform(CrossSection::solid(12.7e-3, carbide), 50e-3),
+    ];
+    let model =
+        BeamModel::from_segments(&segs, &MeshOptions { max_element_length: 5e-3, ..MeshOptions::default() }).unwrap();
+    let modes = model.modes().unwrap();
+    assert!(!modes.is_diagonal(), "different loss factors couple the undamped modes");
+    let tip = model.n_nodes() - 1;
+    let freqs: Vec<f64> = (1..=60).map(|k| 500.0 * k as f64).collect();
+    let d = model.receptance_direct(tip, 0, &freqs).unwrap();
+    let m = modes.receptance(tip, 0, &freqs).unwrap();
+    for (a, b) in d.iter().zip(&m) {
+        let scale = a.iter().flatten().fold(0.0f64, |s, z| s.max(z.norm()));
+        for r in 0..2 {
+            for c in 0..2 {
+                assert!((b[r][c] - a[r][c]).norm() < 1e-8 * scale);
+            }
+        }
+    }
+}
