@@ -367,13 +367,30 @@ impl ModalModel {
         let (by, bt) = (row(2 * excitation), row(2 * excitation + 1));
         let mut out = Vec::with_capacity(freqs.len());
         if self.diagonal {
-            // Per mode: pole (λ_r − ω² + i(d_r + ω c_r)) and the four residue products.
-            let modes: Vec<[f64; 7]> = (0..n)
-                .map(|r| {
-                    let (ya, ta, yb, tb) = (ay[r], at[r], by[r], bt[r]);
-                    [self.lambda[r], self.d[r * n + r], self.cm[r * n + r], ya * yb, ya * tb, ta * yb, ta * tb]
-                })
-                .collect();
+            // Per mode: pole (λ_r − ω² + i(d_r + ω c_r)) and the four residue products, stored
+            // by quantity and padded to lanes of 4 so the sum over modes vectorises.
+            const LANES: usize = 4;
+            let padded = n.div_ceil(LANES) * LANES;
+            let mut q = vec![[0.0f64; LANES]; 7 * padded / LANES];
+            let chunks = padded / LANES;
+            for r in 0..n {
+                let vals = [self.lambda[r], self.d[r * n + r], self.cm[r * n + r], ay[r] * by[r], ay[r] * bt[r]];
+                let more = [at[r] * by[r], at[r] * bt[r]];
+                for (k, v) in vals.into_iter().chain(more).enumerate() {
+                    q[k * chunks + r / LANES][r % LANES] = v;
+                }
+            }
+            // Padding lanes: a damped unit pole (never singular) with zero residues.
+            for r in n..padded {
+                q[r / LANES][r % LANES] = 1.0;
+                q[chunks + r / LANES][r % LANES] = 1.0;
+            }
+            let (lam, rest) = q.split_at(chunks);
+            let (dd, rest) = rest.split_at(chunks);
+            let (cc, rest) = rest.split_at(chunks);
+            let (yy, rest) = rest.split_at(chunks);
+            let (yt, rest) = rest.split_at(chunks);
+            let (ty, tt) = rest.split_at(chunks);
             for &f in freqs {
                 if !f.is_finite() || f < 0.0 {
                     return Err(BeamError::BadFrequency(f));
@@ -383,20 +400,24 @@ impl ModalModel {
                 }
                 let w = TAU * f;
                 let w2 = w * w;
-                let mut acc = [0.0f64; 8];
-                for m in &modes {
-                    let (re, im) = (m[0] - w2, m[1] + w * m[2]);
-                    let inv = 1.0 / (re * re + im * im);
-                    let (gr, gi) = (re * inv, -im * inv);
-                    acc[0] += gr * m[3];
-                    acc[1] += gi * m[3];
-                    acc[2] += gr * m[4];
-                    acc[3] += gi * m[4];
-                    acc[4] += gr * m[5];
-                    acc[5] += gi * m[5];
-                    acc[6] += gr * m[6];
-                    acc[7] += gi * m[6];
+                let mut lanes = [[0.0f64; LANES]; 8];
+                for c in 0..chunks {
+                    for l in 0..LANES {
+                        let re = lam[c][l] - w2;
+                        let im = dd[c][l] + w * cc[c][l];
+                        let inv = 1.0 / (re * re + im * im);
+                        let (gr, gi) = (re * inv, -im * inv);
+                        lanes[0][l] += gr * yy[c][l];
+                        lanes[1][l] += gi * yy[c][l];
+                        lanes[2][l] += gr * yt[c][l];
+                        lanes[3][l] += gi * yt[c][l];
+                        lanes[4][l] += gr * ty[c][l];
+                        lanes[5][l] += gi * ty[c][l];
+                        lanes[6][l] += gr * tt[c][l];
+                        lanes[7][l] += gi * tt[c][l];
+                    }
                 }
+                let acc: [f64; 8] = std::array::from_fn(|k| lanes[k].iter().sum());
                 if acc.iter().any(|v| !v.is_finite()) {
                     return Err(BeamError::Singular(f));
                 }
