@@ -9,7 +9,8 @@
 //! length scaling that makes translation and rotation terms commensurate) must stay below a limit, and the
 //! frequencies where it does not are reported as an error, never returned as NaN.
 
-use num_complex::Complex64;
+/// The complex scalar of every receptance entry.
+pub use num_complex::Complex64;
 use std::f64::consts::TAU;
 use std::ops::{Add, Mul, Neg, Sub};
 use thiserror::Error;
@@ -72,27 +73,42 @@ impl Receptance {
     /// 2-norm condition number after scaling lengths by `c = sqrt(|h|/|p|)` (so that a cantilever's
     /// `H ≈ L² P` does not count as ill-conditioning). Infinite when singular.
     pub fn condition(&self) -> f64 {
-        let (ah, ap) = (self.h.norm(), self.p.norm());
-        let c = if ah > 0.0 && ap > 0.0 { (ah / ap).sqrt() } else { 1.0 };
-        let (h, l, n, p) = (ah / (c * c), self.l.norm() / c, self.n.norm() / c, ap);
-        let f2 = h * h + l * l + n * n + p * p;
-        let det = self.det().norm() / (c * c);
-        if det.is_nan() || det <= 0.0 || !f2.is_finite() {
+        self.condition_with(self.det())
+    }
+
+    /// [`Receptance::condition`] with the determinant already at hand. With `c² = |h|/|p|` the scaled block has
+    /// `|h'| = |p'| = |p|`, `|l'| = |l|/c`, `|n'| = |n|/c`, `|det'| = |det|/c²`; the 2-norm condition of a 2×2
+    /// block is `(F² + sqrt(F⁴ − 4|det|²)) / (2|det|)` with `F` the Frobenius norm.
+    fn condition_with(&self, det: Complex64) -> f64 {
+        let (ah, ap) = (self.h.norm_sqr().sqrt(), self.p.norm_sqr().sqrt());
+        let off = self.l.norm_sqr() + self.n.norm_sqr();
+        let (f2, det) = if ah > 0.0 && ap > 0.0 {
+            let r = ap / ah;
+            (2.0 * ap * ap + off * r, det.norm_sqr().sqrt() * r)
+        } else {
+            (ah * ah + ap * ap + off, det.norm_sqr().sqrt())
+        };
+        if det.is_nan() || det <= 0.0 || !f2.is_finite() || !det.is_finite() {
             return f64::INFINITY;
         }
         let disc = (f2 * f2 - 4.0 * det * det).max(0.0).sqrt();
         (f2 + disc) / (2.0 * det)
     }
 
+    /// True when every entry is finite.
+    pub fn is_finite(&self) -> bool {
+        self.h.is_finite() && self.l.is_finite() && self.n.is_finite() && self.p.is_finite()
+    }
+
     /// Closed-form inverse with its condition number; `None` when singular or not finite.
     pub fn inverse(&self) -> Option<(Receptance, f64)> {
-        let cond = self.condition();
         let det = self.det();
-        if !cond.is_finite() || det.norm() == 0.0 {
+        let cond = self.condition_with(det);
+        if !cond.is_finite() {
             return None;
         }
-        let inv = Receptance::new(self.p / det, -self.l / det, -self.n / det, self.h / det);
-        Some((inv, cond))
+        let r = det.inv();
+        Some((Receptance::new(self.p * r, -self.l * r, -self.n * r, self.h * r), cond))
     }
 }
 
@@ -333,7 +349,7 @@ impl Diagnostics {
     /// Inverts `m` at `freq`, recording the line if singular or beyond the limit (zero is returned then).
     fn invert(&mut self, m: Receptance, freq: f64) -> Receptance {
         let (inv, cond) = m.inverse().unwrap_or((Receptance::ZERO, f64::INFINITY));
-        if cond > self.limit || !inv.max_norm().is_finite() {
+        if cond > self.limit || !inv.is_finite() {
             self.freqs.push(freq);
             if cond > self.worst.0 {
                 self.worst = (cond, freq);
