@@ -374,18 +374,13 @@ impl Diagnostics {
     }
 }
 
-/// Interface compliance `K⁻¹` per line (zero for a rigid joint).
-fn compliance(interface: &Interface, freqs: &[f64], options: &RcsaOptions) -> Result<Vec<Receptance>, RcsaError> {
-    let mut diag = Diagnostics::new("interface stiffness K", options.max_condition);
-    let out = freqs
-        .iter()
-        .map(|&f| match interface.stiffness(f) {
-            None => Receptance::ZERO,
-            Some(k) => diag.invert(k, f),
-        })
-        .collect();
-    diag.finish()?;
-    Ok(out)
+/// Interface compliance `K⁻¹` at one line (zero for a rigid joint); singular `K` is recorded in `diag`.
+#[inline]
+fn compliance(interface: &Interface, freq: f64, diag: &mut Diagnostics) -> Receptance {
+    match interface.stiffness(freq) {
+        None => Receptance::ZERO,
+        Some(k) => diag.invert(k, freq),
+    }
 }
 
 /// Couples substructure `a` at its joint to a base with joint receptance `base` through `interface`, and
@@ -400,14 +395,16 @@ pub fn couple(
     a.check()?;
     check_len("base", &base.lines, base.freqs_hz.len())?;
     check_grid("substructure", &a.freqs_hz, "base", &base.freqs_hz)?;
-    let kinv = compliance(interface, &a.freqs_hz, options)?;
+    let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
     let mut diag = Diagnostics::new("(R22 + K^-1 + B)", options.max_condition);
     let lines = (0..a.freqs_hz.len())
         .map(|i| {
-            let x = diag.invert(a.r22[i] + kinv[i] + base.lines[i], a.freqs_hz[i]);
+            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
+            let x = diag.invert(a.r22[i] + kinv + base.lines[i], a.freqs_hz[i]);
             a.r11[i] - a.r12[i] * x * a.r21[i]
         })
         .collect();
+    kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
 }
@@ -424,14 +421,16 @@ pub fn decouple(
     a.check()?;
     check_len("G11", &g11.lines, g11.freqs_hz.len())?;
     check_grid("substructure", &a.freqs_hz, "assembly G11", &g11.freqs_hz)?;
-    let kinv = compliance(interface, &a.freqs_hz, options)?;
+    let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
     let mut diag = Diagnostics::new("(R11 - G11)", options.max_condition);
     let lines = (0..a.freqs_hz.len())
         .map(|i| {
+            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
             let x = diag.invert(a.r11[i] - g11.lines[i], a.freqs_hz[i]);
-            a.r21[i] * x * a.r12[i] - a.r22[i] - kinv[i]
+            a.r21[i] * x * a.r12[i] - a.r22[i] - kinv
         })
         .collect();
+    kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
 }
