@@ -664,6 +664,32 @@ mod tests {
         }
     }
 
+    /// A rigid body on a spring-damper joint to rigid ground (`B = 0`) is the single-degree-of-freedom
+    /// system of Eq. 5.8 in each coordinate: `H = 1/(K − Mω² + iωC)`, `K = M(2πf_n)²`, `C = 2ξ sqrt(MK)`,
+    /// and `P = 1/(k_r − Jω² + iωc_r)`.
+    #[test]
+    fn body_on_flexible_joint_to_ground_is_a_single_dof_oscillator() {
+        let (m, jm, fnat, xi) = (0.4, 2e-4, 1500.0, 0.03);
+        let k = m * (TAU * fnat).powi(2);
+        let c = 2.0 * xi * (m * k).sqrt();
+        let (kr, cr) = (5e4, 0.7);
+        let freqs: Vec<f64> = (1..=300).map(|i| 10.0 * i as f64).collect();
+        let body = rigid_body(&freqs, m, jm, 0.0, 0.0, 0.0);
+        let ground = ReceptanceFrf { freqs_hz: freqs.clone(), lines: vec![Receptance::ZERO; freqs.len()] };
+        let g = couple(&body, &ground, &Interface::diagonal(k, c, kr, cr), &RcsaOptions::default()).unwrap();
+        for (line, &f) in g.lines.iter().zip(&freqs) {
+            let w = TAU * f;
+            let h = Complex64::from(1.0) / Complex64::new(k - m * w * w, w * c);
+            let p = Complex64::from(1.0) / Complex64::new(kr - jm * w * w, w * cr);
+            assert!((line.h - h).norm() <= 1e-9 * h.norm(), "{f} Hz: {} vs {h}", line.h);
+            assert!((line.p - p).norm() <= 1e-9 * p.norm());
+            assert!(line.l.norm() <= 1e-9 * (h.norm() * p.norm()).sqrt());
+        }
+        // The peak sits at the damped-oscillator resonance.
+        let i = (0..g.lines.len()).max_by(|&a, &b| g.lines[a].h.norm().total_cmp(&g.lines[b].h.norm())).unwrap();
+        assert_eq!(freqs[i], fnat);
+    }
+
     #[test]
     fn mismatched_grids_and_singular_inversions_are_reported() {
         let f1: Vec<f64> = (1..=10).map(|i| i as f64).collect();
