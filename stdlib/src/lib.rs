@@ -6,12 +6,14 @@
 
 pub mod beam;
 pub mod compare;
+pub mod eb_modes;
 pub mod error_motion;
 pub mod filter;
 pub mod frf;
 pub mod impact;
 pub mod nodes;
 pub mod phase;
+pub mod rcsa;
 pub mod rig;
 pub mod runout;
 pub mod segment;

@@ -1,0 +1,440 @@
+//! Fixed-free Euler–Bernoulli beam receptances, the "equivalent modes" of a spindle, dissertation §5.1.
+//!
+//! Each measured spindle mode is represented by a solid circular cantilever of diameter `d`, loss factor
+//! `η` (complex modulus `E(1 + iη)`) and a free length chosen by Eq. 5.6 so that its first bending mode is
+//! at the mode's natural frequency. The free-end receptances are Bishop & Johnson's closed forms
+//! (Eqs. 5.5, 5.10, 5.11) with the fixed-free denominator `1 + cos λL cosh λL` (the printed
+//! `cos λL cosh λL − 1` is the free-free frequency equation). A spindle direction is the sum of its modes'
+//! receptances (Eqs. 5.7, 5.12).
+//!
+//! Sign convention (the whole project): displacement `y`, rotation `θ = dy/dx`, force along `+y`, moment in
+//! the `θ` sense, and the beam axis runs from the clamped end to the free end. Then all four free-end
+//! receptances have positive static limits `H = L³/3EI`, `L = N = L²/2EI`, `P = L/EI`.
+
+use crate::rcsa::{Receptance, ReceptanceFrf};
+use num_complex::Complex64;
+use std::f64::consts::{PI, TAU};
+use thiserror::Error;
+
+/// First root of the fixed-free frequency equation `1 + cos x cosh x = 0` (Eq. 5.6).
+pub const FIXED_FREE_ROOT_1: f64 = 1.875_104_068_711_961;
+
+/// Below this `|λL|` the receptances are evaluated from power series (exact static limit, no cancellation).
+const SERIES_LIMIT: f64 = 1.0;
+
+/// Errors of the equivalent-mode model.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum EbError {
+    /// A parameter is out of range.
+    #[error("invalid {name} = {value}: {requirement}")]
+    InvalidParameter {
+        /// Which parameter.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
+    /// A frequency of the grid is negative or not finite.
+    #[error("frequency line {index} is {value} Hz; frequencies must be finite and ≥ 0")]
+    InvalidFrequency {
+        /// Index in the grid.
+        index: usize,
+        /// The offending value, Hz.
+        value: f64,
+    },
+    /// A mode's speed law gives a non-positive frequency or a negative loss factor at the requested speed.
+    #[error("mode {mode} at {speed_rpm} rpm: {what} = {value} (speed law out of range; check kf / keta)")]
+    SpeedLaw {
+        /// Index of the mode.
+        mode: usize,
+        /// Spindle speed, rpm.
+        speed_rpm: f64,
+        /// `frequency` or `loss factor`.
+        what: &'static str,
+        /// The resulting value.
+        value: f64,
+    },
+}
+
+/// Isotropic beam material (SI).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamMaterial {
+    /// Young's modulus, Pa.
+    pub e_pa: f64,
+    /// Density, kg/m³.
+    pub rho_kg_m3: f64,
+}
+
+impl BeamMaterial {
+    /// Steel as used for the equivalent modes in §5.1: E = 200 GPa, ρ = 7800 kg/m³.
+    pub const STEEL: BeamMaterial = BeamMaterial { e_pa: 200e9, rho_kg_m3: 7800.0 };
+
+    fn check(&self) -> Result<(), EbError> {
+        positive("E", self.e_pa)?;
+        positive("rho", self.rho_kg_m3)
+    }
+}
+
+fn positive(name: &'static str, value: f64) -> Result<(), EbError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(EbError::InvalidParameter { name, value, requirement: "must be finite and > 0" })
+    }
+}
+
+fn non_negative(name: &'static str, value: f64) -> Result<(), EbError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(EbError::InvalidParameter { name, value, requirement: "must be finite and ≥ 0" })
+    }
+}
+
+/// Free length of a solid fixed-free steel-like beam of diameter `d_m` whose first mode is at `f_hz`
+/// (Eq. 5.6): `L = sqrt(1.87510407² d / (2π f) · sqrt(E / (16ρ)))`.
+pub fn free_length(f_hz: f64, d_m: f64, material: &BeamMaterial) -> Result<f64, EbError> {
+    positive("f_hz", f_hz)?;
+    positive("d_m", d_m)?;
+    material.check()?;
+    Ok((FIXED_FREE_ROOT_1 * FIXED_FREE_ROOT_1 * d_m / (TAU * f_hz)
+        * (material.e_pa / (16.0 * material.rho_kg_m3)).sqrt())
+    .sqrt())
+}
+
+/// A solid circular fixed-free Euler–Bernoulli beam with structural damping (complex modulus `E(1 + iη)`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedFreeBeam {
+    /// Free length, m.
+    pub length_m: f64,
+    /// Diameter, m.
+    pub d_m: f64,
+    /// Structural loss factor η (≥ 0).
+    pub eta: f64,
+    /// Material.
+    pub material: BeamMaterial,
+}
+
+impl FixedFreeBeam {
+    /// Checks the parameters.
+    pub fn new(length_m: f64, d_m: f64, eta: f64, material: BeamMaterial) -> Result<Self, EbError> {
+        positive("length_m", length_m)?;
+        positive("d_m", d_m)?;
+        non_negative("eta", eta)?;
+        material.check()?;
+        Ok(FixedFreeBeam { length_m, d_m, eta, material })
+    }
+
+    /// The beam of Eq. 5.6 whose first mode is at `f_hz`.
+    pub fn equivalent(f_hz: f64, d_m: f64, eta: f64, material: BeamMaterial) -> Result<Self, EbError> {
+        let length_m = free_length(f_hz, d_m, &material)?;
+        Self::new(length_m, d_m, eta, material)
+    }
+
+    /// Second moment of area `π d⁴ / 64`, m⁴.
+    pub fn second_moment(&self) -> f64 {
+        PI * self.d_m.powi(4) / 64.0
+    }
+
+    /// Cross-section area `π d² / 4`, m².
+    pub fn area(&self) -> f64 {
+        PI * self.d_m * self.d_m / 4.0
+    }
+
+    /// Complex bending stiffness `E I (1 + iη)`, N m².
+    pub fn ei_complex(&self) -> Complex64 {
+        Complex64::new(1.0, self.eta) * (self.material.e_pa * self.second_moment())
+    }
+
+    /// Free-end receptance `[[H, L], [N, P]]` at angular frequency `omega` (rad/s, ≥ 0), Eqs. 5.5, 5.10,
+    /// 5.11 with the fixed-free denominator.
+    ///
+    /// With `x = λL`, `λ⁴ = ω² ρA / (EI(1 + iη))`, `D = 1 + cos x cosh x`:
+    /// `H = (sin x cosh x − cos x sinh x) / (λ³ EI* D)`, `L = N = sin x sinh x / (λ² EI* D)`,
+    /// `P = (sin x cosh x + cos x sinh x) / (λ EI* D)`. For `|x| ≥ 1` numerator and denominator are divided by
+    /// `cosh x` (written with `e^{−x}`, so no overflow at any `λL`); below, power series give the static
+    /// limits without cancellation.
+    pub fn tip_receptance(&self, omega: f64) -> Receptance {
+        let ei = self.ei_complex();
+        let len = self.length_m;
+        let lam4 = Complex64::from(omega * omega * self.material.rho_kg_m3 * self.area()) / ei;
+        // Principal fourth root: Re λ > 0, small negative Im λ for η > 0.
+        let lam = lam4.powf(0.25);
+        let x = lam * len;
+        if x.norm() < SERIES_LIMIT {
+            let (gh, gl, gp, d) = series(x);
+            let inv = Complex64::from(1.0) / (ei * d);
+            Receptance::new(gh * len.powi(3) * inv, gl * len * len * inv, gl * len * len * inv, gp * len * inv)
+        } else {
+            // e = e^{−x}; cosh x = (1 + e²)/(2e); sinh x = (1 − e²)/(2e).
+            let e = (-x).exp();
+            let e2 = e * e;
+            let one = Complex64::from(1.0);
+            let tanh = (one - e2) / (one + e2);
+            let sech = e * 2.0 / (one + e2);
+            let (s, c) = (x.sin(), x.cos());
+            let dn = ei * (sech + c);
+            let lnum = s * tanh;
+            Receptance::new(
+                (s - c * tanh) / (lam * lam * lam * dn),
+                lnum / (lam * lam * dn),
+                lnum / (lam * lam * dn),
+                (s + c * tanh) / (lam * dn),
+            )
+        }
+    }
+}
+
+/// Power series of the reduced numerators `(sin x cosh x − cos x sinh x)/x³`, `sin x sinh x / x²`,
+/// `(sin x cosh x + cos x sinh x)/x` and of `D = 1 + cos x cosh x`, for small complex `x`.
+///
+/// Uses `sin x cosh x ± i cos x sinh x = sin((1 ± i)x)` and `cos x cosh x − i sin x sinh x = cos((1 + i)x)`
+/// written as series in `x` with coefficients `(1 + i)^k`.
+fn series(x: Complex64) -> (Complex64, Complex64, Complex64, Complex64) {
+    let one_i = Complex64::new(1.0, 1.0);
+    let x2 = x * x;
+    let mut gh = Complex64::from(0.0);
+    let mut gl = Complex64::from(0.0);
+    let mut gp = Complex64::from(0.0);
+    let mut d = Complex64::from(1.0); // the 1 of 1 + cos x cosh x
+    // term_k = x^{2k} / (2k)! · (1+i)^{2k} (even) and x^{2k} / (2k+1)! · (1+i)^{2k+1} (odd, divided by x).
+    let mut xpow = Complex64::from(1.0); // x^{2k}
+    let mut xshift = Complex64::from(0.0); // x^{2k-2} (0 for k = 0, where its coefficients vanish)
+    let mut pow_even = Complex64::from(1.0); // (1+i)^{2k}
+    let mut fact_even = 1.0; // (2k)!
+    for k in 0..24 {
+        let kk = k as f64;
+        let pow_odd = pow_even * one_i;
+        let fact_odd = fact_even * (2.0 * kk + 1.0);
+        let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+        // sin((1+i)x) = Σ (−1)^k ((1+i)x)^{2k+1}/(2k+1)!: real part → sin cosh, imaginary part → cos sinh.
+        let odd = sign / fact_odd;
+        let a = pow_odd.re * odd; // coefficient of x^{2k+1} in sin x cosh x
+        let b = pow_odd.im * odd; // coefficient of x^{2k+1} in cos x sinh x
+        // cos((1+i)x) = Σ (−1)^k ((1+i)x)^{2k}/(2k)!: real → cos cosh, −imag → sin sinh.
+        let even = sign / fact_even;
+        let cc = pow_even.re * even;
+        let ss = -pow_even.im * even;
+        // gh = Σ (a − b) x^{2k+1} / x³: the k = 0 term vanishes (a = b = 1).
+        gh += xshift * (a - b);
+        gp += xpow * (a + b);
+        gl += xshift * ss;
+        d += xpow * cc;
+        xshift = xpow;
+        xpow *= x2;
+        pow_even = pow_odd * one_i;
+        fact_even = fact_odd * (2.0 * kk + 2.0);
+    }
+    (gh, gl, gp, d)
+}
+
+/// One equivalent spindle mode: natural frequency, beam diameter, loss factor and speed law coefficients.
+///
+/// At spindle speed `n`: `f(n) = f_hz (1 + kf (n/n_ref)²)`, `η(n) = η (1 + keta (n/n_ref)²)`, `d` constant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EquivalentMode {
+    /// Natural frequency at rest, Hz.
+    pub f_hz: f64,
+    /// Equivalent beam diameter, m.
+    pub d_m: f64,
+    /// Structural loss factor at rest.
+    pub eta: f64,
+    /// Frequency speed-law coefficient.
+    pub kf: f64,
+    /// Loss-factor speed-law coefficient.
+    pub keta: f64,
+}
+
+impl EquivalentMode {
+    /// A mode with no speed dependence.
+    pub fn new(f_hz: f64, d_m: f64, eta: f64) -> Self {
+        EquivalentMode { f_hz, d_m, eta, kf: 0.0, keta: 0.0 }
+    }
+
+    /// Natural frequency and loss factor at `speed_rpm`, from the speed laws about `ref_speed_rpm`.
+    pub fn at_speed(&self, speed_rpm: f64, ref_speed_rpm: f64) -> (f64, f64) {
+        let r = if speed_rpm == 0.0 { 0.0 } else { speed_rpm / ref_speed_rpm };
+        let r2 = r * r;
+        (self.f_hz * (1.0 + self.kf * r2), self.eta * (1.0 + self.keta * r2))
+    }
+}
+
+/// Free-end receptances of one spindle direction at `speed_rpm`: the sum over the equivalent modes of the
+/// fixed-free beam receptances (Eqs. 5.5–5.7, 5.10–5.12), on the grid `freqs_hz`.
+pub fn spindle_receptance(
+    modes: &[EquivalentMode],
+    material: &BeamMaterial,
+    speed_rpm: f64,
+    ref_speed_rpm: f64,
+    freqs_hz: &[f64],
+) -> Result<ReceptanceFrf, EbError> {
+    material.check()?;
+    if !speed_rpm.is_finite() {
+        return Err(EbError::InvalidParameter { name: "speed_rpm", value: speed_rpm, requirement: "must be finite" });
+    }
+    if speed_rpm != 0.0 {
+        positive("ref_speed_rpm", ref_speed_rpm)?;
+    }
+    for (index, &f) in freqs_hz.iter().enumerate() {
+        if !(f.is_finite() && f >= 0.0) {
+            return Err(EbError::InvalidFrequency { index, value: f });
+        }
+    }
+    let mut beams = Vec::with_capacity(modes.len());
+    for (i, m) in modes.iter().enumerate() {
+        let (f, eta) = m.at_speed(speed_rpm, ref_speed_rpm);
+        if !(f.is_finite() && f > 0.0) {
+            return Err(EbError::SpeedLaw { mode: i, speed_rpm, what: "frequency", value: f });
+        }
+        if !(eta.is_finite() && eta >= 0.0) {
+            return Err(EbError::SpeedLaw { mode: i, speed_rpm, what: "loss factor", value: eta });
+        }
+        beams.push(FixedFreeBeam::equivalent(f, m.d_m, eta, *material)?);
+    }
+    let lines = freqs_hz
+        .iter()
+        .map(|&f| {
+            let w = TAU * f;
+            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.tip_receptance(w))
+        })
+        .collect();
+    Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rel(a: Complex64, b: Complex64) -> f64 {
+        (a - b).norm() / b.norm()
+    }
+
+    #[test]
+    fn static_limits_match_cantilever_flexibility() {
+        let beam = FixedFreeBeam::new(0.3, 0.05, 0.02, BeamMaterial::STEEL).unwrap();
+        let ei = beam.ei_complex();
+        let l = beam.length_m;
+        let h0 = Complex64::from(l.powi(3) / 3.0) / ei;
+        let l0 = Complex64::from(l * l / 2.0) / ei;
+        let p0 = Complex64::from(l) / ei;
+        // Exactly static, and slightly above on both sides of the series / closed-form switch.
+        let r = beam.tip_receptance(0.0);
+        assert!(rel(r.h, h0) < 1e-14 && rel(r.l, l0) < 1e-14 && rel(r.n, l0) < 1e-14 && rel(r.p, p0) < 1e-14);
+        let f1 = FIXED_FREE_ROOT_1.powi(2) / l.powi(2)
+            * (beam.material.e_pa * beam.second_moment() / (beam.material.rho_kg_m3 * beam.area())).sqrt();
+        for frac in [1e-4, 1e-3] {
+            let r = beam.tip_receptance(frac * f1);
+            assert!(rel(r.h, h0) < 1e-5, "h at {frac}: {}", rel(r.h, h0));
+            assert!(rel(r.l, l0) < 1e-5 && rel(r.p, p0) < 1e-5);
+            assert!(r.h.re > 0.0 && r.l.re > 0.0 && r.p.re > 0.0);
+        }
+    }
+
+    #[test]
+    fn series_and_closed_form_agree_at_the_switch() {
+        let beam = FixedFreeBeam::new(0.2, 0.04, 0.05, BeamMaterial::STEEL).unwrap();
+        // Find ω where |x| = 1 and compare just below (series) with just above (closed form).
+        let ei = beam.ei_complex();
+        let c = (Complex64::from(beam.material.rho_kg_m3 * beam.area()) / ei).norm().powf(0.25) * beam.length_m;
+        let w = (1.0 / c).powi(2);
+        let a = beam.tip_receptance(w * (1.0 - 1e-9));
+        let b = beam.tip_receptance(w * (1.0 + 1e-9));
+        assert!(rel(a.h, b.h) < 1e-8 && rel(a.l, b.l) < 1e-8 && rel(a.p, b.p) < 1e-8);
+        // Direct evaluation with cosh at the same point (no overflow there) as an independent check.
+        let lam = (Complex64::from(w * w * beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25);
+        let x = lam * beam.length_m;
+        let d = Complex64::from(1.0) + x.cos() * x.cosh();
+        let h = (x.sin() * x.cosh() - x.cos() * x.sinh()) / (lam * lam * lam * ei * d);
+        let p = (x.sin() * x.cosh() + x.cos() * x.sinh()) / (lam * ei * d);
+        let l = x.sin() * x.sinh() / (lam * lam * ei * d);
+        assert!(rel(a.h, h) < 1e-8 && rel(a.l, l) < 1e-8 && rel(a.p, p) < 1e-8);
+    }
+
+    #[test]
+    fn free_length_puts_first_peak_at_mode_frequency() {
+        let mat = BeamMaterial::STEEL;
+        for (f, d) in [(650.0, 0.12), (1800.0, 0.06), (4200.0, 0.03)] {
+            let beam = FixedFreeBeam::equivalent(f, d, 0.01, mat).unwrap();
+            // Eq. 5.6 inverts the fixed-free first-mode frequency.
+            let fn1 = FIXED_FREE_ROOT_1.powi(2) / (TAU * beam.length_m.powi(2))
+                * (mat.e_pa * beam.second_moment() / (mat.rho_kg_m3 * beam.area())).sqrt();
+            assert!((fn1 / f - 1.0).abs() < 1e-12);
+            // Peak of |H| on a 0.1 Hz grid over ±20 %: within 0.05 % of f (η shifts it slightly).
+            let mut best = (0.0, 0.0);
+            let mut fq = 0.8 * f;
+            while fq < 1.2 * f {
+                let m = beam.tip_receptance(TAU * fq).h.norm();
+                if m > best.1 {
+                    best = (fq, m);
+                }
+                fq += 0.1;
+            }
+            assert!((best.0 / f - 1.0).abs() < 5e-4, "peak {} for {f}", best.0);
+        }
+    }
+
+    #[test]
+    fn cross_receptances_are_equal_and_stable_at_high_lambda_l() {
+        let beam = FixedFreeBeam::equivalent(300.0, 0.1, 0.03, BeamMaterial::STEEL).unwrap();
+        for f in [10.0, 299.0, 1e3, 1e4, 1e5, 1e6, 1e8] {
+            let r = beam.tip_receptance(TAU * f);
+            assert_eq!(r.l, r.n);
+            for v in [r.h, r.l, r.p] {
+                assert!(v.re.is_finite() && v.im.is_finite(), "non-finite at {f} Hz: {r:?}");
+            }
+        }
+        // Far above the first modes the damped beam behaves as a semi-infinite one: tanh x → 1, sech x → 0, so
+        // H → (sin x − cos x)/(λ³ EI* cos x), which with damping averages to |H| ∝ ω^{-3/2}.
+        let a = beam.tip_receptance(TAU * 1e7).h.norm();
+        let b = beam.tip_receptance(TAU * 4e7).h.norm();
+        assert!((a / b / 8.0 - 1.0).abs() < 0.05, "ratio {}", a / b);
+    }
+
+    #[test]
+    fn undamped_limit_diverges_only_at_resonance() {
+        let f = 1200.0;
+        let undamped = FixedFreeBeam::equivalent(f, 0.05, 0.0, BeamMaterial::STEEL).unwrap();
+        let light = FixedFreeBeam::equivalent(f, 0.05, 1e-9, BeamMaterial::STEEL).unwrap();
+        let stat = undamped.tip_receptance(0.0).h.norm();
+        assert!(light.tip_receptance(TAU * f).h.norm() > 1e6 * stat);
+        assert!(undamped.tip_receptance(TAU * f).h.norm() > 1e6 * stat);
+        for fr in [0.3, 0.7, 1.5, 3.0] {
+            let a = undamped.tip_receptance(TAU * fr * f);
+            let b = light.tip_receptance(TAU * fr * f);
+            assert!(a.h.norm() < 20.0 * stat, "finite away from resonance");
+            assert!(rel(b.h, a.h) < 1e-6 && a.h.im.abs() < 1e-12 * a.h.norm());
+        }
+    }
+
+    #[test]
+    fn spindle_sums_modes_and_follows_speed_laws() {
+        let mat = BeamMaterial::STEEL;
+        let mut m0 = EquivalentMode::new(900.0, 0.09, 0.04);
+        let m1 = EquivalentMode::new(2500.0, 0.05, 0.03);
+        let grid: Vec<f64> = (0..200).map(|i| 20.0 * i as f64).collect();
+        let s = spindle_receptance(&[m0, m1], &mat, 0.0, 10000.0, &grid).unwrap();
+        let b0 = FixedFreeBeam::equivalent(900.0, 0.09, 0.04, mat).unwrap();
+        let b1 = FixedFreeBeam::equivalent(2500.0, 0.05, 0.03, mat).unwrap();
+        for (i, &f) in grid.iter().enumerate() {
+            let want = b0.tip_receptance(TAU * f) + b1.tip_receptance(TAU * f);
+            assert!((s.lines[i] - want).max_norm() <= 1e-15 * want.max_norm());
+        }
+        m0.kf = 0.02;
+        m0.keta = -0.05;
+        let (f, eta) = m0.at_speed(20000.0, 10000.0);
+        assert!((f - 900.0 * 1.08).abs() < 1e-9 && (eta - 0.04 * 0.8).abs() < 1e-12);
+        let fast = spindle_receptance(&[m0], &mat, 20000.0, 10000.0, &[f]).unwrap();
+        let want = FixedFreeBeam::equivalent(f, 0.09, eta, mat).unwrap().tip_receptance(TAU * f);
+        assert_eq!(fast.lines[0], want);
+        m0.kf = -2.0;
+        assert!(matches!(
+            spindle_receptance(&[m0], &mat, 10000.0, 10000.0, &grid),
+            Err(EbError::SpeedLaw { mode: 0, .. })
+        ));
+        assert!(matches!(
+            spindle_receptance(&[m1], &mat, 0.0, 1.0, &[-1.0]),
+            Err(EbError::InvalidFrequency { index: 0, .. })
+        ));
+    }
+}

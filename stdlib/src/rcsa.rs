@@ -1,0 +1,718 @@
+//! Receptance coupling substructure analysis (RCSA), dissertation §5.1.
+//!
+//! Receptances are 2×2 complex blocks `R = [[H, L], [N, P]]` per frequency line, with `H = y/F`, `L = y/M`,
+//! `N = θ/F`, `P = θ/M` (`θ = dy/dx`, force along `+y`, moment in the `θ` sense). A substructure with two
+//! coupling points carries the blocks `R11`, `R12`, `R21`, `R22` (1 = free end, 2 = joint). Coupling at point 2
+//! to a base with joint receptance `B` (Eq. 5.3, with the interface compliance of Eqs. 5.16–5.17):
+//! `G11 = R11 − R12 (R22 + K⁻¹ + B)⁻¹ R21`, `K = k + iωc`; inverse RCSA (Eq. 5.4):
+//! `B = R21 (R11 − G11)⁻¹ R12 − R22 − K⁻¹`. Every 2×2 inversion is checked: its condition number (after a
+//! length scaling that makes translation and rotation terms commensurate) must stay below a limit, and the
+//! frequencies where it does not are reported as an error, never returned as NaN.
+
+/// The complex scalar of every receptance entry.
+pub use num_complex::Complex64;
+use std::f64::consts::TAU;
+use std::ops::{Add, Mul, Neg, Sub};
+use thiserror::Error;
+
+/// A 2×2 complex receptance block `[[h, l], [n, p]]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receptance {
+    /// Displacement per force, m/N.
+    pub h: Complex64,
+    /// Displacement per moment, 1/N.
+    pub l: Complex64,
+    /// Rotation per force, 1/N.
+    pub n: Complex64,
+    /// Rotation per moment, rad/(N m).
+    pub p: Complex64,
+}
+
+impl Receptance {
+    /// The zero block.
+    pub const ZERO: Receptance = Receptance {
+        h: Complex64::new(0.0, 0.0),
+        l: Complex64::new(0.0, 0.0),
+        n: Complex64::new(0.0, 0.0),
+        p: Complex64::new(0.0, 0.0),
+    };
+    /// The identity.
+    pub const IDENTITY: Receptance = Receptance {
+        h: Complex64::new(1.0, 0.0),
+        l: Complex64::new(0.0, 0.0),
+        n: Complex64::new(0.0, 0.0),
+        p: Complex64::new(1.0, 0.0),
+    };
+
+    /// Builds `[[h, l], [n, p]]`.
+    pub const fn new(h: Complex64, l: Complex64, n: Complex64, p: Complex64) -> Self {
+        Receptance { h, l, n, p }
+    }
+
+    /// A diagonal block `diag(a, b)`.
+    pub fn diag(a: Complex64, b: Complex64) -> Self {
+        Receptance::new(a, Complex64::from(0.0), Complex64::from(0.0), b)
+    }
+
+    /// Determinant `hp − ln`.
+    pub fn det(&self) -> Complex64 {
+        self.h * self.p - self.l * self.n
+    }
+
+    /// Largest modulus of the four entries.
+    pub fn max_norm(&self) -> f64 {
+        self.h.norm().max(self.l.norm()).max(self.n.norm()).max(self.p.norm())
+    }
+
+    /// The same block seen from a mirrored axis (`x → −x`): rotation and moment change sign, so `L` and `N`
+    /// do. Used when a substructure's own axis points the other way along the assembly.
+    pub fn mirrored(&self) -> Self {
+        Receptance::new(self.h, -self.l, -self.n, self.p)
+    }
+
+    /// 2-norm condition number after scaling lengths by `c = sqrt(|h|/|p|)` (so that a cantilever's
+    /// `H ≈ L² P` does not count as ill-conditioning). Infinite when singular.
+    pub fn condition(&self) -> f64 {
+        self.condition_with(self.det())
+    }
+
+    /// [`Receptance::condition`] with the determinant already at hand. With `c² = |h|/|p|` the scaled block has
+    /// `|h'| = |p'| = |p|`, `|l'| = |l|/c`, `|n'| = |n|/c`, `|det'| = |det|/c²`; the 2-norm condition of a 2×2
+    /// block is `(F² + sqrt(F⁴ − 4|det|²)) / (2|det|)` with `F` the Frobenius norm.
+    fn condition_with(&self, det: Complex64) -> f64 {
+        let (ah, ap) = (self.h.norm_sqr().sqrt(), self.p.norm_sqr().sqrt());
+        let off = self.l.norm_sqr() + self.n.norm_sqr();
+        let (f2, det) = if ah > 0.0 && ap > 0.0 {
+            let r = ap / ah;
+            (2.0 * ap * ap + off * r, det.norm_sqr().sqrt() * r)
+        } else {
+            (ah * ah + ap * ap + off, det.norm_sqr().sqrt())
+        };
+        if det.is_nan() || det <= 0.0 || !f2.is_finite() || !det.is_finite() {
+            return f64::INFINITY;
+        }
+        let disc = (f2 * f2 - 4.0 * det * det).max(0.0).sqrt();
+        (f2 + disc) / (2.0 * det)
+    }
+
+    /// True when every entry is finite.
+    pub fn is_finite(&self) -> bool {
+        self.h.is_finite() && self.l.is_finite() && self.n.is_finite() && self.p.is_finite()
+    }
+
+    /// Closed-form inverse with its condition number; `None` when singular or not finite.
+    pub fn inverse(&self) -> Option<(Receptance, f64)> {
+        let det = self.det();
+        let cond = self.condition_with(det);
+        if !cond.is_finite() {
+            return None;
+        }
+        let r = det.inv();
+        Some((Receptance::new(self.p * r, -self.l * r, -self.n * r, self.h * r), cond))
+    }
+}
+
+impl Add for Receptance {
+    type Output = Receptance;
+    fn add(self, o: Receptance) -> Receptance {
+        Receptance::new(self.h + o.h, self.l + o.l, self.n + o.n, self.p + o.p)
+    }
+}
+
+impl Sub for Receptance {
+    type Output = Receptance;
+    fn sub(self, o: Receptance) -> Receptance {
+        Receptance::new(self.h - o.h, self.l - o.l, self.n - o.n, self.p - o.p)
+    }
+}
+
+impl Neg for Receptance {
+    type Output = Receptance;
+    fn neg(self) -> Receptance {
+        Receptance::new(-self.h, -self.l, -self.n, -self.p)
+    }
+}
+
+impl Mul for Receptance {
+    type Output = Receptance;
+    fn mul(self, o: Receptance) -> Receptance {
+        Receptance::new(
+            self.h * o.h + self.l * o.n,
+            self.h * o.l + self.l * o.p,
+            self.n * o.h + self.p * o.n,
+            self.n * o.l + self.p * o.p,
+        )
+    }
+}
+
+impl Mul<Complex64> for Receptance {
+    type Output = Receptance;
+    fn mul(self, s: Complex64) -> Receptance {
+        Receptance::new(self.h * s, self.l * s, self.n * s, self.p * s)
+    }
+}
+
+/// One-point receptances on a frequency grid (e.g. a spindle's `R2b2b` or an assembly's `G11`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReceptanceFrf {
+    /// Frequency lines, Hz.
+    pub freqs_hz: Vec<f64>,
+    /// One block per line.
+    pub lines: Vec<Receptance>,
+}
+
+/// Receptances of a substructure with a free end (1) and a joint (2) on a frequency grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoPort {
+    /// Frequency lines, Hz.
+    pub freqs_hz: Vec<f64>,
+    /// `R11`, direct at the free end.
+    pub r11: Vec<Receptance>,
+    /// `R12`, free-end response to a joint load.
+    pub r12: Vec<Receptance>,
+    /// `R21`, joint response to a free-end load.
+    pub r21: Vec<Receptance>,
+    /// `R22`, direct at the joint.
+    pub r22: Vec<Receptance>,
+}
+
+/// Joint between two substructures (Eqs. 5.16–5.17).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Interface {
+    /// Rigid: `K⁻¹ = 0`.
+    Rigid,
+    /// Flexible: `K(ω) = k + iωc` with 2×2 real stiffness (N/m, N, N m/rad) and damping (N s/m, N s,
+    /// N m s/rad) over (translation, rotation).
+    Flexible {
+        /// Stiffness `[[k_tt, k_tr], [k_rt, k_rr]]`.
+        k: [[f64; 2]; 2],
+        /// Viscous damping `[[c_tt, c_tr], [c_rt, c_rr]]`.
+        c: [[f64; 2]; 2],
+    },
+}
+
+impl Interface {
+    /// A diagonal joint `diag(kt + iω ct, kr + iω cr)`.
+    pub fn diagonal(kt: f64, ct: f64, kr: f64, cr: f64) -> Self {
+        Interface::Flexible { k: [[kt, 0.0], [0.0, kr]], c: [[ct, 0.0], [0.0, cr]] }
+    }
+
+    /// `K(ω) = k + iωc` at `freq_hz`, or `None` for a rigid joint.
+    pub fn stiffness(&self, freq_hz: f64) -> Option<Receptance> {
+        match self {
+            Interface::Rigid => None,
+            Interface::Flexible { k, c } => {
+                let w = TAU * freq_hz;
+                let e = |i: usize, j: usize| Complex64::new(k[i][j], w * c[i][j]);
+                Some(Receptance::new(e(0, 0), e(0, 1), e(1, 0), e(1, 1)))
+            }
+        }
+    }
+}
+
+/// Options of the coupling kernels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RcsaOptions {
+    /// Largest accepted condition number of a 2×2 inversion (scaled, see [`Receptance::condition`]).
+    pub max_condition: f64,
+}
+
+impl Default for RcsaOptions {
+    /// `max_condition = 1e10`, leaving about six significant digits in double precision.
+    fn default() -> Self {
+        RcsaOptions { max_condition: 1e10 }
+    }
+}
+
+/// Errors of receptance coupling.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RcsaError {
+    /// Two inputs are not on the same frequency grid.
+    #[error(
+        "frequency grids differ: {a} has {a_len} lines ({a_first} … {a_last} Hz), {b} has {b_len} lines \
+         ({b_first} … {b_last} Hz){}; resample both onto one grid first",
+        first_diff.map(|(i, fa, fb)| format!(", first difference at line {i}: {fa} vs {fb} Hz")).unwrap_or_default()
+    )]
+    GridMismatch {
+        /// Name of the first input.
+        a: &'static str,
+        /// Name of the second input.
+        b: &'static str,
+        /// Line counts.
+        a_len: usize,
+        /// Line counts.
+        b_len: usize,
+        /// First / last frequency of `a`, Hz.
+        a_first: f64,
+        /// Last frequency of `a`, Hz.
+        a_last: f64,
+        /// First frequency of `b`, Hz.
+        b_first: f64,
+        /// Last frequency of `b`, Hz.
+        b_last: f64,
+        /// First differing line (index, a, b) when the lengths agree.
+        first_diff: Option<(usize, f64, f64)>,
+    },
+    /// A block list does not have one entry per frequency line.
+    #[error("{what} has {found} blocks for {expected} frequency lines")]
+    LengthMismatch {
+        /// Which block list.
+        what: &'static str,
+        /// Number of lines.
+        expected: usize,
+        /// Number of blocks.
+        found: usize,
+    },
+    /// A 2×2 inversion is singular or too ill-conditioned at some lines.
+    #[error(
+        "{operation}: ill-conditioned at {} of the lines (worst condition {worst_condition:e} at {worst_freq_hz} Hz, \
+         limit {limit:e}); first affected frequencies {:?} Hz",
+        freqs_hz.len(), &freqs_hz[..freqs_hz.len().min(8)]
+    )]
+    IllConditioned {
+        /// Which inversion (`(R22 + K⁻¹ + B)`, `(R11 − G11)`, `K`).
+        operation: &'static str,
+        /// Every affected frequency, Hz.
+        freqs_hz: Vec<f64>,
+        /// Largest condition number met (infinite when singular).
+        worst_condition: f64,
+        /// Where it occurs, Hz.
+        worst_freq_hz: f64,
+        /// The accepted limit.
+        limit: f64,
+    },
+}
+
+fn check_grid(a: &'static str, fa: &[f64], b: &'static str, fb: &[f64]) -> Result<(), RcsaError> {
+    if fa == fb {
+        return Ok(());
+    }
+    let first_diff = if fa.len() == fb.len() {
+        fa.iter().zip(fb).enumerate().find(|(_, (x, y))| x != y).map(|(i, (x, y))| (i, *x, *y))
+    } else {
+        None
+    };
+    let ends = |f: &[f64]| (f.first().copied().unwrap_or(f64::NAN), f.last().copied().unwrap_or(f64::NAN));
+    let ((a_first, a_last), (b_first, b_last)) = (ends(fa), ends(fb));
+    Err(RcsaError::GridMismatch {
+        a,
+        b,
+        a_len: fa.len(),
+        b_len: fb.len(),
+        a_first,
+        a_last,
+        b_first,
+        b_last,
+        first_diff,
+    })
+}
+
+fn check_len(what: &'static str, v: &[Receptance], expected: usize) -> Result<(), RcsaError> {
+    if v.len() == expected { Ok(()) } else { Err(RcsaError::LengthMismatch { what, expected, found: v.len() }) }
+}
+
+impl TwoPort {
+    fn check(&self) -> Result<(), RcsaError> {
+        let n = self.freqs_hz.len();
+        check_len("R11", &self.r11, n)?;
+        check_len("R12", &self.r12, n)?;
+        check_len("R21", &self.r21, n)?;
+        check_len("R22", &self.r22, n)
+    }
+
+    /// A substructure whose free end and joint are the same point (e.g. a one-point body): all four blocks
+    /// equal `r`.
+    pub fn single_point(frf: &ReceptanceFrf) -> TwoPort {
+        TwoPort {
+            freqs_hz: frf.freqs_hz.clone(),
+            r11: frf.lines.clone(),
+            r12: frf.lines.clone(),
+            r21: frf.lines.clone(),
+            r22: frf.lines.clone(),
+        }
+    }
+}
+
+/// Collects ill-conditioned lines while a kernel runs.
+struct Diagnostics {
+    operation: &'static str,
+    limit: f64,
+    freqs: Vec<f64>,
+    worst: (f64, f64),
+}
+
+impl Diagnostics {
+    fn new(operation: &'static str, limit: f64) -> Self {
+        Diagnostics { operation, limit, freqs: Vec::new(), worst: (0.0, f64::NAN) }
+    }
+
+    /// Inverts `m` at `freq`, recording the line if singular or beyond the limit (zero is returned then).
+    fn invert(&mut self, m: Receptance, freq: f64) -> Receptance {
+        let (inv, cond) = m.inverse().unwrap_or((Receptance::ZERO, f64::INFINITY));
+        if cond > self.limit || !inv.is_finite() {
+            self.freqs.push(freq);
+            if cond > self.worst.0 {
+                self.worst = (cond, freq);
+            }
+            return Receptance::ZERO;
+        }
+        inv
+    }
+
+    fn finish(self) -> Result<(), RcsaError> {
+        if self.freqs.is_empty() {
+            Ok(())
+        } else {
+            Err(RcsaError::IllConditioned {
+                operation: self.operation,
+                freqs_hz: self.freqs,
+                worst_condition: self.worst.0,
+                worst_freq_hz: self.worst.1,
+                limit: self.limit,
+            })
+        }
+    }
+}
+
+/// Interface compliance `K⁻¹` at one line (zero for a rigid joint); singular `K` is recorded in `diag`.
+#[inline]
+fn compliance(interface: &Interface, freq: f64, diag: &mut Diagnostics) -> Receptance {
+    match interface.stiffness(freq) {
+        None => Receptance::ZERO,
+        Some(k) => diag.invert(k, freq),
+    }
+}
+
+/// Couples substructure `a` at its joint to a base with joint receptance `base` through `interface`, and
+/// returns the assembly's free-end receptance (Eqs. 5.3, 5.16–5.17):
+/// `G11 = R11 − R12 (R22 + K⁻¹ + B)⁻¹ R21`.
+pub fn couple(
+    a: &TwoPort,
+    base: &ReceptanceFrf,
+    interface: &Interface,
+    options: &RcsaOptions,
+) -> Result<ReceptanceFrf, RcsaError> {
+    a.check()?;
+    check_len("base", &base.lines, base.freqs_hz.len())?;
+    check_grid("substructure", &a.freqs_hz, "base", &base.freqs_hz)?;
+    let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
+    let mut diag = Diagnostics::new("(R22 + K^-1 + B)", options.max_condition);
+    let lines = (0..a.freqs_hz.len())
+        .map(|i| {
+            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
+            let x = diag.invert(a.r22[i] + kinv + base.lines[i], a.freqs_hz[i]);
+            a.r11[i] - a.r12[i] * x * a.r21[i]
+        })
+        .collect();
+    kdiag.finish()?;
+    diag.finish()?;
+    Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
+}
+
+/// Inverse RCSA (Eq. 5.4 with the interface of Eqs. 5.16–5.17): the base's joint receptance from the
+/// assembly's free-end receptance `g11` and the substructure `a`:
+/// `B = R21 (R11 − G11)⁻¹ R12 − R22 − K⁻¹`.
+pub fn decouple(
+    a: &TwoPort,
+    g11: &ReceptanceFrf,
+    interface: &Interface,
+    options: &RcsaOptions,
+) -> Result<ReceptanceFrf, RcsaError> {
+    a.check()?;
+    check_len("G11", &g11.lines, g11.freqs_hz.len())?;
+    check_grid("substructure", &a.freqs_hz, "assembly G11", &g11.freqs_hz)?;
+    let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
+    let mut diag = Diagnostics::new("(R11 - G11)", options.max_condition);
+    let lines = (0..a.freqs_hz.len())
+        .map(|i| {
+            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
+            let x = diag.invert(a.r11[i] - g11.lines[i], a.freqs_hz[i]);
+            a.r21[i] * x * a.r12[i] - a.r22[i] - kinv
+        })
+        .collect();
+    kdiag.finish()?;
+    diag.finish()?;
+    Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
+}
+
+/// A chain assembled outward from a base (e.g. spindle → holder → tool): each stage is a substructure and
+/// the joint between it and everything assembled so far. Returns the free-end receptance of the last stage.
+pub fn couple_chain(
+    base: &ReceptanceFrf,
+    stages: &[(&TwoPort, Interface)],
+    options: &RcsaOptions,
+) -> Result<ReceptanceFrf, RcsaError> {
+    let mut acc = base.clone();
+    for (sub, interface) in stages {
+        acc = couple(sub, &acc, interface, options)?;
+    }
+    Ok(acc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eb_modes::{BeamMaterial, EquivalentMode, FixedFreeBeam, spindle_receptance};
+
+    /// Free-free rigid body (mass `m`, inertia `j` about its centre of mass) with free end 1 at `x1` and joint
+    /// 2 at `x2`, centre of mass at `xg`: `R_PQ = −ω⁻² T_P diag(1/m, 1/j) T_Qᵀ`, `T_P = [[1, x_P − x_G], [0, 1]]`.
+    fn rigid_body(freqs: &[f64], m: f64, j: f64, x1: f64, x2: f64, xg: f64) -> TwoPort {
+        let block = |xp: f64, xq: f64, w: f64| {
+            let (a, b) = (xp - xg, xq - xg);
+            let s = -1.0 / (w * w);
+            // T_P diag(1/m, 1/j) T_Qᵀ = [[1/m + a b / j, a / j], [b / j, 1 / j]]
+            Receptance::new(
+                Complex64::from(s * (1.0 / m + a * b / j)),
+                Complex64::from(s * a / j),
+                Complex64::from(s * b / j),
+                Complex64::from(s / j),
+            )
+        };
+        let ws: Vec<f64> = freqs.iter().map(|f| TAU * f).collect();
+        TwoPort {
+            freqs_hz: freqs.to_vec(),
+            r11: ws.iter().map(|&w| block(x1, x1, w)).collect(),
+            r12: ws.iter().map(|&w| block(x1, x2, w)).collect(),
+            r21: ws.iter().map(|&w| block(x2, x1, w)).collect(),
+            r22: ws.iter().map(|&w| block(x2, x2, w)).collect(),
+        }
+    }
+
+    fn beam_frf(beam: &FixedFreeBeam, freqs: &[f64]) -> ReceptanceFrf {
+        ReceptanceFrf { freqs_hz: freqs.to_vec(), lines: freqs.iter().map(|f| beam.tip_receptance(TAU * f)).collect() }
+    }
+
+    /// Golden-section maximum of `g(f)` on `[lo, hi]`.
+    fn peak(lo: f64, hi: f64, g: impl Fn(f64) -> f64) -> f64 {
+        let r = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut a, mut b) = (lo, hi);
+        for _ in 0..200 {
+            let (c, d) = (b - r * (b - a), a + r * (b - a));
+            if g(c) > g(d) {
+                b = d;
+            } else {
+                a = c;
+            }
+        }
+        0.5 * (a + b)
+    }
+
+    /// Bisection root of `g` on `[lo, hi]` (sign change required).
+    fn root(mut lo: f64, mut hi: f64, g: impl Fn(f64) -> f64) -> f64 {
+        let glo = g(lo);
+        assert!(glo * g(hi) < 0.0);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if (g(mid) > 0.0) == (glo > 0.0) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    #[test]
+    fn inverse_and_condition_are_correct() {
+        let m = Receptance::new(
+            Complex64::new(2.0, 1.0),
+            Complex64::new(0.5, -0.3),
+            Complex64::new(-0.2, 0.7),
+            Complex64::new(1.5, 0.1),
+        );
+        let (inv, cond) = m.inverse().unwrap();
+        assert!((m * inv - Receptance::IDENTITY).max_norm() < 1e-15);
+        assert!((1.0..10.0).contains(&cond));
+        let sing =
+            Receptance::new(Complex64::from(1.0), Complex64::from(2.0), Complex64::from(2.0), Complex64::from(4.0));
+        assert!(sing.inverse().is_none());
+        // Scaling lengths does not change the condition: H = c² h, L = N = c l.
+        let c = 1e-3;
+        let scaled = Receptance::new(m.h * (c * c), m.l * c, m.n * c, m.p);
+        assert!((scaled.condition() / m.condition() - 1.0).abs() < 1e-9);
+    }
+
+    /// Two clamped-free beams joined at their free ends form a clamped-clamped beam of the summed length,
+    /// whose first mode satisfies `cos x cosh x = 1`, `x = 4.730040745`, for any joint position. The second
+    /// beam's axis points the other way, so it enters mirrored (the sign of L and N is thus tested).
+    #[test]
+    fn two_cantilevers_join_into_a_clamped_clamped_beam() {
+        let mat = BeamMaterial::STEEL;
+        let (l1, l2, d) = (0.35, 0.2, 0.03);
+        let eta = 1e-6;
+        let a = FixedFreeBeam::new(l1, d, eta, mat).unwrap();
+        let b = FixedFreeBeam::new(l2, d, eta, mat).unwrap();
+        let total = l1 + l2;
+        let f_cc = 4.730_040_744_862_704f64.powi(2) / (TAU * total * total)
+            * (mat.e_pa * a.second_moment() / (mat.rho_kg_m3 * a.area())).sqrt();
+        let g = |f: f64| {
+            let grid = [f];
+            let sub = TwoPort::single_point(&beam_frf(&a, &grid));
+            let mut base = beam_frf(&b, &grid);
+            base.lines[0] = base.lines[0].mirrored();
+            couple(&sub, &base, &Interface::Rigid, &RcsaOptions::default()).unwrap().lines[0].h.norm()
+        };
+        let fp = peak(0.8 * f_cc, 1.2 * f_cc, g);
+        assert!((fp / f_cc - 1.0).abs() < 1e-6, "peak {fp}, clamped-clamped {f_cc}");
+        // Without the mirror the joint would see a wrong rotation coupling and the peak moves.
+        let g_wrong = |f: f64| {
+            let grid = [f];
+            let sub = TwoPort::single_point(&beam_frf(&a, &grid));
+            couple(&sub, &beam_frf(&b, &grid), &Interface::Rigid, &RcsaOptions::default()).unwrap().lines[0].h.norm()
+        };
+        let fw = peak(0.8 * f_cc, 1.2 * f_cc, g_wrong);
+        assert!((fw / f_cc - 1.0).abs() > 1e-3);
+    }
+
+    /// A cantilever carrying a rigid tip body of mass `M` and inertia `J` (a two-port body at one point):
+    /// `1 + cos x cosh x + μx(cos x sinh x − sin x cosh x) − j x³(sin x cosh x + cos x sinh x)
+    ///  + μ j x⁴ (1 − cos x cosh x) = 0`, `μ = M/(ρAL)`, `j = J/(ρAL³)`.
+    #[test]
+    fn cantilever_with_tip_body_matches_frequency_equation() {
+        let mat = BeamMaterial::STEEL;
+        let beam = FixedFreeBeam::new(0.25, 0.04, 1e-7, mat).unwrap();
+        let mbeam = mat.rho_kg_m3 * beam.area() * beam.length_m;
+        let (mu, jr) = (0.8, 0.05);
+        let (m, j) = (mu * mbeam, jr * mbeam * beam.length_m.powi(2));
+        let freq_eq = |x: f64| {
+            let (s, c, sh, ch) = (x.sin(), x.cos(), x.sinh(), x.cosh());
+            1.0 + c * ch + mu * x * (c * sh - s * ch) - jr * x.powi(3) * (s * ch + c * sh)
+                + mu * jr * x.powi(4) * (1.0 - c * ch)
+        };
+        let x1 = root(0.3, 1.875, freq_eq);
+        let f1 = x1 * x1 / (TAU * beam.length_m.powi(2))
+            * (mat.e_pa * beam.second_moment() / (mat.rho_kg_m3 * beam.area())).sqrt();
+        let g = |f: f64| {
+            let grid = [f];
+            let body = rigid_body(&grid, m, j, 0.0, 0.0, 0.0);
+            couple(&body, &beam_frf(&beam, &grid), &Interface::Rigid, &RcsaOptions::default()).unwrap().lines[0]
+                .h
+                .norm()
+        };
+        let fp = peak(0.7 * f1, 1.3 * f1, g);
+        assert!((fp / f1 - 1.0).abs() < 1e-6, "peak {fp}, frequency equation {f1}");
+    }
+
+    fn spindle(freqs: &[f64]) -> ReceptanceFrf {
+        let modes = [EquivalentMode::new(700.0, 0.11, 0.05), EquivalentMode::new(1900.0, 0.07, 0.04)];
+        spindle_receptance(&modes, &BeamMaterial::STEEL, 0.0, 10000.0, freqs).unwrap()
+    }
+
+    #[test]
+    fn couple_then_decouple_recovers_the_spindle() {
+        let freqs: Vec<f64> = (1..=2000).map(|i| 2.5 * i as f64).collect();
+        let sp = spindle(&freqs);
+        // A 1.2 kg artifact, tip 80 mm from the flange, centre of mass 30 mm out.
+        let art = rigid_body(&freqs, 1.2, 1.5e-3, 0.08, 0.0, 0.03);
+        for interface in [Interface::Rigid, Interface::diagonal(2e8, 300.0, 4e6, 5.0)] {
+            let g = couple(&art, &sp, &interface, &RcsaOptions::default()).unwrap();
+            let back = decouple(&art, &g, &interface, &RcsaOptions::default()).unwrap();
+            for (got, want) in back.lines.iter().zip(&sp.lines) {
+                assert!((*got - *want).max_norm() <= 1e-8 * want.max_norm(), "{got:?} vs {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn stiff_interface_tends_to_rigid_and_soft_one_lowers_the_first_mode() {
+        let freqs: Vec<f64> = (1..=4000).map(|i| 0.5 * i as f64).collect();
+        let sp = spindle(&freqs);
+        let art = rigid_body(&freqs, 1.2, 1.5e-3, 0.08, 0.0, 0.03);
+        let opts = RcsaOptions::default();
+        let rigid = couple(&art, &sp, &Interface::Rigid, &opts).unwrap();
+        let stiff = couple(&art, &sp, &Interface::diagonal(1e20, 0.0, 1e18, 0.0), &opts).unwrap();
+        for (a, b) in stiff.lines.iter().zip(&rigid.lines) {
+            assert!((*a - *b).max_norm() <= 1e-8 * b.max_norm());
+        }
+        let first_peak = |g: &ReceptanceFrf| {
+            let i = (1..g.lines.len() - 1)
+                .find(|&i| {
+                    g.lines[i].h.norm() > g.lines[i - 1].h.norm() && g.lines[i].h.norm() >= g.lines[i + 1].h.norm()
+                })
+                .unwrap();
+            g.freqs_hz[i]
+        };
+        let soft = couple(&art, &sp, &Interface::diagonal(2e7, 0.0, 3e5, 0.0), &opts).unwrap();
+        assert!(first_peak(&soft) < 0.95 * first_peak(&rigid), "{} vs {}", first_peak(&soft), first_peak(&rigid));
+    }
+
+    #[test]
+    fn chain_of_three_equals_stepwise_coupling() {
+        let freqs: Vec<f64> = (1..=500).map(|i| 10.0 * i as f64).collect();
+        let sp = spindle(&freqs);
+        let holder = rigid_body(&freqs, 1.0, 1e-3, 0.07, 0.0, 0.03);
+        let tool = rigid_body(&freqs, 0.1, 2e-5, 0.05, 0.0, 0.025);
+        let joint = Interface::diagonal(1.5e8, 250.0, 3e5, 4.0);
+        let opts = RcsaOptions::default();
+        let chain = couple_chain(&sp, &[(&holder, Interface::Rigid), (&tool, joint)], &opts).unwrap();
+        let step = couple(&tool, &couple(&holder, &sp, &Interface::Rigid, &opts).unwrap(), &joint, &opts).unwrap();
+        assert_eq!(chain, step);
+        // Two rigid bodies joined rigidly are one rigid body: mass 1.1 kg, and the holder-tool chain with a
+        // rigid joint equals a single body with the combined inertia about the combined centre of mass.
+        let rigid_chain = couple_chain(&sp, &[(&holder, Interface::Rigid), (&tool, Interface::Rigid)], &opts).unwrap();
+        // Tool frame: joint at 0 (holder tip, 0.07 from flange), tip at 0.05; in flange frame tip at 0.12.
+        let (m1, j1, g1): (f64, f64, f64) = (1.0, 1e-3, 0.03);
+        let (m2, j2, g2): (f64, f64, f64) = (0.1, 2e-5, 0.07 + 0.025);
+        let m = m1 + m2;
+        let g = (m1 * g1 + m2 * g2) / m;
+        let j = j1 + m1 * (g1 - g).powi(2) + j2 + m2 * (g2 - g).powi(2);
+        let one = couple(&rigid_body(&freqs, m, j, 0.12, 0.0, g), &sp, &Interface::Rigid, &opts).unwrap();
+        // Rigid-body receptances (∝ 1/ω²) exceed the assembly's by ~1e7 at 10 Hz, so the subtraction in
+        // Eq. 5.3 loses about seven digits there.
+        for ((a, b), f) in rigid_chain.lines.iter().zip(&one.lines).zip(&freqs) {
+            assert!((*a - *b).max_norm() <= 1e-7 * b.max_norm(), "{f} Hz: {a:?} vs {b:?}");
+        }
+    }
+
+    /// A rigid body on a spring-damper joint to rigid ground (`B = 0`) is the single-degree-of-freedom
+    /// system of Eq. 5.8 in each coordinate: `H = 1/(K − Mω² + iωC)`, `K = M(2πf_n)²`, `C = 2ξ sqrt(MK)`,
+    /// and `P = 1/(k_r − Jω² + iωc_r)`.
+    #[test]
+    fn body_on_flexible_joint_to_ground_is_a_single_dof_oscillator() {
+        let (m, jm, fnat, xi) = (0.4, 2e-4, 1500.0, 0.03);
+        let k = m * (TAU * fnat).powi(2);
+        let c = 2.0 * xi * (m * k).sqrt();
+        let (kr, cr) = (5e4, 0.7);
+        let freqs: Vec<f64> = (1..=300).map(|i| 10.0 * i as f64).collect();
+        let body = rigid_body(&freqs, m, jm, 0.0, 0.0, 0.0);
+        let ground = ReceptanceFrf { freqs_hz: freqs.clone(), lines: vec![Receptance::ZERO; freqs.len()] };
+        let g = couple(&body, &ground, &Interface::diagonal(k, c, kr, cr), &RcsaOptions::default()).unwrap();
+        for (line, &f) in g.lines.iter().zip(&freqs) {
+            let w = TAU * f;
+            let h = Complex64::from(1.0) / Complex64::new(k - m * w * w, w * c);
+            let p = Complex64::from(1.0) / Complex64::new(kr - jm * w * w, w * cr);
+            assert!((line.h - h).norm() <= 1e-9 * h.norm(), "{f} Hz: {} vs {h}", line.h);
+            assert!((line.p - p).norm() <= 1e-9 * p.norm());
+            assert!(line.l.norm() <= 1e-9 * (h.norm() * p.norm()).sqrt());
+        }
+        // The peak sits at the damped-oscillator resonance.
+        let i = (0..g.lines.len()).max_by(|&a, &b| g.lines[a].h.norm().total_cmp(&g.lines[b].h.norm())).unwrap();
+        assert_eq!(freqs[i], fnat);
+    }
+
+    #[test]
+    fn mismatched_grids_and_singular_inversions_are_reported() {
+        let f1: Vec<f64> = (1..=10).map(|i| i as f64).collect();
+        let mut f2 = f1.clone();
+        f2[3] = 4.5;
+        let art = rigid_body(&f1, 1.0, 1e-3, 0.1, 0.0, 0.05);
+        let err = couple(&art, &spindle(&f2), &Interface::Rigid, &RcsaOptions::default()).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("substructure") && msg.contains("base") && msg.contains("line 3"), "{msg}");
+        // Decoupling with G11 = R11 makes (R11 − G11) singular on every line.
+        let g = ReceptanceFrf { freqs_hz: f1.clone(), lines: art.r11.clone() };
+        match decouple(&art, &g, &Interface::Rigid, &RcsaOptions::default()) {
+            Err(RcsaError::IllConditioned { freqs_hz, worst_condition, .. }) => {
+                assert_eq!(freqs_hz, f1);
+                assert!(worst_condition.is_infinite());
+            }
+            other => panic!("expected IllConditioned, got {other:?}"),
+        }
+        // A joint with no rotational stiffness is a hinge: K is singular.
+        let hinge = Interface::diagonal(1e8, 0.0, 0.0, 0.0);
+        assert!(matches!(
+            couple(&art, &spindle(&f1), &hinge, &RcsaOptions::default()),
+            Err(RcsaError::IllConditioned { .. })
+        ));
+    }
+}
