@@ -452,6 +452,44 @@ pub fn couple_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The sign convention shared by the beam model and the coupling, proven as the equation
+    /// notes ask: two free–free Timoshenko FE beams coupled rigidly by RCSA give the tip
+    /// receptances of one FE model of the whole assembly.
+    #[test]
+    fn two_fe_beams_coupled_equal_one_fe_model_of_the_assembly() {
+        use crate::beam::{BeamMaterial as Fe, BeamModel, BeamSegment, CrossSection, MeshOptions};
+        let holder = BeamSegment::uniform(CrossSection::solid(0.05, Fe::STEEL), 0.06);
+        let tool = BeamSegment::uniform(CrossSection::solid(0.0127, Fe::CARBIDE), 0.07);
+        let mesh = MeshOptions::default();
+        let base = BeamModel::from_segments(&[holder], &mesh).unwrap();
+        let part = BeamModel::from_segments(&[tool], &mesh).unwrap();
+        let whole = BeamModel::from_segments(&[holder, tool], &mesh).unwrap();
+        let freqs: Vec<f64> = (1..=400).map(|k| 25.0 * k as f64).collect();
+        let conv = |v: Vec<crate::beam::Receptance>| -> Vec<Receptance> {
+            v.into_iter().map(|m| Receptance { h: m[0][0], l: m[0][1], n: m[1][0], p: m[1][1] }).collect()
+        };
+        let (pm, bm, wm) = (part.modes().unwrap(), base.modes().unwrap(), whole.modes().unwrap());
+        let (tip, joint) = (part.n_nodes() - 1, 0);
+        let r = |resp, exc| conv(pm.receptance(resp, exc, &freqs).unwrap());
+        let two = TwoPort {
+            freqs_hz: freqs.clone(),
+            r11: r(tip, tip),
+            r12: r(tip, joint),
+            r21: r(joint, tip),
+            r22: r(joint, joint),
+        };
+        let end = base.n_nodes() - 1;
+        let base_frf = ReceptanceFrf { freqs_hz: freqs.clone(), lines: conv(bm.receptance(end, end, &freqs).unwrap()) };
+        let coupled = couple(&two, &base_frf, &Interface::Rigid, &RcsaOptions::default()).unwrap();
+        let last = whole.n_nodes() - 1;
+        let monolithic = conv(wm.receptance(last, last, &freqs).unwrap());
+        for (k, (g, w)) in coupled.lines.iter().zip(&monolithic).enumerate() {
+            for (name, a, b) in [("H", g.h, w.h), ("L", g.l, w.l), ("N", g.n, w.n), ("P", g.p, w.p)] {
+                assert!((a - b).norm() <= 1e-6 * b.norm(), "{name} at {} Hz: {a} vs {b}", freqs[k]);
+            }
+        }
+    }
     use crate::eb_modes::{BeamMaterial, EquivalentMode, FixedFreeBeam, spindle_receptance};
 
     /// Free-free rigid body (mass `m`, inertia `j` about its centre of mass) with free end 1 at `x1` and joint
