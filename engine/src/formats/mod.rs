@@ -92,36 +92,34 @@ fn skipped_list(skipped: &[Skipped]) -> String {
 }
 
 impl FormatError {
+    /// Where in the file the problem is, for the errors that have a place.
+    fn location(&self) -> Option<&Loc> {
+        match self {
+            FormatError::Empty { at }
+            | FormatError::MissingSampleRate { at }
+            | FormatError::Expected { at, .. }
+            | FormatError::NonFinite { at, .. }
+            | FormatError::Ragged { at, .. }
+            | FormatError::ChannelMismatch { at, .. }
+            | FormatError::Truncated { at, .. }
+            | FormatError::Unsupported { at, .. } => Some(at),
+            FormatError::Io { .. } | FormatError::NoSupportedDataset { .. } | FormatError::Selection { .. } => None,
+        }
+    }
+
     /// The file the error is about.
     pub fn path(&self) -> &str {
         match self {
             FormatError::Io { path, .. }
             | FormatError::NoSupportedDataset { path, .. }
             | FormatError::Selection { path, .. } => path,
-            FormatError::Empty { at }
-            | FormatError::MissingSampleRate { at }
-            | FormatError::Expected { at, .. }
-            | FormatError::NonFinite { at, .. }
-            | FormatError::Ragged { at, .. }
-            | FormatError::ChannelMismatch { at, .. }
-            | FormatError::Truncated { at, .. }
-            | FormatError::Unsupported { at, .. } => &at.path,
+            other => other.location().map_or("", |at| at.path.as_str()),
         }
     }
 
     /// 1-based line and column of the problem; 0 where it has none.
     pub fn line_column(&self) -> (usize, usize) {
-        match self {
-            FormatError::Empty { at }
-            | FormatError::MissingSampleRate { at }
-            | FormatError::Expected { at, .. }
-            | FormatError::NonFinite { at, .. }
-            | FormatError::Ragged { at, .. }
-            | FormatError::ChannelMismatch { at, .. }
-            | FormatError::Truncated { at, .. }
-            | FormatError::Unsupported { at, .. } => (at.line, at.column),
-            _ => (0, 0),
-        }
+        self.location().map_or((0, 0), |at| (at.line, at.column))
     }
 }
 
