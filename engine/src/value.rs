@@ -115,6 +115,12 @@ pub struct ReceptanceSet {
     pub n: Vec<Complex64>,
     /// Rotation per moment (rad/(N m)).
     pub p: Vec<Complex64>,
+    /// Direction (`x`, `y`) the blocks describe, when known.
+    #[serde(default)]
+    pub direction: Option<String>,
+    /// Spindle speed (rpm) they hold at, when known.
+    #[serde(default)]
+    pub speed_rpm: Option<f64>,
 }
 
 /// Modal parameters of a structure at one point and direction.
