@@ -27,14 +27,15 @@ pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> 
     }
 }
 
-/// One dataset 58 per FRF, one per channel of a time series, each with its sweep label in
-/// ID line 2. The resolver admits only FRF and time-series outputs to a `.uff` file.
+/// One dataset 58 per FRF, one per channel of a time series, four (H, L, N, P) per receptance
+/// set, each with its sweep label in ID line 2. The resolver admits only these to a `.uff` file.
 fn render_uff(rows: &[Row]) -> String {
     let mut out = String::new();
     for r in rows {
         match r.value {
             Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
             Value::TimeSeries(ts) => uff::write_time_series(&mut out, ts, r.label),
+            Value::ReceptanceSet(rs) => uff::write_receptance(&mut out, rs, r.label),
             other => debug_assert!(false, "no UFF form for a {}", other.port_type()),
         }
     }
@@ -91,6 +92,9 @@ fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
             Value::Table(t) => table_rows(&mut out, t, &prefix_header, &prefix(r), &mut header_done),
             Value::TimeSeries(ts) => csv::time_series_rows(&mut out, ts, &prefix_header, &prefix(r), &mut header_done),
             Value::Frf(f) => csv::frf_rows(&mut out, f, &prefix_header, &prefix(r), &mut header_done),
+            Value::ReceptanceSet(rs) => {
+                csv::receptance_rows(&mut out, rs, &prefix_header, &prefix(r), &mut header_done)
+            }
             other => {
                 // Structured values without a tabular form go out as one JSON cell per row.
                 if !header_done {
@@ -204,6 +208,23 @@ mod tests {
         let f = frf(3.0);
         let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &f }]);
         assert_eq!(Value::Frf(formats::csv::read_frf(text.as_bytes(), "o.csv").unwrap()), f);
+    }
+
+    #[test]
+    fn a_receptance_set_output_reads_back_from_csv_exactly_and_from_uff() {
+        let rs = crate::formats::csv::tests::receptance_set();
+        let v = Value::ReceptanceSet(rs.clone());
+        let rows = [Row { coords: vec![], label: "", value: &v }];
+        let text = render(OutputFormat::Csv, &[], &rows);
+        assert_eq!(formats::csv::read_receptance(text.as_bytes(), "r.csv").unwrap(), rs);
+        let text = render(OutputFormat::Uff, &[], &rows);
+        let file = formats::uff::parse(text.as_bytes(), "r.uff").unwrap();
+        let (back, _) = formats::uff::to_receptance(&file, "r.uff", None).unwrap();
+        for (a, b) in back.p.iter().zip(&rs.p) {
+            assert!((a - b).norm() <= 1e-12 * b.norm(), "{a} vs {b}");
+        }
+        let json = render(OutputFormat::Json, &[], &rows);
+        assert_eq!(serde_json::from_str::<Value>(&json).unwrap(), v);
     }
 
     #[test]

@@ -2,11 +2,13 @@
 //!
 //! Time series: `# sample_rate: 100000 Hz`, `# t0: -0.001 s`, `# units: force=N, ...`, a row
 //! of channel names, then one column per channel. FRF: `# units`, `# direction`,
-//! `# speed_rpm`, `# sensor`, then `freq_hz,real,imag[,coherence]`. Numbers are written
-//! with `{:e}`, the shortest text that reads back as the same double, so a round trip is exact.
+//! `# speed_rpm`, `# sensor`, then `freq_hz,real,imag[,coherence]`. 2×2 receptance set:
+//! `# units`, `# direction`, `# speed_rpm`, then `freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im`.
+//! Numbers are written with `{:e}`, the shortest text that reads back as the same double, so a
+//! round trip is exact.
 
 use super::{FormatError, Loc, unit_to_si};
-use crate::value::{Channel, Frf, TimeSeries, UnitLabel};
+use crate::value::{Channel, Frf, ReceptanceSet, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::fmt::Write as _;
@@ -67,6 +69,54 @@ pub(crate) fn frf_rows(out: &mut String, f: &Frf, prefix_header: &str, prefix: &
         }
         out.push('\n');
     }
+}
+
+/// The blocks of a receptance set, their column stems, SI unit symbols as written, and dimensions.
+const BLOCKS: [(&str, &str, Dimension); 4] = [
+    ("h", "m/N", Dimension::new(0, -1, 2, 0)),
+    ("l", "m/(N*m)", Dimension::new(-1, -1, 2, 0)),
+    ("n", "rad/N", Dimension::new(-1, -1, 2, 1)),
+    ("p", "rad/(N*m)", Dimension::new(-2, -1, 2, 1)),
+];
+
+/// The header row of a receptance set.
+const RECEPTANCE_HEADER: &str = "freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im";
+
+/// Writes a 2×2 receptance set: `#` header lines and the column header when `*header_done`
+/// is false, then one row per frequency line, each led by `prefix`.
+pub(crate) fn receptance_rows(
+    out: &mut String,
+    r: &ReceptanceSet,
+    prefix_header: &str,
+    prefix: &str,
+    header_done: &mut bool,
+) {
+    if !*header_done {
+        let units: Vec<String> = BLOCKS.iter().map(|(n, u, _)| format!("{n}={u}")).collect();
+        let _ = writeln!(out, "# units: {}", units.join(", "));
+        if let Some(d) = &r.direction {
+            let _ = writeln!(out, "# direction: {d}");
+        }
+        if let Some(s) = r.speed_rpm {
+            let _ = writeln!(out, "# speed_rpm: {s}");
+        }
+        let _ = writeln!(out, "{prefix_header}{RECEPTANCE_HEADER}");
+        *header_done = true;
+    }
+    for i in 0..r.freq_hz.len() {
+        let _ = write!(out, "{prefix}{:e}", r.freq_hz[i]);
+        for v in [r.h[i], r.l[i], r.n[i], r.p[i]] {
+            let _ = write!(out, ",{:e},{:e}", v.re, v.im);
+        }
+        out.push('\n');
+    }
+}
+
+/// A 2×2 receptance set as CSV text.
+pub fn write_receptance(r: &ReceptanceSet) -> String {
+    let mut out = String::new();
+    receptance_rows(&mut out, r, "", "", &mut false);
+    out
 }
 
 /// A time series as CSV text.
@@ -453,9 +503,185 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
     Ok(Frf { freq_hz, values, coherence, unit: UnitLabel::new(symbol), direction, speed_rpm, sensor })
 }
 
+/// A `# speed_rpm:` value.
+fn speed_rpm(m: &Meta, path: &str) -> Result<f64, FormatError> {
+    let text = m.value.strip_suffix("rpm").unwrap_or(m.value).trim();
+    let at = Loc::new(path, m.line, m.column);
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() }),
+        Err(_) => Err(FormatError::Expected {
+            at,
+            expected: "a speed in rpm after `# speed_rpm:`".into(),
+            found: format!("`{}`", m.value),
+        }),
+    }
+}
+
+/// The factors that bring each block of a receptance set to SI, from a `# units:` line
+/// (`h=m/N, l=m/(N*m), n=rad/N, p=rad/(N*m)`; blocks left out are taken as SI).
+fn receptance_units(m: &Meta, path: &str) -> Result<[f64; 4], FormatError> {
+    let mut scale = [1.0; 4];
+    let mut offset = 0;
+    for item in m.value.split(',') {
+        let col = m.column + m.value[..offset].chars().count() + (item.len() - item.trim_start().len());
+        offset += item.len() + 1;
+        let item = item.trim();
+        if item.is_empty() {
+            continue;
+        }
+        let at = Loc::new(path, m.line, col);
+        let expected = "`block=unit` with block h, l, n or p in `# units:` (e.g. `h=m/N`)";
+        let Some((name, unit)) = item.split_once('=') else {
+            return Err(FormatError::Expected { at, expected: expected.into(), found: format!("`{item}`") });
+        };
+        let (name, unit) = (name.trim(), unit.trim());
+        let Some(k) = BLOCKS.iter().position(|(n, _, _)| *n == name) else {
+            return Err(FormatError::Expected { at, expected: expected.into(), found: format!("`{item}`") });
+        };
+        let (_, si, dim) = BLOCKS[k];
+        if unit == si || unit.is_empty() {
+            continue;
+        }
+        scale[k] = match grammar::parse_unit(unit) {
+            Ok(u) if u.dim == dim => u.scale,
+            _ => {
+                return Err(FormatError::Expected {
+                    at,
+                    expected: format!("a unit of {} for `{name}` (e.g. `{si}`)", dim.describe()),
+                    found: format!("`{unit}`"),
+                });
+            }
+        };
+    }
+    Ok(scale)
+}
+
+/// Reads a 2×2 receptance set written as [`write_receptance`] writes it: header row
+/// `freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im`; `# units`, `# direction` and
+/// `# speed_rpm` are optional and in any order. Units are brought to SI.
+pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, FormatError> {
+    let sheet = split_sheet(bytes, path)?;
+    let mut scale = [1.0; 4];
+    let mut direction = None;
+    let mut speed = None;
+    for m in &sheet.meta {
+        match m.key {
+            "units" => scale = receptance_units(m, path)?,
+            "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
+            "speed_rpm" => speed = Some(speed_rpm(m, path)?),
+            _ => {}
+        }
+    }
+    let Some((hline, hraw)) = sheet.header else {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line, 0),
+            expected: format!("the header row `{RECEPTANCE_HEADER}`"),
+            found: "only `#` lines".into(),
+        });
+    };
+    let names: Vec<&str> = RECEPTANCE_HEADER.split(',').collect();
+    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
+    if header != names {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, hline, 1),
+            expected: format!("the header row `{RECEPTANCE_HEADER}`"),
+            found: format!("`{}`", hraw.trim()),
+        });
+    }
+    if sheet.rows.is_empty() {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line + 1, 0),
+            expected: "rows of values after the header row".into(),
+            found: "the end of the file".into(),
+        });
+    }
+    let n = sheet.rows.len();
+    let mut r = ReceptanceSet {
+        freq_hz: Vec::with_capacity(n),
+        h: Vec::with_capacity(n),
+        l: Vec::with_capacity(n),
+        n: Vec::with_capacity(n),
+        p: Vec::with_capacity(n),
+        direction,
+        speed_rpm: speed,
+    };
+    let mut row = [0.0; 9];
+    for &(line, raw) in &sheet.rows {
+        let mut k = 0;
+        for (at, cell) in cells(raw) {
+            if k < names.len() {
+                row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
+            }
+            k += 1;
+        }
+        if k != names.len() {
+            return Err(FormatError::Ragged {
+                at: Loc::new(path, line, 0),
+                found: k,
+                expected: names.len(),
+                columns: RECEPTANCE_HEADER.into(),
+            });
+        }
+        r.freq_hz.push(row[0]);
+        r.h.push(Complex64::new(row[1], row[2]) * scale[0]);
+        r.l.push(Complex64::new(row[3], row[4]) * scale[1]);
+        r.n.push(Complex64::new(row[5], row[6]) * scale[2]);
+        r.p.push(Complex64::new(row[7], row[8]) * scale[3]);
+    }
+    Ok(r)
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    pub(crate) fn receptance_set() -> ReceptanceSet {
+        let n = 60;
+        let c = |i: usize, a: f64, b: f64| Complex64::new(a / (i as f64 + 3.0), -b * (i as f64).sqrt() / 7.0);
+        ReceptanceSet {
+            freq_hz: (1..=n).map(|i| i as f64 * 24.414_062_5).collect(),
+            h: (0..n).map(|i| c(i, 1e-7, 3e-8)).collect(),
+            l: (0..n).map(|i| c(i, 1e-6, -2e-7)).collect(),
+            n: (0..n).map(|i| c(i, -1e-6, 2e-7)).collect(),
+            p: (0..n).map(|i| c(i, 1e-5, 1e-6)).collect(),
+            direction: Some("y".into()),
+            speed_rpm: Some(12_345.678_9),
+        }
+    }
+
+    #[test]
+    fn receptance_set_round_trips_bit_for_bit() {
+        let r = receptance_set();
+        let text = write_receptance(&r);
+        assert!(text.contains("# units: h=m/N, l=m/(N*m), n=rad/N, p=rad/(N*m)\n"), "{text}");
+        assert_eq!(read_receptance(text.as_bytes(), "r.csv").unwrap(), r);
+        let bare = ReceptanceSet { direction: None, speed_rpm: None, ..r };
+        assert_eq!(read_receptance(write_receptance(&bare).as_bytes(), "r.csv").unwrap(), bare);
+    }
+
+    #[test]
+    fn receptance_units_come_to_si_and_bad_files_name_the_place() {
+        let text = "# units: h=um/N\nfreq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im\n10,2,-4,1,0,1,0,1,0\n";
+        let r = read_receptance(text.as_bytes(), "r.csv").unwrap();
+        assert_eq!(r.h[0], Complex64::new(2e-6, -4e-6));
+        assert_eq!(r.l[0], Complex64::new(1.0, 0.0));
+        let e = read_receptance(
+            b"# units: h=N\nfreq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im\n1,0,0,0,0,0,0,0,0\n",
+            "r.csv",
+        )
+        .unwrap_err();
+        assert_eq!(e.line_column(), (1, 10), "{e}");
+        let e = read_receptance(b"freq_hz,real,imag\n1,2,3\n", "r.csv").unwrap_err();
+        assert_eq!(e.line_column(), (1, 1), "{e}");
+        let e = read_receptance(b"freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im\n1,0,0,0,0,0,0,0\n", "r.csv")
+            .unwrap_err();
+        assert!(matches!(e, FormatError::Ragged { found: 8, expected: 9, .. }), "{e}");
+        let e = read_receptance(b"freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im\n1,0,0,0,inf,0,0,0,0\n", "r.csv")
+            .unwrap_err();
+        assert!(matches!(e, FormatError::NonFinite { .. }), "{e}");
+        assert_eq!(e.line_column(), (2, 9));
+    }
 
     fn series() -> TimeSeries {
         // Values chosen to need all 17 digits: a lossy writer would not read back bit for bit.

@@ -8,7 +8,7 @@
 pub mod csv;
 pub mod uff;
 
-use crate::value::{Frf, TimeSeries};
+use crate::value::{Frf, ReceptanceSet, TimeSeries};
 use std::fmt;
 use std::path::Path;
 
@@ -312,6 +312,44 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     })
                 }
             }
+        }
+    }
+}
+
+/// Reads a 2×2 receptance set from a CSV file (`freq_hz,h_re,h_im,…,p_im`) or from the four
+/// FRF datasets 58 of a UFF file (see [`uff::to_receptance`]). `direction` picks the UFF
+/// direction when the file holds several; for CSV it fills in a file without `# direction`
+/// and must agree with one that has it.
+pub fn read_receptance(
+    path: &Path,
+    format: FileFormat,
+    direction: Option<&str>,
+) -> Result<Loaded<ReceptanceSet>, FormatError> {
+    let bytes = read_bytes(path)?;
+    let shown = path.display().to_string();
+    match format {
+        FileFormat::Csv => {
+            let mut r = csv::read_receptance(&bytes, &shown)?;
+            if let Some(want) = direction {
+                match &r.direction {
+                    Some(d) if d != want => {
+                        return Err(FormatError::Selection {
+                            path: shown,
+                            message: format!("the file holds the `{d}` direction, `{want}` was asked for"),
+                        });
+                    }
+                    Some(_) => {}
+                    None => r.direction = Some(want.to_string()),
+                }
+            }
+            Ok(Loaded { value: r, notes: Vec::new() })
+        }
+        FileFormat::Uff => {
+            let file = uff::parse(&bytes, &shown)?;
+            let mut notes = skipped_notes(&shown, &file.skipped);
+            let (value, more) = uff::to_receptance(&file, &shown, direction)?;
+            notes.extend(more);
+            Ok(Loaded { value, notes })
         }
     }
 }

@@ -10,7 +10,7 @@
 //! Other datasets are skipped and listed.
 
 use super::{FormatError, Loc, Skipped, unit_to_si};
-use crate::value::{Channel, Frf, TimeSeries, UnitLabel};
+use crate::value::{Channel, Frf, ReceptanceSet, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
@@ -1205,9 +1205,231 @@ pub fn write_time_series(out: &mut String, ts: &TimeSeries, label: &str) {
     }
 }
 
+/// The blocks of a receptance set in file order: name, response and reference are rotations,
+/// and the unit written (numerator/denominator).
+const RECEPTANCE_BLOCKS: [(&str, bool, bool, &str); 4] = [
+    ("H", false, false, "m/N"),
+    ("L", false, true, "m/N*m"),
+    ("N", true, false, "rad/N"),
+    ("P", true, true, "rad/N*m"),
+];
+
+/// Record 6 direction codes of bending in direction `x` or `y` (the spindle axis is z):
+/// translation, and the rotation `θ = d(displacement)/dz` as a signed rotation code. In the
+/// x–z plane `θ = θ_y` (code 5); in the y–z plane `θ = −θ_x` (code −4). A set without a
+/// direction is written as `x`.
+pub fn receptance_codes(direction: Option<&str>) -> (i32, i32) {
+    if direction == Some("y") { (2, -4) } else { (1, 5) }
+}
+
+/// A record 6 direction code as a receptance coordinate: the bending direction, whether it
+/// is the rotation, and the sign that turns a value on the positive axis into the `θ` sense.
+fn receptance_dof(code: i32) -> Option<(&'static str, bool, f64)> {
+    match code.abs() {
+        1 => Some(("x", false, 1.0)),
+        2 => Some(("y", false, 1.0)),
+        5 => Some(("x", true, 1.0)),
+        4 => Some(("y", true, -1.0)),
+        _ => None,
+    }
+}
+
+/// Writes a 2×2 receptance set as four datasets 58 (FRF, complex double), H, L, N, P, told
+/// apart by their record 6 direction codes (see [`receptance_codes`]); `label` goes to ID line 2.
+pub fn write_receptance(out: &mut String, r: &ReceptanceSet, label: &str) {
+    let (t, rot) = receptance_codes(r.direction.as_deref());
+    let dir = r.direction.as_deref().unwrap_or("x");
+    for ((name, resp_rot, ref_rot, unit), values) in RECEPTANCE_BLOCKS.iter().zip([&r.h, &r.l, &r.n, &r.p]) {
+        let frf = Frf {
+            freq_hz: r.freq_hz.clone(),
+            values: values.clone(),
+            coherence: None,
+            unit: UnitLabel::new(*unit),
+            direction: Some(dir.to_string()),
+            speed_rpm: r.speed_rpm,
+            sensor: None,
+        };
+        let mut d = Dataset58::from_frf(&frf, label);
+        d.id[0] = format!("receptance {name} {dir}");
+        d.response.direction = if *resp_rot { rot } else { t };
+        d.reference.direction = if *ref_rot { rot } else { t };
+        write_dataset(out, &d);
+    }
+}
+
+/// The 2×2 receptance set of a file: its FRF datasets whose response and reference codes are
+/// a translation or bending rotation of the same direction (see [`receptance_codes`]), one per
+/// block. `direction` picks one when the file holds several. Values are turned to the `θ`
+/// sense of the project whatever the signs of the codes. Returns notes on datasets passed over.
+pub fn to_receptance(
+    file: &UffFile,
+    path: &str,
+    direction: Option<&str>,
+) -> Result<(ReceptanceSet, Vec<String>), FormatError> {
+    let mut notes = Vec::new();
+    // Per direction found: the dataset of each block.
+    let mut found: Vec<(&str, [Option<&Dataset58>; 4])> = Vec::new();
+    for ds in &file.datasets {
+        let dofs = (receptance_dof(ds.response.direction), receptance_dof(ds.reference.direction));
+        let (Some((dir, resp_rot, _)), Some((dir2, ref_rot, _))) = dofs else {
+            notes.push(format!(
+                "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
+                ds.line,
+                ds.describe()
+            ));
+            continue;
+        };
+        if ds.function_type != FUNCTION_FRF || dir != dir2 {
+            notes.push(format!(
+                "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
+                ds.line,
+                ds.describe()
+            ));
+            continue;
+        }
+        if direction.is_some_and(|d| d != dir) {
+            continue;
+        }
+        let k = 2 * usize::from(resp_rot) + usize::from(ref_rot);
+        let slot = match found.iter().position(|(d, _)| *d == dir) {
+            Some(i) => i,
+            None => {
+                found.push((dir, [None; 4]));
+                found.len() - 1
+            }
+        };
+        if let Some(first) = found[slot].1[k] {
+            return Err(FormatError::Selection {
+                path: path.to_string(),
+                message: format!(
+                    "two {} datasets for direction `{dir}` (lines {} and {}); keep one",
+                    RECEPTANCE_BLOCKS[k].0, first.line, ds.line
+                ),
+            });
+        }
+        found[slot].1[k] = Some(ds);
+    }
+    let (dir, blocks) = match found.as_slice() {
+        [one] => one,
+        [] => {
+            return Err(FormatError::Selection {
+                path: path.to_string(),
+                message: match direction {
+                    Some(d) => format!("no receptance datasets in direction `{d}` among: {}", file.summary()),
+                    None => format!(
+                        "no receptance datasets (FRFs between translation and rotation codes) among: {}",
+                        file.summary()
+                    ),
+                },
+            });
+        }
+        many => {
+            let dirs: Vec<&str> = many.iter().map(|(d, _)| *d).collect();
+            return Err(FormatError::Selection {
+                path: path.to_string(),
+                message: format!("receptances in directions {}; choose one with `direction`", dirs.join(", ")),
+            });
+        }
+    };
+    let mut values: Vec<Vec<Complex64>> = Vec::with_capacity(4);
+    let mut grid: Option<(Vec<f64>, usize)> = None;
+    let mut speed_rpm = None;
+    for (k, ds) in blocks.iter().enumerate() {
+        let Some(ds) = ds else {
+            return Err(FormatError::Selection {
+                path: path.to_string(),
+                message: format!(
+                    "direction `{dir}` has no {} dataset (response code {}, reference code {}); a receptance set needs H, L, N and P",
+                    RECEPTANCE_BLOCKS[k].0,
+                    code_of(dir, RECEPTANCE_BLOCKS[k].1),
+                    code_of(dir, RECEPTANCE_BLOCKS[k].2)
+                ),
+            });
+        };
+        let frf = ds.to_frf(path)?;
+        let sign = receptance_dof(ds.response.direction).map_or(1.0, |d| d.2)
+            * receptance_dof(ds.reference.direction).map_or(1.0, |d| d.2);
+        match &grid {
+            None => grid = Some((frf.freq_hz.clone(), ds.line)),
+            Some((g, line)) if *g != frf.freq_hz => {
+                return Err(FormatError::ChannelMismatch {
+                    at: ds.at(path),
+                    message: format!(
+                        "the {} dataset's {} frequency lines differ from those of the dataset at line {line} ({} lines)",
+                        RECEPTANCE_BLOCKS[k].0,
+                        frf.freq_hz.len(),
+                        g.len()
+                    ),
+                });
+            }
+            Some(_) => {}
+        }
+        speed_rpm = speed_rpm.or(frf.speed_rpm);
+        values.push(frf.values.into_iter().map(|v| v * sign).collect());
+    }
+    let freq_hz = grid.map(|g| g.0).unwrap_or_default();
+    let mut it = values.into_iter();
+    let mut next = || it.next().unwrap_or_default();
+    let (h, l, n, p) = (next(), next(), next(), next());
+    Ok((ReceptanceSet { freq_hz, h, l, n, p, direction: Some(dir.to_string()), speed_rpm }, notes))
+}
+
+/// The code written for a translation or rotation of direction `dir`.
+fn code_of(dir: &str, rotation: bool) -> i32 {
+    let (t, r) = receptance_codes(Some(dir));
+    if rotation { r } else { t }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn receptance_set_round_trips_through_four_datasets() {
+        for dir in ["x", "y"] {
+            let mut r = crate::formats::csv::tests::receptance_set();
+            r.direction = Some(dir.into());
+            // Record 7 holds the speed (Z value) to 6–7 digits.
+            r.speed_rpm = Some(12_000.0);
+            r.freq_hz = (1..=r.h.len()).map(|i| i as f64 * 12.5).collect();
+            let mut text = String::new();
+            write_receptance(&mut text, &r, "speed=3000 rpm");
+            let file = parse(text.as_bytes(), "r.uff").unwrap();
+            assert_eq!(file.datasets.len(), 4);
+            let codes: Vec<(i32, i32)> =
+                file.datasets.iter().map(|d| (d.response.direction, d.reference.direction)).collect();
+            let (t, q) = receptance_codes(Some(dir));
+            assert_eq!(codes, [(t, t), (t, q), (q, t), (q, q)]);
+            let (back, notes) = to_receptance(&file, "r.uff", None).unwrap();
+            assert!(notes.is_empty(), "{notes:?}");
+            assert_eq!((&back.freq_hz, &back.direction, back.speed_rpm), (&r.freq_hz, &r.direction, r.speed_rpm));
+            for (got, want) in [(&back.h, &r.h), (&back.l, &r.l), (&back.n, &r.n), (&back.p, &r.p)] {
+                for (a, b) in got.iter().zip(want.iter()) {
+                    assert!((a - b).norm() <= 1e-12 * b.norm(), "{dir}: {a} vs {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn receptance_files_missing_a_block_or_ambiguous_are_refused() {
+        let mut r = crate::formats::csv::tests::receptance_set();
+        r.freq_hz = (1..=r.h.len()).map(|i| i as f64 * 10.0).collect();
+        let mut text = String::new();
+        write_receptance(&mut text, &r, "");
+        // Drop the last dataset (P).
+        let cut = text[..text.len() - 8].rfind("    -1\n    58\n").unwrap();
+        let file = parse(text[..cut].as_bytes(), "r.uff").unwrap();
+        let e = to_receptance(&file, "r.uff", None).unwrap_err().to_string();
+        assert!(e.contains("no P dataset") && e.contains("response code -4"), "{e}");
+        let mut both = text.clone();
+        write_receptance(&mut both, &ReceptanceSet { direction: Some("x".into()), ..r.clone() }, "");
+        let file = parse(both.as_bytes(), "r.uff").unwrap();
+        let e = to_receptance(&file, "r.uff", None).unwrap_err().to_string();
+        assert!(e.contains("directions y, x") && e.contains("`direction`"), "{e}");
+        let (x, _) = to_receptance(&file, "r.uff", Some("x")).unwrap();
+        assert_eq!(x.direction.as_deref(), Some("x"));
+    }
 
     fn frf() -> Frf {
         let n = 257;

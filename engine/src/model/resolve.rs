@@ -727,7 +727,9 @@ fn resolve_outputs(
                     }
                     continue;
                 };
-                if format == OutputFormat::Uff && !matches!(port.ty, PortType::Frf | PortType::TimeSeries) {
+                if format == OutputFormat::Uff
+                    && !matches!(port.ty, PortType::Frf | PortType::TimeSeries | PortType::ReceptanceSet)
+                {
                     diags.error_help(
                         Some(&file.span),
                         format!("a UFF file holds FRFs and time series; `{r}` is a {}", port.ty),
