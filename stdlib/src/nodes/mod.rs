@@ -10,6 +10,7 @@ mod read;
 mod rig;
 mod runout;
 mod segment;
+mod structure;
 mod table;
 
 pub use compare::FrfCompare;
@@ -18,10 +19,11 @@ pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use impact::ImpactSimulate;
 pub use phase::{PhaseCorrect, PhaseMeasure};
-pub use read::{ReadFrf, ReadTimeSeries};
+pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
+pub use structure::{BeamReceptance, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;
 
 use spindlelab_engine::node::NodeError;

@@ -1,4 +1,5 @@
-//! `read.time_series` and `read.frf`: measured data from CSV or UFF (dataset 58/58b) files.
+//! `read.time_series`, `read.frf` and `read.receptance`: measured data from CSV or UFF (dataset
+//! 58/58b) files.
 //!
 //! The file is a parameter: the recipe names it relative to its own folder, and its
 //! contents are hashed into the cache key, so editing the data reruns what depends on it.
@@ -151,5 +152,54 @@ impl Node for ReadFrf {
             ctx.warn(note);
         }
         Ok([("frf".to_string(), Value::Frf(loaded.value))].into_iter().collect())
+    }
+}
+
+/// `read.receptance`: a 2×2 receptance set from a CSV or UFF file.
+pub struct ReadReceptance {
+    spec: NodeSpec,
+}
+
+impl Default for ReadReceptance {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ReadReceptance {
+    pub fn new() -> Self {
+        ReadReceptance {
+            spec: NodeSpec {
+                kind: "read.receptance",
+                version: 1,
+                description: "Reads a 2x2 receptance set (H, L, N, P) from a CSV file (`freq_hz,h_re,h_im,...,p_im`) or from four UFF datasets 58 told apart by their direction codes; units to SI.",
+                inputs: vec![],
+                outputs: vec![PortSpec::new("receptance", PortType::ReceptanceSet, "the receptance set, in SI units")],
+                params: vec![
+                    file_param(),
+                    format_param(),
+                    Field::opt(
+                        "direction",
+                        T::Choice(&["x", "y"]),
+                        "UFF: the direction to take when the file holds several; CSV: the direction of a file without `# direction`",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+impl Node for ReadReceptance {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (path, format) = source(ctx.params)?;
+        let loaded = formats::read_receptance(path, format, ctx.params.text("direction")).map_err(read_error)?;
+        for note in loaded.notes {
+            ctx.warn(note);
+        }
+        Ok([("receptance".to_string(), Value::ReceptanceSet(loaded.value))].into_iter().collect())
     }
 }

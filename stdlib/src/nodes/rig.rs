@@ -90,7 +90,20 @@ impl RigSimulate {
                 kind: "rig.simulate",
                 version: 1,
                 description: "Virtual rig: a rotating spindle under impact test (§2.1–2.3, Eq. 3.4) as one raw recording (tach, force, probes) with its truth.",
-                inputs: vec![],
+                inputs: vec![
+                    PortSpec::new(
+                        "modes_x",
+                        PortType::ModalModel,
+                        "modes along x (f, ζ, modal mass m; stiffness m(2πf)²) replacing the `modes_x` parameter; taken as already at the rig's speed, so no speed law applies",
+                    )
+                    .optional(),
+                    PortSpec::new(
+                        "modes_y",
+                        PortType::ModalModel,
+                        "modes along y replacing the `modes_y` parameter; as `modes_x`",
+                    )
+                    .optional(),
+                ],
                 outputs: vec![
                     PortSpec::new(
                         "record",
@@ -259,6 +272,49 @@ fn modes(list: &[Params]) -> Vec<RigMode> {
             kzeta: m.f64("kzeta").unwrap_or(0.0),
         })
         .collect()
+}
+
+/// The modes at a connected `ModalModel` port, as rig modes without speed laws (the model is
+/// already at its speed): stiffness `m (2π f)²` (Eq. 5.8 in modal form). Warns when the
+/// parameter of the same name is given too, since the port wins.
+fn modal_input(ctx: &NodeContext, port: &str) -> Result<Option<Vec<RigMode>>, NodeError> {
+    let Some(l) = ctx.inputs_of(port).first() else {
+        return Ok(None);
+    };
+    let Value::ModalModel(m) = l.value.as_ref() else {
+        return Err(NodeError::input(port, "expected a modal model"));
+    };
+    if m.modes.is_empty() {
+        return Err(NodeError::input(port, "the modal model has no modes"));
+    }
+    for (i, mode) in m.modes.iter().enumerate() {
+        let ok = mode.freq_hz.is_finite()
+            && mode.freq_hz > 0.0
+            && mode.modal_mass.is_finite()
+            && mode.modal_mass > 0.0
+            && (0.0..1.0).contains(&mode.damping_ratio);
+        if !ok {
+            return Err(NodeError::input(
+                port,
+                format!(
+                    "mode {}: f {} Hz, ζ {}, modal mass {} kg; need f > 0, 0 <= ζ < 1, mass > 0",
+                    i + 1,
+                    mode.freq_hz,
+                    mode.damping_ratio,
+                    mode.modal_mass
+                ),
+            ));
+        }
+    }
+    if ctx.params.get(port).is_some() {
+        ctx.warn(format!("both the `{port}` input and the `{port}` parameter are given; the input is used"));
+    }
+    Ok(Some(
+        m.modes
+            .iter()
+            .map(|mode| RigMode::new(mode.freq_hz, mode.damping_ratio, mode.modal_mass * (TAU * mode.freq_hz).powi(2)))
+            .collect(),
+    ))
 }
 
 fn direction(p: &Params, name: &str) -> Direction {
@@ -430,7 +486,12 @@ impl Node for RigSimulate {
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let p = ctx.params;
-        let c = config_from(p, Some(ctx.recipe))?;
+        let mut c = config_from(p, Some(ctx.recipe))?;
+        for (port, target) in [("modes_x", &mut c.modes_x), ("modes_y", &mut c.modes_y)] {
+            if let Some(modes) = modal_input(ctx, port)? {
+                *target = modes;
+            }
+        }
         let seed = p.int("seed").unwrap_or(0).max(0) as u64;
         let r = simulate(&c, seed).map_err(|e| rig_error(e, c.sensor == SensorKind::LaserVibrometer))?;
         let (series, truth) = record(r, c.sensor.unit());
@@ -643,6 +704,50 @@ mod tests {
             Err(NodeError::InvalidParam { param, .. }) => param,
             other => panic!("{yaml}: {other:?}"),
         }
+    }
+
+    /// A modal model at the `modes_y` port replaces the parameter: the truth FRF is
+    /// `Σ 1/(m_r(ω_r² − ω² + 2iζ_r ω_r ω))`, computed here independently of the rig kernel.
+    #[test]
+    fn modal_model_input_sets_the_truth_frf() {
+        use spindlelab_engine::node::Labelled;
+        use spindlelab_engine::value::{ModalModel, Mode};
+        use std::sync::Arc;
+        let node = RigSimulate::new();
+        let model = ModalModel {
+            modes: vec![
+                Mode { freq_hz: 812.0, damping_ratio: 0.031, modal_mass: 0.42 },
+                Mode { freq_hz: 2170.0, damping_ratio: 0.018, modal_mass: 1.3 },
+            ],
+        };
+        let p = params(
+            &node,
+            "{direction: y, speed: 6000 rpm, impacts: 1, duration: 0.2 s, probes: [0 deg], modes_y: [{f: 500 Hz, zeta: 0.02, stiffness: 1e7 N/m, kf: 0.3}]}",
+        );
+        let r = recipe();
+        let mut inputs = indexmap::IndexMap::new();
+        inputs.insert(
+            "modes_y".to_string(),
+            vec![Labelled { label: String::new(), coords: vec![], value: Arc::new(Value::ModalModel(model.clone())) }],
+        );
+        let ctx = NodeContext::new("test", &p, &inputs, &r);
+        let out = node.run(&ctx).unwrap();
+        let Value::Frf(frf) = &out["truth_frf"] else { panic!("frf") };
+        assert_eq!(frf.direction.as_deref(), Some("y"));
+        for (f, h) in frf.freq_hz.iter().zip(&frf.values) {
+            let w = TAU * f;
+            let want: num_complex::Complex64 = model
+                .modes
+                .iter()
+                .map(|m| {
+                    let wn = TAU * m.freq_hz;
+                    1.0 / (m.modal_mass * num_complex::Complex64::new(wn * wn - w * w, 2.0 * m.damping_ratio * wn * w))
+                })
+                .sum();
+            assert!((h - want).norm() <= 1e-12 * want.norm(), "{f} Hz: {h} vs {want}");
+        }
+        let warnings = ctx.take_warnings();
+        assert!(warnings.iter().any(|w| w.contains("`modes_y` input and the `modes_y` parameter")), "{warnings:?}");
     }
 
     #[test]

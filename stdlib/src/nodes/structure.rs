@@ -1,0 +1,775 @@
+//! Structural-model and RCSA node kinds (dissertation §5.1, §5.4): `beam.receptance` (free–free
+//! Timoshenko FE model of an assembly), `spindle.receptance` (equivalent fixed-free
+//! Euler–Bernoulli spindle modes, Eqs. 5.5–5.12), `rcsa.couple` (Eqs. 5.3, 5.16–5.17) and
+//! `rcsa.decouple` (inverse RCSA, Eq. 5.4).
+//!
+//! Substructure receptances come from the modal expansion of the FE model: one eigen-solution
+//! serves every frequency line, so a line costs a sum over the modes instead of a complex
+//! solve of the whole mesh; with all modes kept the expansion equals the direct solve.
+
+use crate::beam::{self, BeamModel, MeshOptions, ShearCoefficient};
+use crate::eb_modes::{self, EquivalentMode};
+use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, ReceptanceFrf, TwoPort};
+use spindlelab_engine::model::{Component, Joint, Section};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
+use spindlelab_engine::value::{Column, Frf, PortType, ReceptanceSet, Table, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+use std::f64::consts::TAU;
+
+const RATIO: T = T::Quantity(D::DIMENSIONLESS);
+
+/// Frequency-grid parameters shared by the nodes that make receptances from a model.
+fn grid_params() -> [Field; 3] {
+    [
+        Field::def("max_frequency", T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
+        Field::opt("resolution", T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
+        Field::def(
+            "lines",
+            T::Integer { min: 1, max: 1_000_000 },
+            "1000",
+            "number of lines (from one spacing up to max_frequency) when no resolution is given",
+        ),
+    ]
+}
+
+fn grid_port() -> PortSpec {
+    PortSpec::new(
+        "grid",
+        PortType::Frf,
+        "an FRF whose frequency lines to use instead of the grid parameters (a 0 Hz line is left out)",
+    )
+    .optional()
+}
+
+fn mesh_params() -> [Field; 2] {
+    [
+        Field::def("max_element", T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        Field::def(
+            "shear",
+            T::Choice(&["cowper"]),
+            "cowper",
+            "shear coefficient of the hollow circular sections (Cowper 1966)",
+        ),
+    ]
+}
+
+fn coupling_params() -> [Field; 4] {
+    [
+        Field::def(
+            "interface",
+            T::Choice(&["rigid", "machine"]),
+            "rigid",
+            "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
+        ),
+        Field::opt("machine", T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use"),
+        Field::def(
+            "grid_mismatch",
+            T::Choice(&["refuse", "resample"]),
+            "refuse",
+            "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
+        ),
+        Field::def(
+            "max_condition",
+            RATIO,
+            "1e10",
+            "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
+        ),
+    ]
+}
+
+fn mesh(p: &Params) -> MeshOptions {
+    MeshOptions {
+        max_element_length: p.f64("max_element").unwrap_or(2e-3),
+        shear: ShearCoefficient::Cowper,
+        ..MeshOptions::default()
+    }
+}
+
+fn check_mesh(p: &Params) -> Result<(), NodeError> {
+    super::positive(p, &["max_element", "max_frequency", "resolution", "max_condition"])
+}
+
+/// The frequency grid from the `grid` input, else from the grid parameters; positive lines only.
+fn grid(ctx: &NodeContext) -> Result<Vec<f64>, NodeError> {
+    if let Some(l) = ctx.inputs_of("grid").first() {
+        let Value::Frf(f) = l.value.as_ref() else {
+            return Err(NodeError::input("grid", "expected an FRF"));
+        };
+        return positive_lines(ctx, "grid", &f.freq_hz);
+    }
+    let p = ctx.params;
+    let fmax = p.f64("max_frequency").unwrap_or(5e3);
+    let (df, n) = match p.f64("resolution") {
+        Some(df) => (df, (fmax / df * (1.0 + 1e-12)).floor() as usize),
+        None => {
+            let n = p.int("lines").unwrap_or(1000).max(1) as usize;
+            (fmax / n as f64, n)
+        }
+    };
+    if n == 0 {
+        return Err(NodeError::param("resolution", format!("{df} Hz is above max_frequency {fmax} Hz: no lines")));
+    }
+    Ok((1..=n).map(|k| k as f64 * df).collect())
+}
+
+/// Checks a grid from an input: finite and ascending; lines at 0 Hz are left out with a warning
+/// (a free–free substructure has no static receptance).
+fn positive_lines(ctx: &NodeContext, port: &str, f: &[f64]) -> Result<Vec<f64>, NodeError> {
+    if let Some(i) = f.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        return Err(NodeError::input(
+            port,
+            format!("frequency line {i} is {} Hz; lines must be finite and >= 0", f[i]),
+        ));
+    }
+    if let Some(i) = (1..f.len()).find(|&i| f[i] <= f[i - 1]) {
+        return Err(NodeError::input(
+            port,
+            format!("frequency lines must ascend; line {i} ({} Hz) follows {} Hz", f[i], f[i - 1]),
+        ));
+    }
+    let kept: Vec<f64> = f.iter().copied().filter(|v| *v > 0.0).collect();
+    if kept.len() < f.len() {
+        ctx.warn(format!("`{port}`: the 0 Hz line is left out (a free-free substructure has no static receptance)"));
+    }
+    if kept.is_empty() {
+        return Err(NodeError::input(port, "no positive frequency lines"));
+    }
+    Ok(kept)
+}
+
+fn block(m: &beam::Receptance) -> Receptance {
+    Receptance::new(m[0][0], m[0][1], m[1][0], m[1][1])
+}
+
+fn to_frf(s: &ReceptanceSet) -> ReceptanceFrf {
+    ReceptanceFrf {
+        freqs_hz: s.freq_hz.clone(),
+        lines: (0..s.freq_hz.len()).map(|i| Receptance::new(s.h[i], s.l[i], s.n[i], s.p[i])).collect(),
+    }
+}
+
+fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Option<f64>) -> ReceptanceSet {
+    ReceptanceSet {
+        freq_hz: f.freqs_hz.clone(),
+        h: f.lines.iter().map(|r| r.h).collect(),
+        l: f.lines.iter().map(|r| r.l).collect(),
+        n: f.lines.iter().map(|r| r.n).collect(),
+        p: f.lines.iter().map(|r| r.p).collect(),
+        direction,
+        speed_rpm,
+    }
+}
+
+/// The direct receptance `H` of a set as an FRF (m/N), direction and speed carried.
+fn h_of(s: &ReceptanceSet) -> Frf {
+    Frf {
+        freq_hz: s.freq_hz.clone(),
+        values: s.h.clone(),
+        coherence: None,
+        unit: UnitLabel::new("m/N"),
+        direction: s.direction.clone(),
+        speed_rpm: s.speed_rpm,
+        sensor: None,
+    }
+}
+
+fn outputs(items: Vec<(&str, Value)>) -> Outputs {
+    items.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
+}
+
+/// The sensor's mass (kg) named by the `sensor` parameter, 0 without one.
+fn sensor_mass(ctx: &NodeContext) -> Result<f64, NodeError> {
+    match ctx.params.text("sensor") {
+        None => Ok(0.0),
+        Some(name) => ctx
+            .recipe
+            .sensors
+            .get(name)
+            .map(|s| s.mass)
+            .ok_or_else(|| NodeError::param("sensor", format!("no sensor `{name}` in the recipe"))),
+    }
+}
+
+fn assembly<'a>(ctx: &'a NodeContext, param: &str) -> Result<&'a spindlelab_engine::model::Assembly, NodeError> {
+    let name = ctx.params.text(param).ok_or_else(|| NodeError::param(param, "missing"))?;
+    ctx.recipe
+        .assemblies
+        .get(name)
+        .ok_or_else(|| NodeError::param(param, format!("no assembly `{name}` in the recipe")))
+}
+
+/// A joint entity as a coupling interface. A compliant joint needs both stiffnesses.
+fn interface_of(joint: &Joint, param: &str, what: &str) -> Result<Interface, NodeError> {
+    match *joint {
+        Joint::Rigid => Ok(Interface::Rigid),
+        Joint::Compliant { kt, ct, kr, cr } => {
+            for (name, v) in [("kt", kt), ("kr", kr)] {
+                if !v.is_finite() {
+                    return Err(NodeError::param(
+                        param,
+                        format!(
+                            "{what} gives no `{name}`: a compliant joint needs both `kt` and `kr` (or `rigid: true`)"
+                        ),
+                    ));
+                }
+            }
+            Ok(Interface::diagonal(kt, ct, kr, cr))
+        }
+    }
+}
+
+/// The spindle–holder interface the `interface` parameter asks for.
+fn holder_interface(ctx: &NodeContext) -> Result<Interface, NodeError> {
+    if ctx.params.text("interface") != Some("machine") {
+        return Ok(Interface::Rigid);
+    }
+    let name = ctx.params.text("machine").ok_or_else(|| {
+        NodeError::param("machine", "`interface: machine` needs `machine`, whose `holder_interface` to use")
+    })?;
+    let m = ctx
+        .recipe
+        .machines
+        .get(name)
+        .ok_or_else(|| NodeError::param("machine", format!("no machine `{name}` in the recipe")))?;
+    interface_of(&m.holder_interface, "machine", &format!("the `holder_interface` of machine `{name}`"))
+}
+
+fn check_coupling(p: &Params) -> Result<(), NodeError> {
+    check_mesh(p)?;
+    if p.text("interface") == Some("machine") && p.text("machine").is_none() {
+        return Err(NodeError::param(
+            "machine",
+            "`interface: machine` needs `machine`, whose `holder_interface` to use",
+        ));
+    }
+    Ok(())
+}
+
+fn rcsa_options(p: &Params) -> RcsaOptions {
+    RcsaOptions { max_condition: p.f64("max_condition").unwrap_or(1e10) }
+}
+
+/// The free–free two-port of `sections` (1 = tip, the last node; 2 = node 0, the spindle end) on
+/// `freqs`, by modal expansion; `tip_mass` (kg) sits on the tip.
+fn two_port(
+    sections: &[Section],
+    mesh: &MeshOptions,
+    tip_mass: f64,
+    freqs: &[f64],
+    param: &str,
+) -> Result<TwoPort, NodeError> {
+    let fe = |e: beam::BeamError| NodeError::param(param, e.to_string());
+    let mut model = BeamModel::from_segments(&beam::segments_from_sections(sections), mesh).map_err(fe)?;
+    let tip = model.n_nodes() - 1;
+    if tip_mass > 0.0 {
+        model.add_point_mass(tip, tip_mass, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
+    }
+    let modes = model.modes().map_err(fe)?;
+    let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
+        Ok(modes.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
+    };
+    Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(tip, tip)?, r12: r(tip, 0)?, r21: r(0, tip)?, r22: r(0, 0)? })
+}
+
+/// Two grids agree when they have the same length and every line within 1e-9 relative.
+fn same_grid(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(y.abs()))
+}
+
+fn describe_grid(f: &[f64]) -> String {
+    match (f.first(), f.last()) {
+        (Some(a), Some(b)) => format!("{} lines, {a} … {b} Hz", f.len()),
+        _ => "no lines".into(),
+    }
+}
+
+/// Linear interpolation of the complex blocks of `s` onto `target`; refuses to extrapolate.
+pub fn resample(s: &ReceptanceSet, target: &[f64]) -> Result<ReceptanceSet, String> {
+    let f = &s.freq_hz;
+    let (Some(&lo), Some(&hi)) = (f.first(), f.last()) else {
+        return Err("it has no lines".into());
+    };
+    if let Some(i) = (1..f.len()).find(|&i| f[i] <= f[i - 1]) {
+        return Err(format!("its lines do not ascend at line {i} ({} Hz)", f[i]));
+    }
+    let tol = 1e-12 * hi.abs();
+    if let Some(x) = target.iter().find(|x| **x < lo - tol || **x > hi + tol) {
+        return Err(format!("line {x} Hz lies outside its {lo} … {hi} Hz, and resampling does not extrapolate"));
+    }
+    let mut out = ReceptanceSet { freq_hz: target.to_vec(), h: vec![], l: vec![], n: vec![], p: vec![], ..s.clone() };
+    for &x in target {
+        let j = f.partition_point(|v| *v <= x).clamp(1, f.len().max(2) - 1).min(f.len() - 1);
+        let (i0, i1) = if f.len() == 1 { (0, 0) } else { (j - 1, j) };
+        let w = if i1 == i0 { 0.0 } else { ((x - f[i0]) / (f[i1] - f[i0])).clamp(0.0, 1.0) };
+        let lerp = |v: &[rcsa::Complex64]| v[i0] * (1.0 - w) + v[i1] * w;
+        out.h.push(lerp(&s.h));
+        out.l.push(lerp(&s.l));
+        out.n.push(lerp(&s.n));
+        out.p.push(lerp(&s.p));
+    }
+    Ok(out)
+}
+
+/// The receptance input of a coupling node on the grid it works on: its own, or the `grid`
+/// input's (equal, or resampled when `grid_mismatch: resample`), without a 0 Hz line.
+fn input_on_grid(ctx: &NodeContext, port: &str) -> Result<ReceptanceSet, NodeError> {
+    let Value::ReceptanceSet(s) = ctx.input(port)? else {
+        return Err(NodeError::input(port, "expected a 2x2 receptance set"));
+    };
+    let n = s.freq_hz.len();
+    if [s.h.len(), s.l.len(), s.n.len(), s.p.len()].iter().any(|k| *k != n) {
+        return Err(NodeError::input(port, format!("the blocks do not have one value per frequency line ({n} lines)")));
+    }
+    let mut s = s.clone();
+    if let Some(l) = ctx.inputs_of("grid").first() {
+        let Value::Frf(g) = l.value.as_ref() else {
+            return Err(NodeError::input("grid", "expected an FRF"));
+        };
+        if !same_grid(&s.freq_hz, &g.freq_hz) {
+            let first_diff = (s.freq_hz.len() == g.freq_hz.len())
+                .then(|| s.freq_hz.iter().zip(&g.freq_hz).position(|(a, b)| a != b))
+                .flatten()
+                .map(|i| format!(", first difference at line {i}: {} vs {} Hz", s.freq_hz[i], g.freq_hz[i]))
+                .unwrap_or_default();
+            let both = format!(
+                "`{port}` has {} but `grid` has {}{first_diff}",
+                describe_grid(&s.freq_hz),
+                describe_grid(&g.freq_hz)
+            );
+            if ctx.params.text("grid_mismatch") != Some("resample") {
+                return Err(NodeError::input(
+                    "grid",
+                    format!(
+                        "frequency grids differ: {both}; give both the same grid, or set `grid_mismatch: resample`"
+                    ),
+                ));
+            }
+            s = resample(&s, &g.freq_hz)
+                .map_err(|e| NodeError::input("grid", format!("cannot resample `{port}` onto `grid`: {e}")))?;
+            ctx.warn(format!("frequency grids differ ({both}): `{port}` linearly interpolated onto `grid`"));
+        } else {
+            s.freq_hz = g.freq_hz.clone();
+        }
+    }
+    if s.freq_hz.first().is_some_and(|f| *f == 0.0) {
+        let keep = |v: &mut Vec<_>| {
+            v.remove(0);
+        };
+        keep(&mut s.h);
+        keep(&mut s.l);
+        keep(&mut s.n);
+        keep(&mut s.p);
+        s.freq_hz.remove(0);
+        ctx.warn(format!("`{port}`: the 0 Hz line is left out (a free-free substructure has no static receptance)"));
+    }
+    positive_lines(ctx, port, &s.freq_hz)?;
+    Ok(s)
+}
+
+/// A coupling failure as a node error on `port`, with what to do about ill-conditioning.
+fn rcsa_error(port: &str, e: RcsaError, hint: &str) -> NodeError {
+    match e {
+        RcsaError::IllConditioned { .. } => NodeError::input(port, format!("{e}; {hint}")),
+        other => NodeError::input(port, other.to_string()),
+    }
+}
+
+// ------------------------------------------------------------------ beam.receptance
+
+/// `beam.receptance`: tip receptances of a free–free assembly (§5.4).
+pub struct BeamReceptance {
+    spec: NodeSpec,
+}
+
+impl Default for BeamReceptance {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl BeamReceptance {
+    pub fn new() -> Self {
+        let mut params = vec![
+            Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
+            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+        ];
+        params.extend(grid_params());
+        params.extend(mesh_params());
+        BeamReceptance {
+            spec: NodeSpec {
+                kind: "beam.receptance",
+                version: 1,
+                description: "Free-free Timoshenko FE model of an assembly (§5.4, Table 5.1 sections) and its tip receptances H, L, N, P (Eq. 5.2) by modal expansion.",
+                inputs: vec![grid_port()],
+                outputs: vec![
+                    PortSpec::new("tip", PortType::ReceptanceSet, "direct 2x2 receptances at the tip"),
+                    PortSpec::new("frf", PortType::Frf, "the tip's H = y/F (m/N)"),
+                    PortSpec::new(
+                        "modes",
+                        PortType::Table,
+                        "free-free natural frequencies (rigid-body modes left out) up to the grid's highest line",
+                    ),
+                ],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for BeamReceptance {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        check_mesh(p)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let freqs = grid(ctx)?;
+        let a = assembly(ctx, "assembly")?;
+        let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
+        let mut model =
+            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(ctx.params)).map_err(fe)?;
+        let tip = model.n_nodes() - 1;
+        let m = sensor_mass(ctx)?;
+        if m > 0.0 {
+            model.add_point_mass(tip, m, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
+        }
+        if !matches!(a.tool_joint, Joint::Rigid) {
+            ctx.warn("the assembly's `tool_joint` is not modelled here (one continuous beam); rcsa.couple models it");
+        }
+        let modes = model.modes().map_err(fe)?;
+        let lines: Vec<Receptance> = modes.receptance(tip, tip, &freqs).map_err(fe)?.iter().map(block).collect();
+        let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, None);
+        let top = freqs.last().copied().unwrap_or(0.0);
+        let nat: Vec<f64> =
+            modes.natural_frequencies().into_iter().skip(modes.rigid_modes()).take_while(|f| *f <= top).collect();
+        let table = Table {
+            columns: vec![
+                Column::new("mode", "", (1..=nat.len()).map(|k| k as f64).collect()),
+                Column::new("frequency", "Hz", nat),
+            ],
+        };
+        let frf = h_of(&set);
+        Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf)), ("modes", Value::Table(table))]))
+    }
+}
+
+// ------------------------------------------------------------------ spindle.receptance
+
+/// `spindle.receptance`: the spindle-machine receptance at the holder base from equivalent modes.
+pub struct SpindleReceptance {
+    spec: NodeSpec,
+}
+
+impl Default for SpindleReceptance {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SpindleReceptance {
+    pub fn new() -> Self {
+        let mut params = vec![
+            Field::req("machine", T::Entity(EntityKind::Machine), "a machine with a `spindle` model"),
+            Field::def("direction", T::Choice(&["x", "y"]), "x", "which direction's modes"),
+            Field::def("speed", T::Quantity(D::ROTATIONAL_SPEED), "0 rpm", "spindle speed for the speed laws"),
+        ];
+        params.extend(grid_params());
+        SpindleReceptance {
+            spec: NodeSpec {
+                kind: "spindle.receptance",
+                version: 1,
+                description: "Spindle-machine receptances at the holder base as the sum of equivalent fixed-free Euler-Bernoulli modes (Eqs. 5.5-5.7, 5.10-5.12) at a speed.",
+                inputs: vec![grid_port()],
+                outputs: vec![
+                    PortSpec::new("receptance", PortType::ReceptanceSet, "2x2 receptances at the holder base"),
+                    PortSpec::new("frf", PortType::Frf, "its H = y/F (m/N)"),
+                ],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for SpindleReceptance {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        super::positive(p, &["max_frequency", "resolution"])?;
+        super::non_negative(p, &["speed"])
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let p = ctx.params;
+        let name = p.text("machine").ok_or_else(|| NodeError::param("machine", "missing"))?;
+        let machine = ctx
+            .recipe
+            .machines
+            .get(name)
+            .ok_or_else(|| NodeError::param("machine", format!("no machine `{name}` in the recipe")))?;
+        let Some(spindle) = &machine.spindle else {
+            return Err(NodeError::param(
+                "machine",
+                format!(
+                    "machine `{name}` has no spindle model: add `spindle: {{material, modes: {{x: [{{f, d, eta}}]}}}}`"
+                ),
+            ));
+        };
+        let dir = p.text("direction").unwrap_or("x");
+        let Some((_, modes)) = spindle.modes.iter().find(|(d, _)| d == dir) else {
+            let have: Vec<&str> = spindle.modes.iter().map(|(d, _)| d.as_str()).collect();
+            return Err(NodeError::param(
+                "direction",
+                format!(
+                    "machine `{name}` has no spindle modes in direction `{dir}`; it has: {}",
+                    if have.is_empty() { "none".to_string() } else { have.join(", ") }
+                ),
+            ));
+        };
+        if modes.is_empty() {
+            return Err(NodeError::param("machine", format!("machine `{name}` lists no spindle modes for `{dir}`")));
+        }
+        let freqs = grid(ctx)?;
+        let rpm = |w: f64| w * 60.0 / TAU;
+        let speed = rpm(p.f64("speed").unwrap_or(0.0));
+        let eq: Vec<EquivalentMode> = modes
+            .iter()
+            .map(|m| EquivalentMode { f_hz: m.freq_hz, d_m: m.diameter, eta: m.loss_factor, kf: m.kf, keta: m.keta })
+            .collect();
+        let material =
+            eb_modes::BeamMaterial { e_pa: spindle.material.youngs_modulus, rho_kg_m3: spindle.material.density };
+        let r = eb_modes::spindle_receptance(&eq, &material, speed, rpm(spindle.ref_speed), &freqs)
+            .map_err(|e| NodeError::param("machine", format!("spindle of machine `{name}`, direction {dir}: {e}")))?;
+        let set = to_set(&r, Some(dir.to_string()), Some(speed));
+        let frf = h_of(&set);
+        Ok(outputs(vec![("receptance", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
+    }
+}
+
+// ------------------------------------------------------------------ rcsa.couple
+
+/// `rcsa.couple`: tool-tip receptances of an assembly on a spindle (Eqs. 5.3, 5.16–5.17).
+pub struct RcsaCouple {
+    spec: NodeSpec,
+}
+
+impl Default for RcsaCouple {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RcsaCouple {
+    pub fn new() -> Self {
+        let mut params = vec![
+            Field::req(
+                "assembly",
+                T::Entity(EntityKind::Assembly),
+                "holder and tool sections; its `tool_joint` is used",
+            ),
+            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tool tip"),
+        ];
+        params.extend(coupling_params());
+        params.extend(mesh_params());
+        RcsaCouple {
+            spec: NodeSpec {
+                kind: "rcsa.couple",
+                version: 1,
+                description: "RCSA: couples a free-free FE assembly to the spindle receptances at its base, G11 = R11 - R12 (R22 + K^-1 + B)^-1 R21 (Eqs. 5.3, 5.16-5.17); a compliant tool_joint makes it spindle-holder-tool.",
+                inputs: vec![
+                    PortSpec::new("spindle", PortType::ReceptanceSet, "spindle receptances B at the holder base"),
+                    PortSpec::new(
+                        "grid",
+                        PortType::Frf,
+                        "an FRF whose frequency lines the result is to have (see `grid_mismatch`)",
+                    )
+                    .optional(),
+                ],
+                outputs: vec![
+                    PortSpec::new("tip", PortType::ReceptanceSet, "2x2 receptances at the tool tip"),
+                    PortSpec::new("frf", PortType::Frf, "tool-tip H (m/N), direction and speed of the spindle input"),
+                ],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for RcsaCouple {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        check_coupling(p)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let spindle = input_on_grid(ctx, "spindle")?;
+        let a = assembly(ctx, "assembly")?;
+        let interface = holder_interface(ctx)?;
+        let mesh = mesh(ctx.params);
+        let tip_mass = sensor_mass(ctx)?;
+        let freqs = spindle.freq_hz.clone();
+        let base = to_frf(&spindle);
+        let opts = rcsa_options(ctx.params);
+        let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
+        let g = match a.tool_joint {
+            Joint::Rigid => {
+                let whole = two_port(&a.sections, &mesh, tip_mass, &freqs, "assembly")?;
+                rcsa::couple(&whole, &base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?
+            }
+            joint => {
+                let name = ctx.params.text("assembly").unwrap_or("");
+                let split = a.sections.iter().position(|s| s.component == Component::Tool).unwrap_or(a.sections.len());
+                let (holder, tool) = a.sections.split_at(split);
+                if holder.is_empty() || tool.is_empty() {
+                    return Err(NodeError::param(
+                        "assembly",
+                        format!(
+                            "assembly `{name}` has a compliant `tool_joint` but no {} sections: the joint sits between the holder (`holder`, `holder+tool`) and the protruding tool (`tool`)",
+                            if holder.is_empty() { "holder" } else { "`tool`" }
+                        ),
+                    ));
+                }
+                if let Some(s) = tool.iter().find(|s| s.component != Component::Tool) {
+                    return Err(NodeError::param(
+                        "assembly",
+                        format!(
+                            "assembly `{name}`: section `{}` follows a `tool` section; list the holder sections first, then the protruding tool",
+                            s.name
+                        ),
+                    ));
+                }
+                let tool_joint = interface_of(&joint, "assembly", &format!("the `tool_joint` of assembly `{name}`"))?;
+                let h = two_port(holder, &mesh, 0.0, &freqs, "assembly")?;
+                let t = two_port(tool, &mesh, tip_mass, &freqs, "assembly")?;
+                rcsa::couple_chain(&base, &[(&h, interface), (&t, tool_joint)], &opts)
+                    .map_err(|e| rcsa_error("spindle", e, hint))?
+            }
+        };
+        let set = to_set(&g, spindle.direction.clone(), spindle.speed_rpm);
+        let frf = h_of(&set);
+        Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
+    }
+}
+
+// ------------------------------------------------------------------ rcsa.decouple
+
+/// `rcsa.decouple`: spindle receptances from an artifact's tip receptances (inverse RCSA, Eq. 5.4).
+pub struct RcsaDecouple {
+    spec: NodeSpec,
+}
+
+impl Default for RcsaDecouple {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RcsaDecouple {
+    pub fn new() -> Self {
+        let mut params = vec![
+            Field::req("artifact", T::Entity(EntityKind::Assembly), "the artifact beyond the flange, as one body"),
+            Field::opt(
+                "sensor",
+                T::Entity(EntityKind::Sensor),
+                "a sensor whose `mass` sat on the tip when G11 was measured",
+            ),
+        ];
+        params.extend(coupling_params());
+        params.extend(mesh_params());
+        RcsaDecouple {
+            spec: NodeSpec {
+                kind: "rcsa.decouple",
+                version: 1,
+                description: "Inverse RCSA: the spindle receptances at the holder base from the artifact-tip receptances G11, R2b2b = R2a1 (R11 - G11)^-1 R12a - R2a2a - K^-1 (Eq. 5.4 as corrected, with Eqs. 5.16-5.17).",
+                inputs: vec![
+                    PortSpec::new(
+                        "assembly_tip",
+                        PortType::ReceptanceSet,
+                        "2x2 receptances G11 at the artifact tip on the spindle (e.g. from a fit)",
+                    ),
+                    PortSpec::new(
+                        "grid",
+                        PortType::Frf,
+                        "an FRF whose frequency lines the result is to have (see `grid_mismatch`)",
+                    )
+                    .optional(),
+                ],
+                outputs: vec![PortSpec::new(
+                    "spindle",
+                    PortType::ReceptanceSet,
+                    "spindle receptances at the holder base, direction and speed of the input",
+                )],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for RcsaDecouple {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        check_coupling(p)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let g11 = input_on_grid(ctx, "assembly_tip")?;
+        let a = assembly(ctx, "artifact")?;
+        if !matches!(a.tool_joint, Joint::Rigid) {
+            ctx.warn("the artifact's `tool_joint` is not used: the artifact is decoupled as one body");
+        }
+        let interface = holder_interface(ctx)?;
+        let tip_mass = sensor_mass(ctx)?;
+        let freqs = g11.freq_hz.clone();
+        let art = two_port(&a.sections, &mesh(ctx.params), tip_mass, &freqs, "artifact")?;
+        let hint = "there the artifact's own tip receptance R11 equals G11 (R11 - G11 is singular, e.g. G11 of the free artifact or lines where a measured G11 is noise), so the spindle is not determined: leave those lines out of the grid or fit G11 first";
+        let b = rcsa::decouple(&art, &to_frf(&g11), &interface, &rcsa_options(ctx.params))
+            .map_err(|e| rcsa_error("assembly_tip", e, hint))?;
+        let set = to_set(&b, g11.direction.clone(), g11.speed_rpm);
+        Ok(outputs(vec![("spindle", Value::ReceptanceSet(set))]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rcsa::Complex64;
+
+    fn set(freq: Vec<f64>, v: impl Fn(f64) -> Complex64) -> ReceptanceSet {
+        let h: Vec<Complex64> = freq.iter().map(|f| v(*f)).collect();
+        ReceptanceSet {
+            l: h.iter().map(|x| x * 2.0).collect(),
+            n: h.iter().map(|x| x * 3.0).collect(),
+            p: h.iter().map(|x| x * 4.0).collect(),
+            h,
+            freq_hz: freq,
+            direction: Some("x".into()),
+            speed_rpm: Some(1000.0),
+        }
+    }
+
+    #[test]
+    fn resampling_is_exact_for_linear_data_and_refuses_to_extrapolate() {
+        let line = |f: f64| Complex64::new(2.0 * f - 1.0, -0.5 * f + 3.0);
+        let s = set((0..=10).map(|i| 10.0 * i as f64).collect(), line);
+        let target: Vec<f64> = vec![0.0, 3.3, 47.5, 99.9, 100.0];
+        let r = resample(&s, &target).unwrap();
+        for (f, (h, p)) in target.iter().zip(r.h.iter().zip(&r.p)) {
+            assert!((h - line(*f)).norm() < 1e-12, "{f}: {h}");
+            assert!((p - line(*f) * 4.0).norm() < 1e-12);
+        }
+        assert_eq!((r.direction, r.speed_rpm), (s.direction.clone(), s.speed_rpm));
+        let e = resample(&s, &[50.0, 100.5]).unwrap_err();
+        assert!(e.contains("100.5") && e.contains("extrapolate"), "{e}");
+    }
+}

@@ -1,0 +1,253 @@
+//! The structural-model and RCSA nodes against independent results: coupling then decoupling
+//! returns the spindle, coupling a holder–tool to a spindle equals one FE model of the whole
+//! (spindle shaft, holder and tool), a very stiff holder–tool joint tends to the rigid one and
+//! a soft one lowers the tool mode, and receptance files read back what was written. Recipes
+//! live in `tests/data/structure/`, bad ones in `tests/bad/`.
+
+use spindlelab::engine::exec::RunOptions;
+use spindlelab::engine::value::{ReceptanceSet, Value};
+use spindlelab::engine::{self, Compiled};
+use spindlelab::stdlib::beam::{BeamMaterial, BeamModel, BeamSegment, CrossSection, MeshOptions, NodeSpring};
+use spindlelab::stdlib::rcsa::Complex64;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+
+fn data_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/structure")
+}
+
+struct Ran {
+    compiled: Compiled,
+    report: engine::RunReport,
+}
+
+impl Ran {
+    fn value(&self, step: &str, port: &str) -> Arc<Value> {
+        let i = self.compiled.graph.by_step[step][0];
+        let outputs = self.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
+        Arc::clone(&outputs[port])
+    }
+
+    fn set(&self, step: &str, port: &str) -> ReceptanceSet {
+        match self.value(step, port).as_ref() {
+            Value::ReceptanceSet(r) => r.clone(),
+            other => panic!("{step}.{port} is {:?}", other.port_type()),
+        }
+    }
+}
+
+fn run_at(path: &Path, out: &Path) -> Ran {
+    let registry = spindlelab::registry();
+    let compiled = engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
+    let mut opts = RunOptions::new(out);
+    opts.use_cache = false;
+    let report = engine::run(&compiled, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
+    Ran { compiled, report }
+}
+
+/// Largest `|a − b| / |b|` over the lines of one block.
+fn worst(a: &[Complex64], b: &[Complex64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).norm() / y.norm()).fold(0.0, f64::max)
+}
+
+fn blocks(r: &ReceptanceSet) -> [&[Complex64]; 4] {
+    [&r.h, &r.l, &r.n, &r.p]
+}
+
+/// (a) `spindle.receptance` → `rcsa.couple` (Table 5.1 artifact, flexible holder joint) →
+/// `rcsa.decouple` with the same artifact and joint gives the spindle back.
+#[test]
+fn coupling_then_decoupling_the_artifact_returns_the_spindle() {
+    let out = tempfile::tempdir().unwrap();
+    let r = run_at(&data_dir().join("round-trip.yaml"), out.path());
+    let spindle = r.set("spindle", "receptance");
+    let back = r.set("decoupled", "spindle");
+    assert_eq!(spindle.freq_hz.len(), 2000);
+    assert_eq!(back.freq_hz, spindle.freq_hz);
+    assert_eq!((back.direction.as_deref(), back.speed_rpm), (Some("x"), Some(6000.0)));
+    for (name, (a, b)) in ["H", "L", "N", "P"].iter().zip(blocks(&back).into_iter().zip(blocks(&spindle))) {
+        let e = worst(a, b);
+        assert!(e <= 1e-8, "{name}: worst relative difference {e:e}");
+    }
+    // The coupled tip is not the spindle: the artifact matters.
+    let tip = r.set("coupled", "tip");
+    assert!(worst(&tip.h, &spindle.h) > 0.1);
+}
+
+/// An FE spindle shaft on stiff bearings at node 0: its free-end receptances on `freqs`, and the
+/// model itself, for the monolithic comparison.
+fn spindle_shaft() -> (BeamSegment, NodeSpring) {
+    let steel = BeamMaterial { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
+    let shaft = BeamSegment::uniform(CrossSection { d_out: 0.07, d_in: 0.02, outer: steel, inner: None }, 0.25);
+    (shaft, NodeSpring { kt: 1e9, ct: 0.0, kr: 2e7, cr: 0.0 })
+}
+
+fn freqs() -> Vec<f64> {
+    (1..=800).map(|k| 10.0 * k as f64).collect()
+}
+
+/// Writes the FE spindle's free-end receptances to `dir/spindle.csv` and the recipe beside it.
+fn tool_holder_run(dir: &Path) -> Ran {
+    let (shaft, bearings) = spindle_shaft();
+    let mut model = BeamModel::from_segments(&[shaft], &MeshOptions::default()).unwrap();
+    model.add_spring(0, bearings).unwrap();
+    let end = model.n_nodes() - 1;
+    let f = freqs();
+    let r = model.receptance_direct(end, end, &f).unwrap();
+    let set = ReceptanceSet {
+        freq_hz: f,
+        h: r.iter().map(|m| m[0][0]).collect(),
+        l: r.iter().map(|m| m[0][1]).collect(),
+        n: r.iter().map(|m| m[1][0]).collect(),
+        p: r.iter().map(|m| m[1][1]).collect(),
+        direction: Some("y".into()),
+        speed_rpm: Some(0.0),
+    };
+    std::fs::write(dir.join("spindle.csv"), engine::formats::csv::write_receptance(&set)).unwrap();
+    std::fs::copy(data_dir().join("tool-holder.yaml"), dir.join("tool-holder.yaml")).unwrap();
+    let ran = run_at(&dir.join("tool-holder.yaml"), &dir.join("out"));
+    assert_eq!(ran.set("spindle", "receptance"), set, "read.receptance reads the CSV back exactly");
+    ran
+}
+
+/// Frequency of the largest `|H|`.
+fn dominant_peak(r: &ReceptanceSet) -> f64 {
+    let i = (0..r.h.len()).max_by(|&a, &b| r.h[a].norm().total_cmp(&r.h[b].norm())).unwrap();
+    r.freq_hz[i]
+}
+
+/// (b) The Table 5.1 tool holder coupled by RCSA to an FE spindle equals one FE model of the
+/// spindle shaft, holder and tool solved directly (a different solver path, the same mesh);
+/// (c) a very stiff holder–tool joint (three-component RCSA) tends to the rigid result and a
+/// soft one lowers the tool mode; (d) the tip written as CSV and UFF reads back.
+#[test]
+fn tool_holder_on_an_fe_spindle_equals_one_fe_model_and_joints_behave() {
+    let dir = tempfile::tempdir().unwrap();
+    let ran = tool_holder_run(dir.path());
+    let rigid = ran.set("rigid", "tip");
+    assert_eq!((rigid.direction.as_deref(), rigid.speed_rpm), (Some("y"), Some(0.0)));
+
+    // (b) One FE model: shaft + holder + tool on the same bearings, the sensor's 2 g on the tip.
+    let (shaft, bearings) = spindle_shaft();
+    let assembly = &ran.compiled.recipe.assemblies["tool_holder"];
+    let mut segs = vec![shaft];
+    segs.extend(spindlelab::stdlib::beam::segments_from_sections(&assembly.sections));
+    let mut whole = BeamModel::from_segments(&segs, &MeshOptions::default()).unwrap();
+    whole.add_spring(0, bearings).unwrap();
+    let tip = whole.n_nodes() - 1;
+    whole.add_point_mass(tip, 0.002, 0.0).unwrap();
+    let direct = whole.receptance_direct(tip, tip, &freqs()).unwrap();
+    let h: Vec<Complex64> = direct.iter().map(|m| m[0][0]).collect();
+    let e = worst(&rigid.h, &h);
+    assert!(e <= 1e-6, "RCSA vs one FE model: worst relative difference of H {e:e}");
+    let p: Vec<Complex64> = direct.iter().map(|m| m[1][1]).collect();
+    assert!(worst(&rigid.p, &p) <= 1e-6);
+
+    // (c) Stiff joint → rigid; soft joint → lower tool mode.
+    let stiff = ran.set("stiff", "tip");
+    let e = worst(&stiff.h, &rigid.h);
+    assert!(e <= 1e-6, "stiff joint vs rigid: {e:e}");
+    let soft = ran.set("soft", "tip");
+    let (f_rigid, f_soft) = (dominant_peak(&rigid), dominant_peak(&soft));
+    assert!(f_rigid > 1000.0 && f_soft < 0.9 * f_rigid, "tool mode: rigid {f_rigid} Hz, soft joint {f_soft} Hz");
+
+    // (d) The outputs read back through `read.receptance`: CSV exactly, UFF to 13 digits.
+    let back_dir = dir.path().join("out");
+    std::fs::write(
+        back_dir.join("read-back.yaml"),
+        "spindlelab: 1\nsteps:\n  csv: { kind: read.receptance, params: { file: tip.csv } }\n  uff: { kind: read.receptance, params: { file: tip.uff } }\n",
+    )
+    .unwrap();
+    let back = run_at(&back_dir.join("read-back.yaml"), &dir.path().join("out2"));
+    assert_eq!(back.set("csv", "receptance"), rigid);
+    let uff = back.set("uff", "receptance");
+    assert_eq!(
+        (uff.freq_hz.clone(), uff.direction.clone(), uff.speed_rpm),
+        (rigid.freq_hz.clone(), rigid.direction.clone(), rigid.speed_rpm)
+    );
+    for (name, (a, b)) in ["H", "L", "N", "P"].iter().zip(blocks(&uff).into_iter().zip(blocks(&rigid))) {
+        let e = worst(a, b);
+        assert!(e <= 1e-12, "UFF {name}: {e:e}");
+    }
+}
+
+// ------------------------------------------------------------------ bad input
+
+fn bad_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("bad")
+}
+
+/// Runs the binary on a fixture of `tests/bad/`: exit code 2, no panic; returns stderr.
+fn rejected(file: &str, keep_going: bool) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let mut args: Vec<&OsStr> = vec![OsStr::new("run"), OsStr::new(file), OsStr::new("-o"), out.as_os_str()];
+    if keep_going {
+        args.push(OsStr::new("--keep-going"));
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(args)
+        .current_dir(bad_dir())
+        .env("NO_COLOR", "1")
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    stderr
+}
+
+fn assert_has(text: &str, needles: &[&str]) {
+    for n in needles {
+        assert!(text.contains(n), "missing `{n}` in:\n{text}");
+    }
+}
+
+#[test]
+fn bad_sections_and_materials_are_refused_with_their_place() {
+    let e = rejected("structure-entities.yaml", false);
+    assert_has(
+        &e,
+        &[
+            "structure-entities.yaml:13:",
+            "zero or negative length",
+            "structure-entities.yaml:14:",
+            "inner diameter 40 mm is not below the outer diameter 40 mm",
+            "structure-entities.yaml:17:",
+            "unknown material `steal`",
+            "did you mean `steel`?",
+            "nothing was run",
+        ],
+    );
+}
+
+#[test]
+fn structure_failures_at_run_time_say_what_and_what_to_do() {
+    let e = rejected("structure-failures.yaml", true);
+    assert_has(
+        &e,
+        &[
+            // A machine without a spindle model.
+            "node `no_spindle` failed",
+            "machine `bare` has no spindle model",
+            // A direction the spindle model does not have.
+            "node `wrong_direction` failed",
+            "no spindle modes in direction `y`; it has: x",
+            // Decoupling the free artifact's own tip receptance: R11 − G11 is singular.
+            "node `singular` failed",
+            "(R11 - G11): ill-conditioned at 200 of the lines (worst condition inf",
+            "first affected frequencies [25.0, 50.0,",
+            "leave those lines out of the grid",
+            // Grids that differ, refused, and resampling that would extrapolate.
+            "node `mismatch` failed",
+            "frequency grids differ: `spindle` has 200 lines, 25 … 5000 Hz but `grid` has 100 lines, 30 … 3000 Hz",
+            "`grid_mismatch: resample`",
+            "node `beyond` failed",
+            "cannot resample `spindle` onto `grid`",
+            "does not extrapolate",
+        ],
+    );
+}
