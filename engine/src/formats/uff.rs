@@ -1419,7 +1419,7 @@ mod tests {
         write_receptance(&mut text, &r, "");
         // Drop the last dataset (P).
         let cut = text[..text.len() - 8].rfind("    -1\n    58\n").unwrap();
-        let file = parse(text[..cut].as_bytes(), "r.uff").unwrap();
+        let file = parse(&text.as_bytes()[..cut], "r.uff").unwrap();
         let e = to_receptance(&file, "r.uff", None).unwrap_err().to_string();
         assert!(e.contains("no P dataset") && e.contains("response code -4"), "{e}");
         let mut both = text.clone();
