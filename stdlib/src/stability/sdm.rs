@@ -513,7 +513,7 @@ pub fn sd_depth_limit(
             requirement: "finite and > 0 m",
         });
     }
-    if options.scan_points == 0 || !(options.depth_tolerance_m > 0.0) {
+    if options.scan_points == 0 || options.depth_tolerance_m.is_nan() || options.depth_tolerance_m <= 0.0 {
         return Err(StabilityError::InvalidParameter {
             name: "scan points / depth tolerance",
             value: options.depth_tolerance_m,

@@ -83,6 +83,7 @@ pub(crate) fn spline_weights(knots: &[f64], s: f64) -> Vec<f64> {
     }
     let mut rhs = vec![0.0; interior];
     let mut cp = vec![0.0; interior];
+    #[allow(clippy::needless_range_loop)]
     for j in 0..k {
         for (r, v) in rhs.iter_mut().enumerate() {
             let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);

@@ -212,7 +212,7 @@ pub(crate) fn line_roots(frf: &ToolPointFrf, milling: &Milling, out: &mut Vec<[O
                 return None;
             }
             let big = -l.inv();
-            if !(big.re < 0.0) {
+            if big.re.is_nan() || big.re >= 0.0 {
                 return None;
             }
             let depth = -TAU * big.norm_sqr() / (big.re * n_kt);
