@@ -18,6 +18,7 @@ pub mod rig;
 pub mod runout;
 pub mod segment;
 pub mod signal;
+pub mod stability;
 pub mod tach;
 
 use spindlelab_engine::node::Registry;

@@ -1,0 +1,244 @@
+//! Speed-dependent stability lobes (dissertation §6.1–6.3): tool-point FRFs measured at a few spindle speeds and
+//! cutting coefficients measured over speed are interpolated with natural cubic splines onto a fine speed grid
+//! (every 5 rpm by default), and at each fine speed `Ω` the ZOA limit is taken *at that speed only*: the lowest of
+//! the lobes passing through `Ω`, built from `FRF(Ω)` and the coefficients at `Ω`.
+
+use super::StabilityError;
+use super::cutting::{CuttingCoefficients, Milling, MillingDirection};
+use super::zoa::{StabilityLimit, ToolPointFrf, limit_at_speed, line_roots};
+use num_complex::Complex64;
+use rayon::prelude::*;
+
+/// A tool-point FRF pair measured at one spindle speed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedFrf {
+    /// Spindle speed, rpm.
+    pub speed_rpm: f64,
+    /// The FRFs at that speed.
+    pub frf: ToolPointFrf,
+}
+
+/// Cutting coefficients measured over speed, rows `[speed rpm, a, b]` in increasing speed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CoefficientTable {
+    /// `a = Kt`, `b = Kn`, N/m².
+    KtKn(Vec<[f64; 3]>),
+    /// `a = Ks` (N/m²), `b = β` (rad): `Kt = Ks sin β`, `Kn = Ks cos β` after interpolation.
+    KsBeta(Vec<[f64; 3]>),
+}
+
+/// Options of [`speed_dependent_lobes`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedDependentOptions {
+    /// Speed range, rpm; `None` spans the measured FRF speeds. Speeds ≤ 0 of the grid are skipped.
+    pub range_rpm: Option<(f64, f64)>,
+    /// Grid step, rpm.
+    pub step_rpm: f64,
+    /// Number of lobes.
+    pub lobes: usize,
+    /// Extend the end cubics beyond the measured speeds instead of refusing.
+    pub allow_extrapolation: bool,
+}
+
+impl Default for SpeedDependentOptions {
+    fn default() -> Self {
+        SpeedDependentOptions { range_rpm: None, step_rpm: 5.0, lobes: 20, allow_extrapolation: false }
+    }
+}
+
+/// The speed-dependent limit next to the stationary one on the same speeds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedDependentLimit {
+    /// With the FRF and coefficients interpolated at each speed.
+    pub speed_dependent: StabilityLimit,
+    /// With the stationary FRF and the coefficients interpolated at each speed.
+    pub stationary: StabilityLimit,
+}
+
+/// Natural cubic spline weights: the spline through `(knots[j], y_j)` at `s` is `Σ w_j y_j`.
+pub(crate) fn spline_weights(knots: &[f64], s: f64) -> Vec<f64> {
+    let k = knots.len();
+    if k == 1 {
+        return vec![1.0];
+    }
+    let i = knots.partition_point(|&x| x <= s).clamp(1, k - 1) - 1;
+    let h = knots[i + 1] - knots[i];
+    let a = (knots[i + 1] - s) / h;
+    let b = 1.0 - a;
+    let (ca, cb) = ((a * a * a - a) * h * h / 6.0, (b * b * b - b) * h * h / 6.0);
+    let mut w = vec![0.0; k];
+    w[i] += a;
+    w[i + 1] += b;
+    if k == 2 {
+        return w;
+    }
+    // Second derivatives M = S y for each unit data vector: solve the tridiagonal system (Thomas).
+    let interior = k - 2;
+    let (mut sub, mut diag, mut sup) = (vec![0.0; interior], vec![0.0; interior], vec![0.0; interior]);
+    for r in 0..interior {
+        let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
+        sub[r] = h0;
+        diag[r] = 2.0 * (h0 + h1);
+        sup[r] = h1;
+    }
+    let mut rhs = vec![0.0; interior];
+    let mut cp = vec![0.0; interior];
+    #[allow(clippy::needless_range_loop)]
+    for j in 0..k {
+        for (r, v) in rhs.iter_mut().enumerate() {
+            let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
+            let e = |q: usize| if q == j { 1.0 } else { 0.0 };
+            *v = 6.0 * ((e(r + 2) - e(r + 1)) / h1 - (e(r + 1) - e(r)) / h0);
+        }
+        // Forward sweep.
+        cp[0] = sup[0] / diag[0];
+        rhs[0] /= diag[0];
+        for r in 1..interior {
+            let den = diag[r] - sub[r] * cp[r - 1];
+            cp[r] = sup[r] / den;
+            rhs[r] = (rhs[r] - sub[r] * rhs[r - 1]) / den;
+        }
+        for r in (0..interior.saturating_sub(1)).rev() {
+            rhs[r] -= cp[r] * rhs[r + 1];
+        }
+        let m_at = |q: usize| if q == 0 || q == k - 1 { 0.0 } else { rhs[q - 1] };
+        w[j] += ca * m_at(i) + cb * m_at(i + 1);
+    }
+    w
+}
+
+fn check_knots(what: &'static str, knots: &[f64]) -> Result<(), StabilityError> {
+    if knots.is_empty() {
+        return Err(StabilityError::InvalidParameter { name: what, value: 0.0, requirement: "at least one speed" });
+    }
+    if let Some(i) = knots.iter().position(|s| !s.is_finite()) {
+        return Err(StabilityError::NonFinite { what, index: i });
+    }
+    if let Some(i) = knots.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(StabilityError::InvalidParameter {
+            name: what,
+            value: knots[i + 1],
+            requirement: "speeds must increase strictly",
+        });
+    }
+    Ok(())
+}
+
+fn check_range(what: &'static str, knots: &[f64], s: f64, allow: bool) -> Result<(), StabilityError> {
+    let (lo, hi) = (knots[0], knots[knots.len() - 1]);
+    if !allow && (s < lo - 1e-9 * hi.abs() || s > hi + 1e-9 * hi.abs()) {
+        return Err(StabilityError::Extrapolation { what, speed_rpm: s, lo_rpm: lo, hi_rpm: hi });
+    }
+    Ok(())
+}
+
+fn coefficients_at(table: &CoefficientTable, s: f64, allow: bool) -> Result<CuttingCoefficients, StabilityError> {
+    let rows = match table {
+        CoefficientTable::KtKn(r) | CoefficientTable::KsBeta(r) => r,
+    };
+    let knots: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+    check_knots("cutting coefficient speeds", &knots)?;
+    check_range("cutting coefficient table", &knots, s, allow)?;
+    let w = spline_weights(&knots, s);
+    let a: f64 = w.iter().zip(rows).map(|(w, r)| w * r[1]).sum();
+    let b: f64 = w.iter().zip(rows).map(|(w, r)| w * r[2]).sum();
+    match table {
+        CoefficientTable::KtKn(_) => CuttingCoefficients::from_kt_kn(a, b),
+        CoefficientTable::KsBeta(_) => CuttingCoefficients::from_ks_beta(a, b),
+    }
+}
+
+/// Speed-dependent and stationary ZOA limits on the fine speed grid. `frfs` are the FRF pairs at increasing
+/// speeds, all on one frequency grid (cross terms used only if every pair has them); `stationary` is the FRF of
+/// the stationary limit (e.g. measured at rest), on any grid.
+pub fn speed_dependent_lobes(
+    frfs: &[SpeedFrf],
+    coefficients: &CoefficientTable,
+    teeth: usize,
+    radial_immersion: f64,
+    direction: MillingDirection,
+    stationary: &ToolPointFrf,
+    options: &SpeedDependentOptions,
+) -> Result<SpeedDependentLimit, StabilityError> {
+    let knots: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
+    check_knots("FRF speeds", &knots)?;
+    let grid = &frfs[0].frf.freqs_hz;
+    for f in frfs {
+        if f.frf.freqs_hz.len() != grid.len()
+            || f.frf.freqs_hz.iter().zip(grid).any(|(a, b)| (a - b).abs() > 1e-9 * a.abs().max(b.abs()))
+        {
+            return Err(StabilityError::GridMismatch {
+                what: "speed-dependent FRFs",
+                detail: format!("the FRF at {} rpm is not on the grid of the FRF at {} rpm", f.speed_rpm, knots[0]),
+            });
+        }
+    }
+    if !(options.step_rpm.is_finite() && options.step_rpm > 0.0) {
+        return Err(StabilityError::InvalidParameter {
+            name: "speed step",
+            value: options.step_rpm,
+            requirement: "finite and > 0 rpm",
+        });
+    }
+    let (lo, hi) = options.range_rpm.unwrap_or((knots[0], knots[knots.len() - 1]));
+    if !(lo.is_finite() && hi.is_finite() && hi >= lo) {
+        return Err(StabilityError::InvalidParameter {
+            name: "speed range end",
+            value: hi,
+            requirement: "finite and not below the start",
+        });
+    }
+    let count = ((hi - lo) / options.step_rpm + 1e-9).floor() as usize + 1;
+    let speeds: Vec<f64> = (0..count).map(|i| lo + options.step_rpm * i as f64).filter(|&s| s > 0.0).collect();
+    // Probe the cutting setup once for its error (teeth, immersion) before the parallel loop.
+    Milling::new(
+        teeth,
+        radial_immersion,
+        direction,
+        coefficients_at(
+            coefficients,
+            speeds.first().copied().unwrap_or(lo).max(knots[0]).min(knots[knots.len() - 1]),
+            true,
+        )?,
+    )?;
+    let with_cross = frfs.iter().all(|f| f.frf.cross.is_some());
+    let rows: Vec<[(f64, f64, Option<usize>); 2]> = speeds
+        .par_iter()
+        .map(|&s| {
+            check_range("FRF speeds", &knots, s, options.allow_extrapolation)?;
+            let coeffs = coefficients_at(coefficients, s, options.allow_extrapolation)?;
+            let milling = Milling::new(teeth, radial_immersion, direction, coeffs)?;
+            let w = spline_weights(&knots, s);
+            let mix = |pick: &dyn Fn(&ToolPointFrf) -> &[Complex64]| -> Vec<Complex64> {
+                let mut out = vec![Complex64::new(0.0, 0.0); grid.len()];
+                for (wj, f) in w.iter().zip(frfs) {
+                    for (o, v) in out.iter_mut().zip(pick(&f.frf)) {
+                        *o += *wj * v;
+                    }
+                }
+                out
+            };
+            let frf = ToolPointFrf {
+                freqs_hz: grid.clone(),
+                xx: mix(&|f| &f.xx),
+                yy: mix(&|f| &f.yy),
+                cross: with_cross.then(|| {
+                    (mix(&|f| &f.cross.as_ref().expect("checked").0), mix(&|f| &f.cross.as_ref().expect("checked").1))
+                }),
+            };
+            let mut roots = Vec::new();
+            line_roots(&frf, &milling, &mut roots);
+            let dynamic = limit_at_speed(&frf.freqs_hz, &roots, teeth, options.lobes, s);
+            line_roots(stationary, &milling, &mut roots);
+            let fixed = limit_at_speed(&stationary.freqs_hz, &roots, teeth, options.lobes, s);
+            Ok([dynamic, fixed])
+        })
+        .collect::<Result<_, StabilityError>>()?;
+    let build = |which: usize| StabilityLimit {
+        speed_rpm: speeds.clone(),
+        depth_m: rows.iter().map(|r| r[which].0).collect(),
+        chatter_hz: rows.iter().map(|r| r[which].1).collect(),
+        lobe: rows.iter().map(|r| r[which].2).collect(),
+    };
+    Ok(SpeedDependentLimit { speed_dependent: build(0), stationary: build(1) })
+}

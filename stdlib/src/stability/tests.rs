@@ -1,0 +1,331 @@
+use super::*;
+use num_complex::Complex64;
+use std::f64::consts::{PI, TAU};
+
+fn benchmark_model() -> ModalModel {
+    ModalModel::new(vec![Mode { freq_hz: 922.0, damping_ratio: 0.011, modal_mass_kg: 0.03993 }], vec![]).unwrap()
+}
+
+fn benchmark_milling(immersion: f64) -> Milling {
+    Milling::new(2, immersion, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap()
+}
+
+/// Static stiffness of the benchmark mode, `k = m ω_n²`, N/m.
+fn benchmark_stiffness() -> f64 {
+    0.03993 * (TAU * 922.0).powi(2)
+}
+
+fn fine_grid() -> Vec<f64> {
+    (1..=40_000).map(|i| 0.1 * i as f64).collect()
+}
+
+fn tight() -> SdOptions {
+    SdOptions { steps: 40, scan_points: 40, depth_tolerance_m: 1e-9 }
+}
+
+/// Mean of `H(t)` over a revolution equals `−(N Kt/4π)[α]` (the ZOA's averaged matrix), and the exact step
+/// integral equals a fine midpoint quadrature of the screened `H`: both solvers share one force convention.
+#[test]
+fn averaged_force_matrix_matches_directional_factors() {
+    for (imm, dir) in [(0.05, MillingDirection::Down), (0.3, MillingDirection::Up), (1.0, MillingDirection::Down)] {
+        let mill = Milling::new(3, imm, dir, CuttingCoefficients::from_ks_beta(8e8, 1.2).unwrap()).unwrap();
+        let alpha = mill.directional_factors();
+        let total = mill.force_matrix_integral(0.3, 0.3 + TAU);
+        let scale = -(3.0 * mill.coefficients.kt) / (4.0 * PI);
+        let steps = 200_000;
+        let mut quad = [[0.0; 2]; 2];
+        for i in 0..steps {
+            let h = mill.force_matrix(0.3 + TAU * (i as f64 + 0.5) / steps as f64);
+            for r in 0..2 {
+                for c in 0..2 {
+                    quad[r][c] += h[r][c] * TAU / steps as f64;
+                }
+            }
+        }
+        for r in 0..2 {
+            for c in 0..2 {
+                let mean = total[r][c] / TAU;
+                assert!(
+                    (mean - scale * alpha[r][c]).abs() < 1e-9 * 8e8,
+                    "{imm} {r}{c}: {mean} vs {}",
+                    scale * alpha[r][c]
+                );
+                assert!(
+                    (total[r][c] - quad[r][c]).abs() < 2e-4 * 8e8,
+                    "{imm} {r}{c}: {} vs {}",
+                    total[r][c],
+                    quad[r][c]
+                );
+            }
+        }
+    }
+}
+
+/// `Kt = Ks sin β`, `Kn = Ks cos β` (equation notes, ch. 6).
+#[test]
+fn ks_beta_maps_to_kt_kn() {
+    let k = CuttingCoefficients::from_ks_beta(1e9, 70f64.to_radians()).unwrap();
+    assert!(
+        (k.kt - 1e9 * 70f64.to_radians().sin()).abs() < 1e-3 && (k.kn - 1e9 * 70f64.to_radians().cos()).abs() < 1e-3
+    );
+    assert!(CuttingCoefficients::from_ks_beta(1e9, 0.0).is_err());
+}
+
+/// Closed-form SDOF minimum (Schmitz & Smith, *Machining Dynamics*, Eq. 4.24 form): with one flexible
+/// direction `d` the only non-zero eigenvalue is `α_dd Φ_dd`, so `b_lim = 2π/(N Kt α_dd Re Φ)` and
+/// `b_lim,min = −1/(2 Kt μ N* min Re Φ)` with `N* = N φ_p/2π` teeth in cut and `μ = −α_dd/(2 φ_p)`; for slotting
+/// `μ = Kr/2` and the extreme is `min Re Φ = −1/(4kζ(1 + ζ))`; when `μ < 0` it is `max Re Φ = 1/(4kζ(1 − ζ))`.
+/// Checked for slotting (x flexible) and 50 % up-milling (y flexible, `α_yy = ½[−cos 2φ − 2Krφ − Kr sin 2φ]`
+/// evaluated here from the textbook formula).
+#[test]
+fn zoa_sdof_minimum_matches_closed_form() {
+    let k = benchmark_stiffness();
+    let min_re = -1.0 / (4.0 * k * 0.011 * 1.011);
+    let freqs = fine_grid();
+    let opts = ZoaOptions { lobes: 5, speeds_rpm: vec![10_000.0], keep_lobes: false };
+    // Slotting, x flexible: b = 8kζ(1+ζ)/(N Kn) = 0.29805 mm.
+    let frf = benchmark_model().receptance(&freqs).unwrap();
+    let z = zoa_lobes(&frf, &benchmark_milling(1.0), &opts).unwrap();
+    let (n_star, mu) = (2.0 * PI / TAU, (2e8 / 6e8) / 2.0);
+    let closed = -1.0 / (2.0 * 6e8 * mu * n_star * min_re);
+    assert!((z.min_depth_m - closed).abs() < 1e-6 * closed, "{} vs {closed}", z.min_depth_m);
+    assert!((closed - 2.9805e-4).abs() < 1e-7);
+    assert!((z.min_depth_chatter_hz - 922.0 * (1.0f64 + 0.022).sqrt()).abs() < 0.2);
+    // 50 % up-milling, y flexible.
+    let y_model = ModalModel::new(vec![], benchmark_model().x.clone()).unwrap();
+    let frf = y_model.receptance(&freqs).unwrap();
+    let mill = Milling::new(4, 0.5, MillingDirection::Up, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let (st, ex) = (0.0, PI / 2.0);
+    let kr = 1.0 / 3.0;
+    let a = |p: f64| 0.5 * (-(2.0 * p).cos() - 2.0 * kr * p - kr * (2.0 * p).sin());
+    let alpha_yy = a(ex) - a(st);
+    let phi_p = ex - st;
+    let mu = -alpha_yy / (2.0 * phi_p);
+    let n_star = 4.0 * phi_p / TAU;
+    // Here α_yy = 1 − Krπ/2 > 0, so μ < 0 and the limit is set by the largest Re Φ = 1/(4kζ(1 − ζ)).
+    assert!(mu < 0.0);
+    let max_re = 1.0 / (4.0 * k * 0.011 * 0.989);
+    let closed = -1.0 / (2.0 * 6e8 * mu * n_star * max_re);
+    let z = zoa_lobes(&frf, &mill, &opts).unwrap();
+    assert!((z.min_depth_m - closed).abs() < 1e-6 * closed, "{} vs {closed}", z.min_depth_m);
+}
+
+/// Every lobe point solves the characteristic equation it came from: with `Λ = −(N b Kt/4π)(1 − e^{−iωτ})`
+/// built from the point's depth, chatter frequency and speed (`τ = 60/(N n)`), `det(I + Λ[α][Φ(f)]) = 0`.
+/// Also checks the lobe-to-speed map `k + ε/2π = f τ ∈ [k, k + 1)`.
+#[test]
+fn zoa_lobe_points_solve_characteristic_equation() {
+    let model = ModalModel::new(
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass_kg: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass_kg: 0.3 }],
+    )
+    .unwrap();
+    let freqs: Vec<f64> = (1..=4000).map(|i| 0.5 * i as f64).collect();
+    let frf = model.receptance(&freqs).unwrap();
+    let mill =
+        Milling::new(3, 0.4, MillingDirection::Up, CuttingCoefficients::from_kt_kn(7e8, 2.5e8).unwrap()).unwrap();
+    let z = zoa_lobes(&frf, &mill, &ZoaOptions { lobes: 6, ..ZoaOptions::default() }).unwrap();
+    let alpha = mill.directional_factors();
+    let mut checked = 0;
+    for lobe in &z.lobes {
+        for p in lobe.points.iter().step_by(37) {
+            let j = freqs.iter().position(|&f| f == p.chatter_hz).unwrap();
+            let tau = 60.0 / (3.0 * p.speed_rpm);
+            let w = TAU * p.chatter_hz;
+            let ft = p.chatter_hz * tau;
+            assert!(ft >= lobe.index as f64 && ft < lobe.index as f64 + 1.0, "{ft} for lobe {}", lobe.index);
+            let lam = -(3.0 * p.depth_m * 7e8 / (4.0 * PI)) * (1.0 - Complex64::from_polar(1.0, -w * tau));
+            let (xx, yy) = (frf.xx[j], frf.yy[j]);
+            let m =
+                [[lam * alpha[0][0] * xx, lam * alpha[0][1] * yy], [lam * alpha[1][0] * xx, lam * alpha[1][1] * yy]];
+            let det = (1.0 + m[0][0]) * (1.0 + m[1][1]) - m[0][1] * m[1][0];
+            let size = 1.0 + m.iter().flatten().map(|v| v.norm()).sum::<f64>().powi(2);
+            assert!(det.norm() < 1e-10 * size, "det {det} at {p:?}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 50, "{checked}");
+}
+
+/// First-order SD converges with the number of steps per tooth period, about second order
+/// (slotting benchmark, 10,000 rpm): m = 10, 20, 40, 80, 160 give 0.4491, 0.3481, 0.3286, 0.3239, 0.3228 mm,
+/// successive differences 1.0e-4, 2.0e-5, 4.7e-6, 1.1e-6 m.
+#[test]
+fn sd_converges_with_steps() {
+    let model = benchmark_model();
+    let mill = benchmark_milling(1.0);
+    let b: Vec<f64> = [10, 20, 40, 80, 160]
+        .iter()
+        .map(|&m| sd_depth_limit(&model, &mill, 10_000.0, 1e-3, &SdOptions { steps: m, ..tight() }).unwrap().depth_m)
+        .collect();
+    let diffs: Vec<f64> = b.windows(2).map(|w| (w[0] - w[1]).abs()).collect();
+    for w in diffs.windows(2) {
+        assert!(w[1] < w[0] / 3.0, "{b:?}");
+    }
+    assert!((b[2] - b[4]).abs() < 0.02 * b[4], "{b:?}");
+    assert!((b[4] - 3.228e-4).abs() < 2e-6, "{b:?}");
+}
+
+/// Slotting benchmark (Insperger & Stépán 2004, IJNME 61:117–141, Fig. 6 parameters; also Ding et al. 2010,
+/// IJMTM 50:502–509, Table 1 a/D = 1): the SD Hopf lobe minima lie within 10 % above the ZOA minimum
+/// 0.2981 mm (SD: 0.3208 mm near 16,000 rpm, lobe k = 1), and SD shows the flip lobe of two-tooth slotting
+/// near 20,000 rpm.
+#[test]
+fn slotting_benchmark_zoa_and_sd_agree_on_lobe_minima() {
+    let model = benchmark_model();
+    let mill = benchmark_milling(1.0);
+    let zoa = zoa_lobes(&model.receptance(&fine_grid()).unwrap(), &mill, &ZoaOptions::default()).unwrap();
+    let speeds: Vec<f64> = (0..=20).map(|i| 15_000.0 + 100.0 * i as f64).collect();
+    let sd = sd_depth_limits(&model, &mill, &speeds, 4e-3, &tight()).unwrap();
+    let sd_min = sd.iter().map(|l| l.depth_m).fold(f64::INFINITY, f64::min);
+    assert!(sd_min > zoa.min_depth_m && sd_min < 1.10 * zoa.min_depth_m, "{sd_min} vs {}", zoa.min_depth_m);
+    assert!(sd.iter().all(|l| l.kind == Some(Bifurcation::Hopf)));
+    let flip = sd_depth_limit(&model, &mill, 20_000.0, 4e-3, &tight()).unwrap();
+    assert_eq!(flip.kind, Some(Bifurcation::Flip));
+    assert!((flip.multiplier + 1.0).norm() < 1e-3, "{}", flip.multiplier);
+}
+
+/// Low immersion (a/D = 0.05, down-milling): SD finds period-doubling lobes where the multiplier leaves through
+/// −1 (10,500 rpm: 2.47 mm; 16,500 rpm: 4.41 mm) that the ZOA misses (5.64 mm and 9.45 mm), while on a Hopf
+/// lobe (21,500 rpm) the two agree within 5 % (1.76 vs 1.80 mm).
+#[test]
+fn low_immersion_flip_lobes_missed_by_zoa() {
+    let model = benchmark_model();
+    let mill = benchmark_milling(0.05);
+    let speeds = vec![10_500.0, 16_500.0, 21_500.0];
+    let zoa = zoa_lobes(
+        &model.receptance(&fine_grid()).unwrap(),
+        &mill,
+        &ZoaOptions { lobes: 20, speeds_rpm: speeds.clone(), keep_lobes: false },
+    )
+    .unwrap();
+    let sd = sd_depth_limits(&model, &mill, &speeds, 10e-3, &tight()).unwrap();
+    for i in 0..2 {
+        assert_eq!(sd[i].kind, Some(Bifurcation::Flip), "{:?}", sd[i]);
+        assert!((sd[i].multiplier + 1.0).norm() < 1e-3, "{:?}", sd[i]);
+        assert!(sd[i].depth_m < 0.6 * zoa.limit.depth_m[i], "{:?} vs {}", sd[i], zoa.limit.depth_m[i]);
+        // Just below the boundary the flip multiplier is inside the unit circle on the negative real axis.
+        let below = sd_spectral_radius(&model, &mill, speeds[i], sd[i].depth_m - 1e-6, &tight()).unwrap();
+        assert!(below.spectral_radius < 1.0 && below.kind == Bifurcation::Flip);
+    }
+    assert_eq!(sd[2].kind, Some(Bifurcation::Hopf));
+    assert!((sd[2].depth_m - zoa.limit.depth_m[2]).abs() < 0.05 * zoa.limit.depth_m[2]);
+    assert!((sd[2].depth_m - 1.7625e-3).abs() < 1e-5, "{:?}", sd[2]);
+}
+
+/// Chatter frequency versus speed: at the ZOA envelope on lobe k = 1 of the slotting benchmark (16,000 rpm) the
+/// SD Hopf multiplier `μ = e^{iω_c τ}` gives the same chatter frequency modulo the tooth frequency, and the ZOA
+/// frequency lies in lobe 1's band `f τ ∈ [1, 2)`.
+#[test]
+fn chatter_frequency_speed_mapping_agrees_with_sd() {
+    let model = benchmark_model();
+    let mill = benchmark_milling(1.0);
+    let speed = 16_000.0;
+    let zoa = zoa_lobes(
+        &model.receptance(&fine_grid()).unwrap(),
+        &mill,
+        &ZoaOptions { lobes: 10, speeds_rpm: vec![speed], keep_lobes: false },
+    )
+    .unwrap();
+    let tau = mill.tooth_period(speed);
+    let fc = zoa.limit.chatter_hz[0];
+    assert_eq!(zoa.limit.lobe[0], Some(1));
+    assert!((fc * tau - 1.5).abs() < 0.5);
+    let sd = sd_depth_limit(&model, &mill, speed, 1e-3, &tight()).unwrap();
+    let phase = sd.multiplier.arg() / TAU;
+    let candidates = [(1.0 + phase) / tau, (2.0 - phase) / tau];
+    let best = candidates.iter().map(|f| (f - fc).abs()).fold(f64::INFINITY, f64::min);
+    assert!(best < 0.02 * fc, "ZOA {fc} Hz vs SD {candidates:?}");
+}
+
+/// SD numbers do not depend on the thread count.
+#[test]
+fn sd_is_thread_count_independent() {
+    let model = ModalModel::new(
+        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
+        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+    )
+    .unwrap();
+    let mill =
+        Milling::new(4, 0.3, MillingDirection::Down, CuttingCoefficients::from_kt_kn(7e8, 2e8).unwrap()).unwrap();
+    let speeds: Vec<f64> = (0..6).map(|i| 5000.0 + 700.0 * i as f64).collect();
+    let depths = [0.2e-3, 2e-3, 20e-3];
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| sd_stability_map(&model, &mill, &speeds, &depths, &SdOptions::default()).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert!(a.spectral_radius.iter().zip(&b.spectral_radius).all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert!(a.spectral_radius.iter().any(|r| *r < 1.0) && a.spectral_radius.iter().any(|r| *r > 1.0));
+}
+
+/// Speed-independent FRFs at nine speeds and a flat coefficient table: the speed-dependent limit equals the
+/// stationary one and the ZOA envelope on the same speeds; speeds beyond the measured ones are refused.
+#[test]
+fn speed_dependent_equals_stationary_for_constant_frfs() {
+    let model = ModalModel::new(
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass_kg: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass_kg: 0.3 }],
+    )
+    .unwrap();
+    let freqs: Vec<f64> = (1..=2000).map(|i| i as f64).collect();
+    let frf = model.receptance(&freqs).unwrap();
+    let frfs: Vec<SpeedFrf> = (0..9).map(|i| SpeedFrf { speed_rpm: 500.0 * i as f64, frf: frf.clone() }).collect();
+    let table = CoefficientTable::KsBeta(vec![[0.0, 8e8, 1.2], [2000.0, 8e8, 1.2], [4000.0, 8e8, 1.2]]);
+    let opts = SpeedDependentOptions::default();
+    let out = speed_dependent_lobes(&frfs, &table, 4, 0.25, MillingDirection::Up, &frf, &opts).unwrap();
+    assert_eq!(out.speed_dependent.speed_rpm.len(), 800);
+    let mill =
+        Milling::new(4, 0.25, MillingDirection::Up, CuttingCoefficients::from_ks_beta(8e8, 1.2).unwrap()).unwrap();
+    let zoa = zoa_lobes(
+        &frf,
+        &mill,
+        &ZoaOptions { lobes: 20, speeds_rpm: out.stationary.speed_rpm.clone(), keep_lobes: false },
+    )
+    .unwrap();
+    let mut finite = 0;
+    for i in 0..800 {
+        let (d, s, e) = (out.speed_dependent.depth_m[i], out.stationary.depth_m[i], zoa.limit.depth_m[i]);
+        assert!(d == s || (d - s).abs() <= 1e-9 * s, "{i}: {d} vs {s}");
+        assert!(d == e || (d - e).abs() <= 1e-9 * e, "{i}: {d} vs {e}");
+        finite += usize::from(d.is_finite());
+    }
+    assert!(finite > 700);
+    let far = SpeedDependentOptions { range_rpm: Some((100.0, 4500.0)), ..opts };
+    assert!(matches!(
+        speed_dependent_lobes(&frfs, &table, 4, 0.25, MillingDirection::Up, &frf, &far),
+        Err(StabilityError::Extrapolation { .. })
+    ));
+}
+
+/// The cubic speed interpolation is exact for FRFs linear in speed and follows the natural spline weights.
+#[test]
+fn speed_interpolation_is_exact_for_linear_change() {
+    let knots: Vec<f64> = (0..9).map(|i| 500.0 * i as f64).collect();
+    for s in [5.0, 1234.0, 3999.0] {
+        let w = speed::spline_weights(&knots, s);
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!((w.iter().zip(&knots).map(|(w, k)| w * k).sum::<f64>() - s).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn errors_name_the_problem() {
+    let k = CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap();
+    assert_eq!(Milling::new(0, 0.5, MillingDirection::Up, k), Err(StabilityError::NoTeeth));
+    assert_eq!(Milling::new(2, 0.0, MillingDirection::Up, k), Err(StabilityError::Immersion(0.0)));
+    assert_eq!(Milling::new(2, 1.5, MillingDirection::Up, k), Err(StabilityError::Immersion(1.5)));
+    let c = vec![Complex64::new(1e-7, 0.0); 3];
+    let e = ToolPointFrf::from_pair(&[1.0, 2.0, 3.0], c.clone(), &[1.0, 2.0, 3.5], c.clone()).unwrap_err();
+    assert!(e.to_string().contains("line 2"), "{e}");
+    // A positive real (stiffness-like) receptance has no line with Re Λ < 0 in slotting.
+    let frf = ToolPointFrf::new(vec![1.0, 2.0, 3.0], c.clone(), c).unwrap();
+    assert!(matches!(
+        zoa_lobes(&frf, &benchmark_milling(1.0), &ZoaOptions::default()),
+        Err(StabilityError::NoResonance { .. })
+    ));
+    assert!(ModalModel::new(vec![Mode { freq_hz: 100.0, damping_ratio: 1.5, modal_mass_kg: 1.0 }], vec![]).is_err());
+}

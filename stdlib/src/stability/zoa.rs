@@ -1,0 +1,366 @@
+//! Zero-order approximation of milling stability (Altintas & Budak 1995, CIRP Annals 44:357–362; Altintas,
+//! *Manufacturing Automation*, 2nd ed., §3.5). With the time-averaged force matrix `H0 = −(N Kt/4π)[α]` the
+//! characteristic equation is `det(I + Λ [α][Φ(iω_c)]) = 0`, `Λ = −(N a Kt/4π)(1 − e^{−iω_c τ})`, so
+//! `Λ = −1/λ` for each eigenvalue `λ` of `[α][Φ]`. A real depth needs
+//! `b_lim = −2π Λ_R (1 + κ²)/(N Kt)`, `κ = Λ_I/Λ_R` (only lines with `Λ_R < 0`), and the phase
+//! `ε = π − 2 atan κ` places lobe `k` at `n = 60 f_c / (N (k + ε/2π))` rpm.
+
+use super::{Milling, StabilityError};
+use num_complex::Complex64;
+use std::f64::consts::{PI, TAU};
+
+/// Tool-point receptances in the feed (`x`) and normal (`y`) directions on one frequency grid, m/N.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolPointFrf {
+    /// Frequency lines, Hz, strictly increasing.
+    pub freqs_hz: Vec<f64>,
+    /// `Φxx`, m/N.
+    pub xx: Vec<Complex64>,
+    /// `Φyy`, m/N.
+    pub yy: Vec<Complex64>,
+    /// Optional cross terms `(Φxy, Φyx)`, m/N.
+    pub cross: Option<(Vec<Complex64>, Vec<Complex64>)>,
+}
+
+impl ToolPointFrf {
+    /// Direct receptances on a common grid (no cross terms).
+    pub fn new(freqs_hz: Vec<f64>, xx: Vec<Complex64>, yy: Vec<Complex64>) -> Result<Self, StabilityError> {
+        let frf = ToolPointFrf { freqs_hz, xx, yy, cross: None };
+        frf.validate()?;
+        Ok(frf)
+    }
+
+    /// Direct receptances measured on two grids, which must be the same (to 1e-9 relative).
+    pub fn from_pair(
+        freqs_x_hz: &[f64],
+        xx: Vec<Complex64>,
+        freqs_y_hz: &[f64],
+        yy: Vec<Complex64>,
+    ) -> Result<Self, StabilityError> {
+        if freqs_x_hz.len() != freqs_y_hz.len() {
+            return Err(StabilityError::GridMismatch {
+                what: "x and y FRF grids",
+                detail: format!("{} lines in x, {} in y", freqs_x_hz.len(), freqs_y_hz.len()),
+            });
+        }
+        if let Some(i) =
+            freqs_x_hz.iter().zip(freqs_y_hz).position(|(a, b)| (a - b).abs() > 1e-9 * a.abs().max(b.abs()))
+        {
+            return Err(StabilityError::GridMismatch {
+                what: "x and y FRF grids",
+                detail: format!("line {i} is {} Hz in x and {} Hz in y", freqs_x_hz[i], freqs_y_hz[i]),
+            });
+        }
+        Self::new(freqs_x_hz.to_vec(), xx, yy)
+    }
+
+    /// Adds the cross receptances `Φxy` (x response to a y force) and `Φyx`.
+    pub fn with_cross(mut self, xy: Vec<Complex64>, yx: Vec<Complex64>) -> Result<Self, StabilityError> {
+        self.cross = Some((xy, yx));
+        self.validate()?;
+        Ok(self)
+    }
+
+    fn validate(&self) -> Result<(), StabilityError> {
+        let n = self.freqs_hz.len();
+        let mut series: Vec<(&'static str, &[Complex64])> = vec![("Φxx", &self.xx), ("Φyy", &self.yy)];
+        if let Some((xy, yx)) = &self.cross {
+            series.push(("Φxy", xy));
+            series.push(("Φyx", yx));
+        }
+        for (what, s) in series {
+            if s.len() != n {
+                return Err(StabilityError::GridMismatch {
+                    what,
+                    detail: format!("{} values for {n} frequency lines", s.len()),
+                });
+            }
+            if let Some(index) = s.iter().position(|z| !z.is_finite()) {
+                return Err(StabilityError::NonFinite { what, index });
+            }
+        }
+        if let Some(index) = self.freqs_hz.iter().position(|f| !f.is_finite() || *f < 0.0) {
+            return Err(StabilityError::NonFinite { what: "frequency grid (finite, ≥ 0 Hz)", index });
+        }
+        if let Some(i) = self.freqs_hz.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(StabilityError::GridMismatch {
+                what: "frequency grid",
+                detail: format!("not strictly increasing at line {}", i + 1),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Options of [`zoa_lobes`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZoaOptions {
+    /// Number of lobes `k = 0 … lobes − 1`.
+    pub lobes: usize,
+    /// Speeds (rpm, increasing, > 0) at which the envelope is evaluated.
+    pub speeds_rpm: Vec<f64>,
+    /// Keep the per-lobe curves (set false when only the envelope is wanted).
+    pub keep_lobes: bool,
+}
+
+impl Default for ZoaOptions {
+    fn default() -> Self {
+        ZoaOptions { lobes: 20, speeds_rpm: (1..=2000).map(|i| 10.0 * i as f64).collect(), keep_lobes: true }
+    }
+}
+
+/// One point of a lobe.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LobePoint {
+    /// Spindle speed, rpm.
+    pub speed_rpm: f64,
+    /// Limiting axial depth, m.
+    pub depth_m: f64,
+    /// Chatter frequency, Hz.
+    pub chatter_hz: f64,
+}
+
+/// A run of lobe `index` over contiguous frequency lines (one eigenvalue branch), in order of frequency.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lobe {
+    /// Lobe number `k` (number of whole waves between teeth).
+    pub index: usize,
+    /// Eigenvalue branch, 0 or 1.
+    pub branch: usize,
+    /// Points in order of chatter frequency.
+    pub points: Vec<LobePoint>,
+}
+
+/// The stability limit on a speed grid: the lowest lobe through each speed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StabilityLimit {
+    /// Speeds, rpm.
+    pub speed_rpm: Vec<f64>,
+    /// Limiting depth, m; `+∞` where no lobe of the band passes (no limit found, not a stable guarantee).
+    pub depth_m: Vec<f64>,
+    /// Chatter frequency of the limiting lobe, Hz (0 where no lobe passes).
+    pub chatter_hz: Vec<f64>,
+    /// Lobe number `k` that sets the limit.
+    pub lobe: Vec<Option<usize>>,
+}
+
+impl StabilityLimit {
+    fn unbounded(speeds: &[f64]) -> Self {
+        StabilityLimit {
+            speed_rpm: speeds.to_vec(),
+            depth_m: vec![f64::INFINITY; speeds.len()],
+            chatter_hz: vec![0.0; speeds.len()],
+            lobe: vec![None; speeds.len()],
+        }
+    }
+
+    fn offer(&mut self, i: usize, depth: f64, chatter: f64, k: usize) {
+        if depth < self.depth_m[i] {
+            self.depth_m[i] = depth;
+            self.chatter_hz[i] = chatter;
+            self.lobe[i] = Some(k);
+        }
+    }
+}
+
+/// Lobes and envelope of [`zoa_lobes`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZoaLobes {
+    /// Per-lobe curves (empty unless `keep_lobes`).
+    pub lobes: Vec<Lobe>,
+    /// The envelope on the requested speeds.
+    pub limit: StabilityLimit,
+    /// The smallest limiting depth of any line (the common minimum of all lobes), m.
+    pub min_depth_m: f64,
+    /// Chatter frequency at that minimum, Hz.
+    pub min_depth_chatter_hz: f64,
+}
+
+/// Depth and phase fraction `e = ε/2π` of one eigenvalue branch at one line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LineRoot {
+    pub depth: f64,
+    pub e: f64,
+}
+
+/// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching).
+pub(crate) fn line_roots(frf: &ToolPointFrf, milling: &Milling, out: &mut Vec<[Option<LineRoot>; 2]>) {
+    let a = milling.directional_factors();
+    let n_kt = milling.teeth as f64 * milling.coefficients.kt;
+    out.clear();
+    out.reserve(frf.freqs_hz.len());
+    let zero = Complex64::new(0.0, 0.0);
+    let mut prev: Option<[Complex64; 2]> = None;
+    for j in 0..frf.freqs_hz.len() {
+        let (xx, yy) = (frf.xx[j], frf.yy[j]);
+        let (xy, yx) = frf.cross.as_ref().map_or((zero, zero), |(p, q)| (p[j], q[j]));
+        let m00 = xx * a[0][0] + yx * a[0][1];
+        let m01 = xy * a[0][0] + yy * a[0][1];
+        let m10 = xx * a[1][0] + yx * a[1][1];
+        let m11 = xy * a[1][0] + yy * a[1][1];
+        let half_tr = 0.5 * (m00 + m11);
+        let disc = (half_tr * half_tr - (m00 * m11 - m01 * m10)).sqrt();
+        let mut lam = [half_tr + disc, half_tr - disc];
+        if let Some(p) = prev
+            && (lam[0] - p[0]).norm() + (lam[1] - p[1]).norm() > (lam[0] - p[1]).norm() + (lam[1] - p[0]).norm()
+        {
+            lam.swap(0, 1);
+        }
+        prev = Some(lam);
+        let root = |l: Complex64| -> Option<LineRoot> {
+            if frf.freqs_hz[j] <= 0.0 || l.norm_sqr() == 0.0 {
+                return None;
+            }
+            let big = -l.inv();
+            if big.re.is_nan() || big.re >= 0.0 {
+                return None;
+            }
+            let depth = -TAU * big.norm_sqr() / (big.re * n_kt);
+            let eps = PI - 2.0 * (big.im / big.re).atan();
+            (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e: eps / TAU })
+        };
+        out.push([root(lam[0]), root(lam[1])]);
+    }
+}
+
+/// Linear interpolation of a lobe segment at speed `s` (the same arithmetic for the envelope and the
+/// speed-dependent limit).
+#[inline]
+pub(crate) fn segment_at(n1: f64, a1: f64, f1: f64, n2: f64, a2: f64, f2: f64, s: f64) -> (f64, f64) {
+    if n2 == n1 {
+        return if a1 <= a2 { (a1, f1) } else { (a2, f2) };
+    }
+    let t = (s - n1) / (n2 - n1);
+    (a1 + t * (a2 - a1), f1 + t * (f2 - f1))
+}
+
+/// ZOA lobes and their envelope on `options.speeds_rpm`. Every lobe has the same minimum depth (the depth
+/// depends on the chatter frequency only), reported as [`ZoaLobes::min_depth_m`].
+pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) -> Result<ZoaLobes, StabilityError> {
+    frf.validate()?;
+    let grid = &options.speeds_rpm;
+    if let Some(i) = grid.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(StabilityError::InvalidParameter {
+            name: "speed grid value",
+            value: grid[i],
+            requirement: "finite and > 0 rpm",
+        });
+    }
+    if let Some(i) = grid.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(StabilityError::InvalidParameter {
+            name: "speed grid value",
+            value: grid[i + 1],
+            requirement: "speeds must increase strictly",
+        });
+    }
+    let mut roots = Vec::new();
+    line_roots(frf, milling, &mut roots);
+    let (mut min_depth, mut min_f) = (f64::INFINITY, 0.0);
+    for (j, r) in roots.iter().enumerate() {
+        for x in r.iter().flatten() {
+            if x.depth < min_depth {
+                min_depth = x.depth;
+                min_f = frf.freqs_hz[j];
+            }
+        }
+    }
+    if !min_depth.is_finite() {
+        return Err(StabilityError::NoResonance {
+            f_lo: frf.freqs_hz.first().copied().unwrap_or(0.0),
+            f_hi: frf.freqs_hz.last().copied().unwrap_or(0.0),
+        });
+    }
+    let mut limit = StabilityLimit::unbounded(grid);
+    let mut lobes = Vec::new();
+    let per_tooth = 60.0 / milling.teeth as f64;
+    for branch in 0..2 {
+        for k in 0..options.lobes {
+            let kf = k as f64;
+            let mut cursor = 0usize;
+            let mut prev: Option<(f64, f64, f64)> = None;
+            let mut points: Vec<LobePoint> = Vec::new();
+            for (j, r) in roots.iter().enumerate() {
+                let Some(x) = r[branch] else {
+                    prev = None;
+                    if options.keep_lobes && !points.is_empty() {
+                        lobes.push(Lobe { index: k, branch, points: std::mem::take(&mut points) });
+                    }
+                    continue;
+                };
+                let f = frf.freqs_hz[j];
+                let n = per_tooth * f / (kf + x.e);
+                if options.keep_lobes {
+                    points.push(LobePoint { speed_rpm: n, depth_m: x.depth, chatter_hz: f });
+                }
+                // Grid points between the previous and this point of the lobe.
+                while cursor > 0 && grid[cursor - 1] >= n {
+                    cursor -= 1;
+                }
+                while cursor < grid.len() && grid[cursor] < n {
+                    cursor += 1;
+                }
+                if let Some((n1, a1, f1)) = prev {
+                    let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
+                    let mut i = cursor;
+                    if n1 <= n {
+                        // Walk down from the point at n to n1.
+                        if i < grid.len() && grid[i] == n {
+                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
+                            limit.offer(i, d, fc, k);
+                        }
+                        while i > 0 && grid[i - 1] >= lo {
+                            i -= 1;
+                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
+                            limit.offer(i, d, fc, k);
+                        }
+                    } else {
+                        while i < grid.len() && grid[i] <= hi {
+                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
+                            limit.offer(i, d, fc, k);
+                            i += 1;
+                        }
+                    }
+                }
+                prev = Some((n, x.depth, f));
+            }
+            if options.keep_lobes && !points.is_empty() {
+                lobes.push(Lobe { index: k, branch, points });
+            }
+        }
+    }
+    Ok(ZoaLobes { lobes, limit, min_depth_m: min_depth, min_depth_chatter_hz: min_f })
+}
+
+/// ZOA limit at one speed from the lobes passing through it: for each pair of adjacent valid lines and each
+/// lobe `k` whose speed `60 f/(N(k + e))` brackets `speed_rpm`, the depth interpolated as in [`zoa_lobes`].
+pub(crate) fn limit_at_speed(
+    freqs_hz: &[f64],
+    roots: &[[Option<LineRoot>; 2]],
+    teeth: usize,
+    lobes: usize,
+    speed_rpm: f64,
+) -> (f64, f64, Option<usize>) {
+    let per_tooth = 60.0 / teeth as f64;
+    let period = per_tooth / speed_rpm;
+    let mut best = (f64::INFINITY, 0.0, None);
+    for branch in 0..2 {
+        for j in 1..roots.len() {
+            let (Some(p), Some(q)) = (roots[j - 1][branch], roots[j][branch]) else { continue };
+            let (f1, f2) = (freqs_hz[j - 1], freqs_hz[j]);
+            let (u1, u2) = (f1 * period - p.e, f2 * period - q.e);
+            let (lo, hi) = if u1 <= u2 { (u1, u2) } else { (u2, u1) };
+            let k_lo = lo.ceil().max(0.0);
+            let k_hi = hi.floor().min(lobes as f64 - 1.0);
+            let mut kf = k_lo;
+            while kf <= k_hi {
+                let (n1, n2) = (per_tooth * f1 / (kf + p.e), per_tooth * f2 / (kf + q.e));
+                let (d, fc) = segment_at(n1, p.depth, f1, n2, q.depth, f2, speed_rpm);
+                if d < best.0 {
+                    best = (d, fc, Some(kf as usize));
+                }
+                kf += 1.0;
+            }
+        }
+    }
+    best
+}
