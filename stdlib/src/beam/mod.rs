@@ -15,6 +15,7 @@ pub mod element;
 mod linalg;
 pub mod model;
 pub mod section;
+pub mod table;
 
 #[cfg(test)]
 mod tests;

@@ -237,7 +237,9 @@ mod tests {
     fn hutchinson_radii(nu: f64, a: f64, b: f64) -> f64 {
         let (a2, b2) = (a * a, b * b);
         let (a4, b4, ab) = (a2 * a2, b2 * b2, a2 * b2);
-        let den = 7.0 * a4 + 34.0 * ab + 7.0 * b4
+        let den = 7.0 * a4
+            + 34.0 * ab
+            + 7.0 * b4
             + nu * (12.0 * a4 + 48.0 * ab + 12.0 * b4)
             + nu * nu * (4.0 * a4 + 16.0 * ab + 4.0 * b4);
         6.0 * (a2 + b2).powi(2) * (1.0 + nu).powi(2) / den

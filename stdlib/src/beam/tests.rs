@@ -4,8 +4,8 @@
 
 use super::*;
 use num_complex::Complex64;
-use spindlelab_engine::model::Component;
 use std::f64::consts::{PI, TAU};
+use table::tool_holder_sections;
 
 fn steel_no_loss() -> BeamMaterial {
     BeamMaterial { loss_factor: 0.0, ..BeamMaterial::STEEL }
@@ -15,29 +15,6 @@ fn uniform(d: f64, length: f64, material: BeamMaterial, elements: usize) -> Beam
     let seg = BeamSegment::uniform(CrossSection::solid(d, material), length);
     let mesh = MeshOptions { max_element_length: length / elements as f64 * (1.0 + 1e-12), ..MeshOptions::default() };
     BeamModel::from_segments(&[seg], &mesh).unwrap()
-}
-
-fn tool_holder_sections() -> Vec<Section> {
-    let steel = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
-    let carbide = Material { youngs_modulus: 550e9, density: 15000.0, poisson: 0.22, loss_factor: 0.0015 };
-    let d_s = [44.46, 31.76, 31.76, 31.08, 30.98, 28.04, 12.70, 10.99];
-    let d_t = [44.46, 31.76, 31.08, 30.98, 28.04, 24.20, 12.70, 10.99];
-    let d_in = [9.00, 9.00, 9.00, 13.56, 12.70, 12.70, 0.00, 0.00];
-    let len = [15.88, 1.56, 4.24, 6.90, 13.05, 25.05, 19.05, 15.88];
-    (0..8)
-        .map(|i| Section {
-            name: format!("s{}", i + 1),
-            component: if i < 6 { Component::Holder } else { Component::Tool },
-            fluted: i == 7,
-            d_out_spindle_end: d_s[i] * 1e-3,
-            d_out_tip_end: d_t[i] * 1e-3,
-            d_in: d_in[i] * 1e-3,
-            length: len[i] * 1e-3,
-            outer: if i < 6 { steel } else { carbide },
-            inner: if i >= 5 { Some(carbide) } else { None },
-            d_equivalent: if i == 7 { Some(10.99e-3) } else { None },
-        })
-        .collect()
 }
 
 /// Modal blocks `m` against direct blocks `d`, each entry relative to its block's largest
@@ -413,8 +390,8 @@ fn hutchinson_raises_first_bending_mode_of_stubby_carbide_section() {
     let exact_shift = exact[1] / exact[0] - 1.0;
     // κ rises by ε = 3.22 %; the shear strain energy rises at most by 1 + ε at a fixed shape, so
     // 0 < Δf/f ≤ √(1+ε) − 1 ≈ 1.6 %, and ≈ ε/2 times the mode's shear energy fraction.
-    let eps = ShearCoefficient::Hutchinson.hollow_circle(0.22, 0.0) / ShearCoefficient::Cowper.hollow_circle(0.22, 0.0)
-        - 1.0;
+    let eps =
+        ShearCoefficient::Hutchinson.hollow_circle(0.22, 0.0) / ShearCoefficient::Cowper.hollow_circle(0.22, 0.0) - 1.0;
     assert!(shift > 0.0 && shift < (1.0 + eps).sqrt() - 1.0, "shift {shift}");
     assert!((shift - exact_shift).abs() < 0.02 * exact_shift, "FE shift {shift} vs exact {exact_shift}");
     // 46.91 kHz → 47.00 kHz: +0.20 %, a shear energy fraction of about 13 %; a tenth of the
