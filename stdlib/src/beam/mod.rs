@@ -12,6 +12,7 @@
 //! with dampers) and the receptances by direct solve or modal expansion.
 
 pub mod element;
+pub mod equivalent;
 mod linalg;
 pub mod model;
 pub mod section;
@@ -20,6 +21,7 @@ pub mod table;
 #[cfg(test)]
 mod tests;
 
+pub use equivalent::{FlutedTool, equivalent_diameter};
 pub use model::{BeamModel, MeshOptions, ModalModel, NodeSpring, Receptance};
 pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
 
@@ -62,6 +64,16 @@ pub enum BeamError {
     /// The dynamic stiffness is singular at a frequency (e.g. 0 Hz on a free–free beam).
     #[error("dynamic stiffness is singular at {0} Hz (a free-free beam has no static receptance)")]
     Singular(f64),
+    /// A fluted tool's dimensions are not positive, or the equivalent cylinder (fluted length
+    /// plus half the diameter) is not shorter than the tool.
+    #[error("bad fluted tool {tool:?}: need positive sizes and fluted length + diameter/2 < overall length")]
+    BadFlutedTool { tool: FlutedTool },
+    /// No equivalent diameter in the searched range reaches the target frequency.
+    #[error(
+        "first bending frequency {target} Hz is out of reach: equivalent diameters {d_min} m to {d_max} m give \
+         {lowest} Hz to {highest} Hz; check the frequency and the tool's dimensions and material"
+    )]
+    EquivalentOutOfReach { target: f64, lowest: f64, highest: f64, d_min: f64, d_max: f64 },
     /// The mass matrix is not positive definite.
     #[error("mass matrix is not positive definite")]
     MassNotDefinite,
