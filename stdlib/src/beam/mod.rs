@@ -9,13 +9,17 @@
 //!
 //! [`section`] computes EI, κGA, ρA, ρI of circular/hollow/composite sections,
 //! [`element`] the 4×4 Timoshenko matrices, [`model`] the assembly (point masses, springs
-//! with dampers) and the receptances by direct solve or modal expansion.
+//! with dampers) and the receptances by direct solve or modal expansion, [`spinning`] the
+//! speed-dependent model of both planes with gyroscopic coupling (§5.4 rotor, Nelson 1980),
+//! [`equivalent`] the equivalent diameter of a fluted tool (§5.3), and [`table`] the Table 5.1
+//! reference geometries.
 
 pub mod element;
 pub mod equivalent;
 mod linalg;
 pub mod model;
 pub mod section;
+pub mod spinning;
 pub mod table;
 
 #[cfg(test)]
@@ -24,6 +28,7 @@ mod tests;
 pub use equivalent::{FlutedTool, equivalent_diameter};
 pub use model::{BeamModel, MeshOptions, ModalModel, NodeSpring, Receptance};
 pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
+pub use spinning::{SpinningModel, SpinningReceptance, Whirl};
 
 use spindlelab_engine::model::{Material, Section};
 use thiserror::Error;
@@ -61,6 +66,9 @@ pub enum BeamError {
     /// A frequency is negative or not finite.
     #[error("frequency {0} Hz must be finite and >= 0")]
     BadFrequency(f64),
+    /// A spin speed is not finite.
+    #[error("spin speed {0} rad/s must be finite")]
+    BadSpeed(f64),
     /// The dynamic stiffness is singular at a frequency (e.g. 0 Hz on a free–free beam).
     #[error("dynamic stiffness is singular at {0} Hz (a free-free beam has no static receptance)")]
     Singular(f64),

@@ -8,8 +8,8 @@
 
 use super::BeamError;
 use super::element;
-use super::linalg::{complex_solve, generalized_eigen};
-use super::section::{BeamSegment, ShearCoefficient};
+use super::linalg::{bandwidth, complex_solve, complex_solve_banded, generalized_eigen};
+use super::section::{BeamSegment, SectionProperties, ShearCoefficient};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -56,6 +56,8 @@ pub struct BeamModel {
     c: Vec<f64>,
     m: Vec<f64>,
     springs: Vec<(usize, NodeSpring)>,
+    /// Section properties and length of each element, spindle end first.
+    elements: Vec<(SectionProperties, f64)>,
 }
 
 impl BeamModel {
@@ -96,6 +98,7 @@ impl BeamModel {
             c: vec![0.0; n * n],
             m: vec![0.0; n * n],
             springs: Vec::new(),
+            elements: Vec::new(),
         };
         for (e, (props, le)) in elements.iter().enumerate() {
             let ke = element::stiffness(props, *le);
@@ -110,6 +113,7 @@ impl BeamModel {
                 }
             }
         }
+        model.elements = elements;
         Ok(model)
     }
 
@@ -147,6 +151,27 @@ impl BeamModel {
     /// Consistent mass matrix M (including point masses), row-major.
     pub fn mass(&self) -> &[f64] {
         &self.m
+    }
+
+    /// Hysteretic stiffness `Σ η_e K_e` (the imaginary part of the complex stiffness), row-major.
+    pub fn loss_stiffness(&self) -> &[f64] {
+        &self.k_loss
+    }
+
+    /// Viscous damping matrix C of the node dampers, row-major.
+    pub fn damping(&self) -> &[f64] {
+        &self.c
+    }
+
+    /// Section properties and length of each element, spindle end first.
+    pub fn elements(&self) -> &[(SectionProperties, f64)] {
+        &self.elements
+    }
+
+    /// Largest distance from the diagonal of a non-zero entry of K, M, C or K_η (3 for
+    /// two-node elements with two dof per node).
+    pub fn bandwidth(&self) -> usize {
+        bandwidth(&[&self.k, &self.m, &self.c, &self.k_loss], self.n_dof())
     }
 
     /// Total mass of the model, kg (rigid translation kinetic energy).
@@ -195,7 +220,7 @@ impl BeamModel {
     }
 
     /// Receptances between `response` and `excitation` nodes at each frequency (Hz) by a
-    /// complex LU solve of `(K + iK_η + iωC − ω²M) x = f` per line.
+    /// complex banded LU solve of `(K + iK_η + iωC − ω²M) x = f` per line.
     pub fn receptance_direct(
         &self,
         response: usize,
@@ -205,6 +230,7 @@ impl BeamModel {
         self.check_node(response)?;
         self.check_node(excitation)?;
         let n = self.n_dof();
+        let band = self.bandwidth();
         let mut a = vec![Complex64::new(0.0, 0.0); n * n];
         let mut b = vec![Complex64::new(0.0, 0.0); n * 2];
         let mut out = Vec::with_capacity(freqs.len());
@@ -219,7 +245,7 @@ impl BeamModel {
             b.fill(Complex64::new(0.0, 0.0));
             b[2 * excitation * 2] = Complex64::new(1.0, 0.0);
             b[(2 * excitation + 1) * 2 + 1] = Complex64::new(1.0, 0.0);
-            if !complex_solve(&mut a, n, &mut b, 2) {
+            if !complex_solve_banded(&mut a, n, band, &mut b, 2) {
                 return Err(BeamError::Singular(f));
             }
             let (r0, r1) = (2 * response * 2, (2 * response + 1) * 2);
@@ -259,8 +285,8 @@ impl BeamModel {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalModel {
     n: usize,
-    lambda: Vec<f64>,
-    phi: Vec<f64>,
+    pub(super) lambda: Vec<f64>,
+    pub(super) phi: Vec<f64>,
     /// Projected hysteretic stiffness Φᵀ K_η Φ (n×n).
     d: Vec<f64>,
     /// Projected viscous damping Φᵀ C Φ (n×n).
@@ -269,7 +295,7 @@ pub struct ModalModel {
     rigid: usize,
 }
 
-fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
+pub(super) fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
     let mut t = vec![0.0; n * n];
     for i in 0..n {
         for k in 0..n {
