@@ -284,6 +284,34 @@ mod tests {
     }
 
     #[test]
+    fn banded_lu_matches_dense_lu_and_needs_pivoting() {
+        let (n, band) = (17, 3);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut a = vec![Complex64::new(0.0, 0.0); n * n];
+        for i in 0..n {
+            for j in i.saturating_sub(band)..(i + band + 1).min(n) {
+                a[i * n + j] = Complex64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            }
+            // Small diagonal: partial pivoting must swap rows inside the band.
+            a[i * n + i] *= 1e-3;
+        }
+        assert_eq!(bandwidth(&[&a.iter().map(|z| z.norm()).collect::<Vec<_>>()], n), band);
+        let x: Vec<Complex64> = (0..2 * n).map(|k| Complex64::new(k as f64 * 0.1 - 1.0, 0.3)).collect();
+        let b: Vec<Complex64> = (0..n)
+            .flat_map(|i| (0..2).map(move |c| (i, c)))
+            .map(|(i, c)| (0..n).map(|j| a[i * n + j] * x[j * 2 + c]).sum())
+            .collect();
+        let (mut ab, mut bb) = (a.clone(), b.clone());
+        let (mut ad, mut bd) = (a.clone(), b.clone());
+        assert!(complex_solve_banded(&mut ab, n, band, &mut bb, 2));
+        assert!(complex_solve(&mut ad, n, &mut bd, 2));
+        for k in 0..2 * n {
+            assert!((bb[k] - x[k]).norm() < 1e-10, "{k}: {} vs {}", bb[k], x[k]);
+            assert!((bb[k] - bd[k]).norm() < 1e-13);
+        }
+    }
+
+    #[test]
     fn complex_lu_solves_random_system() {
         let n = 9;
         let mut rng = ChaCha8Rng::seed_from_u64(3);

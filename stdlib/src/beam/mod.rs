@@ -54,6 +54,9 @@ pub enum BeamError {
     /// The element length limit is not positive.
     #[error("maximum element length {0} m must be positive")]
     BadElementLength(f64),
+    /// The mesh would exceed [`model::MAX_ELEMENTS`] elements.
+    #[error("the mesh needs {elements} elements, more than {limit}; use a longer maximum element length")]
+    TooManyElements { elements: f64, limit: usize },
     /// A node index is out of range.
     #[error("node {node} does not exist; the model has {nodes} nodes (0 = spindle end)")]
     NoSuchNode { node: usize, nodes: usize },

@@ -17,6 +17,9 @@ use std::f64::consts::TAU;
 /// P = θ/M (Eq. 5.2), response at the first node, excitation at the second.
 pub type Receptance = [[Complex64; 2]; 2];
 
+/// Most elements a model may have: its matrices are dense, 4 × (2·nodes)² values.
+pub const MAX_ELEMENTS: usize = 2000;
+
 /// Meshing options for [`BeamModel::from_segments`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeshOptions {
@@ -69,16 +72,31 @@ impl BeamModel {
         if !(mesh.max_element_length.is_finite() && mesh.max_element_length > 0.0) {
             return Err(BeamError::BadElementLength(mesh.max_element_length));
         }
-        let mut elements = Vec::new();
-        let mut node_x = vec![0.0];
+        let mut counts = Vec::with_capacity(segments.len());
         for (index, seg) in segments.iter().enumerate() {
             if !(seg.length.is_finite() && seg.length > 0.0) {
                 return Err(BeamError::BadLength { segment: index, length: seg.length });
             }
-            let mut count = (seg.length / mesh.max_element_length).ceil().max(1.0) as usize;
-            if seg.is_tapered() {
-                count = count.max(mesh.min_taper_elements.max(1));
+            // Both ends, so a cone whose bore breaks through at one end is caught even when
+            // every element mid-point still has a wall.
+            for end in seg.end_sections() {
+                end.properties(mesh.shear)
+                    .map_err(|err| BeamError::Segment { segment: index, source: Box::new(err) })?;
             }
+            let mut count = (seg.length / mesh.max_element_length).ceil().max(1.0);
+            if seg.is_tapered() {
+                count = count.max(mesh.min_taper_elements.max(1) as f64);
+            }
+            counts.push(count);
+        }
+        let total: f64 = counts.iter().sum();
+        if total > MAX_ELEMENTS as f64 {
+            return Err(BeamError::TooManyElements { elements: total, limit: MAX_ELEMENTS });
+        }
+        let mut elements = Vec::new();
+        let mut node_x = vec![0.0];
+        for (index, (seg, &count)) in segments.iter().zip(&counts).enumerate() {
+            let count = count as usize;
             let le = seg.length / count as f64;
             for e in 0..count {
                 let props = seg

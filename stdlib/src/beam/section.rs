@@ -211,6 +211,11 @@ impl BeamSegment {
         }
     }
 
+    /// Cross-sections at the spindle end and the tip end, with the diameters exactly as given.
+    pub fn end_sections(&self) -> [CrossSection; 2] {
+        [self.d_out_start, self.d_out_end].map(|d_out| CrossSection { d_out, ..self.section_at(0.0) })
+    }
+
     /// Whether the outer diameter changes over the segment.
     pub fn is_tapered(&self) -> bool {
         self.d_out_start != self.d_out_end

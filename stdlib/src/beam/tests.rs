@@ -398,3 +398,51 @@ fn hutchinson_raises_first_bending_mode_of_stubby_carbide_section() {
     // 2 % sometimes quoted for such modes.
     assert!(shift > 0.0015 && shift < 0.0025, "shift {shift}");
 }
+
+#[test]
+fn bad_segments_name_the_segment_and_value() {
+    let good = BeamSegment::uniform(CrossSection::solid(20e-3, BeamMaterial::STEEL), 0.05);
+    let mesh = MeshOptions::default();
+    let build = |bad: BeamSegment| BeamModel::from_segments(&[good, good, bad], &mesh);
+    for length in [0.0, -0.01, f64::NAN, f64::INFINITY] {
+        match build(BeamSegment { length, ..good }) {
+            Err(BeamError::BadLength { segment: 2, length: l }) => {
+                assert!(l == length || l.is_nan() && length.is_nan())
+            }
+            other => panic!("length {length}: {other:?}"),
+        }
+    }
+    // Bore at or above the outside, non-finite diameters, and a cone whose bore breaks through
+    // at the tip end although every element mid-point keeps a wall (20 → 8 mm over a 9 mm bore).
+    let cases = [
+        (BeamSegment { d_in: 20e-3, ..good }, 20e-3, 20e-3),
+        (BeamSegment { d_in: 25e-3, ..good }, 20e-3, 25e-3),
+        (BeamSegment { d_out_start: f64::NAN, ..good }, f64::NAN, 0.0),
+        (BeamSegment { d_out_end: f64::INFINITY, ..good }, f64::INFINITY, 0.0),
+        (BeamSegment { d_in: f64::NAN, ..good }, 20e-3, f64::NAN),
+        (BeamSegment { d_out_end: 8e-3, d_in: 9e-3, ..good }, 8e-3, 9e-3),
+        (BeamSegment { d_out_end: 0.0, ..good }, 0.0, 0.0),
+    ];
+    for (bad, d_out, d_in) in cases {
+        match build(bad) {
+            Err(BeamError::Segment { segment: 2, source }) => match *source {
+                BeamError::BadGeometry { d_out: o, d_in: i } => {
+                    let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+                    assert!(same(o, d_out) && same(i, d_in), "{o} {i}")
+                }
+                other => panic!("{bad:?}: {other:?}"),
+            },
+            other => panic!("{bad:?}: {other:?}"),
+        }
+    }
+    let e = build(BeamSegment { d_out_end: 8e-3, d_in: 9e-3, ..good }).unwrap_err().to_string();
+    assert!(e.contains("segment 2") && e.contains("0.008") && e.contains("0.009"), "{e}");
+    let nan_material = BeamSegment { outer: BeamMaterial { density: f64::NAN, ..BeamMaterial::STEEL }, ..good };
+    assert!(matches!(build(nan_material), Err(BeamError::Segment { segment: 2, .. })));
+    let fine = MeshOptions { max_element_length: 1e-6, ..mesh };
+    assert!(matches!(
+        BeamModel::from_segments(&[good], &fine),
+        Err(BeamError::TooManyElements { limit: model::MAX_ELEMENTS, .. })
+    ));
+    assert!(matches!(BeamModel::from_segments(&[], &mesh), Err(BeamError::NoSegments)));
+}
