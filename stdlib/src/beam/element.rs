@@ -54,6 +54,21 @@ pub fn mass(p: &SectionProperties, l: f64) -> Mat4 {
     [[m11, m12, m13, m14], [m12, m22, m23, m24], [m13, m23, m11, -m12], [m14, m24, -m12, m22]]
 }
 
+/// Rotary-inertia part of [`mass`]: `∫ ρI Nψᵀ Nψ dx` over the section-rotation shape
+/// functions. With ρI replaced by the polar ρI_p = 2ρI of a circular section it is the
+/// block that the spin couples between the two bending planes (Nelson 1980).
+pub fn rotary_mass(p: &SectionProperties, l: f64) -> Mat4 {
+    let f = shear_parameter(p, l);
+    let f2 = f * f;
+    let l2 = l * l;
+    let cr = p.rho_i / ((1.0 + f) * (1.0 + f) * l);
+    let r11 = cr * 6.0 / 5.0;
+    let r12 = cr * (1.0 / 10.0 - f / 2.0) * l;
+    let r22 = cr * (2.0 / 15.0 + f / 6.0 + f2 / 3.0) * l2;
+    let r24 = cr * (-1.0 / 30.0 - f / 6.0 + f2 / 6.0) * l2;
+    [[r11, r12, -r11, r12], [r12, r22, -r12, r24], [-r11, -r12, r11, -r12], [r12, r24, -r12, r22]]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,6 +101,24 @@ mod tests {
         assert!((quad([1.0, 0.0, 1.0, 0.0]) - p.rho_a * l).abs() < 1e-12 * p.rho_a * l);
         let jr = p.rho_a * l.powi(3) / 3.0 + p.rho_i * l;
         assert!((quad([0.0, 1.0, l, 1.0]) - jr).abs() < 1e-10 * jr);
+    }
+
+    #[test]
+    fn rotary_part_is_the_mass_matrix_without_translational_inertia() {
+        let p = props();
+        let l = 0.03;
+        let r = rotary_mass(&p, l);
+        let m = mass(&p, l);
+        let m0 = mass(&SectionProperties { rho_i: 0.0, ..p }, l);
+        for i in 0..4 {
+            for j in 0..4 {
+                assert!((m[i][j] - m0[i][j] - r[i][j]).abs() <= 1e-12 * m[0][0], "[{i}][{j}]");
+            }
+        }
+        // A rigid rotation ψ = 1 stores ρI L; a rigid translation none.
+        let quad = |v: [f64; 4]| -> f64 { (0..4).map(|i| (0..4).map(|j| v[i] * r[i][j] * v[j]).sum::<f64>()).sum() };
+        assert!((quad([0.0, 1.0, l, 1.0]) - p.rho_i * l).abs() < 1e-12 * p.rho_i * l);
+        assert!(quad([1.0, 0.0, 1.0, 0.0]).abs() < 1e-20);
     }
 
     #[test]

@@ -9,18 +9,26 @@
 //!
 //! [`section`] computes EI, κGA, ρA, ρI of circular/hollow/composite sections,
 //! [`element`] the 4×4 Timoshenko matrices, [`model`] the assembly (point masses, springs
-//! with dampers) and the receptances by direct solve or modal expansion.
+//! with dampers) and the receptances by direct solve or modal expansion, [`spinning`] the
+//! speed-dependent model of both planes with gyroscopic coupling (§5.4 rotor, Nelson 1980),
+//! [`equivalent`] the equivalent diameter of a fluted tool (§5.3), and [`table`] the Table 5.1
+//! reference geometries.
 
 pub mod element;
+pub mod equivalent;
 mod linalg;
 pub mod model;
 pub mod section;
+pub mod spinning;
+pub mod table;
 
 #[cfg(test)]
 mod tests;
 
+pub use equivalent::{FlutedTool, equivalent_diameter};
 pub use model::{BeamModel, MeshOptions, ModalModel, NodeSpring, Receptance};
 pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
+pub use spinning::{SpinningModel, SpinningReceptance, Whirl};
 
 use spindlelab_engine::model::{Material, Section};
 use thiserror::Error;
@@ -46,6 +54,9 @@ pub enum BeamError {
     /// The element length limit is not positive.
     #[error("maximum element length {0} m must be positive")]
     BadElementLength(f64),
+    /// The mesh would exceed [`model::MAX_ELEMENTS`] elements.
+    #[error("the mesh needs {elements} elements, more than {limit}; use a longer maximum element length")]
+    TooManyElements { elements: f64, limit: usize },
     /// A node index is out of range.
     #[error("node {node} does not exist; the model has {nodes} nodes (0 = spindle end)")]
     NoSuchNode { node: usize, nodes: usize },
@@ -58,9 +69,22 @@ pub enum BeamError {
     /// A frequency is negative or not finite.
     #[error("frequency {0} Hz must be finite and >= 0")]
     BadFrequency(f64),
+    /// A spin speed is not finite.
+    #[error("spin speed {0} rad/s must be finite")]
+    BadSpeed(f64),
     /// The dynamic stiffness is singular at a frequency (e.g. 0 Hz on a free–free beam).
     #[error("dynamic stiffness is singular at {0} Hz (a free-free beam has no static receptance)")]
     Singular(f64),
+    /// A fluted tool's dimensions are not positive, or the equivalent cylinder (fluted length
+    /// plus half the diameter) is not shorter than the tool.
+    #[error("bad fluted tool {tool:?}: need positive sizes and fluted length + diameter/2 < overall length")]
+    BadFlutedTool { tool: FlutedTool },
+    /// No equivalent diameter in the searched range reaches the target frequency.
+    #[error(
+        "first bending frequency {target} Hz is out of reach: equivalent diameters {d_min} m to {d_max} m give \
+         {lowest} Hz to {highest} Hz; check the frequency and the tool's dimensions and material"
+    )]
+    EquivalentOutOfReach { target: f64, lowest: f64, highest: f64, d_min: f64, d_max: f64 },
     /// The mass matrix is not positive definite.
     #[error("mass matrix is not positive definite")]
     MassNotDefinite,

@@ -8,14 +8,17 @@
 
 use super::BeamError;
 use super::element;
-use super::linalg::{complex_solve, generalized_eigen};
-use super::section::{BeamSegment, ShearCoefficient};
+use super::linalg::{bandwidth, complex_solve, complex_solve_banded, generalized_eigen};
+use super::section::{BeamSegment, SectionProperties, ShearCoefficient};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
 /// 2×2 receptance block between two nodes, `[[H, L], [N, P]]`: H = y/F, L = y/M, N = θ/F,
 /// P = θ/M (Eq. 5.2), response at the first node, excitation at the second.
 pub type Receptance = [[Complex64; 2]; 2];
+
+/// Most elements a model may have: its matrices are dense, 4 × (2·nodes)² values.
+pub const MAX_ELEMENTS: usize = 2000;
 
 /// Meshing options for [`BeamModel::from_segments`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,6 +59,8 @@ pub struct BeamModel {
     c: Vec<f64>,
     m: Vec<f64>,
     springs: Vec<(usize, NodeSpring)>,
+    /// Section properties and length of each element, spindle end first.
+    elements: Vec<(SectionProperties, f64)>,
 }
 
 impl BeamModel {
@@ -67,16 +72,31 @@ impl BeamModel {
         if !(mesh.max_element_length.is_finite() && mesh.max_element_length > 0.0) {
             return Err(BeamError::BadElementLength(mesh.max_element_length));
         }
-        let mut elements = Vec::new();
-        let mut node_x = vec![0.0];
+        let mut counts = Vec::with_capacity(segments.len());
         for (index, seg) in segments.iter().enumerate() {
             if !(seg.length.is_finite() && seg.length > 0.0) {
                 return Err(BeamError::BadLength { segment: index, length: seg.length });
             }
-            let mut count = (seg.length / mesh.max_element_length).ceil().max(1.0) as usize;
-            if seg.is_tapered() {
-                count = count.max(mesh.min_taper_elements.max(1));
+            // Both ends, so a cone whose bore breaks through at one end is caught even when
+            // every element mid-point still has a wall.
+            for end in seg.end_sections() {
+                end.properties(mesh.shear)
+                    .map_err(|err| BeamError::Segment { segment: index, source: Box::new(err) })?;
             }
+            let mut count = (seg.length / mesh.max_element_length).ceil().max(1.0);
+            if seg.is_tapered() {
+                count = count.max(mesh.min_taper_elements.max(1) as f64);
+            }
+            counts.push(count);
+        }
+        let total: f64 = counts.iter().sum();
+        if total > MAX_ELEMENTS as f64 {
+            return Err(BeamError::TooManyElements { elements: total, limit: MAX_ELEMENTS });
+        }
+        let mut elements = Vec::new();
+        let mut node_x = vec![0.0];
+        for (index, (seg, &count)) in segments.iter().zip(&counts).enumerate() {
+            let count = count as usize;
             let le = seg.length / count as f64;
             for e in 0..count {
                 let props = seg
@@ -96,6 +116,7 @@ impl BeamModel {
             c: vec![0.0; n * n],
             m: vec![0.0; n * n],
             springs: Vec::new(),
+            elements: Vec::new(),
         };
         for (e, (props, le)) in elements.iter().enumerate() {
             let ke = element::stiffness(props, *le);
@@ -110,6 +131,7 @@ impl BeamModel {
                 }
             }
         }
+        model.elements = elements;
         Ok(model)
     }
 
@@ -147,6 +169,27 @@ impl BeamModel {
     /// Consistent mass matrix M (including point masses), row-major.
     pub fn mass(&self) -> &[f64] {
         &self.m
+    }
+
+    /// Hysteretic stiffness `Σ η_e K_e` (the imaginary part of the complex stiffness), row-major.
+    pub fn loss_stiffness(&self) -> &[f64] {
+        &self.k_loss
+    }
+
+    /// Viscous damping matrix C of the node dampers, row-major.
+    pub fn damping(&self) -> &[f64] {
+        &self.c
+    }
+
+    /// Section properties and length of each element, spindle end first.
+    pub fn elements(&self) -> &[(SectionProperties, f64)] {
+        &self.elements
+    }
+
+    /// Largest distance from the diagonal of a non-zero entry of K, M, C or K_η (3 for
+    /// two-node elements with two dof per node).
+    pub fn bandwidth(&self) -> usize {
+        bandwidth(&[&self.k, &self.m, &self.c, &self.k_loss], self.n_dof())
     }
 
     /// Total mass of the model, kg (rigid translation kinetic energy).
@@ -195,7 +238,7 @@ impl BeamModel {
     }
 
     /// Receptances between `response` and `excitation` nodes at each frequency (Hz) by a
-    /// complex LU solve of `(K + iK_η + iωC − ω²M) x = f` per line.
+    /// complex banded LU solve of `(K + iK_η + iωC − ω²M) x = f` per line.
     pub fn receptance_direct(
         &self,
         response: usize,
@@ -205,6 +248,7 @@ impl BeamModel {
         self.check_node(response)?;
         self.check_node(excitation)?;
         let n = self.n_dof();
+        let band = self.bandwidth();
         let mut a = vec![Complex64::new(0.0, 0.0); n * n];
         let mut b = vec![Complex64::new(0.0, 0.0); n * 2];
         let mut out = Vec::with_capacity(freqs.len());
@@ -219,7 +263,7 @@ impl BeamModel {
             b.fill(Complex64::new(0.0, 0.0));
             b[2 * excitation * 2] = Complex64::new(1.0, 0.0);
             b[(2 * excitation + 1) * 2 + 1] = Complex64::new(1.0, 0.0);
-            if !complex_solve(&mut a, n, &mut b, 2) {
+            if !complex_solve_banded(&mut a, n, band, &mut b, 2) {
                 return Err(BeamError::Singular(f));
             }
             let (r0, r1) = (2 * response * 2, (2 * response + 1) * 2);
@@ -259,8 +303,8 @@ impl BeamModel {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalModel {
     n: usize,
-    lambda: Vec<f64>,
-    phi: Vec<f64>,
+    pub(super) lambda: Vec<f64>,
+    pub(super) phi: Vec<f64>,
     /// Projected hysteretic stiffness Φᵀ K_η Φ (n×n).
     d: Vec<f64>,
     /// Projected viscous damping Φᵀ C Φ (n×n).
@@ -269,7 +313,7 @@ pub struct ModalModel {
     rigid: usize,
 }
 
-fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
+pub(super) fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
     let mut t = vec![0.0; n * n];
     for i in 0..n {
         for k in 0..n {
@@ -367,30 +411,6 @@ impl ModalModel {
         let (by, bt) = (row(2 * excitation), row(2 * excitation + 1));
         let mut out = Vec::with_capacity(freqs.len());
         if self.diagonal {
-            // Per mode: pole (λ_r − ω² + i(d_r + ω c_r)) and the four residue products, stored
-            // by quantity and padded to lanes of 4 so the sum over modes vectorises.
-            const LANES: usize = 4;
-            let padded = n.div_ceil(LANES) * LANES;
-            let mut q = vec![[0.0f64; LANES]; 7 * padded / LANES];
-            let chunks = padded / LANES;
-            for r in 0..n {
-                let vals = [self.lambda[r], self.d[r * n + r], self.cm[r * n + r], ay[r] * by[r], ay[r] * bt[r]];
-                let more = [at[r] * by[r], at[r] * bt[r]];
-                for (k, v) in vals.into_iter().chain(more).enumerate() {
-                    q[k * chunks + r / LANES][r % LANES] = v;
-                }
-            }
-            // Padding lanes: a damped unit pole (never singular) with zero residues.
-            for r in n..padded {
-                q[r / LANES][r % LANES] = 1.0;
-                q[chunks + r / LANES][r % LANES] = 1.0;
-            }
-            let (lam, rest) = q.split_at(chunks);
-            let (dd, rest) = rest.split_at(chunks);
-            let (cc, rest) = rest.split_at(chunks);
-            let (yy, rest) = rest.split_at(chunks);
-            let (yt, rest) = rest.split_at(chunks);
-            let (ty, tt) = rest.split_at(chunks);
             for &f in freqs {
                 if !f.is_finite() || f < 0.0 {
                     return Err(BeamError::BadFrequency(f));
@@ -398,34 +418,9 @@ impl ModalModel {
                 if f == 0.0 && self.rigid > 0 {
                     return Err(BeamError::Singular(f));
                 }
-                let w = TAU * f;
-                let w2 = w * w;
-                let mut lanes = [[0.0f64; LANES]; 8];
-                for c in 0..chunks {
-                    for l in 0..LANES {
-                        let re = lam[c][l] - w2;
-                        let im = dd[c][l] + w * cc[c][l];
-                        let inv = 1.0 / (re * re + im * im);
-                        let (gr, gi) = (re * inv, -im * inv);
-                        lanes[0][l] += gr * yy[c][l];
-                        lanes[1][l] += gi * yy[c][l];
-                        lanes[2][l] += gr * yt[c][l];
-                        lanes[3][l] += gi * yt[c][l];
-                        lanes[4][l] += gr * ty[c][l];
-                        lanes[5][l] += gi * ty[c][l];
-                        lanes[6][l] += gr * tt[c][l];
-                        lanes[7][l] += gi * tt[c][l];
-                    }
-                }
-                let acc: [f64; 8] = std::array::from_fn(|k| lanes[k].iter().sum());
-                if acc.iter().any(|v| !v.is_finite()) {
-                    return Err(BeamError::Singular(f));
-                }
-                out.push([
-                    [Complex64::new(acc[0], acc[1]), Complex64::new(acc[2], acc[3])],
-                    [Complex64::new(acc[4], acc[5]), Complex64::new(acc[6], acc[7])],
-                ]);
             }
+            let sum = ModalSum::new(&self.lambda, &self.d, &self.cm, n, [ay, at, by, bt]);
+            sum.run(freqs, &mut out)?;
         } else {
             let mut z = vec![Complex64::new(0.0, 0.0); n * n];
             let mut q = vec![Complex64::new(0.0, 0.0); n * 2];
@@ -456,5 +451,174 @@ impl ModalModel {
             }
         }
         Ok(out)
+    }
+}
+
+/// Appends one summed line `[Re H, Im H, Re L, …]` as a receptance block; a non-finite sum
+/// means the frequency sits on an undamped pole.
+fn push_line(out: &mut Vec<Receptance>, f: f64, a: [f64; 8]) -> Result<(), BeamError> {
+    if a.iter().any(|v| !v.is_finite()) {
+        return Err(BeamError::Singular(f));
+    }
+    let c = |k: usize| Complex64::new(a[k], a[k + 1]);
+    out.push([[c(0), c(2)], [c(4), c(6)]]);
+    Ok(())
+}
+
+/// Lanes of the modal sum: modes are summed in groups of 4, in a fixed order on every CPU.
+const LANES: usize = 4;
+
+/// Per-mode data of a diagonal modal receptance between two nodes: pole `λ_r − ω² + i(d_r +
+/// ω c_r)` and the four residue products `φ_y φ_y, φ_y φ_θ, φ_θ φ_y, φ_θ φ_θ` of the response
+/// and excitation dofs, packed per group of [`LANES`] modes so each line is one pass over a
+/// contiguous block that vectorises.
+struct ModalSum {
+    /// Per group: λ, d, c, yy, yt, ty, tt (7 × LANES values).
+    groups: Vec<[[f64; LANES]; 7]>,
+}
+
+impl ModalSum {
+    fn new(lambda: &[f64], d: &[f64], c: &[f64], n: usize, rows: [&[f64]; 4]) -> ModalSum {
+        let [ay, at, by, bt] = rows;
+        // Padding lanes: a damped unit pole (never singular) with zero residues.
+        let mut groups =
+            vec![
+                [[0.0; LANES], [1.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]];
+                n.div_ceil(LANES)
+            ];
+        for r in 0..n {
+            let g = &mut groups[r / LANES];
+            let l = r % LANES;
+            g[0][l] = lambda[r];
+            g[1][l] = d[r * n + r];
+            g[2][l] = c[r * n + r];
+            g[3][l] = ay[r] * by[r];
+            g[4][l] = ay[r] * bt[r];
+            g[5][l] = at[r] * by[r];
+            g[6][l] = at[r] * bt[r];
+        }
+        for r in n..groups.len() * LANES {
+            groups[r / LANES][0][r % LANES] = 1.0;
+        }
+        ModalSum { groups }
+    }
+
+    /// Receptance block at ω (rad/s): Σ_r residues / pole, as `[Re H, Im H, Re L, …]`.
+    #[inline(always)]
+    fn line(&self, w: f64) -> [f64; 8] {
+        let w2 = w * w;
+        let mut acc = [[0.0f64; LANES]; 8];
+        for g in &self.groups {
+            let re: [f64; LANES] = std::array::from_fn(|l| g[0][l] - w2);
+            let im: [f64; LANES] = std::array::from_fn(|l| g[1][l] + w * g[2][l]);
+            let den: [f64; LANES] = std::array::from_fn(|l| re[l] * re[l] + im[l] * im[l]);
+            let inv: [f64; LANES] = std::array::from_fn(|l| 1.0 / den[l]);
+            let gr: [f64; LANES] = std::array::from_fn(|l| re[l] * inv[l]);
+            let gi: [f64; LANES] = std::array::from_fn(|l| -im[l] * inv[l]);
+            for k in 0..4 {
+                for l in 0..LANES {
+                    acc[2 * k][l] += gr[l] * g[3 + k][l];
+                    acc[2 * k + 1][l] += gi[l] * g[3 + k][l];
+                }
+            }
+        }
+        std::array::from_fn(|k| (acc[k][0] + acc[k][1]) + (acc[k][2] + acc[k][3]))
+    }
+
+    #[inline(always)]
+    fn lines(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
+        for &f in freqs {
+            let a = self.line(TAU * f);
+            if a.iter().any(|v| !v.is_finite()) {
+                return Err(BeamError::Singular(f));
+            }
+            out.push([
+                [Complex64::new(a[0], a[1]), Complex64::new(a[2], a[3])],
+                [Complex64::new(a[4], a[5]), Complex64::new(a[6], a[7])],
+            ]);
+        }
+        Ok(())
+    }
+
+    /// [`ModalSum::line`] in 256-bit vectors, one group of modes per vector, operation for
+    /// operation (no fused multiply-add), so the results are bit-identical.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn line_avx(&self, w: f64) -> [f64; 8] {
+        use std::arch::x86_64::*;
+        let (wv, w2) = (_mm256_set1_pd(w), _mm256_set1_pd(w * w));
+        let (one, sign) = (_mm256_set1_pd(1.0), _mm256_set1_pd(-0.0));
+        let mut acc = [_mm256_setzero_pd(); 8];
+        for g in &self.groups {
+            // SAFETY: each row of a group is a [f64; LANES] with LANES = 4 readable values.
+            let v: [__m256d; 7] = std::array::from_fn(|k| unsafe { _mm256_loadu_pd(g[k].as_ptr()) });
+            let re = _mm256_sub_pd(v[0], w2);
+            let im = _mm256_add_pd(v[1], _mm256_mul_pd(wv, v[2]));
+            let den = _mm256_add_pd(_mm256_mul_pd(re, re), _mm256_mul_pd(im, im));
+            let inv = _mm256_div_pd(one, den);
+            let gr = _mm256_mul_pd(re, inv);
+            let gi = _mm256_mul_pd(_mm256_xor_pd(im, sign), inv);
+            for k in 0..4 {
+                acc[2 * k] = _mm256_add_pd(acc[2 * k], _mm256_mul_pd(gr, v[3 + k]));
+                acc[2 * k + 1] = _mm256_add_pd(acc[2 * k + 1], _mm256_mul_pd(gi, v[3 + k]));
+            }
+        }
+        std::array::from_fn(|k| {
+            let mut a = [0.0f64; LANES];
+            // SAFETY: `a` holds LANES = 4 writable values.
+            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), acc[k]) };
+            (a[0] + a[1]) + (a[2] + a[3])
+        })
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn lines_avx(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
+        for &f in freqs {
+            let a = self.line_avx(TAU * f);
+            push_line(out, f, a)?;
+        }
+        Ok(())
+    }
+
+    fn run(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU supports AVX, checked just above.
+            return unsafe { self.lines_avx(freqs, out) };
+        }
+        self.lines(freqs, out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::beam::{segments_from_sections, table::tool_holder_sections};
+
+    #[test]
+    fn vector_and_scalar_modal_sums_are_bit_identical() {
+        let segs = segments_from_sections(&tool_holder_sections());
+        // An element length that leaves the last group of modes partly padded.
+        let model = [2e-3, 2.1e-3, 2.2e-3, 2.3e-3]
+            .iter()
+            .map(|&h| BeamModel::from_segments(&segs, &MeshOptions { max_element_length: h, ..MeshOptions::default() }))
+            .find_map(|m| m.ok().filter(|m| m.n_dof() % LANES != 0))
+            .expect("a mesh with padding");
+        let modes = model.modes().unwrap();
+        let (n, tip) = (modes.n, model.n_nodes() - 1);
+        let row = |dof: usize| &modes.phi[dof * n..(dof + 1) * n];
+        let sum =
+            ModalSum::new(&modes.lambda, &modes.d, &modes.cm, n, [row(2 * tip), row(2 * tip + 1), row(0), row(1)]);
+        let freqs: Vec<f64> = (0..500).map(|k| 3.7 + 41.3 * k as f64).collect();
+        let (mut scalar, mut dispatched) = (Vec::new(), Vec::new());
+        sum.lines(&freqs, &mut scalar).unwrap();
+        sum.run(&freqs, &mut dispatched).unwrap();
+        for (a, b) in scalar.iter().zip(&dispatched) {
+            for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+                assert_eq!(x.re.to_bits(), y.re.to_bits());
+                assert_eq!(x.im.to_bits(), y.im.to_bits());
+            }
+        }
     }
 }

@@ -3,11 +3,14 @@
 //!
 //! A section is an outer tube of one material (outer diameter `d_out`, bore `d_in`) with an
 //! optional inner core of another material filling the bore (Table 5.1, `M_in`). Composite
-//! rule: the bending stiffness, shear stiffness, mass and rotary inertia per length are
-//! summed over the two parts, each part taking its own shear coefficient (Cowper's hollow
-//! circle for the tube, Cowper's solid circle for the core). The loss factor of the section
-//! is the bending-stiffness weighted mean of the materials' loss factors (exact when both
-//! materials share one loss factor, as in Table 5.2).
+//! rule: the bending stiffness, mass and rotary inertia per length are summed over the two
+//! parts. A filled bore makes the section geometrically solid, so its shear stiffness is the
+//! solid-circle coefficient, taken at the shear-stiffness weighted Poisson's ratio, times the
+//! summed `G·A` of the parts: `κGA = κ_solid(ν̄) (G_o A_o + G_c A_c)`,
+//! `ν̄ = Σ ν_i G_i A_i / Σ G_i A_i`. A core of the tube's own material therefore gives exactly
+//! the solid section, and an empty bore the hollow-circle coefficient. The loss factor of the
+//! section is the bending-stiffness weighted mean of the materials' loss factors (exact when
+//! both materials share one loss factor, as in Table 5.2).
 
 use super::BeamError;
 use std::f64::consts::PI;
@@ -52,24 +55,39 @@ impl BeamMaterial {
     }
 }
 
-/// Shear coefficient model for circular sections. Only Cowper's form is provided: Hutchinson's
-/// (2001) hollow-circle coefficient is not offered because its exact expression could not be
-/// verified here (his solid-circle value is 6(1+ν)²/(7+12ν+4ν²)).
+/// Shear coefficient model for circular sections (solid, hollow and, through the composite
+/// rule of the module docs, filled). Both forms give κ for a hollow circle of bore ratio
+/// `m = d_in / d_out`; Cowper's is the default. Hutchinson's is the larger of the two (3.2 %
+/// for a solid carbide section, ν = 0.22), so it makes a shear-dominated mode stiffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ShearCoefficient {
     /// Cowper (1966) hollow circle:
-    /// `κ = 6(1+ν)(1+m²)² / ((7+6ν)(1+m²)² + (20+12ν)m²)`, m = d_in/d_out.
+    /// `κ = 6(1+ν)(1+m²)² / ((7+6ν)(1+m²)² + (20+12ν)m²)`; solid `6(1+ν)/(7+6ν)`, thin tube
+    /// `2(1+ν)/(4+3ν)`.
     #[default]
     Cowper,
+    /// Hutchinson (2001, J. Appl. Mech. 68:87–92) hollow circle, outer radius a, inner b:
+    /// `κ = 6(a²+b²)²(1+ν)² / (7a⁴+34a²b²+7b⁴ + ν(12a⁴+48a²b²+12b⁴) + ν²(4a⁴+16a²b²+4b⁴))`
+    /// (identical to Stephen and Levinson's); solid `6(1+ν)²/(7+12ν+4ν²)`, thin tube
+    /// `(1+ν)/(2+ν)`.
+    Hutchinson,
 }
 
 impl ShearCoefficient {
     /// κ of a hollow circle with bore ratio `m = d_in / d_out` (0 for a solid circle).
     pub fn hollow_circle(self, poisson: f64, m: f64) -> f64 {
+        let m2 = m * m;
         match self {
             ShearCoefficient::Cowper => {
-                let s = (1.0 + m * m).powi(2);
-                6.0 * (1.0 + poisson) * s / ((7.0 + 6.0 * poisson) * s + (20.0 + 12.0 * poisson) * m * m)
+                let s = (1.0 + m2).powi(2);
+                6.0 * (1.0 + poisson) * s / ((7.0 + 6.0 * poisson) * s + (20.0 + 12.0 * poisson) * m2)
+            }
+            ShearCoefficient::Hutchinson => {
+                // With a = 1, b = m: (a⁴ + b⁴) and a²b² terms of the published form.
+                let (q, p) = (1.0 + m2 * m2, m2);
+                let nu = poisson;
+                let den = 7.0 * q + 34.0 * p + nu * (12.0 * q + 48.0 * p) + nu * nu * (4.0 * q + 16.0 * p);
+                6.0 * (1.0 + m2).powi(2) * (1.0 + nu).powi(2) / den
             }
         }
     }
@@ -140,7 +158,9 @@ impl CrossSection {
             let (a_c, i_c) = ring(self.d_in, 0.0);
             let ei_c = c.youngs_modulus * i_c;
             p.ei += ei_c;
-            p.ga_s += shear.hollow_circle(c.poisson, 0.0) * c.shear_modulus() * a_c;
+            let (ga_o, ga_c) = (o.shear_modulus() * a_o, c.shear_modulus() * a_c);
+            let nu = (o.poisson * ga_o + c.poisson * ga_c) / (ga_o + ga_c);
+            p.ga_s = shear.hollow_circle(nu, 0.0) * (ga_o + ga_c);
             p.rho_a += c.density * a_c;
             p.rho_i += c.density * i_c;
             eta_ei += c.loss_factor * ei_c;
@@ -191,6 +211,11 @@ impl BeamSegment {
         }
     }
 
+    /// Cross-sections at the spindle end and the tip end, with the diameters exactly as given.
+    pub fn end_sections(&self) -> [CrossSection; 2] {
+        [self.d_out_start, self.d_out_end].map(|d_out| CrossSection { d_out, ..self.section_at(0.0) })
+    }
+
     /// Whether the outer diameter changes over the segment.
     pub fn is_tapered(&self) -> bool {
         self.d_out_start != self.d_out_end
@@ -211,6 +236,77 @@ mod tests {
         let nu = 0.3;
         let k = ShearCoefficient::Cowper.hollow_circle(nu, 1.0 - 1e-9);
         assert!((k - 2.0 * (1.0 + nu) / (4.0 + 3.0 * nu)).abs() < 1e-8, "{k}");
+    }
+
+    /// Hutchinson's published form in the radii themselves (not the bore ratio).
+    fn hutchinson_radii(nu: f64, a: f64, b: f64) -> f64 {
+        let (a2, b2) = (a * a, b * b);
+        let (a4, b4, ab) = (a2 * a2, b2 * b2, a2 * b2);
+        let den = 7.0 * a4
+            + 34.0 * ab
+            + 7.0 * b4
+            + nu * (12.0 * a4 + 48.0 * ab + 12.0 * b4)
+            + nu * nu * (4.0 * a4 + 16.0 * ab + 4.0 * b4);
+        6.0 * (a2 + b2).powi(2) * (1.0 + nu).powi(2) / den
+    }
+
+    #[test]
+    fn hutchinson_hollow_circle_limits_and_equivalent_forms() {
+        let h = ShearCoefficient::Hutchinson;
+        for nu in [0.0f64, 0.22, 0.29, 0.3, 0.45] {
+            // Solid limit b → 0.
+            let solid = 6.0 * (1.0 + nu).powi(2) / (7.0 + 12.0 * nu + 4.0 * nu * nu);
+            assert!((h.hollow_circle(nu, 0.0) - solid).abs() < 1e-15);
+            assert!((h.hollow_circle(nu, 1e-6) - solid).abs() < 1e-10);
+            // Thin-walled limit b → a: (1+ν)/(2+ν).
+            let thin = (1.0 + nu) / (2.0 + nu);
+            assert!((h.hollow_circle(nu, 1.0 - 1e-9) - thin).abs() < 1e-8);
+            for m in [0.1, 0.3, 0.4529, 0.7, 0.95] {
+                let k = h.hollow_circle(nu, m);
+                // Scale invariance: the radii form with a = 6.35 mm gives the same κ.
+                let a = 6.35e-3;
+                assert!((k - hutchinson_radii(nu, a, m * a)).abs() < 1e-14, "nu {nu} m {m}");
+                // Stephen–Levinson's grouping of the same expression.
+                let s = (1.0 + m * m).powi(2);
+                let stephen = 6.0 * (1.0 + nu).powi(2) * s
+                    / ((7.0 + 12.0 * nu + 4.0 * nu * nu) * s + 4.0 * (5.0 + 6.0 * nu + 2.0 * nu * nu) * m * m);
+                assert!((k - stephen).abs() < 1e-14);
+                // Hutchinson's κ exceeds Cowper's for every ν ≥ 0 and bore ratio.
+                let c = ShearCoefficient::Cowper.hollow_circle(nu, m);
+                assert!(nu == 0.0 && (k - c).abs() < 1e-12 || k > c, "nu {nu} m {m}: {k} vs {c}");
+            }
+        }
+        // Carbide (ν = 0.22): 0.908152 against Cowper's 0.879808, 3.22 % larger.
+        let (k, c) = (h.hollow_circle(0.22, 0.0), ShearCoefficient::Cowper.hollow_circle(0.22, 0.0));
+        assert!((k - 0.908_151_643).abs() < 1e-9 && (c - 0.879_807_692).abs() < 1e-9);
+        assert!((k / c - 1.032_216).abs() < 1e-6);
+    }
+
+    #[test]
+    fn filled_bore_takes_the_solid_circle_coefficient() {
+        let (d_out, d_in) = (28.04e-3, 12.7e-3);
+        for shear in [ShearCoefficient::Cowper, ShearCoefficient::Hutchinson] {
+            // A core of the tube's own material is the solid section, shear included.
+            let same = CrossSection { d_out, d_in, outer: BeamMaterial::STEEL, inner: Some(BeamMaterial::STEEL) };
+            let solid = CrossSection::solid(d_out, BeamMaterial::STEEL).properties(shear).unwrap();
+            let p = same.properties(shear).unwrap();
+            assert!((p.ga_s - solid.ga_s).abs() < 1e-12 * solid.ga_s, "{shear:?}");
+            // Steel on carbide: κ(ν̄) of the solid circle times the summed G·A.
+            let (st, cb) = (BeamMaterial::STEEL, BeamMaterial::CARBIDE);
+            let s = CrossSection { d_out, d_in, outer: st, inner: Some(cb) };
+            let a_o = PI / 4.0 * (d_out * d_out - d_in * d_in);
+            let a_c = PI / 4.0 * d_in * d_in;
+            let (ga_o, ga_c) = (st.shear_modulus() * a_o, cb.shear_modulus() * a_c);
+            let nu = (0.29 * ga_o + 0.22 * ga_c) / (ga_o + ga_c);
+            assert!(nu > 0.22 && nu < 0.29);
+            let expected = shear.hollow_circle(nu, 0.0) * (ga_o + ga_c);
+            let got = s.properties(shear).unwrap().ga_s;
+            assert!((got - expected).abs() < 1e-12 * expected, "{shear:?}: {got} vs {expected}");
+            // An empty bore keeps the hollow-circle coefficient.
+            let tube = CrossSection { d_out, d_in, outer: st, inner: None }.properties(shear).unwrap();
+            let k = shear.hollow_circle(0.29, d_in / d_out);
+            assert!((tube.ga_s - k * ga_o).abs() < 1e-12 * tube.ga_s);
+        }
     }
 
     #[test]

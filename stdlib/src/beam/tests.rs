@@ -4,8 +4,8 @@
 
 use super::*;
 use num_complex::Complex64;
-use spindlelab_engine::model::Component;
 use std::f64::consts::{PI, TAU};
+use table::tool_holder_sections;
 
 fn steel_no_loss() -> BeamMaterial {
     BeamMaterial { loss_factor: 0.0, ..BeamMaterial::STEEL }
@@ -15,29 +15,6 @@ fn uniform(d: f64, length: f64, material: BeamMaterial, elements: usize) -> Beam
     let seg = BeamSegment::uniform(CrossSection::solid(d, material), length);
     let mesh = MeshOptions { max_element_length: length / elements as f64 * (1.0 + 1e-12), ..MeshOptions::default() };
     BeamModel::from_segments(&[seg], &mesh).unwrap()
-}
-
-fn tool_holder_sections() -> Vec<Section> {
-    let steel = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
-    let carbide = Material { youngs_modulus: 550e9, density: 15000.0, poisson: 0.22, loss_factor: 0.0015 };
-    let d_s = [44.46, 31.76, 31.76, 31.08, 30.98, 28.04, 12.70, 10.99];
-    let d_t = [44.46, 31.76, 31.08, 30.98, 28.04, 24.20, 12.70, 10.99];
-    let d_in = [9.00, 9.00, 9.00, 13.56, 12.70, 12.70, 0.00, 0.00];
-    let len = [15.88, 1.56, 4.24, 6.90, 13.05, 25.05, 19.05, 15.88];
-    (0..8)
-        .map(|i| Section {
-            name: format!("s{}", i + 1),
-            component: if i < 6 { Component::Holder } else { Component::Tool },
-            fluted: i == 7,
-            d_out_spindle_end: d_s[i] * 1e-3,
-            d_out_tip_end: d_t[i] * 1e-3,
-            d_in: d_in[i] * 1e-3,
-            length: len[i] * 1e-3,
-            outer: if i < 6 { steel } else { carbide },
-            inner: if i >= 5 { Some(carbide) } else { None },
-            d_equivalent: if i == 7 { Some(10.99e-3) } else { None },
-        })
-        .collect()
 }
 
 /// Modal blocks `m` against direct blocks `d`, each entry relative to its block's largest
@@ -372,4 +349,100 @@ fn mixed_loss_factors_use_coupled_modal_form_and_agree_with_direct() {
     let d = model.receptance_direct(tip, 0, &freqs).unwrap();
     let m = modes.receptance(tip, 0, &freqs).unwrap();
     assert_blocks_close(&d, &m, 1e-8);
+}
+
+/// Root of the exact free–free Timoshenko frequency equation in a ±2 % bracket around `guess`.
+fn exact_free_free(p: &SectionProperties, l: f64, guess: f64) -> f64 {
+    let g = |f: f64| timoshenko_free_free_det(p, l, TAU * f);
+    let (mut lo, mut hi) = (0.98 * guess, 1.02 * guess);
+    let mut glo = g(lo);
+    assert!(glo * g(hi) < 0.0, "no root near {guess} Hz");
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        let gm = g(mid);
+        if gm * glo <= 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+            glo = gm;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[test]
+fn hutchinson_raises_first_bending_mode_of_stubby_carbide_section() {
+    // The §5.3 equivalent-diameter cylinder: solid carbide, 10.98 mm over 31.75 mm (L/d ≈ 2.9).
+    let (d, l) = (10.98e-3, 31.75e-3);
+    let mat = BeamMaterial { loss_factor: 0.0, ..BeamMaterial::CARBIDE };
+    let seg = BeamSegment::uniform(CrossSection::solid(d, mat), l);
+    let mut fe = [0.0; 2];
+    let mut exact = [0.0; 2];
+    for (k, shear) in [ShearCoefficient::Cowper, ShearCoefficient::Hutchinson].into_iter().enumerate() {
+        let mesh = MeshOptions { max_element_length: l / 60.0, shear, ..MeshOptions::default() };
+        let model = BeamModel::from_segments(&[seg], &mesh).unwrap();
+        fe[k] = model.modes().unwrap().natural_frequencies()[2];
+        let p = CrossSection::solid(d, mat).properties(shear).unwrap();
+        exact[k] = exact_free_free(&p, l, fe[k]);
+        assert!((fe[k] - exact[k]).abs() < 2e-4 * exact[k], "{shear:?}: FE {} vs exact {}", fe[k], exact[k]);
+    }
+    let shift = fe[1] / fe[0] - 1.0;
+    let exact_shift = exact[1] / exact[0] - 1.0;
+    // κ rises by ε = 3.22 %; the shear strain energy rises at most by 1 + ε at a fixed shape, so
+    // 0 < Δf/f ≤ √(1+ε) − 1 ≈ 1.6 %, and ≈ ε/2 times the mode's shear energy fraction.
+    let eps =
+        ShearCoefficient::Hutchinson.hollow_circle(0.22, 0.0) / ShearCoefficient::Cowper.hollow_circle(0.22, 0.0) - 1.0;
+    assert!(shift > 0.0 && shift < (1.0 + eps).sqrt() - 1.0, "shift {shift}");
+    assert!((shift - exact_shift).abs() < 0.02 * exact_shift, "FE shift {shift} vs exact {exact_shift}");
+    // 46.91 kHz → 47.00 kHz: +0.20 %, a shear energy fraction of about 13 %; a tenth of the
+    // 2 % sometimes quoted for such modes.
+    assert!(shift > 0.0015 && shift < 0.0025, "shift {shift}");
+}
+
+#[test]
+fn bad_segments_name_the_segment_and_value() {
+    let good = BeamSegment::uniform(CrossSection::solid(20e-3, BeamMaterial::STEEL), 0.05);
+    let mesh = MeshOptions::default();
+    let build = |bad: BeamSegment| BeamModel::from_segments(&[good, good, bad], &mesh);
+    for length in [0.0, -0.01, f64::NAN, f64::INFINITY] {
+        match build(BeamSegment { length, ..good }) {
+            Err(BeamError::BadLength { segment: 2, length: l }) => {
+                assert!(l == length || l.is_nan() && length.is_nan())
+            }
+            other => panic!("length {length}: {other:?}"),
+        }
+    }
+    // Bore at or above the outside, non-finite diameters, and a cone whose bore breaks through
+    // at the tip end although every element mid-point keeps a wall (20 → 8 mm over a 9 mm bore).
+    let cases = [
+        (BeamSegment { d_in: 20e-3, ..good }, 20e-3, 20e-3),
+        (BeamSegment { d_in: 25e-3, ..good }, 20e-3, 25e-3),
+        (BeamSegment { d_out_start: f64::NAN, ..good }, f64::NAN, 0.0),
+        (BeamSegment { d_out_end: f64::INFINITY, ..good }, f64::INFINITY, 0.0),
+        (BeamSegment { d_in: f64::NAN, ..good }, 20e-3, f64::NAN),
+        (BeamSegment { d_out_end: 8e-3, d_in: 9e-3, ..good }, 8e-3, 9e-3),
+        (BeamSegment { d_out_end: 0.0, ..good }, 0.0, 0.0),
+    ];
+    for (bad, d_out, d_in) in cases {
+        match build(bad) {
+            Err(BeamError::Segment { segment: 2, source }) => match *source {
+                BeamError::BadGeometry { d_out: o, d_in: i } => {
+                    let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+                    assert!(same(o, d_out) && same(i, d_in), "{o} {i}")
+                }
+                other => panic!("{bad:?}: {other:?}"),
+            },
+            other => panic!("{bad:?}: {other:?}"),
+        }
+    }
+    let e = build(BeamSegment { d_out_end: 8e-3, d_in: 9e-3, ..good }).unwrap_err().to_string();
+    assert!(e.contains("segment 2") && e.contains("0.008") && e.contains("0.009"), "{e}");
+    let nan_material = BeamSegment { outer: BeamMaterial { density: f64::NAN, ..BeamMaterial::STEEL }, ..good };
+    assert!(matches!(build(nan_material), Err(BeamError::Segment { segment: 2, .. })));
+    let fine = MeshOptions { max_element_length: 1e-6, ..mesh };
+    assert!(matches!(
+        BeamModel::from_segments(&[good], &fine),
+        Err(BeamError::TooManyElements { limit: model::MAX_ELEMENTS, .. })
+    ));
+    assert!(matches!(BeamModel::from_segments(&[], &mesh), Err(BeamError::NoSegments)));
 }
