@@ -173,6 +173,43 @@ fn tool_holder_on_an_fe_spindle_equals_one_fe_model_and_joints_behave() {
     }
 }
 
+/// Spinning the free–free tool holder: at 0 rpm the gyroscopic model is the planar one; at
+/// 30 000 rpm every whirl splits into a forward whirl above the backward one, and the tip
+/// receptance changes, but only slightly (the holder's polar inertia is small).
+#[test]
+fn a_spinning_tool_holder_splits_its_whirls() {
+    let out = tempfile::tempdir().unwrap();
+    let r = run_at(&data_dir().join("spinning.yaml"), out.path());
+    let (rest, still, fast) = (r.set("rest", "tip"), r.set("still", "tip"), r.set("fast", "tip"));
+    assert_eq!(rest, still, "spin 0 is the planar model");
+    assert!((fast.speed_rpm.unwrap() - 30000.0).abs() < 1e-6);
+    assert!(worst(&fast.h, &rest.h) > 1e-6, "30 000 rpm must change H");
+    let Value::Table(t) = r.value("campbell", "whirl").as_ref().clone() else { panic!("whirl is not a table") };
+    let col = |name: &str| t.columns.iter().find(|c| c.name == name).unwrap().values.clone();
+    let (speed, freq, sense) = (col("speed"), col("frequency"), col("whirl"));
+    let whirls = |s: f64, dir: f64| -> Vec<f64> {
+        (0..speed.len()).filter(|&i| (speed[i] - s).abs() < 1e-6 && sense[i] == dir).map(|i| freq[i]).collect()
+    };
+    let (f0, b0) = (whirls(0.0, 1.0), whirls(0.0, -1.0));
+    assert!(!f0.is_empty());
+    for (a, b) in f0.iter().zip(&b0) {
+        assert!((a - b).abs() <= 1e-9 * a, "at rest forward = backward: {a} vs {b}");
+    }
+    // The first bending whirls at 30 000 rpm: the forward one nearest the mode at rest lies
+    // above it, the backward one below.
+    let bend = f0[0];
+    let nearest = |v: Vec<f64>| v.into_iter().min_by(|a, b| (a - bend).abs().total_cmp(&(b - bend).abs())).unwrap();
+    let (hi, lo) = (nearest(whirls(30000.0, 1.0)), nearest(whirls(30000.0, -1.0)));
+    assert!(hi > bend && lo < bend, "first bending {bend} Hz: forward {hi} Hz, backward {lo} Hz");
+    // The spinning tip's first bending resonance lies between the two whirls (within a line),
+    // as y/Fy is the mean of the two circular responses.
+    let df = fast.freq_hz[1] - fast.freq_hz[0];
+    let window: Vec<usize> = (0..fast.h.len()).filter(|&k| (fast.freq_hz[k] - bend).abs() < 0.1 * bend).collect();
+    let peak = window.iter().copied().max_by(|&a, &b| fast.h[a].norm().total_cmp(&fast.h[b].norm())).unwrap();
+    let f = fast.freq_hz[peak];
+    assert!(f >= lo - df && f <= hi + df, "resonance at {f} Hz outside the whirls {lo}–{hi} Hz");
+}
+
 // ------------------------------------------------------------------ bad input
 
 fn bad_dir() -> PathBuf {

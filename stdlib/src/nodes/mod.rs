@@ -23,7 +23,7 @@ pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
-pub use structure::{BeamReceptance, RcsaCouple, RcsaDecouple, SpindleReceptance};
+pub use structure::{BeamCampbell, BeamReceptance, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;
 
 use spindlelab_engine::node::NodeError;

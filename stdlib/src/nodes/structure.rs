@@ -47,9 +47,9 @@ fn mesh_params() -> [Field; 2] {
         Field::def("max_element", T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
         Field::def(
             "shear",
-            T::Choice(&["cowper"]),
+            T::Choice(&["cowper", "hutchinson"]),
             "cowper",
-            "shear coefficient of the hollow circular sections (Cowper 1966)",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
         ),
     ]
 }
@@ -81,7 +81,10 @@ fn coupling_params() -> [Field; 4] {
 fn mesh(p: &Params) -> MeshOptions {
     MeshOptions {
         max_element_length: p.f64("max_element").unwrap_or(2e-3),
-        shear: ShearCoefficient::Cowper,
+        shear: match p.text("shear") {
+            Some("hutchinson") => ShearCoefficient::Hutchinson,
+            _ => ShearCoefficient::Cowper,
+        },
         ..MeshOptions::default()
     }
 }
@@ -393,13 +396,18 @@ impl BeamReceptance {
         let mut params = vec![
             Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
             Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+            Field::opt(
+                "spin",
+                T::Quantity(D::ROTATIONAL_SPEED),
+                "spin the assembly at this speed: gyroscopic (Nelson) elements couple the two planes; `tip` is then the in-plane block",
+            ),
         ];
         params.extend(grid_params());
         params.extend(mesh_params());
         BeamReceptance {
             spec: NodeSpec {
                 kind: "beam.receptance",
-                version: 1,
+                version: 2,
                 description: "Free-free Timoshenko FE model of an assembly (§5.4, Table 5.1 sections) and its tip receptances H, L, N, P (Eq. 5.2) by modal expansion.",
                 inputs: vec![grid_port()],
                 outputs: vec![
@@ -441,8 +449,17 @@ impl Node for BeamReceptance {
             ctx.warn("the assembly's `tool_joint` is not modelled here (one continuous beam); rcsa.couple models it");
         }
         let modes = model.modes().map_err(fe)?;
-        let lines: Vec<Receptance> = modes.receptance(tip, tip, &freqs).map_err(fe)?.iter().map(block).collect();
-        let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, None);
+        let spin = ctx.params.f64("spin").filter(|w| *w != 0.0);
+        let lines: Vec<Receptance> = match spin {
+            None => modes.receptance(tip, tip, &freqs).map_err(fe)?.iter().map(block).collect(),
+            Some(w) => {
+                let spinning = beam::spinning::SpinningModel::new(model.clone());
+                let blocks = spinning.receptance(tip, tip, w, &freqs).map_err(fe)?;
+                blocks.iter().map(|b| Receptance::new(b[0][0], b[0][1], b[1][0], b[1][1])).collect()
+            }
+        };
+        let speed_rpm = spin.map(|w| w * 60.0 / std::f64::consts::TAU);
+        let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, speed_rpm);
         let top = freqs.last().copied().unwrap_or(0.0);
         let nat: Vec<f64> =
             modes.natural_frequencies().into_iter().skip(modes.rigid_modes()).take_while(|f| *f <= top).collect();
@@ -771,5 +788,90 @@ mod tests {
         assert_eq!((r.direction, r.speed_rpm), (s.direction.clone(), s.speed_rpm));
         let e = resample(&s, &[50.0, 100.5]).unwrap_err();
         assert!(e.contains("100.5") && e.contains("extrapolate"), "{e}");
+    }
+}
+
+// ------------------------------------------------------------------ beam.campbell
+
+/// `beam.campbell`: forward and backward whirl frequencies of a spinning free–free assembly.
+pub struct BeamCampbell {
+    spec: NodeSpec,
+}
+
+impl Default for BeamCampbell {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl BeamCampbell {
+    pub fn new() -> Self {
+        let mut params = vec![
+            Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
+            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+            Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 5000 rpm`"),
+            Field::def("max_frequency", T::Quantity(D::FREQUENCY), "20 kHz", "highest whirl frequency listed"),
+        ];
+        params.extend(mesh_params());
+        BeamCampbell {
+            spec: NodeSpec {
+                kind: "beam.campbell",
+                version: 1,
+                description: "Campbell table of a spinning free-free Timoshenko assembly: forward and backward whirl frequencies per speed, with the gyroscopic matrices of Nelson's rotating elements.",
+                inputs: vec![],
+                outputs: vec![PortSpec::new(
+                    "whirl",
+                    PortType::Table,
+                    "one row per speed and whirl: speed (rpm), frequency (Hz), whirl (+1 forward, −1 backward)",
+                )],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for BeamCampbell {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        check_mesh(p)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let a = assembly(ctx, "assembly")?;
+        let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
+        let mut model =
+            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(ctx.params)).map_err(fe)?;
+        let m = sensor_mass(ctx)?;
+        if m > 0.0 {
+            let tip = model.n_nodes() - 1;
+            model.add_point_mass(tip, m, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
+        }
+        let speeds = ctx.params.list("speeds").unwrap_or(&[]).to_vec();
+        let top = ctx.params.f64("max_frequency").unwrap_or(2e4);
+        let whirls = beam::spinning::SpinningModel::new(model).campbell(&speeds).map_err(fe)?;
+        // One row per whirl: forward (+1) orbits turn with the spin, backward (−1) against it.
+        let mut cols: [Vec<f64>; 3] = Default::default();
+        for w in &whirls {
+            let rows = w.forward.iter().map(|f| (*f, 1.0)).chain(w.backward.iter().map(|f| (*f, -1.0)));
+            let mut rows: Vec<(f64, f64)> = rows.filter(|(f, _)| *f <= top).collect();
+            rows.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
+            for (f, sense) in rows {
+                cols[0].push(w.speed * 60.0 / std::f64::consts::TAU);
+                cols[1].push(f);
+                cols[2].push(sense);
+            }
+        }
+        let [speed, frequency, sense] = cols;
+        let table = Table {
+            columns: vec![
+                Column::new("speed", "rpm", speed),
+                Column::new("frequency", "Hz", frequency),
+                Column::new("whirl", "", sense),
+            ],
+        };
+        Ok(outputs(vec![("whirl", Value::Table(table))]))
     }
 }
