@@ -11,6 +11,7 @@ pub mod error_motion;
 pub mod filter;
 pub mod frf;
 pub mod impact;
+pub mod modal_fit;
 pub mod nodes;
 pub mod phase;
 pub mod rcsa;
