@@ -139,8 +139,9 @@ fn data(freqs: &[f64], h: &[Complex64], range: Range<usize>) -> Data {
     }
 }
 
-/// Physical poles of the order-`n` LSCF model.
-fn poles(d: &Data, n: usize) -> Result<Vec<Pole>, FitError> {
+/// Denominator coefficients `a_0..a_n` (`a_n = 1`) of the order-`n` model for the line weights `g` (the square
+/// of the extra weight on top of `1/|H|`).
+fn denominator(d: &Data, n: usize, g: &[f64]) -> Result<Vec<f64>, FitError> {
     let m = n + 1;
     // Toeplitz sequences: r_q = Re Σ w² z^q, t_q = Re Σ w²|H|² z^q (= Σ cos qθ with w = 1/|H|),
     // s±_q = Σ −w² H z^{±q}.
@@ -148,12 +149,12 @@ fn poles(d: &Data, n: usize) -> Result<Vec<Pole>, FitError> {
     let mut t = vec![0.0; m];
     let mut sp = vec![Complex64::from(0.0); m];
     let mut sm = vec![Complex64::from(0.0); m];
-    for (&z, &h) in d.z.iter().zip(&d.h) {
-        let w2 = 1.0 / h.norm_sqr();
+    for ((&z, &h), &g) in d.z.iter().zip(&d.h).zip(g) {
+        let w2 = g / h.norm_sqr();
         let mut zq = Complex64::from(1.0);
         for q in 0..m {
             r[q] += w2 * zq.re;
-            t[q] += zq.re;
+            t[q] += g * zq.re;
             sp[q] -= w2 * h * zq;
             sm[q] -= w2 * h * zq.conj();
             zq *= z;
@@ -191,7 +192,28 @@ fn poles(d: &Data, n: usize) -> Result<Vec<Pole>, FitError> {
     }
     solve(&mut a, &mut rhs, n, 1).ok_or(FitError::Singular { what: "denominator" })?;
     rhs.push(1.0);
-    let out = roots(&rhs)
+    Ok(rhs)
+}
+
+/// Sanathanan–Koerner passes: each re-weights the linearised problem by `1/|D(z)|²` of the previous pass,
+/// which removes the bias of the linearisation (it weights lines near poles too heavily).
+const SK_PASSES: usize = 4;
+
+/// Physical poles of the order-`n` LSCF model.
+fn poles(d: &Data, n: usize) -> Result<Vec<Pole>, FitError> {
+    let mut g = vec![1.0; d.z.len()];
+    let mut a = denominator(d, n, &g)?;
+    for _ in 0..SK_PASSES {
+        for (gk, &z) in g.iter_mut().zip(&d.z) {
+            let den = a.iter().rev().fold(Complex64::from(0.0), |acc, &c| acc * z + c);
+            *gk = 1.0 / den.norm_sqr().max(1e-300);
+        }
+        // Keep the weights' scale near one.
+        let mean = g.iter().sum::<f64>() / g.len() as f64;
+        g.iter_mut().for_each(|v| *v /= mean);
+        a = denominator(d, n, &g)?;
+    }
+    let out = roots(&a)
         .into_iter()
         .filter_map(|zr| {
             let lambda = zr.ln() / d.dt;

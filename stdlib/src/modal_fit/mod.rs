@@ -33,6 +33,9 @@ use thiserror::Error;
 /// Fewest frequency lines an FRF (and the fit band) must have.
 pub const MIN_LINES: usize = 8;
 
+/// Lines of a mode's band (within ±3 half-power widths) on which its beam is matched (§5.2.5).
+pub const MAP_POINTS: usize = 32;
+
 /// Half-width limit of a per-mode band, constraint b of Eq. 5.13, Hz.
 pub const BAND_HALF_WIDTH_HZ: f64 = 200.0;
 
@@ -239,7 +242,7 @@ impl Default for FitOptions {
             delete_after: 14,
             floating_modes: false,
             seed: 0,
-            band_points: 128,
+            band_points: 200,
             material: BeamMaterial::STEEL,
         }
     }
@@ -421,7 +424,7 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
     };
     let mut beams = Vec::with_capacity(modes.len());
     for (i, (m, b)) in modes.iter().zip(&bands).enumerate() {
-        let beam = beam_for_mode(m, b, &opts.material, opts.band_points / 2)
+        let beam = beam_for_mode(m, b, &opts.material, MAP_POINTS)
             .map_err(|source| FitError::Beam { mode: i, f_hz: m.freq_hz, source })?;
         beams.push(EquivalentBeam { f_hz: m.freq_hz, beam });
     }
