@@ -42,4 +42,5 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::LdvIntegrate::new()));
     registry.register(Arc::new(nodes::RigSimulate::new()));
     registry.register(Arc::new(nodes::RigShaker::new()));
+    registry.register(Arc::new(nodes::ModalFitNode::new()));
 }

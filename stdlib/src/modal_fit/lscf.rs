@@ -290,12 +290,13 @@ pub(super) fn fit_modes(
     let b = poles(&d, n + 2)?;
     let stable: Vec<Pole> = a
         .into_iter()
-        .filter(|p| {
-            b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi)
-        })
+        .filter(|p| b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi))
         .collect();
     if stable.is_empty() {
-        return Err(FitError::NothingLeft { method: "lscf", why: format!("no pole is stable between orders {n} and {}", n + 2) });
+        return Err(FitError::NothingLeft {
+            method: "lscf",
+            why: format!("no pole is stable between orders {n} and {}", n + 2),
+        });
     }
     let res = residues(&d, &stable)?;
     let mut kept = Vec::new();
@@ -307,10 +308,14 @@ pub(super) fn fit_modes(
         if mass.is_finite() && mass > 0.0 { kept.push(mode) } else { rejected.push(mode) }
     }
     let largest = kept.iter().fold(0.0_f64, |m, q| m.max(q.im_peak()));
-    let (keep, drop): (Vec<ModeParams>, Vec<ModeParams>) = kept.into_iter().partition(|q| q.im_peak() >= v_sens * largest);
+    let (keep, drop): (Vec<ModeParams>, Vec<ModeParams>) =
+        kept.into_iter().partition(|q| q.im_peak() >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
-        return Err(FitError::NothingLeft { method: "lscf", why: "every stable pole has a negative modal mass".into() });
+        return Err(FitError::NothingLeft {
+            method: "lscf",
+            why: "every stable pole has a negative modal mass".into(),
+        });
     }
     let mut keep = keep;
     keep.sort_by(|x, y| x.freq_hz.total_cmp(&y.freq_hz));

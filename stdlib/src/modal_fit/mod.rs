@@ -424,8 +424,11 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
     };
     let mut beams = Vec::with_capacity(modes.len());
     for (i, (m, b)) in modes.iter().zip(&bands).enumerate() {
-        let beam = beam_for_mode(m, b, &opts.material, MAP_POINTS)
-            .map_err(|source| FitError::Beam { mode: i, f_hz: m.freq_hz, source })?;
+        let beam = beam_for_mode(m, b, &opts.material, MAP_POINTS).map_err(|source| FitError::Beam {
+            mode: i,
+            f_hz: m.freq_hz,
+            source,
+        })?;
         beams.push(EquivalentBeam { f_hz: m.freq_hz, beam });
     }
     let lines: Vec<Receptance> = freqs_hz

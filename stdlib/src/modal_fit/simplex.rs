@@ -9,6 +9,9 @@
 
 use super::pick::{Peak, moving_average};
 use super::{Band, FitError, FitOptions, ModeParams, mode_bands, mode_h};
+
+/// Modes (by frequency), their bands, the deleted modes and the global iterations run.
+type Identified = (Vec<ModeParams>, Vec<Band>, Vec<ModeParams>, usize);
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
@@ -34,15 +37,15 @@ struct Bounds {
 }
 
 impl Bounds {
-    fn to_x(&self, z: &[f64]) -> [f64; 3] {
+    fn x_at(self, z: &[f64]) -> [f64; 3] {
         std::array::from_fn(|i| self.lo[i] + (self.hi[i] - self.lo[i]) * 0.5 * (1.0 + z[i].sin()))
     }
 
-    fn to_z(&self, x: [f64; 3]) -> Vec<f64> {
+    fn z_at(self, x: [f64; 3]) -> Vec<f64> {
         (0..3).map(|i| (2.0 * (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]) - 1.0).clamp(-1.0, 1.0).asin()).collect()
     }
 
-    fn stuck(&self, x: [f64; 3]) -> bool {
+    fn stuck(self, x: [f64; 3]) -> bool {
         (0..3).any(|i| {
             let u = (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]);
             !(STUCK..=1.0 - STUCK).contains(&u)
@@ -83,7 +86,8 @@ impl Slot {
         let picks: Vec<usize> = if e - a <= points {
             (a..e).collect()
         } else {
-            let mut v: Vec<usize> = (0..points).map(|p| a + (p * (e - a - 1) + (points - 1) / 2) / (points - 1)).collect();
+            let mut v: Vec<usize> =
+                (0..points).map(|p| a + (p * (e - a - 1) + (points - 1) / 2) / (points - 1)).collect();
             v.dedup();
             v
         };
@@ -121,7 +125,7 @@ impl CostFunction for ModeCost<'_> {
     type Output = f64;
 
     fn cost(&self, z: &Self::Param) -> Result<f64, ArgminError> {
-        let x = self.bounds.to_x(z);
+        let x = self.bounds.x_at(z);
         let (wn, xi, m) = (TAU * x[0], x[1], x[2].exp());
         let mut sum = 0.0;
         if self.imag_only {
@@ -140,7 +144,13 @@ impl CostFunction for ModeCost<'_> {
 
 /// Runs argmin's Nelder–Mead from `z0` with an initial simplex of axis steps `step`; returns the best point
 /// and its cost.
-fn nelder_mead(cost: ModeCost, z0: Vec<f64>, step: f64, max_iters: u64, f_hz: f64) -> Result<(Vec<f64>, f64), FitError> {
+fn nelder_mead(
+    cost: ModeCost,
+    z0: Vec<f64>,
+    step: f64,
+    max_iters: u64,
+    f_hz: f64,
+) -> Result<(Vec<f64>, f64), FitError> {
     let mut simplex = vec![z0.clone()];
     for i in 0..z0.len() {
         let mut z = z0.clone();
@@ -169,7 +179,8 @@ fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band:
     while b + 1 < smooth.len() && smooth[b + 1] < half && freqs[offset + b + 1] <= band.hi_hz {
         b += 1;
     }
-    let width = (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
+    let width =
+        (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
     let xi = (width / (2.0 * peak.freq_hz)).clamp(0.002, 0.2);
     let w = TAU * peak.freq_hz;
     ModeParams { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
@@ -220,7 +231,7 @@ pub(super) fn fit_modes(
     range: Range<usize>,
     peaks: &[Peak],
     opts: &FitOptions,
-) -> Result<(Vec<ModeParams>, Vec<Band>, Vec<ModeParams>, usize), FitError> {
+) -> Result<Identified, FitError> {
     let (lo, hi) = (freqs[range.start], freqs[range.end - 1]);
     let df = (hi - lo) / (range.len() - 1) as f64;
     let centres: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
@@ -235,26 +246,17 @@ pub(super) fn fit_modes(
         let m0 = initial_mode(peak, &smooth, range.start, freqs, band);
         let bounds = bounds_for(band, m0.modal_mass, 1.0 / MASS_SPAN, MASS_SPAN);
         let mut slot = Slot::new(m0, *band, bounds, freqs, h, opts.band_points);
-        let cost = ModeCost {
-            w: &slot.w,
-            hm: &slot.hm,
-            held: &slot.held,
-            bounds,
-            imag_only: true,
-            scale: slot.scale_im,
-        };
-        let (z, _) = nelder_mead(cost, bounds.to_z(x_of(&m0)), 0.2, 400, m0.freq_hz)?;
-        slot.mode = params_of(bounds.to_x(&z));
+        let cost =
+            ModeCost { w: &slot.w, hm: &slot.hm, held: &slot.held, bounds, imag_only: true, scale: slot.scale_im };
+        let (z, _) = nelder_mead(cost, bounds.z_at(x_of(&m0)), 0.2, 400, m0.freq_hz)?;
+        slot.mode = params_of(bounds.x_at(&z));
         slots.push(slot);
     }
 
     // Step 3: floating modes, each on its own ±200 Hz band.
     if opts.floating_modes {
-        let reference = slots
-            .iter()
-            .zip(peaks)
-            .min_by(|a, b| a.1.im.total_cmp(&b.1.im))
-            .map_or(1.0, |(s, _)| s.mode.modal_mass);
+        let reference =
+            slots.iter().zip(peaks).min_by(|a, b| a.1.im.total_cmp(&b.1.im)).map_or(1.0, |(s, _)| s.mode.modal_mass);
         for m in floating(peaks, reference, lo, hi, opts.seed) {
             let band = mode_bands(&[m.freq_hz], lo, hi, df)[0];
             let bounds = bounds_for(&band, reference, 0.1, 1e4);
@@ -288,8 +290,8 @@ pub(super) fn fit_modes(
                 imag_only: false,
                 scale: slot.scale,
             };
-            let (z, c) = nelder_mead(cost, slot.bounds.to_z(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
-            slot.mode = params_of(slot.bounds.to_x(&z));
+            let (z, c) = nelder_mead(cost, slot.bounds.z_at(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
+            slot.mode = params_of(slot.bounds.x_at(&z));
             current[j] = slot.mode;
             total += c;
         }
