@@ -11,6 +11,7 @@ pub mod error_motion;
 pub mod filter;
 pub mod frf;
 pub mod impact;
+pub mod modal_fit;
 pub mod nodes;
 pub mod phase;
 pub mod rcsa;
@@ -48,4 +49,5 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::SpindleReceptance::new()));
     registry.register(Arc::new(nodes::RcsaCouple::new()));
     registry.register(Arc::new(nodes::RcsaDecouple::new()));
+    registry.register(Arc::new(nodes::ModalFitNode::new()));
 }

@@ -1,0 +1,471 @@
+//! Equivalent-mode identification of a direct tip receptance, dissertation §5.2.
+//!
+//! A measured direct FRF `H11^m` is represented by a sum of single-degree-of-freedom modes (Eq. 5.8,
+//! `H = 1/(K − Mω² + iωC)`, `K = M(2πf)²`, `C = 2ξ sqrt(MK)`), each of which is then mapped to a solid
+//! fixed-free Euler–Bernoulli beam of the same natural frequency (§5.2.5). The sum of the beams' free-end
+//! receptances gives the fitted FRF (Eq. 5.7) and the full 2×2 tip block `G11` (Eqs. 5.10–5.12, with the
+//! fixed-free denominator `1 + cos λL cosh λL`).
+//!
+//! Two identification methods produce the same outputs:
+//! - [`Method::Simplex`], the dissertation's procedure: peak picking (§5.2.1), a Nelder–Mead fit per mode on a
+//!   band chosen by Eq. 5.13 (§5.2.2), optional floating modes (§5.2.3, Eqs. 5.14–5.15), global iterations with
+//!   the other modes held and deletion of modes stuck at their bounds (§5.2.4);
+//! - [`Method::Lscf`], a least-squares complex frequency-domain (z-domain common-denominator) estimate of the
+//!   poles with a frequency/damping stabilisation check, and residues by least squares with lower and upper
+//!   residual terms.
+
+mod lscf;
+mod map;
+mod pick;
+mod simplex;
+#[cfg(test)]
+mod tests;
+
+pub use map::{beam_for_mode, closed_form_diameter};
+pub use pick::{Peak, moving_average, pick_modes};
+
+use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};
+use crate::rcsa::{Receptance, ReceptanceFrf};
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+use thiserror::Error;
+
+/// Fewest frequency lines an FRF (and the fit band) must have.
+pub const MIN_LINES: usize = 8;
+
+/// Lines of a mode's band (within ±3 half-power widths) on which its beam is matched (§5.2.5).
+pub const MAP_POINTS: usize = 32;
+
+/// Half-width limit of a per-mode band, constraint b of Eq. 5.13, Hz.
+pub const BAND_HALF_WIDTH_HZ: f64 = 200.0;
+
+/// Errors of the modal fit.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FitError {
+    /// The grid and the values differ in length.
+    #[error("{freqs} frequencies but {values} FRF values; both must have one entry per line")]
+    LengthMismatch {
+        /// Number of frequencies.
+        freqs: usize,
+        /// Number of values.
+        values: usize,
+    },
+    /// Too few lines to fit anything.
+    #[error("{lines} frequency line(s) {place}; at least {min} are needed (widen the band or measure more lines)")]
+    TooFewLines {
+        /// Lines found.
+        lines: usize,
+        /// Lines required.
+        min: usize,
+        /// Where (`in the FRF`, `in the fit band`).
+        place: &'static str,
+    },
+    /// A frequency is not larger than the one before it.
+    #[error("frequency line {index} is {value} Hz, not above the previous {previous} Hz; the grid must increase")]
+    NonIncreasing {
+        /// Index of the line.
+        index: usize,
+        /// Previous frequency, Hz.
+        previous: f64,
+        /// This frequency, Hz.
+        value: f64,
+    },
+    /// A frequency or an FRF value is not finite (or a frequency is negative).
+    #[error("{what} at line {index} is {value}; frequencies must be finite and ≥ 0 and FRF values finite")]
+    NonFinite {
+        /// `frequency` or `FRF value`.
+        what: &'static str,
+        /// Index of the line.
+        index: usize,
+        /// The offending number (the real or imaginary part for values).
+        value: f64,
+    },
+    /// An option is out of range.
+    #[error("option {name} = {value}: {requirement}")]
+    InvalidOption {
+        /// Option name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
+    /// Im(H) has no negative peak in the fit band.
+    #[error(
+        "Im(H) has no negative peak between {lo_hz} and {hi_hz} Hz; a direct receptance has negative \
+         imaginary peaks at its modes (check the sign convention, the band, or lower h_sens)"
+    )]
+    NoPeaks {
+        /// Fit band start, Hz.
+        lo_hz: f64,
+        /// Fit band end, Hz.
+        hi_hz: f64,
+    },
+    /// No negative peak reaches the vertical sensitivity cut-off.
+    #[error(
+        "no mode passes v_sens: the largest |Im H| in the band is {largest:e} m/N, so the cut-off is {cutoff:e} m/N \
+         (v_sens = {v_sens}), but the deepest negative peak is only {deepest:e} m/N; lower v_sens or move the band"
+    )]
+    NoModes {
+        /// Largest |Im H| (smoothed) in the fit band.
+        largest: f64,
+        /// The cut-off `v_sens · largest`.
+        cutoff: f64,
+        /// The option.
+        v_sens: f64,
+        /// The deepest negative peak found.
+        deepest: f64,
+    },
+    /// Every mode was deleted or rejected.
+    #[error("{method}: no mode survived ({why}); check the band, h_sens/v_sens or the model order")]
+    NothingLeft {
+        /// `simplex` or `lscf`.
+        method: &'static str,
+        /// Why.
+        why: String,
+    },
+    /// A linear least-squares system of the LSCF method is singular.
+    #[error("LSCF {what}: the normal equations are singular (lower the order or widen the band)")]
+    Singular {
+        /// Which system.
+        what: &'static str,
+    },
+    /// The optimiser failed.
+    #[error("Nelder–Mead for the mode near {f_hz} Hz failed: {message}")]
+    Optimiser {
+        /// Mode frequency, Hz.
+        f_hz: f64,
+        /// The optimiser's message.
+        message: String,
+    },
+    /// The beam of a mode could not be built.
+    #[error("equivalent beam of mode {mode} ({f_hz} Hz): {source}")]
+    Beam {
+        /// Index of the mode.
+        mode: usize,
+        /// Its frequency, Hz.
+        f_hz: f64,
+        /// The beam model's error.
+        source: EbError,
+    },
+}
+
+/// One equivalent mode of Eq. 5.8: natural frequency, viscous damping ratio and modal mass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModeParams {
+    /// Natural frequency, Hz.
+    pub freq_hz: f64,
+    /// Viscous damping ratio ξ.
+    pub damping_ratio: f64,
+    /// Modal mass, kg.
+    pub modal_mass: f64,
+}
+
+impl ModeParams {
+    /// Modal stiffness `K = M (2πf)²`, N/m.
+    pub fn stiffness(&self) -> f64 {
+        let w = TAU * self.freq_hz;
+        self.modal_mass * w * w
+    }
+
+    /// Receptance of Eq. 5.8 at `omega` (rad/s): `1/(K − Mω² + iωC)`, m/N.
+    pub fn receptance(&self, omega: f64) -> Complex64 {
+        let wn = TAU * self.freq_hz;
+        mode_h(self.modal_mass, wn, self.damping_ratio, omega)
+    }
+
+    /// Peak magnitude of the imaginary part, `1/(2ξK)`, m/N (used by the v_sens cut-off).
+    pub fn im_peak(&self) -> f64 {
+        1.0 / (2.0 * self.damping_ratio * self.stiffness())
+    }
+}
+
+/// Eq. 5.8 for mass `m`, natural angular frequency `wn` and damping ratio `xi` at `w`:
+/// `1/(m(wn² − w²) + i·2ξ·m·wn·w)`.
+#[inline]
+pub(crate) fn mode_h(m: f64, wn: f64, xi: f64, w: f64) -> Complex64 {
+    let re = m * (wn * wn - w * w);
+    let im = 2.0 * xi * m * wn * w;
+    let inv = 1.0 / (re * re + im * im);
+    Complex64::new(re * inv, -im * inv)
+}
+
+/// How the modes are identified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// The §5.2 simplex procedure.
+    Simplex,
+    /// Least-squares complex frequency-domain estimate; `order` is the denominator order (number of poles,
+    /// even); `None` takes four poles per picked peak (at least 8).
+    Lscf {
+        /// Model order.
+        order: Option<usize>,
+    },
+}
+
+/// Options of [`fit`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// Identification method.
+    pub method: Method,
+    /// Lower end of the fit band, Hz.
+    pub min_frequency_hz: f64,
+    /// Upper end of the fit band, Hz (infinite: up to the last line).
+    pub max_frequency_hz: f64,
+    /// Width of the moving average on Im(H) for peak picking, points (`H_sens`, §5.2.1).
+    pub h_sens: usize,
+    /// Peak cut-off as a fraction of the largest |Im H| in the band (`V_sens`, §5.2.1).
+    pub v_sens: f64,
+    /// Global iterations of step 4 (§5.2.4).
+    pub iterations: usize,
+    /// Stuck modes are deleted after this many global iterations (§5.2.4.1); ≥ `iterations` disables deletion.
+    pub delete_after: usize,
+    /// Add the random floating modes of §5.2.3.
+    pub floating_modes: bool,
+    /// Seed of the floating modes.
+    pub seed: u64,
+    /// Points each band is interpolated to for the per-mode fits (bands with fewer lines use their lines).
+    pub band_points: usize,
+    /// Material of the equivalent beams.
+    pub material: BeamMaterial,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            method: Method::Simplex,
+            min_frequency_hz: 0.0,
+            max_frequency_hz: f64::INFINITY,
+            h_sens: 5,
+            v_sens: 0.05,
+            iterations: 20,
+            delete_after: 14,
+            floating_modes: false,
+            seed: 0,
+            band_points: 200,
+            material: BeamMaterial::STEEL,
+        }
+    }
+}
+
+/// The frequency range one mode is fitted on (§5.2.2.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Band {
+    /// Lower edge, Hz.
+    pub lo_hz: f64,
+    /// Upper edge, Hz.
+    pub hi_hz: f64,
+    /// Whether the fit band's edge cut it.
+    pub clipped: bool,
+}
+
+/// A mode's equivalent fixed-free beam (§5.2.5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EquivalentBeam {
+    /// Natural frequency of its first mode (the mode's), Hz.
+    pub f_hz: f64,
+    /// The beam (diameter, loss factor, free length of Eq. 5.6, material).
+    pub beam: FixedFreeBeam,
+}
+
+/// Fit quality on one mode's band: `Σ|H^m − H^f| / Σ|H^m|` over the measured lines in the band.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BandError {
+    /// Mode frequency, Hz.
+    pub f_hz: f64,
+    /// Band lower edge, Hz.
+    pub lo_hz: f64,
+    /// Band upper edge, Hz.
+    pub hi_hz: f64,
+    /// Error of the sum of Eq. 5.8 modes.
+    pub modal: f64,
+    /// Error of the sum of equivalent beams (the `fitted` FRF).
+    pub beam: f64,
+}
+
+/// Result of [`fit`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalFit {
+    /// Identified modes, by frequency.
+    pub modes: Vec<ModeParams>,
+    /// Each mode's band.
+    pub bands: Vec<Band>,
+    /// Each mode's equivalent beam.
+    pub beams: Vec<EquivalentBeam>,
+    /// Sum of the beams' H on the input grid (Eq. 5.7).
+    pub fitted: Vec<Complex64>,
+    /// Sum of the beams' free-end blocks on the input grid (Eqs. 5.7, 5.10–5.12).
+    pub tip: ReceptanceFrf,
+    /// Fit error per band.
+    pub band_errors: Vec<BandError>,
+    /// Frequencies picked in step 1, Hz.
+    pub picked_hz: Vec<f64>,
+    /// Modes removed by §5.2.4.1 (simplex) or rejected by the stabilisation / mass checks (LSCF).
+    pub deleted: Vec<ModeParams>,
+    /// Global iterations run (simplex), or orders tried (LSCF).
+    pub iterations: usize,
+}
+
+/// Checks the grid: same lengths, at least [`MIN_LINES`] lines, finite and strictly increasing frequencies ≥ 0,
+/// finite values.
+pub fn check_grid(freqs_hz: &[f64], h: &[Complex64]) -> Result<(), FitError> {
+    if freqs_hz.len() != h.len() {
+        return Err(FitError::LengthMismatch { freqs: freqs_hz.len(), values: h.len() });
+    }
+    if freqs_hz.len() < MIN_LINES {
+        return Err(FitError::TooFewLines { lines: freqs_hz.len(), min: MIN_LINES, place: "in the FRF" });
+    }
+    for (index, (&f, v)) in freqs_hz.iter().zip(h).enumerate() {
+        if !(f.is_finite() && f >= 0.0) {
+            return Err(FitError::NonFinite { what: "frequency", index, value: f });
+        }
+        if !v.re.is_finite() || !v.im.is_finite() {
+            let value = if v.re.is_finite() { v.im } else { v.re };
+            return Err(FitError::NonFinite { what: "FRF value", index, value });
+        }
+        if index > 0 && f <= freqs_hz[index - 1] {
+            return Err(FitError::NonIncreasing { index, previous: freqs_hz[index - 1], value: f });
+        }
+    }
+    Ok(())
+}
+
+fn check_options(o: &FitOptions) -> Result<(), FitError> {
+    let bad = |name, value: f64, requirement| Err(FitError::InvalidOption { name, value, requirement });
+    if !(o.min_frequency_hz.is_finite() && o.min_frequency_hz >= 0.0) {
+        return bad("min_frequency", o.min_frequency_hz, "must be finite and ≥ 0");
+    }
+    if o.max_frequency_hz.is_nan() || o.max_frequency_hz <= o.min_frequency_hz {
+        return bad("max_frequency", o.max_frequency_hz, "must be above min_frequency");
+    }
+    if o.h_sens == 0 {
+        return bad("h_sens", 0.0, "must be at least 1 point");
+    }
+    if !(o.v_sens > 0.0 && o.v_sens <= 1.0) {
+        return bad("v_sens", o.v_sens, "must be in (0, 1]");
+    }
+    if o.band_points < 8 {
+        return bad("band_points", o.band_points as f64, "must be at least 8");
+    }
+    if let Method::Lscf { order: Some(n) } = o.method
+        && !(4..=200).contains(&n)
+    {
+        return bad("order", n as f64, "must be between 4 and 200");
+    }
+    Ok(())
+}
+
+/// Index range of the lines inside the fit band.
+fn fit_range(freqs_hz: &[f64], o: &FitOptions) -> Result<std::ops::Range<usize>, FitError> {
+    let start = freqs_hz.partition_point(|&f| f < o.min_frequency_hz);
+    let end = freqs_hz.partition_point(|&f| f <= o.max_frequency_hz);
+    if end.saturating_sub(start) < MIN_LINES {
+        return Err(FitError::TooFewLines {
+            lines: end.saturating_sub(start),
+            min: MIN_LINES,
+            place: "in the fit band",
+        });
+    }
+    Ok(start..end)
+}
+
+/// Per-mode bands of §5.2.2.1 around the (sorted) centre frequencies: constraint a) 40 % of the distance to
+/// each neighbour (`f⁰ = 0`; above the last mode no neighbour), b) at most [`BAND_HALF_WIDTH_HZ`], then the
+/// fit band `[lo, hi]` clips, and c) neither side more than three times the other. Each side keeps at least
+/// two line spacings `df`.
+pub fn mode_bands(centres_hz: &[f64], lo: f64, hi: f64, df: f64) -> Vec<Band> {
+    (0..centres_hz.len())
+        .map(|j| {
+            let f = centres_hz[j];
+            let prev = if j == 0 { 0.0 } else { centres_hz[j - 1] };
+            let mut lower = (0.4 * (f - prev)).min(BAND_HALF_WIDTH_HZ);
+            let mut upper = match centres_hz.get(j + 1) {
+                Some(next) => (0.4 * (next - f)).min(BAND_HALF_WIDTH_HZ),
+                None => BAND_HALF_WIDTH_HZ,
+            };
+            let mut clipped = false;
+            if f - lower < lo {
+                lower = (f - lo).max(0.0);
+                clipped = true;
+            }
+            if f + upper > hi {
+                upper = (hi - f).max(0.0);
+                clipped = true;
+            }
+            lower = lower.max(2.0 * df);
+            upper = upper.max(2.0 * df);
+            if lower > 3.0 * upper {
+                lower = 3.0 * upper;
+            } else if upper > 3.0 * lower {
+                upper = 3.0 * lower;
+            }
+            Band { lo_hz: f - lower, hi_hz: f + upper, clipped }
+        })
+        .collect()
+}
+
+/// Identifies the modes of the direct receptance `h` (m/N) on `freqs_hz`, maps each to its equivalent
+/// fixed-free beam and returns the fitted FRF, the tip block `G11` and the fit errors (§5.2).
+pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<ModalFit, FitError> {
+    check_grid(freqs_hz, h)?;
+    check_options(opts)?;
+    let range = fit_range(freqs_hz, opts)?;
+    let peaks = pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens)?;
+    let picked_hz: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
+    let (lo, hi) = (freqs_hz[range.start], freqs_hz[range.end - 1]);
+    let df = (hi - lo) / (range.len() - 1) as f64;
+    let (modes, bands, deleted, iterations) = match opts.method {
+        Method::Simplex => simplex::fit_modes(freqs_hz, h, range.clone(), &peaks, opts)?,
+        Method::Lscf { order } => {
+            let (modes, rejected, orders) = lscf::fit_modes(freqs_hz, h, range.clone(), &peaks, order, opts.v_sens)?;
+            let centres: Vec<f64> = modes.iter().map(|m| m.freq_hz).collect();
+            (modes, mode_bands(&centres, lo, hi, df), rejected, orders)
+        }
+    };
+    let mut beams = Vec::with_capacity(modes.len());
+    for (i, (m, b)) in modes.iter().zip(&bands).enumerate() {
+        let beam = beam_for_mode(m, b, &opts.material, MAP_POINTS).map_err(|source| FitError::Beam {
+            mode: i,
+            f_hz: m.freq_hz,
+            source,
+        })?;
+        beams.push(EquivalentBeam { f_hz: m.freq_hz, beam });
+    }
+    let lines: Vec<Receptance> = freqs_hz
+        .iter()
+        .map(|&f| {
+            let w = TAU * f;
+            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.beam.tip_receptance(w))
+        })
+        .collect();
+    let fitted: Vec<Complex64> = lines.iter().map(|r| r.h).collect();
+    let band_errors = bands
+        .iter()
+        .zip(&modes)
+        .map(|(b, m)| {
+            let (mut num_m, mut num_b, mut den) = (0.0, 0.0, 0.0);
+            let a = freqs_hz.partition_point(|&f| f < b.lo_hz);
+            let e = freqs_hz.partition_point(|&f| f <= b.hi_hz);
+            for k in a..e {
+                let w = TAU * freqs_hz[k];
+                let modal: Complex64 = modes.iter().map(|q| q.receptance(w)).sum();
+                num_m += (h[k] - modal).norm();
+                num_b += (h[k] - fitted[k]).norm();
+                den += h[k].norm();
+            }
+            let den = if den > 0.0 { den } else { f64::INFINITY };
+            BandError { f_hz: m.freq_hz, lo_hz: b.lo_hz, hi_hz: b.hi_hz, modal: num_m / den, beam: num_b / den }
+        })
+        .collect();
+    Ok(ModalFit {
+        modes,
+        bands,
+        beams,
+        fitted,
+        tip: ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines },
+        band_errors,
+        picked_hz,
+        deleted,
+        iterations,
+    })
+}

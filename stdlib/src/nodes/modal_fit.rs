@@ -1,0 +1,378 @@
+//! `modal.fit`: equivalent modes and fixed-free Euler–Bernoulli beams of a direct tip FRF (§5.2, Eqs. 5.7–5.12).
+
+use crate::eb_modes::BeamMaterial;
+use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
+use spindlelab_engine::value::{Column, Frf, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct ModalFitNode {
+    spec: NodeSpec,
+}
+
+impl Default for ModalFitNode {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ModalFitNode {
+    pub fn new() -> Self {
+        ModalFitNode {
+            spec: NodeSpec {
+                kind: "modal.fit",
+                version: 1,
+                description: "Equivalent modes of a direct tip FRF (§5.2 simplex, or LSCF) mapped to fixed-free Euler–Bernoulli beams (§5.2.5); fitted FRF (Eq. 5.7) and tip receptances G11 (Eqs. 5.10–5.12).",
+                inputs: vec![PortSpec::new("frf", PortType::Frf, "direct tip receptance (m/N)")],
+                outputs: vec![
+                    PortSpec::new("modes", PortType::ModalModel, "identified modes (Eq. 5.8)"),
+                    PortSpec::new(
+                        "modal_table",
+                        PortType::Table,
+                        "frequency, damping ratio, modal mass and stiffness per mode",
+                    ),
+                    PortSpec::new(
+                        "beams",
+                        PortType::Table,
+                        "equivalent beam per mode: frequency, diameter, loss factor, free length",
+                    ),
+                    PortSpec::new("fitted", PortType::Frf, "sum of the beams' tip H (Eq. 5.7) on the input grid"),
+                    PortSpec::new(
+                        "tip",
+                        PortType::ReceptanceSet,
+                        "sum of the beams' tip blocks H, L, N, P (Eqs. 5.10–5.12)",
+                    ),
+                    PortSpec::new(
+                        "band_errors",
+                        PortType::Table,
+                        "relative residual per mode band, of the modes and of the beams",
+                    ),
+                ],
+                params: vec![
+                    Field::def(
+                        "method",
+                        T::Choice(&["simplex", "lscf"]),
+                        "simplex",
+                        "§5.2 simplex procedure or least-squares complex frequency-domain fit",
+                    ),
+                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
+                    Field::opt(
+                        "max_frequency",
+                        T::Quantity(D::FREQUENCY),
+                        "upper end of the fit band (default: the last line)",
+                    ),
+                    Field::def(
+                        "h_sens",
+                        T::Integer { min: 1, max: 10_000 },
+                        "5",
+                        "moving-average width on Im(H) for peak picking, points (§5.2.1)",
+                    ),
+                    Field::def(
+                        "v_sens",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "5 %",
+                        "peak cut-off as a fraction of the largest |Im H| (§5.2.1)",
+                    ),
+                    Field::def(
+                        "iterations",
+                        T::Integer { min: 1, max: 1000 },
+                        "20",
+                        "global iterations of step 4 (§5.2.4)",
+                    ),
+                    Field::def(
+                        "delete_after",
+                        T::Integer { min: 1, max: 1000 },
+                        "14",
+                        "delete modes stuck at their bounds after this many iterations (§5.2.4.1)",
+                    ),
+                    Field::def("floating_modes", T::Bool, "false", "add the random floating modes of §5.2.3"),
+                    Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "seed of the floating modes"),
+                    Field::def(
+                        "band_points",
+                        T::Integer { min: 8, max: 100_000 },
+                        "200",
+                        "lines each mode band is sampled to for its fit",
+                    ),
+                    Field::opt(
+                        "material",
+                        T::Entity(EntityKind::Material),
+                        "material of the equivalent beams (default steel, E 200 GPa, ρ 7800 kg/m³)",
+                    ),
+                    Field::opt(
+                        "order",
+                        T::Integer { min: 4, max: 200 },
+                        "LSCF model order (number of poles; default four per picked peak)",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+fn int(p: &Params, name: &str, default: i64) -> usize {
+    p.int(name).unwrap_or(default).max(0) as usize
+}
+
+fn err(e: FitError) -> NodeError {
+    match e {
+        FitError::InvalidOption { name, .. } => NodeError::param(name, e.to_string()),
+        FitError::NoModes { .. } => NodeError::param("v_sens", e.to_string()),
+        FitError::TooFewLines { place: "in the fit band", .. } => NodeError::param("min_frequency", e.to_string()),
+        FitError::LengthMismatch { .. }
+        | FitError::TooFewLines { .. }
+        | FitError::NonIncreasing { .. }
+        | FitError::NonFinite { .. }
+        | FitError::NoPeaks { .. } => NodeError::input("frf", e.to_string()),
+        other => NodeError::Failed(other.to_string()),
+    }
+}
+
+fn table(columns: Vec<Column>) -> Value {
+    Value::Table(Table { columns })
+}
+
+impl Node for ModalFitNode {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        super::non_negative(p, &["min_frequency"])?;
+        super::positive(p, &["max_frequency", "v_sens"])?;
+        if let Some(v) = p.f64("v_sens")
+            && v > 1.0
+        {
+            return Err(NodeError::param("v_sens", format!("must be at most 100 %, got {v}")));
+        }
+        if let (Some(lo), Some(hi)) = (p.f64("min_frequency"), p.f64("max_frequency"))
+            && hi <= lo
+        {
+            return Err(NodeError::param("max_frequency", format!("{hi} Hz is not above min_frequency {lo} Hz")));
+        }
+        if p.int("order").is_some_and(|n| n % 2 != 0) {
+            return Err(NodeError::param("order", "must be even: poles come in conjugate pairs"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let Value::Frf(frf) = ctx.input("frf")? else {
+            return Err(NodeError::input("frf", "expected an FRF"));
+        };
+        if !frf.unit.symbol.is_empty() && frf.unit.symbol != "m/N" {
+            return Err(NodeError::input(
+                "frf",
+                format!(
+                    "unit `{}`: the fit needs a receptance in m/N (convert mobility or accelerance first)",
+                    frf.unit.symbol
+                ),
+            ));
+        }
+        let p = ctx.params;
+        let material = match p.text("material") {
+            Some(name) => {
+                let m = ctx
+                    .recipe
+                    .materials
+                    .get(name)
+                    .ok_or_else(|| NodeError::param("material", format!("no material `{name}` in the recipe")))?;
+                BeamMaterial { e_pa: m.youngs_modulus, rho_kg_m3: m.density }
+            }
+            None => BeamMaterial::STEEL,
+        };
+        if !(material.e_pa.is_finite()
+            && material.e_pa > 0.0
+            && material.rho_kg_m3.is_finite()
+            && material.rho_kg_m3 > 0.0)
+        {
+            return Err(NodeError::param("material", "the material needs a positive `E` and `rho`"));
+        }
+        let method = match p.text("method") {
+            Some("lscf") => Method::Lscf { order: p.int("order").map(|n| n as usize) },
+            _ => Method::Simplex,
+        };
+        let opts = FitOptions {
+            method,
+            min_frequency_hz: p.f64("min_frequency").unwrap_or(0.0),
+            max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
+            h_sens: int(p, "h_sens", 5),
+            v_sens: p.f64("v_sens").unwrap_or(0.05),
+            iterations: int(p, "iterations", 20),
+            delete_after: int(p, "delete_after", 14),
+            floating_modes: p.bool("floating_modes").unwrap_or(false),
+            seed: p.int("seed").unwrap_or(0).max(0) as u64,
+            band_points: int(p, "band_points", 200),
+            material,
+        };
+        let fit = modal_fit::fit(&frf.freq_hz, &frf.values, &opts).map_err(err)?;
+        report(ctx, &fit, method);
+        Ok(outputs(frf, fit))
+    }
+}
+
+fn report(ctx: &NodeContext, fit: &ModalFit, method: Method) {
+    if !fit.deleted.is_empty() {
+        let what = match method {
+            Method::Simplex => "deleted at their bounds (§5.2.4.1)",
+            Method::Lscf { .. } => "rejected (negative modal mass or below v_sens)",
+        };
+        let list: Vec<String> = fit.deleted.iter().map(|m| format!("{:.1} Hz", m.freq_hz)).collect();
+        ctx.warn(format!("{} mode(s) {what}: {}", fit.deleted.len(), list.join(", ")));
+    }
+    let clipped: Vec<String> = fit
+        .bands
+        .iter()
+        .zip(&fit.modes)
+        .filter(|(b, _)| b.clipped)
+        .map(|(_, m)| format!("{:.1} Hz", m.freq_hz))
+        .collect();
+    if !clipped.is_empty() {
+        ctx.warn(format!("the fit band clips the band of the mode(s) at {}", clipped.join(", ")));
+    }
+}
+
+fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
+    let modes = ModalModel {
+        modes: fit
+            .modes
+            .iter()
+            .map(|m| Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass: m.modal_mass })
+            .collect(),
+    };
+    let col = |f: &dyn Fn(&modal_fit::ModeParams) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
+    let modal_table = table(vec![
+        Column::new("frequency", "Hz", col(&|m| m.freq_hz)),
+        Column::new("damping_ratio", "", col(&|m| m.damping_ratio)),
+        Column::new("modal_mass", "kg", col(&|m| m.modal_mass)),
+        Column::new("stiffness", "N/m", col(&|m| m.stiffness())),
+    ]);
+    let beams = table(vec![
+        Column::new("frequency", "Hz", fit.beams.iter().map(|b| b.f_hz).collect()),
+        Column::new("diameter", "m", fit.beams.iter().map(|b| b.beam.d_m).collect()),
+        Column::new("eta", "", fit.beams.iter().map(|b| b.beam.eta).collect()),
+        Column::new("length", "m", fit.beams.iter().map(|b| b.beam.length_m).collect()),
+    ]);
+    let e = &fit.band_errors;
+    let band_errors = table(vec![
+        Column::new("frequency", "Hz", e.iter().map(|b| b.f_hz).collect()),
+        Column::new("band_low", "Hz", e.iter().map(|b| b.lo_hz).collect()),
+        Column::new("band_high", "Hz", e.iter().map(|b| b.hi_hz).collect()),
+        Column::new("modal_error", "", e.iter().map(|b| b.modal).collect()),
+        Column::new("beam_error", "", e.iter().map(|b| b.beam).collect()),
+    ]);
+    let fitted = Frf {
+        freq_hz: frf.freq_hz.clone(),
+        values: fit.fitted,
+        coherence: None,
+        unit: frf.unit.clone(),
+        direction: frf.direction.clone(),
+        speed_rpm: frf.speed_rpm,
+        sensor: frf.sensor.clone(),
+    };
+    let lines = &fit.tip.lines;
+    let tip = ReceptanceSet {
+        freq_hz: fit.tip.freqs_hz.clone(),
+        h: lines.iter().map(|r| r.h).collect(),
+        l: lines.iter().map(|r| r.l).collect(),
+        n: lines.iter().map(|r| r.n).collect(),
+        p: lines.iter().map(|r| r.p).collect(),
+        direction: frf.direction.clone(),
+        speed_rpm: frf.speed_rpm,
+    };
+    [
+        ("modes", Value::ModalModel(modes)),
+        ("modal_table", modal_table),
+        ("beams", beams),
+        ("fitted", Value::Frf(fitted)),
+        ("tip", Value::ReceptanceSet(tip)),
+        ("band_errors", band_errors),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modal_fit::ModeParams;
+    use spindlelab_engine::diag::{Diagnostics, SourceFile};
+    use spindlelab_engine::model::Recipe;
+    use spindlelab_engine::node::Labelled;
+    use spindlelab_engine::spec::{self, Ctx, EntityNames};
+    use spindlelab_engine::syntax::load_yaml;
+    use spindlelab_engine::value::UnitLabel;
+    use std::f64::consts::TAU;
+    use std::sync::Arc;
+
+    fn params(node: &dyn Node, yaml: &str) -> Params {
+        let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };
+        let mut d = Diagnostics::new();
+        let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
+        let names = EntityNames::default();
+        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
+            .unwrap_or_else(|| panic!("{d}"))
+    }
+
+    #[test]
+    fn node_fits_two_modes_and_keeps_direction_and_speed() {
+        let node = ModalFitNode::new();
+        let modes = [
+            ModeParams { freq_hz: 800.0, damping_ratio: 0.03, modal_mass: 0.5 },
+            ModeParams { freq_hz: 2100.0, damping_ratio: 0.02, modal_mass: 0.3 },
+        ];
+        let freq_hz: Vec<f64> = (1..=1000).map(|k| 3.0 * k as f64).collect();
+        let values = freq_hz.iter().map(|&f| modes.iter().map(|m| m.receptance(TAU * f)).sum()).collect();
+        let frf = Frf {
+            freq_hz,
+            values,
+            coherence: None,
+            unit: UnitLabel::new("m/N"),
+            direction: Some("x".into()),
+            speed_rpm: Some(3000.0),
+            sensor: None,
+        };
+        let inputs = [(
+            "frf".to_string(),
+            vec![Labelled { label: "frf".into(), coords: Vec::new(), value: Arc::new(Value::Frf(frf)) }],
+        )]
+        .into_iter()
+        .collect();
+        let recipe = Recipe {
+            name: "fit".into(),
+            description: None,
+            hash: String::new(),
+            materials: Default::default(),
+            machines: Default::default(),
+            assemblies: Default::default(),
+            sensors: Default::default(),
+            cutting: Default::default(),
+            speeds: Vec::new(),
+            steps: Vec::new(),
+            outputs: Vec::new(),
+        };
+        for method in ["simplex", "lscf"] {
+            let p = params(&node, &format!("method: {method}\nv_sens: 10 %"));
+            node.validate(&p).unwrap();
+            let out = node.run(&NodeContext::new("fit", &p, &inputs, &recipe)).unwrap();
+            let Value::ModalModel(m) = &out["modes"] else { panic!("modes") };
+            assert_eq!(m.modes.len(), 2, "{method}");
+            for (got, want) in m.modes.iter().zip(&modes) {
+                assert!((got.freq_hz / want.freq_hz - 1.0).abs() < 1e-3, "{method}: {got:?}");
+                assert!((got.damping_ratio / want.damping_ratio - 1.0).abs() < 0.01, "{method}: {got:?}");
+            }
+            let (Value::Frf(fitted), Value::ReceptanceSet(tip)) = (&out["fitted"], &out["tip"]) else { panic!() };
+            assert_eq!(fitted.direction.as_deref(), Some("x"));
+            assert_eq!(tip.direction.as_deref(), Some("x"));
+            assert_eq!((fitted.speed_rpm, tip.speed_rpm), (Some(3000.0), Some(3000.0)));
+            assert_eq!(fitted.values, tip.h);
+            let Value::Table(beams) = &out["beams"] else { panic!() };
+            assert_eq!(beams.rows(), 2);
+        }
+        let odd = params(&node, "order: 9");
+        assert!(matches!(node.validate(&odd), Err(NodeError::InvalidParam { .. })));
+        let hi = params(&node, "v_sens: 150 %");
+        assert!(matches!(node.validate(&hi), Err(NodeError::InvalidParam { .. })));
+    }
+}
