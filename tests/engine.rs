@@ -298,3 +298,20 @@ fn released_recordings_free_memory_without_changing_results() {
     assert_eq!(std::fs::read(a.path().join("frf.csv")).unwrap(), std::fs::read(b.path().join("frf.csv")).unwrap());
     assert!(kept.result.outcomes.iter().all(|o| matches!(o, Outcome::Computed { .. })));
 }
+
+#[test]
+fn zipped_sweeps_feed_each_port_from_its_own_step() {
+    let c = compile(&data("zipped-inputs.yaml"));
+    let g = &c.graph;
+    let ids = &g.by_step["compare"];
+    assert_eq!(ids.len(), 2, "the two sweeps zip instead of forming a product");
+    for &i in ids {
+        let inst = &g.instances[i];
+        for (port, step) in [("frf", "a"), ("reference", "b")] {
+            let (src, _) = &inst.inputs[port][0];
+            let producer = &g.instances[*src];
+            assert_eq!(producer.step, step, "{}: port {port} fed by {}", inst.id, producer.id);
+            assert_eq!(producer.label, inst.label);
+        }
+    }
+}

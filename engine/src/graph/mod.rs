@@ -160,7 +160,9 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                 for (b, fam) in step.inputs.iter().zip(&family_of_binding) {
                     let producers = &by_step[&b.from.step];
                     let chosen: Vec<usize> = match fam {
-                        Some(f) => vec![families[*f][combo[*f]]],
+                        // Zipped families agree label by label, so the same position of this
+                        // binding's own producers is the instance that matches.
+                        Some(f) => vec![producers[combo[*f]]],
                         None => producers.clone(),
                     };
                     inputs.insert(b.port.clone(), chosen.into_iter().map(|i| (i, b.from.port.clone())).collect());
