@@ -183,43 +183,84 @@ pub(crate) struct LineRoot {
     pub e: f64,
 }
 
-/// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching).
-pub(crate) fn line_roots(frf: &ToolPointFrf, milling: &Milling, out: &mut Vec<[Option<LineRoot>; 2]>) {
+/// Principal square root by the real formula (`√((|z| + |Re z|)/2)` and `Im z/(2·that)`), much cheaper than the
+/// polar form; scaled where the squares could under- or overflow.
+#[inline]
+fn csqrt(z: Complex64) -> Complex64 {
+    let (x, y) = (z.re, z.im);
+    if x == 0.0 && y == 0.0 {
+        return z;
+    }
+    let scale = x.abs().max(y.abs());
+    let r = if (1e-150..1e150).contains(&scale) {
+        (x * x + y * y).sqrt()
+    } else {
+        let (u, v) = (x / scale, y / scale);
+        scale * (u * u + v * v).sqrt()
+    };
+    let t = (0.5 * (r + x.abs())).sqrt();
+    if x >= 0.0 { Complex64::new(t, 0.5 * y / t) } else { Complex64::new(0.5 * y.abs() / t, t.copysign(y)) }
+}
+
+/// Receptances of one grid as slices (`cross` = `(Φxy, Φyx)`), possibly a leading part of the grid.
+#[derive(Clone, Copy)]
+pub(crate) struct FrfSlices<'a> {
+    pub freqs_hz: &'a [f64],
+    pub xx: &'a [Complex64],
+    pub yy: &'a [Complex64],
+    pub cross: Option<(&'a [Complex64], &'a [Complex64])>,
+}
+
+impl ToolPointFrf {
+    /// The first `lines` lines as slices.
+    pub(crate) fn slices(&self, lines: usize) -> FrfSlices<'_> {
+        let l = lines.min(self.freqs_hz.len());
+        FrfSlices {
+            freqs_hz: &self.freqs_hz[..l],
+            xx: &self.xx[..l],
+            yy: &self.yy[..l],
+            cross: self.cross.as_ref().map(|(p, q)| (&p[..l], &q[..l])),
+        }
+    }
+}
+
+/// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching). With
+/// `Λ = −1/λ` the depth `−2πΛ_R(1 + κ²)/(N Kt)` simplifies to `2π/(N Kt Re λ)` and the phase
+/// `ε = π − 2 atan κ` to `π + 2 atan(Im λ/Re λ)`; a line has a root where `Re λ > 0` (`Re Λ < 0`).
+pub(crate) fn line_roots(frf: FrfSlices<'_>, milling: &Milling, out: &mut Vec<[Option<LineRoot>; 2]>) {
     let a = milling.directional_factors();
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     out.clear();
     out.reserve(frf.freqs_hz.len());
     let zero = Complex64::new(0.0, 0.0);
     let mut prev: Option<[Complex64; 2]> = None;
+    let root = |f: f64, l: Complex64| -> Option<LineRoot> {
+        if f <= 0.0 || l.re.is_nan() || l.re <= 0.0 {
+            return None;
+        }
+        let depth = TAU / (l.re * n_kt);
+        let e = 0.5 + (l.im / l.re).atan() / PI;
+        (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e })
+    };
     for j in 0..frf.freqs_hz.len() {
         let (xx, yy) = (frf.xx[j], frf.yy[j]);
-        let (xy, yx) = frf.cross.as_ref().map_or((zero, zero), |(p, q)| (p[j], q[j]));
+        let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
         let m00 = xx * a[0][0] + yx * a[0][1];
         let m01 = xy * a[0][0] + yy * a[0][1];
         let m10 = xx * a[1][0] + yx * a[1][1];
         let m11 = xy * a[1][0] + yy * a[1][1];
         let half_tr = 0.5 * (m00 + m11);
-        let disc = (half_tr * half_tr - (m00 * m11 - m01 * m10)).sqrt();
+        let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
         let mut lam = [half_tr + disc, half_tr - disc];
         if let Some(p) = prev
-            && (lam[0] - p[0]).norm() + (lam[1] - p[1]).norm() > (lam[0] - p[1]).norm() + (lam[1] - p[0]).norm()
+            && (lam[0] - p[0]).norm_sqr().sqrt() + (lam[1] - p[1]).norm_sqr().sqrt()
+                > (lam[0] - p[1]).norm_sqr().sqrt() + (lam[1] - p[0]).norm_sqr().sqrt()
         {
             lam.swap(0, 1);
         }
         prev = Some(lam);
-        let root = |l: Complex64| -> Option<LineRoot> {
-            if frf.freqs_hz[j] <= 0.0 || l.norm_sqr() == 0.0 {
-                return None;
-            }
-            let big = -l.inv();
-            if big.re.is_nan() || big.re >= 0.0 {
-                return None;
-            }
-            let depth = -TAU * big.norm_sqr() / (big.re * n_kt);
-            let eps = PI - 2.0 * (big.im / big.re).atan();
-            (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e: eps / TAU })
-        };
-        out.push([root(lam[0]), root(lam[1])]);
+        let f = frf.freqs_hz[j];
+        out.push([root(f, lam[0]), root(f, lam[1])]);
     }
 }
 
@@ -254,7 +295,7 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
         });
     }
     let mut roots = Vec::new();
-    line_roots(frf, milling, &mut roots);
+    line_roots(frf.slices(usize::MAX), milling, &mut roots);
     let (mut min_depth, mut min_f) = (f64::INFINITY, 0.0);
     for (j, r) in roots.iter().enumerate() {
         for x in r.iter().flatten() {
@@ -273,62 +314,90 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
     let mut limit = StabilityLimit::unbounded(grid);
     let mut lobes = Vec::new();
     let per_tooth = 60.0 / milling.teeth as f64;
+    let (grid_lo, grid_hi) = (grid.first().copied().unwrap_or(0.0), grid.last().copied().unwrap_or(0.0));
+    // Per branch, the runs of consecutive lines with a root as (f, N-scaled f, depth, e); the eigenproblem is
+    // solved once per line and each lobe is only a speed mapping n = 60 f/(N (k + e)) of the same points.
+    let mut run: Vec<(f64, f64, f64, f64)> = Vec::with_capacity(roots.len());
+    let mut speeds: Vec<f64> = Vec::with_capacity(roots.len());
     for branch in 0..2 {
-        for k in 0..options.lobes {
-            let kf = k as f64;
-            let mut cursor = 0usize;
-            let mut prev: Option<(f64, f64, f64)> = None;
-            let mut points: Vec<LobePoint> = Vec::new();
-            for (j, r) in roots.iter().enumerate() {
-                let Some(x) = r[branch] else {
-                    prev = None;
-                    if options.keep_lobes && !points.is_empty() {
-                        lobes.push(Lobe { index: k, branch, points: std::mem::take(&mut points) });
-                    }
-                    continue;
-                };
-                let f = frf.freqs_hz[j];
-                let n = per_tooth * f / (kf + x.e);
-                if options.keep_lobes {
-                    points.push(LobePoint { speed_rpm: n, depth_m: x.depth, chatter_hz: f });
-                }
-                // Grid points between the previous and this point of the lobe.
-                while cursor > 0 && grid[cursor - 1] >= n {
-                    cursor -= 1;
-                }
-                while cursor < grid.len() && grid[cursor] < n {
-                    cursor += 1;
-                }
-                if let Some((n1, a1, f1)) = prev {
-                    let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
-                    let mut i = cursor;
-                    if n1 <= n {
-                        // Walk down from the point at n to n1.
-                        if i < grid.len() && grid[i] == n {
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                        }
-                        while i > 0 && grid[i - 1] >= lo {
-                            i -= 1;
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                        }
-                    } else {
-                        while i < grid.len() && grid[i] <= hi {
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                            i += 1;
-                        }
-                    }
-                }
-                prev = Some((n, x.depth, f));
+        let mut start = 0;
+        while start < roots.len() {
+            if roots[start][branch].is_none() {
+                start += 1;
+                continue;
             }
-            if options.keep_lobes && !points.is_empty() {
-                lobes.push(Lobe { index: k, branch, points });
+            run.clear();
+            let mut j = start;
+            while let Some(Some(x)) = roots.get(j).map(|r| r[branch]) {
+                let f = frf.freqs_hz[j];
+                run.push((f, per_tooth * f, x.depth, x.e));
+                j += 1;
+            }
+            start = j;
+            for k in 0..options.lobes {
+                let kf = k as f64;
+                speeds.clear();
+                speeds.extend(run.iter().map(|&(_, c, _, e)| c / (kf + e)));
+                if options.keep_lobes {
+                    let points =
+                        run.iter().zip(&speeds).map(|(&(f, _, a, _), &n)| LobePoint { speed_rpm: n, depth_m: a, chatter_hz: f });
+                    lobes.push(Lobe { index: k, branch, points: points.collect() });
+                }
+                envelope_pass(grid, grid_lo, grid_hi, &run, &speeds, k, &mut limit);
             }
         }
     }
+    // Lobes in the order branch, lobe number, frequency.
+    lobes.sort_by_key(|l: &Lobe| (l.branch, l.index));
     Ok(ZoaLobes { lobes, limit, min_depth_m: min_depth, min_depth_chatter_hz: min_f })
+}
+
+/// Offers lobe `k`'s run of points (`run[i] = (f, ·, depth, ·)` at speed `speeds[i]`) to the envelope: every grid
+/// speed between two consecutive points gets the linearly interpolated depth. The speed along a run changes
+/// smoothly, so the grid index is followed by walking rather than searched.
+fn envelope_pass(
+    grid: &[f64],
+    grid_lo: f64,
+    grid_hi: f64,
+    run: &[(f64, f64, f64, f64)],
+    speeds: &[f64],
+    k: usize,
+    limit: &mut StabilityLimit,
+) {
+    let mut cursor = 0usize;
+    for i in 1..run.len() {
+        let (n1, n) = (speeds[i - 1], speeds[i]);
+        let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
+        if hi < grid_lo || lo > grid_hi {
+            continue;
+        }
+        let ((f1, _, a1, _), (f, _, a, _)) = (run[i - 1], run[i]);
+        // cursor = number of grid speeds below n.
+        while cursor > 0 && grid[cursor - 1] >= n {
+            cursor -= 1;
+        }
+        while cursor < grid.len() && grid[cursor] < n {
+            cursor += 1;
+        }
+        let mut g = cursor;
+        if n1 <= n {
+            if g < grid.len() && grid[g] == n {
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+            }
+            while g > 0 && grid[g - 1] >= lo {
+                g -= 1;
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+            }
+        } else {
+            while g < grid.len() && grid[g] <= hi {
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+                g += 1;
+            }
+        }
+    }
 }
 
 /// ZOA limit at one speed from the lobes passing through it: for each pair of adjacent valid lines and each
