@@ -364,20 +364,30 @@ fn envelope_pass(
     k: usize,
     limit: &mut StabilityLimit,
 ) {
-    let mut cursor = 0usize;
+    let Some(&first) = speeds.first() else { return };
+    // cursor = number of grid speeds below the current point n, which lies in the cell (cl, ch].
+    let mut cursor = grid.partition_point(|&g| g < first);
+    let cell = |c: usize| {
+        (if c == 0 { f64::NEG_INFINITY } else { grid[c - 1] }, grid.get(c).copied().unwrap_or(f64::INFINITY))
+    };
+    let (mut cl, mut ch) = cell(cursor);
     for i in 1..run.len() {
         let (n1, n) = (speeds[i - 1], speeds[i]);
-        let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
-        if hi < grid_lo || lo > grid_hi {
+        // Most segments lie strictly inside one grid cell and hold no grid speed.
+        if n > cl && n < ch && n1 < ch {
             continue;
         }
+        let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
         let ((f1, _, a1, _), (f, _, a, _)) = (run[i - 1], run[i]);
-        // cursor = number of grid speeds below n.
         while cursor > 0 && grid[cursor - 1] >= n {
             cursor -= 1;
         }
         while cursor < grid.len() && grid[cursor] < n {
             cursor += 1;
+        }
+        (cl, ch) = cell(cursor);
+        if hi < grid_lo || lo > grid_hi {
+            continue;
         }
         let mut g = cursor;
         if n1 <= n {
