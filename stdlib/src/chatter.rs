@@ -405,8 +405,8 @@ mod tests {
         assert!(!r.chatter);
     }
 
-    /// Tooth-passing harmonics, runout at 1–3 per revolution and noise only: stable, the largest remaining peak is
-    /// noise far below the threshold.
+    /// Tooth-passing harmonics, runout at 1–3 per revolution and noise only: stable; the largest remaining peak is
+    /// the 2-per-revolution runout at 100 Hz (the half-tooth line of four teeth, left in the search), ratio 0.035.
     #[test]
     fn forced_vibration_only_is_stable() {
         let (x, y) = cut(&[], 1);
@@ -417,9 +417,9 @@ mod tests {
         assert!((r.tooth_hz - 200.0).abs() < 1e-12);
     }
 
-    /// A non-synchronous component at 1234.4 Hz (between lines, amplitude 0.5 against a tooth harmonic of 1.7)
-    /// is chatter at that frequency within one line, of the quasi-periodic kind; at 0.1 amplitude (ratio ≈ 0.09,
-    /// below the 0.2 threshold) it is not.
+    /// A non-synchronous component at 1234.4 Hz (between lines, amplitude 0.5 against a tooth harmonic of 1.7,
+    /// ratio 0.40) is chatter at that frequency within 0.1 line, of the quasi-periodic kind; at 0.1 amplitude
+    /// (ratio 0.08, below the 0.2 threshold) it is not.
     #[test]
     fn non_synchronous_component_is_chatter_at_its_frequency() {
         let (x, y) = cut(&[(1234.4, 0.5)], 2);

@@ -231,7 +231,8 @@ impl Steps {
         }
         out[..d].copy_from_slice(&s.y);
         for slot in 1..=m {
-            out[d + (slot - 1) * nq..d + slot * nq].copy_from_slice(&s.hist[(2 * m - slot) * nq..(2 * m - slot + 1) * nq]);
+            out[d + (slot - 1) * nq..d + slot * nq]
+                .copy_from_slice(&s.hist[(2 * m - slot) * nq..(2 * m - slot + 1) * nq]);
         }
     }
 }

@@ -169,10 +169,8 @@ impl<'a> SplineFrf<'a> {
     fn new(knots: &'a [f64], frfs: &'a [SpeedFrf], with_cross: bool) -> Self {
         let k = knots.len();
         let s = second_derivative_matrix(knots);
-        let mut values: Vec<Vec<&'a [Complex64]>> = vec![
-            frfs.iter().map(|f| &f.frf.xx[..]).collect(),
-            frfs.iter().map(|f| &f.frf.yy[..]).collect(),
-        ];
+        let mut values: Vec<Vec<&'a [Complex64]>> =
+            vec![frfs.iter().map(|f| &f.frf.xx[..]).collect(), frfs.iter().map(|f| &f.frf.yy[..]).collect()];
         if with_cross {
             values.push(frfs.iter().map(|f| f.frf.cross.as_ref().map_or(&[][..], |c| &c.0[..])).collect());
             values.push(frfs.iter().map(|f| f.frf.cross.as_ref().map_or(&[][..], |c| &c.1[..])).collect());

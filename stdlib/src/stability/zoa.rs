@@ -339,8 +339,11 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
                 speeds.clear();
                 speeds.extend(run.iter().map(|&(_, c, _, e)| c / (kf + e)));
                 if options.keep_lobes {
-                    let points =
-                        run.iter().zip(&speeds).map(|(&(f, _, a, _), &n)| LobePoint { speed_rpm: n, depth_m: a, chatter_hz: f });
+                    let points = run.iter().zip(&speeds).map(|(&(f, _, a, _), &n)| LobePoint {
+                        speed_rpm: n,
+                        depth_m: a,
+                        chatter_hz: f,
+                    });
                     lobes.push(Lobe { index: k, branch, points: points.collect() });
                 }
                 envelope_pass(grid, grid_lo, grid_hi, &run, &speeds, k, &mut limit);
