@@ -269,25 +269,26 @@ pub fn detect_chatter(
         if f - half_width(f) > 0.5 * fs {
             break;
         }
-        let half_tooth = teeth % 2 == 0 && k % teeth == teeth / 2;
+        let half_tooth = teeth.is_multiple_of(2) && k % teeth == teeth / 2;
         if !half_tooth {
             let (lo, hi) = (f - half_width(f), f + half_width(f));
             let i_lo = (lo / df).ceil().max(0.0) as usize;
             let i_hi = ((hi / df).floor() as usize).min(lines - 1);
             for i in i_lo..=i_hi {
                 notched[i] = true;
-                if k > 0 && k % teeth == 0 && f <= f_max {
+                if k > 0 && k.is_multiple_of(teeth) && f <= f_max {
                     tooth_amplitude = tooth_amplitude.max(amplitude[i]);
                 }
             }
         }
         k += 1;
     }
-    if !(tooth_amplitude > 0.0) {
+    // The inputs are finite, so the amplitudes are too.
+    if tooth_amplitude <= 0.0 {
         return Err(ChatterError::NoToothContent { tooth_hz });
     }
 
-    // The largest remaining local peak below f_max.
+    // The largest remaining line below f_max.
     let mut best: Option<usize> = None;
     for i in 1..lines {
         if notched[i] || freqs_hz[i] > f_max {
