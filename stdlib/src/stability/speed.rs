@@ -336,10 +336,10 @@ pub fn speed_dependent_lobes(
                 yy: &scratch.yy,
                 cross: with_cross.then_some((&scratch.xy[..], &scratch.yx[..])),
             };
-            line_roots(frf, &milling, &mut scratch.roots);
+            line_roots(frf, &milling, false, &mut scratch.roots);
             let dynamic = limit_at_speed(frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
             let fixed_frf = stationary.slices(needed(&stationary.freqs_hz));
-            line_roots(fixed_frf, &milling, &mut scratch.roots);
+            line_roots(fixed_frf, &milling, false, &mut scratch.roots);
             let fixed = limit_at_speed(fixed_frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
             Ok([dynamic, fixed])
         })

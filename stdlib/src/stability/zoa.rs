@@ -180,7 +180,31 @@ pub struct ZoaLobes {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LineRoot {
     pub depth: f64,
+    /// `e`, exact or within [`PHASE_APPROX_ERROR`] (see [`line_roots`]).
     pub e: f64,
+    /// `Im λ/Re λ`, from which the exact `e = ½ + atan(ratio)/π` follows.
+    pub ratio: f64,
+}
+
+impl LineRoot {
+    /// The exact phase fraction.
+    #[inline]
+    pub fn exact_e(&self) -> f64 {
+        0.5 + self.ratio.atan() / PI
+    }
+}
+
+/// Bound on the error of the approximate phase fraction: `|Δe| ≤ 0.0016 rad/π ≈ 5e-4`, with margin.
+pub(crate) const PHASE_APPROX_ERROR: f64 = 1e-3;
+
+/// `atan x` within 0.0016 rad (`π x/4 − x(|x| − 1)(0.2447 + 0.0663|x|)` on `|x| ≤ 1`, Rajan et al. 2006,
+/// IEEE Signal Processing Magazine 23:108; reflected through `π/2 − atan(1/x)` outside).
+#[inline]
+fn atan_approx(x: f64) -> f64 {
+    let a = x.abs();
+    let core = |t: f64| std::f64::consts::FRAC_PI_4 * t - t * (t - 1.0) * (0.2447 + 0.0663 * t);
+    let v = if a <= 1.0 { core(a) } else { std::f64::consts::FRAC_PI_2 - core(1.0 / a) };
+    v.copysign(x)
 }
 
 /// Principal square root by the real formula (`√((|z| + |Re z|)/2)` and `Im z/(2·that)`), much cheaper than the
@@ -227,7 +251,15 @@ impl ToolPointFrf {
 /// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching). With
 /// `Λ = −1/λ` the depth `−2πΛ_R(1 + κ²)/(N Kt)` simplifies to `2π/(N Kt Re λ)` and the phase
 /// `ε = π − 2 atan κ` to `π + 2 atan(Im λ/Re λ)`; a line has a root where `Re λ > 0` (`Re Λ < 0`).
-pub(crate) fn line_roots(frf: FrfSlices<'_>, milling: &Milling, out: &mut Vec<[Option<LineRoot>; 2]>) {
+///
+/// With `exact_phase` false, `e` is approximated (within [`PHASE_APPROX_ERROR`]); callers that only need to know
+/// which lobes pass between lines then take [`LineRoot::exact_e`] where one does.
+pub(crate) fn line_roots(
+    frf: FrfSlices<'_>,
+    milling: &Milling,
+    exact_phase: bool,
+    out: &mut Vec<[Option<LineRoot>; 2]>,
+) {
     let a = milling.directional_factors();
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     out.clear();
@@ -239,19 +271,27 @@ pub(crate) fn line_roots(frf: FrfSlices<'_>, milling: &Milling, out: &mut Vec<[O
             return None;
         }
         let depth = TAU / (l.re * n_kt);
-        let e = 0.5 + (l.im / l.re).atan() / PI;
-        (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e })
+        let ratio = l.im / l.re;
+        let e = 0.5 + if exact_phase { ratio.atan() } else { atan_approx(ratio) } / PI;
+        (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e, ratio })
     };
-    for j in 0..frf.freqs_hz.len() {
-        let (xx, yy) = (frf.xx[j], frf.yy[j]);
-        let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
-        let m00 = xx * a[0][0] + yx * a[0][1];
-        let m01 = xy * a[0][0] + yy * a[0][1];
-        let m10 = xx * a[1][0] + yx * a[1][1];
-        let m11 = xy * a[1][0] + yy * a[1][1];
-        let half_tr = 0.5 * (m00 + m11);
-        let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
-        let mut lam = [half_tr + disc, half_tr - disc];
+    // First the eigenvalues of every line (independent lines, so the square roots overlap), then the branch
+    // matching and the roots.
+    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len())
+        .map(|j| {
+            let (xx, yy) = (frf.xx[j], frf.yy[j]);
+            let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
+            let m00 = xx * a[0][0] + yx * a[0][1];
+            let m01 = xy * a[0][0] + yy * a[0][1];
+            let m10 = xx * a[1][0] + yx * a[1][1];
+            let m11 = xy * a[1][0] + yy * a[1][1];
+            let half_tr = 0.5 * (m00 + m11);
+            let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
+            [half_tr + disc, half_tr - disc]
+        })
+        .collect();
+    for (j, &lam) in lams.iter().enumerate() {
+        let mut lam = lam;
         if let Some(p) = prev
             && (lam[0] - p[0]).norm_sqr().sqrt() + (lam[1] - p[1]).norm_sqr().sqrt()
                 > (lam[0] - p[1]).norm_sqr().sqrt() + (lam[1] - p[0]).norm_sqr().sqrt()
@@ -295,7 +335,7 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
         });
     }
     let mut roots = Vec::new();
-    line_roots(frf.slices(usize::MAX), milling, &mut roots);
+    line_roots(frf.slices(usize::MAX), milling, true, &mut roots);
     let (mut min_depth, mut min_f) = (f64::INFINITY, 0.0);
     for (j, r) in roots.iter().enumerate() {
         for x in r.iter().flatten() {
@@ -429,13 +469,19 @@ pub(crate) fn limit_at_speed(
         for j in 1..roots.len() {
             let (Some(p), Some(q)) = (roots[j - 1][branch], roots[j][branch]) else { continue };
             let (f1, f2) = (freqs_hz[j - 1], freqs_hz[j]);
-            let (u1, u2) = (f1 * period - p.e, f2 * period - q.e);
+            // Screen with the stored (possibly approximate) phases widened by their error, then decide exactly.
+            let (v1, v2) = (f1 * period - p.e, f2 * period - q.e);
+            let (lo, hi) = if v1 <= v2 { (v1, v2) } else { (v2, v1) };
+            if integer_range(lo - PHASE_APPROX_ERROR, hi + PHASE_APPROX_ERROR, lobes).is_none() {
+                continue;
+            }
+            let (e1, e2) = (p.exact_e(), q.exact_e());
+            let (u1, u2) = (f1 * period - e1, f2 * period - e2);
             let (lo, hi) = if u1 <= u2 { (u1, u2) } else { (u2, u1) };
-            let k_lo = lo.ceil().max(0.0);
-            let k_hi = hi.floor().min(lobes as f64 - 1.0);
+            let Some((k_lo, k_hi)) = integer_range(lo, hi, lobes) else { continue };
             let mut kf = k_lo;
             while kf <= k_hi {
-                let (n1, n2) = (per_tooth * f1 / (kf + p.e), per_tooth * f2 / (kf + q.e));
+                let (n1, n2) = (per_tooth * f1 / (kf + e1), per_tooth * f2 / (kf + e2));
                 let (d, fc) = segment_at(n1, p.depth, f1, n2, q.depth, f2, speed_rpm);
                 if d < best.0 {
                     best = (d, fc, Some(kf as usize));
@@ -445,4 +491,44 @@ pub(crate) fn limit_at_speed(
         }
     }
     best
+}
+
+/// The lobe numbers `k` in `[⌈lo⌉, ⌊hi⌋] ∩ [0, lobes − 1]` as floats, `None` if there is none (integer casts
+/// truncate, which is `⌊·⌋` for values ≥ 0).
+#[inline]
+fn integer_range(lo: f64, hi: f64, lobes: usize) -> Option<(f64, f64)> {
+    // NaN compares false: no lobe.
+    if hi.is_nan() || hi < 0.0 || lobes == 0 {
+        return None;
+    }
+    let k_hi = (hi.min(lobes as f64 - 1.0) as u64) as f64;
+    let k_lo = if lo <= 0.0 {
+        0.0
+    } else {
+        let t = lo.min(1e18) as u64 as f64;
+        if t < lo { t + 1.0 } else { t }
+    };
+    (k_lo <= k_hi).then_some((k_lo, k_hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The approximate arctangent stays within 0.0016 rad of `atan` (worst 0.00151) over twelve decades either side of zero, so
+    /// the phase fraction is within [`PHASE_APPROX_ERROR`].
+    #[test]
+    fn approximate_atan_error_is_bounded() {
+        let mut worst = 0.0f64;
+        for i in -60_000..=60_000 {
+            let x = 10f64.powf(i as f64 / 5000.0);
+            for v in [x, -x] {
+                worst = worst.max((atan_approx(v) - v.atan()).abs());
+            }
+        }
+        assert!(worst < 0.0016, "{worst}");
+        assert!(worst > 1e-4, "{worst}");
+        assert!(worst / PI < PHASE_APPROX_ERROR);
+        assert_eq!(atan_approx(0.0), 0.0);
+    }
 }
