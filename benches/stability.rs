@@ -26,6 +26,10 @@ fn bench_stability(c: &mut Criterion) {
     c.bench_function("stability/zoa/10000 lines 20 lobes", |b| {
         b.iter(|| zoa_lobes(black_box(&frf), &mill, &opts).expect("ok"))
     });
+    let envelope = ZoaOptions { keep_lobes: false, ..opts.clone() };
+    c.bench_function("stability/zoa/10000 lines 20 lobes, envelope only", |b| {
+        b.iter(|| zoa_lobes(black_box(&frf), &mill, &envelope).expect("ok"))
+    });
 
     let coarse: Vec<f64> = (1..=2000).map(|i| 2.5 * i as f64).collect();
     let frfs: Vec<SpeedFrf> = (0..9)

@@ -5,6 +5,7 @@
 //! where built-in kinds are listed.
 
 pub mod beam;
+pub mod chatter;
 pub mod compare;
 pub mod eb_modes;
 pub mod error_motion;

@@ -13,6 +13,12 @@ pub(crate) fn eigenvalues(a: &mut [f64], n: usize, out: &mut Vec<(f64, f64)>) ->
     hqr(a, n, out)
 }
 
+/// Eigenvalues of the row-major upper Hessenberg `n × n` matrix `a` (destroyed) by the QR iteration alone.
+pub(crate) fn hessenberg_eigenvalues(a: &mut [f64], n: usize, out: &mut Vec<(f64, f64)>) -> Option<()> {
+    out.clear();
+    hqr(a, n, out)
+}
+
 /// Removes, one at a time, indices whose column or row is zero outside the diagonal-free remainder: each is
 /// an eigenvalue `a_jj` of a block-triangular permutation, and the rest of the spectrum is that of the compacted
 /// matrix. Returns the remaining order (matrix compacted in place) and pushes the removed eigenvalues to `out`.

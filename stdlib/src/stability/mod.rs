@@ -17,6 +17,7 @@ pub mod cutting;
 mod linalg;
 pub mod sdm;
 pub mod speed;
+pub mod trials;
 pub mod zoa;
 
 #[cfg(test)]
@@ -28,6 +29,7 @@ pub use sdm::{
     sd_spectral_radius, sd_stability_map,
 };
 pub use speed::{CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, speed_dependent_lobes};
+pub use trials::{Outcome, Trial, TrialScore, Verdict, score_trials};
 pub use zoa::{Lobe, LobePoint, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions, zoa_lobes};
 
 use thiserror::Error;
@@ -104,6 +106,20 @@ pub enum StabilityError {
         lo_rpm: f64,
         /// Highest measured speed, rpm.
         hi_rpm: f64,
+    },
+    /// A stability diagram given for scoring trials is malformed.
+    #[error("stability diagram: {detail}; give ascending speeds with one limiting depth (> 0 m or +∞) each")]
+    InvalidDiagram {
+        /// What is wrong.
+        detail: String,
+    },
+    /// A cutting trial is malformed.
+    #[error("trial {index}: {problem}")]
+    InvalidTrial {
+        /// Index of the trial.
+        index: usize,
+        /// What is wrong.
+        problem: String,
     },
     /// The eigenvalue iteration of a monodromy matrix did not converge.
     #[error("eigenvalues of the {size}×{size} monodromy matrix did not converge at {speed_rpm} rpm, depth {depth_m} m")]

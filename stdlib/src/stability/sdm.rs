@@ -9,9 +9,11 @@
 //! `y_{i+1} = Φ_i y_i + (F0_i − F1_i) B_i q_{i−m} + F1_i B_i q_{i−m+1}` with `Φ_i = e^{A_i Δt}`,
 //! `F0 = ∫₀^Δt e^{A(Δt−s)} ds`, `F1 = ∫₀^Δt e^{A(Δt−s)} s/Δt ds`; the product over one period is the monodromy
 //! matrix acting on `(y_0, q_{−1}, …, q_{−m})`, and the cut is asymptotically stable iff its spectral radius is
-//! below one. Modal velocities are scaled by `1/ω_r` so that the matrices are balanced.
+//! below one. Modal velocities are scaled by `1/ω_r` so that the matrices are balanced. The dominant multiplier
+//! comes from an Arnoldi iteration on the step-by-step operator (the matrix is never formed), accepted on a Ritz
+//! residual below 1e-11 relative, with the dense QR eigen-solve of the formed matrix as fallback.
 
-use super::linalg::eigenvalues;
+use super::linalg::{eigenvalues, hessenberg_eigenvalues};
 use super::zoa::ToolPointFrf;
 use super::{Milling, StabilityError};
 use num_complex::Complex64;
@@ -169,23 +171,114 @@ pub struct DepthLimit {
     pub restabilises: bool,
 }
 
-/// Scratch and per-speed data of one semi-discretization.
-struct Sd {
+/// The step operators of one period at one depth: `y_{i+1} = Φ_i y_i + Ra_i q_{i−m} + Rb_i q_{i−m+1}`.
+struct Steps {
     n: usize,
     d: usize,
     nq: usize,
     m: usize,
+    /// Active-direction column of each mode (`q = T y` sums the modal displacements of a direction).
+    qcol: Vec<usize>,
+    /// Steps with no tooth in the cut: `Φ_i = e^{A0 Δt}` and no delayed term.
+    free: Vec<bool>,
+    /// `Φ_i`, `m × d × d`.
+    phis: Vec<f64>,
+    /// `Ra_i = (F0 − F1) B_i` and `Rb_i = F1 B_i`, `m × d × nq` each.
+    ra: Vec<f64>,
+    rb: Vec<f64>,
+}
+
+/// Scratch of [`Steps::apply`].
+struct ApplyScratch {
+    hist: Vec<f64>,
+    y: Vec<f64>,
+    y2: Vec<f64>,
+}
+
+impl Steps {
+    /// Order of the monodromy matrix: the state `y_0` and the delayed positions `q_{−1} … q_{−m}`.
+    fn size(&self) -> usize {
+        self.d + self.nq * self.m
+    }
+
+    /// `out = M z` for the monodromy matrix `M` without forming it: `z = (y_0, q_{−1}, …, q_{−m})`,
+    /// `out = (y_m, q_{m−1}, …, q_0)`, the positions `q_i = T y_i` recorded as the period is stepped through.
+    fn apply(&self, z: &[f64], out: &mut [f64], s: &mut ApplyScratch) {
+        let (n, d, nq, m) = (self.n, self.d, self.nq, self.m);
+        // hist holds q_t at (t + m) nq for t = −m … m − 1.
+        for slot in 1..=m {
+            s.hist[(m - slot) * nq..(m - slot + 1) * nq].copy_from_slice(&z[d + (slot - 1) * nq..d + slot * nq]);
+        }
+        s.y.copy_from_slice(&z[..d]);
+        for i in 0..m {
+            let qi = &mut s.hist[(i + m) * nq..(i + m + 1) * nq];
+            qi.fill(0.0);
+            for r in 0..n {
+                qi[self.qcol[r]] += s.y[r];
+            }
+            let phi = &self.phis[i * d * d..(i + 1) * d * d];
+            for (row, o) in s.y2.iter_mut().enumerate() {
+                *o = phi[row * d..(row + 1) * d].iter().zip(&s.y).map(|(p, v)| p * v).sum();
+            }
+            if !self.free[i] {
+                let (qa, qb) = (&s.hist[i * nq..(i + 1) * nq], &s.hist[(i + 1) * nq..(i + 2) * nq]);
+                let (ra, rb) = (&self.ra[i * d * nq..(i + 1) * d * nq], &self.rb[i * d * nq..(i + 1) * d * nq]);
+                for (row, o) in s.y2.iter_mut().enumerate() {
+                    for c in 0..nq {
+                        *o += ra[row * nq + c] * qa[c] + rb[row * nq + c] * qb[c];
+                    }
+                }
+            }
+            std::mem::swap(&mut s.y, &mut s.y2);
+        }
+        out[..d].copy_from_slice(&s.y);
+        for slot in 1..=m {
+            out[d + (slot - 1) * nq..d + slot * nq]
+                .copy_from_slice(&s.hist[(2 * m - slot) * nq..(2 * m - slot + 1) * nq]);
+        }
+    }
+}
+
+/// Largest Krylov dimension before falling back to the dense eigen-solve.
+const KRYLOV_MAX: usize = 60;
+/// Krylov dimensions at which the dominant Ritz pair is tested.
+const KRYLOV_CHECKS: [usize; 7] = [12, 18, 24, 32, 40, 50, 60];
+/// Monodromy matrices up to this order are solved densely.
+const DENSE_MAX: usize = 32;
+/// Accepted relative residual `‖M x − θ x‖/|θ|` of the dominant Ritz pair.
+const RITZ_TOLERANCE: f64 = 1e-11;
+
+/// Scratch of the Arnoldi iteration.
+struct Krylov {
+    /// Orthonormal basis, one vector of the monodromy order per row.
+    v: Vec<f64>,
+    /// Hessenberg matrix `(KRYLOV_MAX + 1) × KRYLOV_MAX`, row-major.
+    h: Vec<f64>,
+    w: Vec<f64>,
+    coef: Vec<f64>,
+    hk: Vec<f64>,
+    ritz: Vec<(f64, f64)>,
+    lu: Vec<Complex64>,
+    x: Vec<Complex64>,
+}
+
+/// Scratch and per-speed data of one semi-discretization.
+struct Sd {
+    /// Skip the Krylov iteration (to check it against the dense solve).
+    dense_only: bool,
     dt: f64,
-    /// Per mode: `ω_r`, `ζ_r`, `1/(m_r ω_r)`, direction (0 x, 1 y), active-direction column.
+    /// Per mode: `ω_r`, `ζ_r`, `1/(m_r ω_r)`, direction (0 x, 1 y).
     omega: Vec<f64>,
     zeta: Vec<f64>,
     gain: Vec<f64>,
     dir: Vec<usize>,
-    qcol: Vec<usize>,
     dirs: Vec<usize>,
     /// Mean `H` per step.
     h: Vec<[[f64; 2]; 2]>,
-    // Scratch.
+    steps: Steps,
+    apply: ApplyScratch,
+    krylov: Krylov,
+    // Exponential scratch.
     a: Vec<f64>,
     phi: Vec<f64>,
     f0: Vec<f64>,
@@ -193,8 +286,9 @@ struct Sd {
     x: Vec<f64>,
     pw: Vec<f64>,
     t1: Vec<f64>,
-    ys: Vec<f64>,
+    // Dense fallback.
     mono: Vec<f64>,
+    col: Vec<f64>,
     eig: Vec<(f64, f64)>,
 }
 
@@ -235,10 +329,11 @@ impl Sd {
         let n = omega.len();
         let d = 2 * n;
         let nq = dirs.len();
+        let m = steps;
         let tau = milling.tooth_period(speed_rpm);
         let dt = tau / steps as f64;
         let rate = TAU * speed_rpm / 60.0;
-        let h = (0..steps)
+        let h: Vec<[[f64; 2]; 2]> = (0..steps)
             .map(|i| {
                 let (ta, tb) = (rate * dt * i as f64, rate * dt * (i + 1) as f64);
                 let mut s = milling.force_matrix_integral(ta, tb);
@@ -247,20 +342,39 @@ impl Sd {
                 s
             })
             .collect();
-        let big = d + nq * steps;
-        Ok(Sd {
-            n,
-            d,
-            nq,
-            m: steps,
+        let free = h.iter().map(|s| s.iter().flatten().all(|v| *v == 0.0)).collect();
+        let big = d + nq * m;
+        let mut sd = Sd {
+            dense_only: false,
             dt,
             omega,
             zeta,
             gain,
             dir,
-            qcol,
             dirs,
             h,
+            steps: Steps {
+                n,
+                d,
+                nq,
+                m,
+                qcol,
+                free,
+                phis: vec![0.0; m * d * d],
+                ra: vec![0.0; m * d * nq],
+                rb: vec![0.0; m * d * nq],
+            },
+            apply: ApplyScratch { hist: vec![0.0; 2 * m * nq], y: vec![0.0; d], y2: vec![0.0; d] },
+            krylov: Krylov {
+                v: vec![0.0; (KRYLOV_MAX + 1) * big],
+                h: vec![0.0; (KRYLOV_MAX + 1) * KRYLOV_MAX],
+                w: vec![0.0; big],
+                coef: vec![0.0; KRYLOV_MAX + 1],
+                hk: vec![0.0; KRYLOV_MAX * KRYLOV_MAX],
+                ritz: Vec::with_capacity(KRYLOV_MAX),
+                lu: vec![Complex64::new(0.0, 0.0); KRYLOV_MAX * KRYLOV_MAX],
+                x: vec![Complex64::new(0.0, 0.0); KRYLOV_MAX],
+            },
             a: vec![0.0; d * d],
             phi: vec![0.0; d * d],
             f0: vec![0.0; d * d],
@@ -268,15 +382,41 @@ impl Sd {
             x: vec![0.0; d * d],
             pw: vec![0.0; d * d],
             t1: vec![0.0; d * d],
-            ys: vec![0.0; (steps + 1) * d * big],
-            mono: vec![0.0; big * big],
+            mono: Vec::new(),
+            col: vec![0.0; big],
             eig: Vec::with_capacity(big),
-        })
+        };
+        // Free steps do not depend on the depth: e^{A0 Δt} once per speed.
+        if sd.steps.free.iter().any(|&f| f) {
+            sd.fill_a(0.0, &[[0.0; 2]; 2]);
+            sd.exponentials();
+            for i in 0..m {
+                if sd.steps.free[i] {
+                    sd.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&sd.phi);
+                }
+            }
+        }
+        Ok(sd)
+    }
+
+    /// `A = A0 + a_p C` in the scaled state `(η, η̇/ω)` with the mean force matrix `hm` of a step.
+    fn fill_a(&mut self, depth_m: f64, hm: &[[f64; 2]; 2]) {
+        let (n, d) = (self.steps.n, self.steps.d);
+        self.a.fill(0.0);
+        for r in 0..n {
+            let (w, z) = (self.omega[r], self.zeta[r]);
+            self.a[r * d + n + r] = w;
+            self.a[(n + r) * d + r] = -w;
+            self.a[(n + r) * d + n + r] = -2.0 * z * w;
+            for s in 0..n {
+                self.a[(n + r) * d + s] -= depth_m * self.gain[r] * hm[self.dir[r]][self.dir[s]];
+            }
+        }
     }
 
     /// `Φ`, `F0` and `G = Δt F1` of `A Δt` into `phi`, `f0`, `g` by a Taylor series on `A Δt/2^s` and squaring.
     fn exponentials(&mut self) {
-        let d = self.d;
+        let d = self.steps.d;
         let norm = (0..d).map(|c| (0..d).map(|r| self.a[r * d + c].abs()).sum::<f64>()).fold(0.0, f64::max) * self.dt;
         let mut s = 0;
         while norm / f64::from(1u32 << s.min(30)) > 0.5 && s < 60 {
@@ -325,33 +465,20 @@ impl Sd {
         }
     }
 
-    /// Builds the monodromy matrix at depth `depth_m` and returns its dominant multiplier.
-    fn point(&mut self, depth_m: f64, speed_rpm: f64) -> Result<SdPoint, StabilityError> {
-        let (n, d, nq, m) = (self.n, self.d, self.nq, self.m);
-        let big = d + nq * m;
-        // Y_0 = [I 0].
-        self.ys[..d * big].fill(0.0);
-        for r in 0..d {
-            self.ys[r * big + r] = 1.0;
-        }
-        let mut ra = vec![0.0; d * nq];
-        let mut rb = vec![0.0; d * nq];
-        for i in 0..m {
-            let hm = self.h[i];
-            // A = A0 + a_p C_i in the scaled state (η, η̇/ω).
-            self.a.fill(0.0);
-            for r in 0..n {
-                let (w, z) = (self.omega[r], self.zeta[r]);
-                self.a[r * d + n + r] = w;
-                self.a[(n + r) * d + r] = -w;
-                self.a[(n + r) * d + n + r] = -2.0 * z * w;
-                for s in 0..n {
-                    self.a[(n + r) * d + s] -= depth_m * self.gain[r] * hm[self.dir[r]][self.dir[s]];
-                }
+    /// The step operators at depth `depth_m` (free steps were set once per speed).
+    fn set_depth(&mut self, depth_m: f64) {
+        let (n, d, nq) = (self.steps.n, self.steps.d, self.steps.nq);
+        let inv_dt = 1.0 / self.dt;
+        for i in 0..self.steps.m {
+            if self.steps.free[i] {
+                continue;
             }
+            let hm = self.h[i];
+            self.fill_a(depth_m, &hm);
             self.exponentials();
+            self.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&self.phi);
             // B (d × nq): rows n + r, column c: a_p H[dir r][dirs c]/(m_r ω_r); Ra = (F0 − F1) B, Rb = F1 B.
-            let inv_dt = 1.0 / self.dt;
+            let (ra, rb) = (&mut self.steps.ra[i * d * nq..(i + 1) * d * nq], &mut self.steps.rb[i * d * nq..]);
             for row in 0..d {
                 for c in 0..nq {
                     let (mut sa, mut sb) = (0.0, 0.0);
@@ -365,57 +492,95 @@ impl Sd {
                     rb[row * nq + c] = sb;
                 }
             }
-            // Y_{i+1} = Φ Y_i + Ra Q(i − m) + Rb Q(i − m + 1).
-            let (done, rest) = self.ys.split_at_mut((i + 1) * d * big);
-            let yi = &done[i * d * big..];
-            let yn = &mut rest[..d * big];
-            for row in 0..d {
-                let out = &mut yn[row * big..(row + 1) * big];
-                out.fill(0.0);
-                for k in 0..d {
-                    let p = self.phi[row * d + k];
-                    if p != 0.0 {
-                        for (o, v) in out.iter_mut().zip(&yi[k * big..(k + 1) * big]) {
-                            *o += p * v;
-                        }
-                    }
-                }
-                // q_{i−m}: slot s = m − i.
-                let slot = m - i;
-                for c in 0..nq {
-                    out[d + (slot - 1) * nq + c] += ra[row * nq + c];
-                }
-                if i + 1 < m {
-                    let slot = m - i - 1;
-                    for c in 0..nq {
-                        out[d + (slot - 1) * nq + c] += rb[row * nq + c];
-                    }
-                } else {
-                    // q_0 = T y_0: the η columns of the modes of each direction.
-                    for r in 0..n {
-                        out[r] += rb[row * nq + self.qcol[r]];
-                    }
-                }
-            }
         }
-        // Monodromy: rows of y_m, then q_{m−s} = T Y_{m−s} for slots s = 1 … m.
-        self.mono.fill(0.0);
-        self.mono[..d * big].copy_from_slice(&self.ys[m * d * big..(m + 1) * d * big]);
-        for s in 1..=m {
-            let y = &self.ys[(m - s) * d * big..(m - s + 1) * d * big];
-            for r in 0..n {
-                let row = d + (s - 1) * nq + self.qcol[r];
-                let src = &y[r * big..(r + 1) * big];
-                for (o, v) in self.mono[row * big..(row + 1) * big].iter_mut().zip(src) {
-                    *o += v;
-                }
+    }
+
+    /// Dominant monodromy eigenvalue `(re, im)` at the current depth: Arnoldi iteration on the step operator
+    /// (the monodromy spectrum of a delay equation clusters at zero, so the outermost multipliers converge within
+    /// a few dozen vectors), accepted when the dominant Ritz pair's residual is below [`RITZ_TOLERANCE`];
+    /// otherwise, and for small matrices, the dense QR eigen-solve of the formed matrix.
+    fn dominant(&mut self, depth_m: f64, speed_rpm: f64) -> Result<(f64, f64), StabilityError> {
+        let big = self.steps.size();
+        if big > DENSE_MAX
+            && !self.dense_only
+            && let Some(mu) = self.arnoldi(big)
+        {
+            return Ok(mu);
+        }
+        self.mono.resize(big * big, 0.0);
+        for j in 0..big {
+            self.col.fill(0.0);
+            self.col[j] = 1.0;
+            self.steps.apply(&self.col, &mut self.krylov.w, &mut self.apply);
+            for (r, v) in self.krylov.w.iter().enumerate() {
+                self.mono[r * big + j] = *v;
             }
         }
         if eigenvalues(&mut self.mono, big, &mut self.eig).is_none() {
             return Err(StabilityError::NoConvergence { size: big, speed_rpm, depth_m });
         }
-        let (re, im) =
-            self.eig.iter().copied().fold((0.0f64, 0.0f64), |b, e| if e.0.hypot(e.1) > b.0.hypot(b.1) { e } else { b });
+        Ok(largest(&self.eig))
+    }
+
+    fn arnoldi(&mut self, big: usize) -> Option<(f64, f64)> {
+        let kmax = KRYLOV_MAX.min(big - 1);
+        let Krylov { v, h, w, coef, hk, ritz, lu, x } = &mut self.krylov;
+        h.fill(0.0);
+        // A fixed, generic start vector (no zero components, not aligned with any structure).
+        for (i, e) in v[..big].iter_mut().enumerate() {
+            *e = 1.0 + 0.5 * ((i as f64) * 0.754_877_666).fract();
+        }
+        let norm = v[..big].iter().map(|e| e * e).sum::<f64>().sqrt();
+        v[..big].iter_mut().for_each(|e| *e /= norm);
+        let mut hnorm = 0.0f64;
+        for j in 0..kmax {
+            self.steps.apply(&v[j * big..(j + 1) * big], w, &mut self.apply);
+            // Classical Gram–Schmidt, twice.
+            for _ in 0..2 {
+                for (i, c) in coef[..=j].iter_mut().enumerate() {
+                    *c = v[i * big..(i + 1) * big].iter().zip(w.iter()).map(|(a, b)| a * b).sum();
+                }
+                for (i, c) in coef[..=j].iter().enumerate() {
+                    h[i * KRYLOV_MAX + j] += c;
+                    for (wv, vv) in w.iter_mut().zip(&v[i * big..(i + 1) * big]) {
+                        *wv -= c * vv;
+                    }
+                }
+            }
+            let beta = w.iter().map(|e| e * e).sum::<f64>().sqrt();
+            h[(j + 1) * KRYLOV_MAX + j] = beta;
+            hnorm = hnorm.max((0..=j + 1).map(|i| h[i * KRYLOV_MAX + j].abs()).sum());
+            let k = j + 1;
+            let breakdown = beta <= 1e-14 * hnorm;
+            if breakdown || KRYLOV_CHECKS.contains(&k) || k == kmax {
+                for r in 0..k {
+                    hk[r * k..(r + 1) * k].copy_from_slice(&h[r * KRYLOV_MAX..r * KRYLOV_MAX + k]);
+                }
+                hessenberg_eigenvalues(&mut hk[..k * k], k, ritz)?;
+                let (re, im) = largest(ritz);
+                if breakdown {
+                    return Some((re, im));
+                }
+                let theta = Complex64::new(re, im);
+                let residual = beta * ritz_last_component(h, k, theta, hnorm, lu, x);
+                if residual <= RITZ_TOLERANCE * theta.norm() {
+                    return Some((re, im));
+                }
+            }
+            if breakdown {
+                return None;
+            }
+            for (o, e) in v[(j + 1) * big..(j + 2) * big].iter_mut().zip(w.iter()) {
+                *o = e / beta;
+            }
+        }
+        None
+    }
+
+    /// Builds the step operators at depth `depth_m` and returns the dominant multiplier.
+    fn point(&mut self, depth_m: f64, speed_rpm: f64) -> Result<SdPoint, StabilityError> {
+        self.set_depth(depth_m);
+        let (re, im) = self.dominant(depth_m, speed_rpm)?;
         let multiplier = Complex64::new(re, im.abs());
         let kind = if im != 0.0 {
             Bifurcation::Hopf
@@ -428,6 +593,77 @@ impl Sd {
     }
 }
 
+/// The eigenvalue of largest modulus (the first of equal ones).
+fn largest(eig: &[(f64, f64)]) -> (f64, f64) {
+    eig.iter().copied().fold((0.0f64, 0.0f64), |b, e| if e.0.hypot(e.1) > b.0.hypot(b.1) { e } else { b })
+}
+
+/// `|s_k|/‖s‖` for the eigenvector `s` of the leading `k × k` block of the Hessenberg matrix `h` (row stride
+/// [`KRYLOV_MAX`]) at its eigenvalue `θ`, by two steps of inverse iteration; times `h_{k+1,k}` it is the residual
+/// norm of the Ritz pair.
+fn ritz_last_component(
+    h: &[f64],
+    k: usize,
+    theta: Complex64,
+    hnorm: f64,
+    lu: &mut [Complex64],
+    x: &mut [Complex64],
+) -> f64 {
+    let tiny = f64::EPSILON * hnorm.max(f64::MIN_POSITIVE);
+    for r in 0..k {
+        for c in 0..k {
+            let e = if c + 1 >= r { h[r * KRYLOV_MAX + c] } else { 0.0 };
+            lu[r * k + c] = Complex64::new(e, 0.0) - if r == c { theta } else { Complex64::new(0.0, 0.0) };
+        }
+    }
+    // LU of the Hessenberg matrix with partial pivoting between adjacent rows; the multiplier of row c + 1 is
+    // kept in its sub-diagonal slot.
+    let mut swapped = [false; KRYLOV_MAX];
+    for c in 0..k {
+        if c + 1 < k && lu[(c + 1) * k + c].norm() > lu[c * k + c].norm() {
+            for j in c..k {
+                lu.swap(c * k + j, (c + 1) * k + j);
+            }
+            swapped[c] = true;
+        }
+        if lu[c * k + c].norm() < tiny {
+            lu[c * k + c] = Complex64::new(tiny, 0.0);
+        }
+        if c + 1 < k {
+            let l = lu[(c + 1) * k + c] / lu[c * k + c];
+            for j in (c + 1)..k {
+                let u = lu[c * k + j];
+                lu[(c + 1) * k + j] -= l * u;
+            }
+            lu[(c + 1) * k + c] = l;
+        }
+    }
+    x[..k].fill(Complex64::new(1.0, 0.0));
+    for _ in 0..2 {
+        for c in 0..k.saturating_sub(1) {
+            if swapped[c] {
+                x.swap(c, c + 1);
+            }
+            let l = lu[(c + 1) * k + c];
+            let xc = x[c];
+            x[c + 1] -= l * xc;
+        }
+        for r in (0..k).rev() {
+            let mut s = x[r];
+            for j in (r + 1)..k {
+                s -= lu[r * k + j] * x[j];
+            }
+            x[r] = s / lu[r * k + r];
+        }
+        let norm = x[..k].iter().map(|e| e.norm_sqr()).sum::<f64>().sqrt();
+        if !(norm.is_finite() && norm > 0.0) {
+            return f64::INFINITY;
+        }
+        x[..k].iter_mut().for_each(|e| *e /= norm);
+    }
+    x[k - 1].norm()
+}
+
 fn identity(a: &mut [f64], d: usize) {
     a.fill(0.0);
     for i in 0..d {
@@ -435,17 +671,38 @@ fn identity(a: &mut [f64], d: usize) {
     }
 }
 
+/// `c = a b` for row-major `d × d` matrices (unrolled for the common small orders).
 fn matmul(a: &[f64], b: &[f64], c: &mut [f64], d: usize) {
-    c.fill(0.0);
-    for i in 0..d {
-        for k in 0..d {
-            let aik = a[i * d + k];
-            if aik != 0.0 {
-                for j in 0..d {
-                    c[i * d + j] += aik * b[k * d + j];
+    match d {
+        2 => matmul_n::<2>(a, b, c),
+        4 => matmul_n::<4>(a, b, c),
+        6 => matmul_n::<6>(a, b, c),
+        8 => matmul_n::<8>(a, b, c),
+        _ => {
+            c.fill(0.0);
+            for i in 0..d {
+                for k in 0..d {
+                    let aik = a[i * d + k];
+                    for j in 0..d {
+                        c[i * d + j] += aik * b[k * d + j];
+                    }
                 }
             }
         }
+    }
+}
+
+fn matmul_n<const D: usize>(a: &[f64], b: &[f64], c: &mut [f64]) {
+    let (a, b, c) = (&a[..D * D], &b[..D * D], &mut c[..D * D]);
+    for i in 0..D {
+        let mut row = [0.0; D];
+        for k in 0..D {
+            let aik = a[i * D + k];
+            for j in 0..D {
+                row[j] += aik * b[k * D + j];
+            }
+        }
+        c[i * D..(i + 1) * D].copy_from_slice(&row);
     }
 }
 
@@ -467,6 +724,20 @@ pub fn sd_spectral_radius(
 ) -> Result<SdPoint, StabilityError> {
     check_depth(depth_m)?;
     Sd::new(model, milling, speed_rpm, options.steps)?.point(depth_m, speed_rpm)
+}
+
+/// [`sd_spectral_radius`] by the dense eigen-solve of the formed monodromy matrix only.
+#[cfg(test)]
+pub(crate) fn sd_spectral_radius_dense(
+    model: &ModalModel,
+    milling: &Milling,
+    speed_rpm: f64,
+    depth_m: f64,
+    options: &SdOptions,
+) -> Result<SdPoint, StabilityError> {
+    let mut sd = Sd::new(model, milling, speed_rpm, options.steps)?;
+    sd.dense_only = true;
+    sd.point(depth_m, speed_rpm)
 }
 
 /// Spectral radii on `speeds_rpm × depths_m`, in parallel over speeds (each speed's row is computed by one

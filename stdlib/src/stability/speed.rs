@@ -5,7 +5,7 @@
 
 use super::StabilityError;
 use super::cutting::{CuttingCoefficients, Milling, MillingDirection};
-use super::zoa::{StabilityLimit, ToolPointFrf, limit_at_speed, line_roots};
+use super::zoa::{FrfSlices, LineRoot, StabilityLimit, ToolPointFrf, limit_at_speed, line_roots};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -107,6 +107,120 @@ pub(crate) fn spline_weights(knots: &[f64], s: f64) -> Vec<f64> {
     w
 }
 
+/// Second derivatives at the knots of the natural cubic spline through unit data: `M = S y` with `S` row-major
+/// `k × k` (first and last rows zero).
+fn second_derivative_matrix(knots: &[f64]) -> Vec<f64> {
+    let k = knots.len();
+    let mut s = vec![0.0; k * k];
+    if k < 3 {
+        return s;
+    }
+    let interior = k - 2;
+    let (mut cp, mut rhs) = (vec![0.0; interior], vec![0.0; interior]);
+    for j in 0..k {
+        let e = |q: usize| if q == j { 1.0 } else { 0.0 };
+        for (r, v) in rhs.iter_mut().enumerate() {
+            let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
+            *v = 6.0 * ((e(r + 2) - e(r + 1)) / h1 - (e(r + 1) - e(r)) / h0);
+        }
+        // Thomas algorithm on sub h0, diagonal 2(h0 + h1), super h1.
+        let coeffs = |r: usize| {
+            let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
+            (h0, 2.0 * (h0 + h1), h1)
+        };
+        let (_, d0, u0) = coeffs(0);
+        cp[0] = u0 / d0;
+        rhs[0] /= d0;
+        for r in 1..interior {
+            let (l, d, u) = coeffs(r);
+            let den = d - l * cp[r - 1];
+            cp[r] = u / den;
+            rhs[r] = (rhs[r] - l * rhs[r - 1]) / den;
+        }
+        for r in (0..interior.saturating_sub(1)).rev() {
+            rhs[r] -= cp[r] * rhs[r + 1];
+        }
+        for (r, v) in rhs.iter().enumerate() {
+            s[(r + 1) * k + j] = *v;
+        }
+    }
+    s
+}
+
+/// The FRFs of all measured speeds with their spline second derivatives per line, so that the natural cubic
+/// spline at any speed costs four complex multiply-adds per line and series.
+struct SplineFrf<'a> {
+    knots: &'a [f64],
+    /// Per series (xx, yy, xy, yx) and knot: the values and the second derivatives, each per line.
+    values: Vec<Vec<&'a [Complex64]>>,
+    second: Vec<Vec<Vec<Complex64>>>,
+}
+
+#[derive(Default)]
+struct SpeedScratch {
+    xx: Vec<Complex64>,
+    yy: Vec<Complex64>,
+    xy: Vec<Complex64>,
+    yx: Vec<Complex64>,
+    roots: Vec<[Option<LineRoot>; 2]>,
+}
+
+impl<'a> SplineFrf<'a> {
+    fn new(knots: &'a [f64], frfs: &'a [SpeedFrf], with_cross: bool) -> Self {
+        let k = knots.len();
+        let s = second_derivative_matrix(knots);
+        let mut values: Vec<Vec<&'a [Complex64]>> =
+            vec![frfs.iter().map(|f| &f.frf.xx[..]).collect(), frfs.iter().map(|f| &f.frf.yy[..]).collect()];
+        if with_cross {
+            values.push(frfs.iter().map(|f| f.frf.cross.as_ref().map_or(&[][..], |c| &c.0[..])).collect());
+            values.push(frfs.iter().map(|f| f.frf.cross.as_ref().map_or(&[][..], |c| &c.1[..])).collect());
+        }
+        let lines = frfs[0].frf.freqs_hz.len();
+        let second = values
+            .iter()
+            .map(|series| {
+                (0..k)
+                    .map(|q| {
+                        let mut m = vec![Complex64::new(0.0, 0.0); lines];
+                        for (j, y) in series.iter().enumerate() {
+                            let w = s[q * k + j];
+                            if w != 0.0 {
+                                m.iter_mut().zip(y.iter()).for_each(|(o, v)| *o += w * v);
+                            }
+                        }
+                        m
+                    })
+                    .collect()
+            })
+            .collect();
+        SplineFrf { knots, values, second }
+    }
+
+    /// The spline at speed `s` on the first `lines` lines into the scratch series.
+    fn at(&self, s: f64, lines: usize, out: &mut SpeedScratch) {
+        let k = self.knots.len();
+        let targets = [&mut out.xx, &mut out.yy, &mut out.xy, &mut out.yx];
+        if k == 1 {
+            for (series, target) in self.values.iter().zip(targets) {
+                target.clear();
+                target.extend_from_slice(&series[0][..lines]);
+            }
+            return;
+        }
+        let knots = self.knots;
+        let i = knots.partition_point(|&x| x <= s).clamp(1, k - 1) - 1;
+        let h = knots[i + 1] - knots[i];
+        let a = (knots[i + 1] - s) / h;
+        let b = 1.0 - a;
+        let (ca, cb) = ((a * a * a - a) * h * h / 6.0, (b * b * b - b) * h * h / 6.0);
+        for ((series, second), target) in self.values.iter().zip(&self.second).zip(targets) {
+            target.clear();
+            let (y0, y1, m0, m1) = (&series[i][..lines], &series[i + 1][..lines], &second[i], &second[i + 1]);
+            target.extend((0..lines).map(|j| a * y0[j] + b * y1[j] + (ca * m0[j] + cb * m1[j])));
+        }
+    }
+}
+
 fn check_knots(what: &'static str, knots: &[f64]) -> Result<(), StabilityError> {
     if knots.is_empty() {
         return Err(StabilityError::InvalidParameter { name: what, value: 0.0, requirement: "at least one speed" });
@@ -202,35 +316,31 @@ pub fn speed_dependent_lobes(
         )?,
     )?;
     let with_cross = frfs.iter().all(|f| f.frf.cross.is_some());
+    let curves = SplineFrf::new(&knots, frfs, with_cross);
+    let per_tooth = 60.0 / teeth as f64;
     let rows: Vec<[(f64, f64, Option<usize>); 2]> = speeds
         .par_iter()
-        .map(|&s| {
+        .map_init(SpeedScratch::default, |scratch, &s| {
             check_range("FRF speeds", &knots, s, options.allow_extrapolation)?;
             let coeffs = coefficients_at(coefficients, s, options.allow_extrapolation)?;
             let milling = Milling::new(teeth, radial_immersion, direction, coeffs)?;
-            let w = spline_weights(&knots, s);
-            let mix = |pick: &dyn Fn(&ToolPointFrf) -> &[Complex64]| -> Vec<Complex64> {
-                let mut out = vec![Complex64::new(0.0, 0.0); grid.len()];
-                for (wj, f) in w.iter().zip(frfs) {
-                    for (o, v) in out.iter_mut().zip(pick(&f.frf)) {
-                        *o += *wj * v;
-                    }
-                }
-                out
+            // Lobes k < lobes pass this speed only on lines with f τ ≤ lobes (the phase fraction is below one),
+            // so the eigenproblem is solved on those lines and the next one only.
+            let tau = per_tooth / s;
+            let needed = |freqs: &[f64]| freqs.partition_point(|&f| f * tau <= options.lobes as f64 + 1e-6) + 1;
+            let lines = needed(grid).min(grid.len());
+            curves.at(s, lines, scratch);
+            let frf = FrfSlices {
+                freqs_hz: &grid[..lines],
+                xx: &scratch.xx,
+                yy: &scratch.yy,
+                cross: with_cross.then_some((&scratch.xy[..], &scratch.yx[..])),
             };
-            let frf = ToolPointFrf {
-                freqs_hz: grid.clone(),
-                xx: mix(&|f| &f.xx),
-                yy: mix(&|f| &f.yy),
-                cross: with_cross.then(|| {
-                    (mix(&|f| &f.cross.as_ref().expect("checked").0), mix(&|f| &f.cross.as_ref().expect("checked").1))
-                }),
-            };
-            let mut roots = Vec::new();
-            line_roots(&frf, &milling, &mut roots);
-            let dynamic = limit_at_speed(&frf.freqs_hz, &roots, teeth, options.lobes, s);
-            line_roots(stationary, &milling, &mut roots);
-            let fixed = limit_at_speed(&stationary.freqs_hz, &roots, teeth, options.lobes, s);
+            line_roots(frf, &milling, false, &mut scratch.roots);
+            let dynamic = limit_at_speed(frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
+            let fixed_frf = stationary.slices(needed(&stationary.freqs_hz));
+            line_roots(fixed_frf, &milling, false, &mut scratch.roots);
+            let fixed = limit_at_speed(fixed_frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
             Ok([dynamic, fixed])
         })
         .collect::<Result<_, StabilityError>>()?;

@@ -238,6 +238,49 @@ fn chatter_frequency_speed_mapping_agrees_with_sd() {
     assert!(best < 0.02 * fc, "ZOA {fc} Hz vs SD {candidates:?}");
 }
 
+/// The Krylov (Arnoldi) dominant multiplier equals the one of the dense QR eigen-solve of the formed monodromy
+/// matrix, to 1e-9, on the two-mode map of the benchmark (Hopf lobes and the stable region), across the slotting
+/// benchmark's Hopf and flip lobes, and on low-immersion flip lobes; the type of the multiplier agrees too.
+#[test]
+fn sd_krylov_radius_matches_dense_eigensolve() {
+    let two = ModalModel::new(
+        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
+        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+    )
+    .unwrap();
+    let quarter =
+        Milling::new(4, 0.25, MillingDirection::Up, CuttingCoefficients::from_ks_beta(8e8, 1.2).unwrap()).unwrap();
+    let mut cases = Vec::new();
+    for i in 0..8 {
+        for j in 0..6 {
+            cases.push((two.clone(), quarter, 3000.0 + 1700.0 * i as f64, 2e-3 * j as f64, 40));
+        }
+    }
+    for speed in [10_000.0, 16_000.0, 20_000.0] {
+        for depth in [0.1e-3, 0.3e-3, 0.35e-3, 1e-3] {
+            cases.push((benchmark_model(), benchmark_milling(1.0), speed, depth, 40));
+        }
+    }
+    for (speed, depth) in [(10_500.0, 2.4e-3), (10_500.0, 2.6e-3), (16_500.0, 4.5e-3), (21_500.0, 1.7e-3)] {
+        cases.push((benchmark_model(), benchmark_milling(0.05), speed, depth, 40));
+    }
+    cases.push((two.clone(), quarter, 7000.0, 4e-3, 80));
+    let (mut unstable, mut stable) = (0, 0);
+    for (model, mill, speed, depth, steps) in cases {
+        let opts = SdOptions { steps, ..SdOptions::default() };
+        let fast = sd_spectral_radius(&model, &mill, speed, depth, &opts).unwrap();
+        let dense = sdm::sd_spectral_radius_dense(&model, &mill, speed, depth, &opts).unwrap();
+        assert!(
+            (fast.spectral_radius - dense.spectral_radius).abs() <= 1e-9 * dense.spectral_radius.max(1.0),
+            "{speed} rpm {depth} m: {fast:?} vs {dense:?}"
+        );
+        assert!((fast.multiplier - dense.multiplier).norm() <= 1e-7, "{speed} rpm {depth} m: {fast:?} vs {dense:?}");
+        assert_eq!(fast.kind, dense.kind, "{speed} rpm {depth} m");
+        if dense.spectral_radius > 1.0 { unstable += 1 } else { stable += 1 }
+    }
+    assert!(unstable > 10 && stable > 10, "{unstable} unstable, {stable} stable");
+}
+
 /// SD numbers do not depend on the thread count.
 #[test]
 fn sd_is_thread_count_independent() {

@@ -180,46 +180,127 @@ pub struct ZoaLobes {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LineRoot {
     pub depth: f64,
+    /// `e`, exact or within [`PHASE_APPROX_ERROR`] (see [`line_roots`]).
     pub e: f64,
+    /// `Im λ/Re λ`, from which the exact `e = ½ + atan(ratio)/π` follows.
+    pub ratio: f64,
 }
 
-/// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching).
-pub(crate) fn line_roots(frf: &ToolPointFrf, milling: &Milling, out: &mut Vec<[Option<LineRoot>; 2]>) {
+impl LineRoot {
+    /// The exact phase fraction.
+    #[inline]
+    pub fn exact_e(&self) -> f64 {
+        0.5 + self.ratio.atan() / PI
+    }
+}
+
+/// Bound on the error of the approximate phase fraction: `|Δe| ≤ 0.0016 rad/π ≈ 5e-4`, with margin.
+pub(crate) const PHASE_APPROX_ERROR: f64 = 1e-3;
+
+/// `atan x` within 0.0016 rad (`π x/4 − x(|x| − 1)(0.2447 + 0.0663|x|)` on `|x| ≤ 1`, Rajan et al. 2006,
+/// IEEE Signal Processing Magazine 23:108; reflected through `π/2 − atan(1/x)` outside).
+#[inline]
+fn atan_approx(x: f64) -> f64 {
+    let a = x.abs();
+    let core = |t: f64| std::f64::consts::FRAC_PI_4 * t - t * (t - 1.0) * (0.2447 + 0.0663 * t);
+    let v = if a <= 1.0 { core(a) } else { std::f64::consts::FRAC_PI_2 - core(1.0 / a) };
+    v.copysign(x)
+}
+
+/// Principal square root by the real formula (`√((|z| + |Re z|)/2)` and `Im z/(2·that)`), much cheaper than the
+/// polar form; scaled where the squares could under- or overflow.
+#[inline]
+fn csqrt(z: Complex64) -> Complex64 {
+    let (x, y) = (z.re, z.im);
+    if x == 0.0 && y == 0.0 {
+        return z;
+    }
+    let scale = x.abs().max(y.abs());
+    let r = if (1e-150..1e150).contains(&scale) {
+        (x * x + y * y).sqrt()
+    } else {
+        let (u, v) = (x / scale, y / scale);
+        scale * (u * u + v * v).sqrt()
+    };
+    let t = (0.5 * (r + x.abs())).sqrt();
+    if x >= 0.0 { Complex64::new(t, 0.5 * y / t) } else { Complex64::new(0.5 * y.abs() / t, t.copysign(y)) }
+}
+
+/// Receptances of one grid as slices (`cross` = `(Φxy, Φyx)`), possibly a leading part of the grid.
+#[derive(Clone, Copy)]
+pub(crate) struct FrfSlices<'a> {
+    pub freqs_hz: &'a [f64],
+    pub xx: &'a [Complex64],
+    pub yy: &'a [Complex64],
+    pub cross: Option<(&'a [Complex64], &'a [Complex64])>,
+}
+
+impl ToolPointFrf {
+    /// The first `lines` lines as slices.
+    pub(crate) fn slices(&self, lines: usize) -> FrfSlices<'_> {
+        let l = lines.min(self.freqs_hz.len());
+        FrfSlices {
+            freqs_hz: &self.freqs_hz[..l],
+            xx: &self.xx[..l],
+            yy: &self.yy[..l],
+            cross: self.cross.as_ref().map(|(p, q)| (&p[..l], &q[..l])),
+        }
+    }
+}
+
+/// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching). With
+/// `Λ = −1/λ` the depth `−2πΛ_R(1 + κ²)/(N Kt)` simplifies to `2π/(N Kt Re λ)` and the phase
+/// `ε = π − 2 atan κ` to `π + 2 atan(Im λ/Re λ)`; a line has a root where `Re λ > 0` (`Re Λ < 0`).
+///
+/// With `exact_phase` false, `e` is approximated (within [`PHASE_APPROX_ERROR`]); callers that only need to know
+/// which lobes pass between lines then take [`LineRoot::exact_e`] where one does.
+pub(crate) fn line_roots(
+    frf: FrfSlices<'_>,
+    milling: &Milling,
+    exact_phase: bool,
+    out: &mut Vec<[Option<LineRoot>; 2]>,
+) {
     let a = milling.directional_factors();
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     out.clear();
     out.reserve(frf.freqs_hz.len());
     let zero = Complex64::new(0.0, 0.0);
     let mut prev: Option<[Complex64; 2]> = None;
-    for j in 0..frf.freqs_hz.len() {
-        let (xx, yy) = (frf.xx[j], frf.yy[j]);
-        let (xy, yx) = frf.cross.as_ref().map_or((zero, zero), |(p, q)| (p[j], q[j]));
-        let m00 = xx * a[0][0] + yx * a[0][1];
-        let m01 = xy * a[0][0] + yy * a[0][1];
-        let m10 = xx * a[1][0] + yx * a[1][1];
-        let m11 = xy * a[1][0] + yy * a[1][1];
-        let half_tr = 0.5 * (m00 + m11);
-        let disc = (half_tr * half_tr - (m00 * m11 - m01 * m10)).sqrt();
-        let mut lam = [half_tr + disc, half_tr - disc];
+    let root = |f: f64, l: Complex64| -> Option<LineRoot> {
+        if f <= 0.0 || l.re.is_nan() || l.re <= 0.0 {
+            return None;
+        }
+        let depth = TAU / (l.re * n_kt);
+        let ratio = l.im / l.re;
+        let e = 0.5 + if exact_phase { ratio.atan() } else { atan_approx(ratio) } / PI;
+        (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e, ratio })
+    };
+    // First the eigenvalues of every line (independent lines, so the square roots overlap), then the branch
+    // matching and the roots.
+    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len())
+        .map(|j| {
+            let (xx, yy) = (frf.xx[j], frf.yy[j]);
+            let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
+            let m00 = xx * a[0][0] + yx * a[0][1];
+            let m01 = xy * a[0][0] + yy * a[0][1];
+            let m10 = xx * a[1][0] + yx * a[1][1];
+            let m11 = xy * a[1][0] + yy * a[1][1];
+            let half_tr = 0.5 * (m00 + m11);
+            let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
+            [half_tr + disc, half_tr - disc]
+        })
+        .collect();
+    for (j, &lam) in lams.iter().enumerate() {
+        let mut lam = lam;
         if let Some(p) = prev
-            && (lam[0] - p[0]).norm() + (lam[1] - p[1]).norm() > (lam[0] - p[1]).norm() + (lam[1] - p[0]).norm()
+            && (lam[0] - p[0]).norm_sqr().sqrt() + (lam[1] - p[1]).norm_sqr().sqrt()
+                > (lam[0] - p[1]).norm_sqr().sqrt() + (lam[1] - p[0]).norm_sqr().sqrt()
         {
             lam.swap(0, 1);
         }
         prev = Some(lam);
-        let root = |l: Complex64| -> Option<LineRoot> {
-            if frf.freqs_hz[j] <= 0.0 || l.norm_sqr() == 0.0 {
-                return None;
-            }
-            let big = -l.inv();
-            if big.re.is_nan() || big.re >= 0.0 {
-                return None;
-            }
-            let depth = -TAU * big.norm_sqr() / (big.re * n_kt);
-            let eps = PI - 2.0 * (big.im / big.re).atan();
-            (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e: eps / TAU })
-        };
-        out.push([root(lam[0]), root(lam[1])]);
+        let f = frf.freqs_hz[j];
+        out.push([root(f, lam[0]), root(f, lam[1])]);
     }
 }
 
@@ -254,7 +335,7 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
         });
     }
     let mut roots = Vec::new();
-    line_roots(frf, milling, &mut roots);
+    line_roots(frf.slices(usize::MAX), milling, true, &mut roots);
     let (mut min_depth, mut min_f) = (f64::INFINITY, 0.0);
     for (j, r) in roots.iter().enumerate() {
         for x in r.iter().flatten() {
@@ -273,62 +354,103 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
     let mut limit = StabilityLimit::unbounded(grid);
     let mut lobes = Vec::new();
     let per_tooth = 60.0 / milling.teeth as f64;
+    let (grid_lo, grid_hi) = (grid.first().copied().unwrap_or(0.0), grid.last().copied().unwrap_or(0.0));
+    // Per branch, the runs of consecutive lines with a root as (f, N-scaled f, depth, e); the eigenproblem is
+    // solved once per line and each lobe is only a speed mapping n = 60 f/(N (k + e)) of the same points.
+    let mut run: Vec<(f64, f64, f64, f64)> = Vec::with_capacity(roots.len());
+    let mut speeds: Vec<f64> = Vec::with_capacity(roots.len());
     for branch in 0..2 {
-        for k in 0..options.lobes {
-            let kf = k as f64;
-            let mut cursor = 0usize;
-            let mut prev: Option<(f64, f64, f64)> = None;
-            let mut points: Vec<LobePoint> = Vec::new();
-            for (j, r) in roots.iter().enumerate() {
-                let Some(x) = r[branch] else {
-                    prev = None;
-                    if options.keep_lobes && !points.is_empty() {
-                        lobes.push(Lobe { index: k, branch, points: std::mem::take(&mut points) });
-                    }
-                    continue;
-                };
-                let f = frf.freqs_hz[j];
-                let n = per_tooth * f / (kf + x.e);
-                if options.keep_lobes {
-                    points.push(LobePoint { speed_rpm: n, depth_m: x.depth, chatter_hz: f });
-                }
-                // Grid points between the previous and this point of the lobe.
-                while cursor > 0 && grid[cursor - 1] >= n {
-                    cursor -= 1;
-                }
-                while cursor < grid.len() && grid[cursor] < n {
-                    cursor += 1;
-                }
-                if let Some((n1, a1, f1)) = prev {
-                    let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
-                    let mut i = cursor;
-                    if n1 <= n {
-                        // Walk down from the point at n to n1.
-                        if i < grid.len() && grid[i] == n {
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                        }
-                        while i > 0 && grid[i - 1] >= lo {
-                            i -= 1;
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                        }
-                    } else {
-                        while i < grid.len() && grid[i] <= hi {
-                            let (d, fc) = segment_at(n1, a1, f1, n, x.depth, f, grid[i]);
-                            limit.offer(i, d, fc, k);
-                            i += 1;
-                        }
-                    }
-                }
-                prev = Some((n, x.depth, f));
+        let mut start = 0;
+        while start < roots.len() {
+            if roots[start][branch].is_none() {
+                start += 1;
+                continue;
             }
-            if options.keep_lobes && !points.is_empty() {
-                lobes.push(Lobe { index: k, branch, points });
+            run.clear();
+            let mut j = start;
+            while let Some(Some(x)) = roots.get(j).map(|r| r[branch]) {
+                let f = frf.freqs_hz[j];
+                run.push((f, per_tooth * f, x.depth, x.e));
+                j += 1;
+            }
+            start = j;
+            for k in 0..options.lobes {
+                let kf = k as f64;
+                speeds.clear();
+                speeds.extend(run.iter().map(|&(_, c, _, e)| c / (kf + e)));
+                if options.keep_lobes {
+                    let points = run.iter().zip(&speeds).map(|(&(f, _, a, _), &n)| LobePoint {
+                        speed_rpm: n,
+                        depth_m: a,
+                        chatter_hz: f,
+                    });
+                    lobes.push(Lobe { index: k, branch, points: points.collect() });
+                }
+                envelope_pass(grid, grid_lo, grid_hi, &run, &speeds, k, &mut limit);
             }
         }
     }
+    // Lobes in the order branch, lobe number, frequency.
+    lobes.sort_by_key(|l: &Lobe| (l.branch, l.index));
     Ok(ZoaLobes { lobes, limit, min_depth_m: min_depth, min_depth_chatter_hz: min_f })
+}
+
+/// Offers lobe `k`'s run of points (`run[i] = (f, ·, depth, ·)` at speed `speeds[i]`) to the envelope: every grid
+/// speed between two consecutive points gets the linearly interpolated depth. The speed along a run changes
+/// smoothly, so the grid index is followed by walking rather than searched.
+fn envelope_pass(
+    grid: &[f64],
+    grid_lo: f64,
+    grid_hi: f64,
+    run: &[(f64, f64, f64, f64)],
+    speeds: &[f64],
+    k: usize,
+    limit: &mut StabilityLimit,
+) {
+    let Some(&first) = speeds.first() else { return };
+    // cursor = number of grid speeds below the current point n, which lies in the cell (cl, ch].
+    let mut cursor = grid.partition_point(|&g| g < first);
+    let cell = |c: usize| {
+        (if c == 0 { f64::NEG_INFINITY } else { grid[c - 1] }, grid.get(c).copied().unwrap_or(f64::INFINITY))
+    };
+    let (mut cl, mut ch) = cell(cursor);
+    for i in 1..run.len() {
+        let (n1, n) = (speeds[i - 1], speeds[i]);
+        // Most segments lie strictly inside one grid cell and hold no grid speed.
+        if n > cl && n < ch && n1 < ch {
+            continue;
+        }
+        let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
+        let ((f1, _, a1, _), (f, _, a, _)) = (run[i - 1], run[i]);
+        while cursor > 0 && grid[cursor - 1] >= n {
+            cursor -= 1;
+        }
+        while cursor < grid.len() && grid[cursor] < n {
+            cursor += 1;
+        }
+        (cl, ch) = cell(cursor);
+        if hi < grid_lo || lo > grid_hi {
+            continue;
+        }
+        let mut g = cursor;
+        if n1 <= n {
+            if g < grid.len() && grid[g] == n {
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+            }
+            while g > 0 && grid[g - 1] >= lo {
+                g -= 1;
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+            }
+        } else {
+            while g < grid.len() && grid[g] <= hi {
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
+                g += 1;
+            }
+        }
+    }
 }
 
 /// ZOA limit at one speed from the lobes passing through it: for each pair of adjacent valid lines and each
@@ -347,13 +469,19 @@ pub(crate) fn limit_at_speed(
         for j in 1..roots.len() {
             let (Some(p), Some(q)) = (roots[j - 1][branch], roots[j][branch]) else { continue };
             let (f1, f2) = (freqs_hz[j - 1], freqs_hz[j]);
-            let (u1, u2) = (f1 * period - p.e, f2 * period - q.e);
+            // Screen with the stored (possibly approximate) phases widened by their error, then decide exactly.
+            let (v1, v2) = (f1 * period - p.e, f2 * period - q.e);
+            let (lo, hi) = if v1 <= v2 { (v1, v2) } else { (v2, v1) };
+            if integer_range(lo - PHASE_APPROX_ERROR, hi + PHASE_APPROX_ERROR, lobes).is_none() {
+                continue;
+            }
+            let (e1, e2) = (p.exact_e(), q.exact_e());
+            let (u1, u2) = (f1 * period - e1, f2 * period - e2);
             let (lo, hi) = if u1 <= u2 { (u1, u2) } else { (u2, u1) };
-            let k_lo = lo.ceil().max(0.0);
-            let k_hi = hi.floor().min(lobes as f64 - 1.0);
+            let Some((k_lo, k_hi)) = integer_range(lo, hi, lobes) else { continue };
             let mut kf = k_lo;
             while kf <= k_hi {
-                let (n1, n2) = (per_tooth * f1 / (kf + p.e), per_tooth * f2 / (kf + q.e));
+                let (n1, n2) = (per_tooth * f1 / (kf + e1), per_tooth * f2 / (kf + e2));
                 let (d, fc) = segment_at(n1, p.depth, f1, n2, q.depth, f2, speed_rpm);
                 if d < best.0 {
                     best = (d, fc, Some(kf as usize));
@@ -363,4 +491,44 @@ pub(crate) fn limit_at_speed(
         }
     }
     best
+}
+
+/// The lobe numbers `k` in `[⌈lo⌉, ⌊hi⌋] ∩ [0, lobes − 1]` as floats, `None` if there is none (integer casts
+/// truncate, which is `⌊·⌋` for values ≥ 0).
+#[inline]
+fn integer_range(lo: f64, hi: f64, lobes: usize) -> Option<(f64, f64)> {
+    // NaN compares false: no lobe.
+    if hi.is_nan() || hi < 0.0 || lobes == 0 {
+        return None;
+    }
+    let k_hi = (hi.min(lobes as f64 - 1.0) as u64) as f64;
+    let k_lo = if lo <= 0.0 {
+        0.0
+    } else {
+        let t = lo.min(1e18) as u64 as f64;
+        if t < lo { t + 1.0 } else { t }
+    };
+    (k_lo <= k_hi).then_some((k_lo, k_hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The approximate arctangent stays within 0.0016 rad of `atan` (worst 0.00151) over twelve decades either side of zero, so
+    /// the phase fraction is within [`PHASE_APPROX_ERROR`].
+    #[test]
+    fn approximate_atan_error_is_bounded() {
+        let mut worst = 0.0f64;
+        for i in -60_000..=60_000 {
+            let x = 10f64.powf(i as f64 / 5000.0);
+            for v in [x, -x] {
+                worst = worst.max((atan_approx(v) - v.atan()).abs());
+            }
+        }
+        assert!(worst < 0.0016, "{worst}");
+        assert!(worst > 1e-4, "{worst}");
+        assert!(worst / PI < PHASE_APPROX_ERROR);
+        assert_eq!(atan_approx(0.0), 0.0);
+    }
 }
