@@ -1,5 +1,6 @@
 //! Timing of the equivalent-mode fit (§5.2): a 10-mode, 4,000-line direct FRF with 2 % complex noise, by the
-//! simplex procedure and by LSCF, each including the beam mapping (§5.2.5) and the G11 synthesis on the grid.
+//! simplex procedure and by LSCF, each including the beam mapping (§5.2.5), the joint beam refit (also timed without it) and the G11
+//! synthesis on the grid.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::modal_fit::{FitOptions, Method, ModeParams, fit};
@@ -51,10 +52,12 @@ fn bench_modal_fit(c: &mut Criterion) {
     let base = FitOptions { h_sens: 9, v_sens: 0.1, ..FitOptions::default() };
     let mut g = c.benchmark_group("modal_fit");
     g.sample_size(20);
-    for (name, method) in
-        [("simplex_10_modes_4000_lines", Method::Simplex), ("lscf_10_modes_4000_lines", Method::Lscf { order: None })]
-    {
-        let o = FitOptions { method, ..base };
+    for (name, method, beam_refit) in [
+        ("simplex_10_modes_4000_lines", Method::Simplex, true),
+        ("simplex_10_modes_4000_lines_no_refit", Method::Simplex, false),
+        ("lscf_10_modes_4000_lines", Method::Lscf { order: None }, true),
+    ] {
+        let o = FitOptions { method, beam_refit, ..base };
         let r = fit(&freqs, &h, &o).expect("fit");
         assert_eq!(r.modes.len(), 10, "{name}");
         g.bench_function(name, |b| b.iter(|| fit(black_box(&freqs), black_box(&h), &o).expect("fit")));
