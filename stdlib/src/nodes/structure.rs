@@ -757,40 +757,6 @@ impl Node for RcsaDecouple {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rcsa::Complex64;
-
-    fn set(freq: Vec<f64>, v: impl Fn(f64) -> Complex64) -> ReceptanceSet {
-        let h: Vec<Complex64> = freq.iter().map(|f| v(*f)).collect();
-        ReceptanceSet {
-            l: h.iter().map(|x| x * 2.0).collect(),
-            n: h.iter().map(|x| x * 3.0).collect(),
-            p: h.iter().map(|x| x * 4.0).collect(),
-            h,
-            freq_hz: freq,
-            direction: Some("x".into()),
-            speed_rpm: Some(1000.0),
-        }
-    }
-
-    #[test]
-    fn resampling_is_exact_for_linear_data_and_refuses_to_extrapolate() {
-        let line = |f: f64| Complex64::new(2.0 * f - 1.0, -0.5 * f + 3.0);
-        let s = set((0..=10).map(|i| 10.0 * i as f64).collect(), line);
-        let target: Vec<f64> = vec![0.0, 3.3, 47.5, 99.9, 100.0];
-        let r = resample(&s, &target).unwrap();
-        for (f, (h, p)) in target.iter().zip(r.h.iter().zip(&r.p)) {
-            assert!((h - line(*f)).norm() < 1e-12, "{f}: {h}");
-            assert!((p - line(*f) * 4.0).norm() < 1e-12);
-        }
-        assert_eq!((r.direction, r.speed_rpm), (s.direction.clone(), s.speed_rpm));
-        let e = resample(&s, &[50.0, 100.5]).unwrap_err();
-        assert!(e.contains("100.5") && e.contains("extrapolate"), "{e}");
-    }
-}
-
 // ------------------------------------------------------------------ beam.campbell
 
 /// `beam.campbell`: forward and backward whirl frequencies of a spinning free–free assembly.
@@ -873,5 +839,39 @@ impl Node for BeamCampbell {
             ],
         };
         Ok(outputs(vec![("whirl", Value::Table(table))]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rcsa::Complex64;
+
+    fn set(freq: Vec<f64>, v: impl Fn(f64) -> Complex64) -> ReceptanceSet {
+        let h: Vec<Complex64> = freq.iter().map(|f| v(*f)).collect();
+        ReceptanceSet {
+            l: h.iter().map(|x| x * 2.0).collect(),
+            n: h.iter().map(|x| x * 3.0).collect(),
+            p: h.iter().map(|x| x * 4.0).collect(),
+            h,
+            freq_hz: freq,
+            direction: Some("x".into()),
+            speed_rpm: Some(1000.0),
+        }
+    }
+
+    #[test]
+    fn resampling_is_exact_for_linear_data_and_refuses_to_extrapolate() {
+        let line = |f: f64| Complex64::new(2.0 * f - 1.0, -0.5 * f + 3.0);
+        let s = set((0..=10).map(|i| 10.0 * i as f64).collect(), line);
+        let target: Vec<f64> = vec![0.0, 3.3, 47.5, 99.9, 100.0];
+        let r = resample(&s, &target).unwrap();
+        for (f, (h, p)) in target.iter().zip(r.h.iter().zip(&r.p)) {
+            assert!((h - line(*f)).norm() < 1e-12, "{f}: {h}");
+            assert!((p - line(*f) * 4.0).norm() < 1e-12);
+        }
+        assert_eq!((r.direction, r.speed_rpm), (s.direction.clone(), s.speed_rpm));
+        let e = resample(&s, &[50.0, 100.5]).unwrap_err();
+        assert!(e.contains("100.5") && e.contains("extrapolate"), "{e}");
     }
 }
