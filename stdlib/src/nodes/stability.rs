@@ -455,7 +455,7 @@ fn grid(p: &Params) -> Result<Option<(f64, f64, f64)>, NodeError> {
         return Ok(Some((lo, hi, 5.0)));
     }
     let step = rpm[1] - rpm[0];
-    if !(step > 0.0) || rpm.windows(2).any(|w| ((w[1] - w[0]) - step).abs() > 1e-6 * step.max(1.0)) {
+    if step.is_nan() || step <= 0.0 || rpm.windows(2).any(|w| ((w[1] - w[0]) - step).abs() > 1e-6 * step.max(1.0)) {
         return Err(NodeError::param("speeds", "give an evenly spaced ascending grid, e.g. `1000..4000 step 5 rpm`"));
     }
     Ok(Some((lo, hi, step)))
