@@ -51,4 +51,9 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::RcsaCouple::new()));
     registry.register(Arc::new(nodes::RcsaDecouple::new()));
     registry.register(Arc::new(nodes::ModalFitNode::new()));
+    registry.register(Arc::new(nodes::StabilityLobes::new()));
+    registry.register(Arc::new(nodes::StabilitySd::new()));
+    registry.register(Arc::new(nodes::StabilitySpeedDependent::new()));
+    registry.register(Arc::new(nodes::ChatterDetect::new()));
+    registry.register(Arc::new(nodes::TrialsScore::new()));
 }

@@ -95,6 +95,7 @@ fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
             Value::ReceptanceSet(rs) => {
                 csv::receptance_rows(&mut out, rs, &prefix_header, &prefix(r), &mut header_done)
             }
+            Value::Lobes(l) => csv::lobes_rows(&mut out, l, &prefix_header, &prefix(r), &mut header_done),
             other => {
                 // Structured values without a tabular form go out as one JSON cell per row.
                 if !header_done {

@@ -8,7 +8,7 @@
 //! round trip is exact.
 
 use super::{FormatError, Loc, unit_to_si};
-use crate::value::{Channel, Frf, ReceptanceSet, TimeSeries, UnitLabel};
+use crate::value::{Channel, Frf, Lobes, ReceptanceSet, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::fmt::Write as _;
@@ -110,6 +110,27 @@ pub(crate) fn receptance_rows(
         }
         out.push('\n');
     }
+}
+
+/// Column header of a stability diagram.
+pub const LOBES_HEADER: &str = "speed_rpm,depth_limit_m,chatter_hz";
+
+/// Rows `speed_rpm,depth_limit_m,chatter_hz` of a stability diagram; a speed no lobe limits has depth `inf`.
+pub(crate) fn lobes_rows(out: &mut String, l: &Lobes, prefix_header: &str, prefix: &str, header_done: &mut bool) {
+    if !*header_done {
+        let _ = writeln!(out, "{prefix_header}{LOBES_HEADER}");
+        *header_done = true;
+    }
+    for i in 0..l.speed_rpm.len() {
+        let _ = writeln!(out, "{prefix}{:e},{:e},{:e}", l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]);
+    }
+}
+
+/// A stability diagram as CSV text.
+pub fn write_lobes(l: &Lobes) -> String {
+    let mut out = String::new();
+    lobes_rows(&mut out, l, "", "", &mut false);
+    out
 }
 
 /// A 2×2 receptance set as CSV text.
