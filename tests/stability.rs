@@ -271,3 +271,67 @@ fn stability_failures_at_run_time_say_what_and_what_to_do() {
         ],
     );
 }
+
+/// Writes two seconds of x/y accelerations of a 4-flute cut at 3000 rpm (tooth-passing
+/// harmonics, once-per-revolution runout, seeded noise) plus `extra` (amplitude, Hz) to
+/// `dir/cut.csv`, and a recipe that reads it and runs `chatter.detect`.
+fn chatter_case(dir: &Path, extra: Option<(f64, f64)>) -> Ran {
+    use spindlelab::engine::value::{Channel, TimeSeries};
+    let (rate, n) = (20_000.0, 40_000);
+    let (spindle_hz, tooth_hz) = (50.0, 200.0);
+    let mut state = 12345u64;
+    let mut noise = move || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.02
+    };
+    let mut ax = Vec::with_capacity(n);
+    let mut ay = Vec::with_capacity(n);
+    for i in 0..n {
+        let t = i as f64 / rate;
+        let mut x = 0.0;
+        let mut y = 0.0;
+        for k in 1..=4 {
+            let a = 1.0 / k as f64;
+            x += a * (TAU * k as f64 * tooth_hz * t).cos();
+            y += 0.7 * a * (TAU * k as f64 * tooth_hz * t + 0.3).sin();
+        }
+        x += 0.05 * (TAU * spindle_hz * t).cos() + 0.02 * (TAU * 2.0 * spindle_hz * t).cos();
+        if let Some((amp, f)) = extra {
+            x += amp * (TAU * f * t).sin();
+            y += 0.5 * amp * (TAU * f * t + 1.0).cos();
+        }
+        ax.push(x + noise());
+        ay.push(y + noise());
+    }
+    let ts = TimeSeries {
+        sample_rate: rate,
+        t0: 0.0,
+        channels: vec![
+            Channel { name: "ax".into(), unit: UnitLabel::new("m/s^2"), samples: ax },
+            Channel { name: "ay".into(), unit: UnitLabel::new("m/s^2"), samples: ay },
+        ],
+    };
+    std::fs::write(dir.join("cut.csv"), csv::write_time_series(&ts)).unwrap();
+    std::fs::write(
+        dir.join("chatter.yaml"),
+        "spindlelab: 1\nsteps:\n  cut: { kind: read.time_series, params: { file: cut.csv } }\n  \
+         judge:\n    kind: chatter.detect\n    params: { speed: 3000 rpm, teeth: 4 }\n    inputs: { signal: \"@cut.series\" }\n",
+    )
+    .unwrap();
+    run(&dir.join("chatter.yaml"))
+}
+
+/// `chatter.detect` (§6.4, |A| = |A_x| + |A_y|): a cut with only tooth-passing harmonics and
+/// runout is stable; the same cut with a component at 1234 Hz is chatter at that frequency.
+#[test]
+fn chatter_node_tells_forced_vibration_from_chatter() {
+    let value = |t: &Table, name: &str| t.columns.iter().find(|c| c.name == name).unwrap().values[0];
+    let dir = tempfile::tempdir().unwrap();
+    let stable = chatter_case(dir.path(), None).table("judge", "result");
+    assert_eq!(value(&stable, "chatter"), 0.0, "forced vibration only: ratio {}", value(&stable, "ratio"));
+    let dir = tempfile::tempdir().unwrap();
+    let chatter = chatter_case(dir.path(), Some((0.6, 1234.0))).table("judge", "result");
+    assert_eq!(value(&chatter, "chatter"), 1.0, "ratio {}", value(&chatter, "ratio"));
+    let f = value(&chatter, "chatter_frequency");
+    assert!((f - 1234.0).abs() <= 1.0, "chatter found at {f} Hz");
+}
