@@ -3,58 +3,15 @@
 //! lobes of FRFs that do not change with speed equal the stationary lobes, the speed-dependent-sld recipe shows
 //! the §6.4 result near 3800 rpm, and bad input is refused with its place and what to do.
 
-use spindlelab::engine::exec::RunOptions;
+mod common;
+
+use common::{Ran, assert_has, rejected, run};
 use spindlelab::engine::formats::{csv, uff};
-use spindlelab::engine::value::{Frf, Lobes, Scalar, Table, UnitLabel, Value};
-use spindlelab::engine::{self, Compiled};
+use spindlelab::engine::value::{Frf, Lobes, Table, UnitLabel};
 use spindlelab::stdlib::rcsa::Complex64;
 use spindlelab::stdlib::stability::{self, CuttingCoefficients, Milling, MillingDirection, ToolPointFrf, ZoaOptions};
 use std::f64::consts::TAU;
-use std::ffi::OsStr;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::Arc;
-
-struct Ran {
-    compiled: Compiled,
-    report: engine::RunReport,
-}
-
-impl Ran {
-    fn value(&self, step: &str, port: &str) -> Arc<Value> {
-        let i = self.compiled.graph.by_step[step][0];
-        let outputs = self.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
-        Arc::clone(&outputs[port])
-    }
-    fn lobes(&self, step: &str, port: &str) -> Lobes {
-        match self.value(step, port).as_ref() {
-            Value::Lobes(l) => l.clone(),
-            other => panic!("{step}.{port} is {:?}", other.port_type()),
-        }
-    }
-    fn table(&self, step: &str, port: &str) -> Table {
-        match self.value(step, port).as_ref() {
-            Value::Table(t) => t.clone(),
-            other => panic!("{step}.{port} is {:?}", other.port_type()),
-        }
-    }
-    fn scalar(&self, step: &str, port: &str) -> Scalar {
-        match self.value(step, port).as_ref() {
-            Value::Scalar(s) => s.clone(),
-            other => panic!("{step}.{port} is {:?}", other.port_type()),
-        }
-    }
-}
-
-fn run(path: &Path) -> Ran {
-    let registry = spindlelab::registry();
-    let compiled = engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
-    let out = tempfile::tempdir().unwrap();
-    let mut opts = RunOptions::new(out.path());
-    opts.use_cache = false;
-    let report = engine::run(&compiled, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
-    Ran { compiled, report }
-}
+use std::path::Path;
 
 fn column<'a>(t: &'a Table, name: &str) -> &'a [f64] {
     &t.columns.iter().find(|c| c.name == name).unwrap_or_else(|| panic!("no column {name}")).values
@@ -204,37 +161,6 @@ fn speed_dependent_sld_recipe_shows_the_stationary_diagram_is_conservative_at_38
 }
 
 // ------------------------------------------------------------------ bad input
-
-fn bad_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("bad")
-}
-
-/// Runs the binary on a fixture of `tests/bad/`: exit code 2, no panic; returns stderr.
-fn rejected(file: &str, keep_going: bool) -> String {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("out");
-    let mut args: Vec<&OsStr> = vec![OsStr::new("run"), OsStr::new(file), OsStr::new("-o"), out.as_os_str()];
-    if keep_going {
-        args.push(OsStr::new("--keep-going"));
-    }
-    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
-        .args(args)
-        .current_dir(bad_dir())
-        .env("NO_COLOR", "1")
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stderr).into_owned() + String::from_utf8_lossy(&o.stdout).as_ref();
-    assert!(!text.contains("panicked"), "{text}");
-    assert_eq!(o.status.code(), Some(2), "{text}");
-    text
-}
-
-fn assert_has(text: &str, needles: &[&str]) {
-    for n in needles {
-        assert!(text.contains(n), "missing `{n}` in:\n{text}");
-    }
-}
 
 #[test]
 fn bad_cutting_setups_are_refused_before_running() {

@@ -4,47 +4,17 @@
 //! a soft one lowers the tool mode, and receptance files read back what was written. Recipes
 //! live in `tests/data/structure/`, bad ones in `tests/bad/`.
 
-use spindlelab::engine::exec::RunOptions;
+mod common;
+
+use common::{Ran, assert_has, rejected, run_at};
+use spindlelab::engine;
 use spindlelab::engine::value::{ReceptanceSet, Value};
-use spindlelab::engine::{self, Compiled};
 use spindlelab::stdlib::beam::{BeamMaterial, BeamModel, BeamSegment, CrossSection, MeshOptions, NodeSpring};
 use spindlelab::stdlib::rcsa::Complex64;
-use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::Arc;
 
 fn data_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/structure")
-}
-
-struct Ran {
-    compiled: Compiled,
-    report: engine::RunReport,
-}
-
-impl Ran {
-    fn value(&self, step: &str, port: &str) -> Arc<Value> {
-        let i = self.compiled.graph.by_step[step][0];
-        let outputs = self.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
-        Arc::clone(&outputs[port])
-    }
-
-    fn set(&self, step: &str, port: &str) -> ReceptanceSet {
-        match self.value(step, port).as_ref() {
-            Value::ReceptanceSet(r) => r.clone(),
-            other => panic!("{step}.{port} is {:?}", other.port_type()),
-        }
-    }
-}
-
-fn run_at(path: &Path, out: &Path) -> Ran {
-    let registry = spindlelab::registry();
-    let compiled = engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
-    let mut opts = RunOptions::new(out);
-    opts.use_cache = false;
-    let report = engine::run(&compiled, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
-    Ran { compiled, report }
 }
 
 /// Largest `|a − b| / |b|` over the lines of one block.
@@ -242,37 +212,6 @@ fn the_fit_and_inverse_rcsa_chain_predicts_the_tool_tip() {
 }
 
 // ------------------------------------------------------------------ bad input
-
-fn bad_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("bad")
-}
-
-/// Runs the binary on a fixture of `tests/bad/`: exit code 2, no panic; returns stderr.
-fn rejected(file: &str, keep_going: bool) -> String {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("out");
-    let mut args: Vec<&OsStr> = vec![OsStr::new("run"), OsStr::new(file), OsStr::new("-o"), out.as_os_str()];
-    if keep_going {
-        args.push(OsStr::new("--keep-going"));
-    }
-    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
-        .args(args)
-        .current_dir(bad_dir())
-        .env("NO_COLOR", "1")
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    assert_eq!(o.status.code(), Some(2), "{stderr}");
-    stderr
-}
-
-fn assert_has(text: &str, needles: &[&str]) {
-    for n in needles {
-        assert!(text.contains(n), "missing `{n}` in:\n{text}");
-    }
-}
 
 #[test]
 fn bad_sections_and_materials_are_refused_with_their_place() {

@@ -1,0 +1,99 @@
+//! Helpers shared by the integration tests: run a recipe and pick its outputs by step and
+//! port, and run the binary on a bad fixture of `tests/bad/`.
+#![allow(dead_code)] // each test crate uses a different part
+
+use spindlelab::engine::exec::RunOptions;
+use spindlelab::engine::value::{Lobes, ReceptanceSet, Scalar, Table, Value};
+use spindlelab::engine::{self, Compiled};
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+
+/// A compiled recipe and the report of one uncached run.
+pub struct Ran {
+    pub compiled: Compiled,
+    pub report: engine::RunReport,
+}
+
+impl Ran {
+    /// The output `port` of the first instance of `step`.
+    pub fn value(&self, step: &str, port: &str) -> Arc<Value> {
+        let i = self.compiled.graph.by_step[step][0];
+        let outputs = self.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
+        Arc::clone(&outputs[port])
+    }
+    pub fn set(&self, step: &str, port: &str) -> ReceptanceSet {
+        match self.value(step, port).as_ref() {
+            Value::ReceptanceSet(r) => r.clone(),
+            other => panic!("{step}.{port} is {:?}", other.port_type()),
+        }
+    }
+    pub fn lobes(&self, step: &str, port: &str) -> Lobes {
+        match self.value(step, port).as_ref() {
+            Value::Lobes(l) => l.clone(),
+            other => panic!("{step}.{port} is {:?}", other.port_type()),
+        }
+    }
+    pub fn table(&self, step: &str, port: &str) -> Table {
+        match self.value(step, port).as_ref() {
+            Value::Table(t) => t.clone(),
+            other => panic!("{step}.{port} is {:?}", other.port_type()),
+        }
+    }
+    pub fn scalar(&self, step: &str, port: &str) -> Scalar {
+        match self.value(step, port).as_ref() {
+            Value::Scalar(s) => s.clone(),
+            other => panic!("{step}.{port} is {:?}", other.port_type()),
+        }
+    }
+}
+
+/// Compiles and runs the recipe at `path` without the cache, writing outputs to `out`.
+pub fn run_at(path: &Path, out: &Path) -> Ran {
+    let registry = spindlelab::registry();
+    let compiled = engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
+    let mut opts = RunOptions::new(out);
+    opts.use_cache = false;
+    let report = engine::run(&compiled, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
+    Ran { compiled, report }
+}
+
+/// [`run_at`] into a temporary directory.
+pub fn run(path: &Path) -> Ran {
+    let out = tempfile::tempdir().unwrap();
+    run_at(path, out.path())
+}
+
+pub fn bad_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("bad")
+}
+
+/// Runs the binary on a fixture of `tests/bad/` (from that folder, so messages name it
+/// relatively): exit code 2, no panic; returns stderr followed by stdout.
+pub fn rejected(file: &str, keep_going: bool) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let mut args: Vec<&OsStr> = vec![OsStr::new("run"), OsStr::new(file), OsStr::new("-o"), out.as_os_str()];
+    if keep_going {
+        args.push(OsStr::new("--keep-going"));
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(args)
+        .current_dir(bad_dir())
+        .env("NO_COLOR", "1")
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stderr).into_owned() + String::from_utf8_lossy(&o.stdout).as_ref();
+    assert!(!text.contains("panicked"), "{text}");
+    assert_eq!(o.status.code(), Some(2), "{text}");
+    text
+}
+
+/// Every needle is in `text`.
+pub fn assert_has(text: &str, needles: &[&str]) {
+    for n in needles {
+        assert!(text.contains(n), "missing `{n}` in:\n{text}");
+    }
+}
