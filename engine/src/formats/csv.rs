@@ -240,6 +240,34 @@ fn cells(line: &str) -> impl Iterator<Item = (usize, &str)> {
 }
 
 /// Parses one finite number in a cell; `what` names the column for messages.
+/// Parses one data row of exactly `names.len()` numeric cells into `row` (a ragged row is an
+/// error naming the line and the expected `columns`).
+fn fixed_row(
+    row: &mut [f64],
+    names: &[&str],
+    columns: &str,
+    path: &str,
+    line: usize,
+    raw: &str,
+) -> Result<(), FormatError> {
+    let mut k = 0;
+    for (at, cell) in cells(raw) {
+        if k < names.len() {
+            row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
+        }
+        k += 1;
+    }
+    if k != names.len() {
+        return Err(FormatError::Ragged {
+            at: Loc::new(path, line, 0),
+            found: k,
+            expected: names.len(),
+            columns: columns.into(),
+        });
+    }
+    Ok(())
+}
+
 fn number(text: &str, path: &str, line: usize, raw: &str, at: usize, what: &str) -> Result<f64, FormatError> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
@@ -495,22 +523,9 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
     let mut values = Vec::with_capacity(n);
     let mut coherence = with_coherence.then(|| Vec::with_capacity(n));
     let mut row = [0.0; 4];
+    let columns = names.join(",");
     for &(line, raw) in &sheet.rows {
-        let mut k = 0;
-        for (at, cell) in cells(raw) {
-            if k < names.len() {
-                row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
-            }
-            k += 1;
-        }
-        if k != names.len() {
-            return Err(FormatError::Ragged {
-                at: Loc::new(path, line, 0),
-                found: k,
-                expected: names.len(),
-                columns: names.join(","),
-            });
-        }
+        fixed_row(&mut row, names, &columns, path, line, raw)?;
         freq_hz.push(row[0]);
         values.push(Complex64::new(row[1], row[2]));
         if let Some(c) = coherence.as_mut() {
@@ -629,21 +644,7 @@ pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, Format
     };
     let mut row = [0.0; 9];
     for &(line, raw) in &sheet.rows {
-        let mut k = 0;
-        for (at, cell) in cells(raw) {
-            if k < names.len() {
-                row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
-            }
-            k += 1;
-        }
-        if k != names.len() {
-            return Err(FormatError::Ragged {
-                at: Loc::new(path, line, 0),
-                found: k,
-                expected: names.len(),
-                columns: RECEPTANCE_HEADER.into(),
-            });
-        }
+        fixed_row(&mut row, &names, RECEPTANCE_HEADER, path, line, raw)?;
         r.freq_hz.push(row[0]);
         r.h.push(Complex64::new(row[1], row[2]) * scale[0]);
         r.l.push(Complex64::new(row[3], row[4]) * scale[1]);
