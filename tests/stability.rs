@@ -132,10 +132,13 @@ fn speed_dependent_sld_recipe_shows_the_stationary_diagram_is_conservative_at_38
     let ran = run(&root.join("scripts/speed-dependent-sld.yaml"));
     let (dynamic, fixed) = (ran.lobes("sld", "speed_dependent"), ran.lobes("sld", "stationary"));
     let (b_sd, b_st) = (limit_at(&dynamic, 3800.0), limit_at(&fixed, 3800.0));
-    assert!(b_sd > 2.5 * b_st, "speed-dependent {b_sd} m vs stationary {b_st} m at 3800 rpm");
-    assert!((1.0e-3..1.3e-3).contains(&b_st) && (3.0e-3..3.8e-3).contains(&b_sd), "{b_st} {b_sd}");
+    assert!(b_sd > 1.5 * b_st, "speed-dependent {b_sd} m vs stationary {b_st} m at 3800 rpm");
+    assert!((1.3e-3..1.7e-3).contains(&b_st) && (2.3e-3..2.8e-3).contains(&b_sd), "{b_st} {b_sd}");
 
+    // The measured chain (noise, runout, gauge lag corrected) lands on the noise-free one.
     let truth = ran.lobes("truth_sld", "speed_dependent");
+    let b_truth = limit_at(&truth, 3800.0);
+    assert!((b_sd / b_truth - 1.0).abs() < 0.05, "measured {b_sd} m vs noise-free {b_truth} m at 3800 rpm");
     let v = ran.table("trials", "verdicts");
     let (speed, depth, outcome, predicted) =
         (column(&v, "speed"), column(&v, "depth"), column(&v, "outcome"), column(&v, "predicted"));
@@ -152,9 +155,9 @@ fn speed_dependent_sld_recipe_shows_the_stationary_diagram_is_conservative_at_38
             stable_above_stationary += 1;
         }
     }
-    assert!(stable_above_stationary >= 3, "{stable_above_stationary}");
+    assert!(stable_above_stationary >= 2, "{stable_above_stationary}");
     let (right_sd, right_st) = (ran.scalar("trials", "score").value, ran.scalar("trials_stationary", "score").value);
-    assert!((right_sd - 13.0 / 14.0).abs() < 1e-12 && (right_st - 9.0 / 14.0).abs() < 1e-12, "{right_sd} {right_st}");
+    assert!((right_sd - 14.0 / 14.0).abs() < 1e-12 && (right_st - 11.0 / 14.0).abs() < 1e-12, "{right_sd} {right_st}");
     let i = ran.compiled.graph.by_step["trials"][0];
     let warnings = ran.report.result.outcomes[i].warnings().join("\n");
     assert!(warnings.contains("1 trial(s) outside the diagram's 1000–4000 rpm, not scored: 4200 rpm"), "{warnings}");
