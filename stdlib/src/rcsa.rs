@@ -114,6 +114,7 @@ impl Receptance {
 
 impl Add for Receptance {
     type Output = Receptance;
+    #[inline]
     fn add(self, o: Receptance) -> Receptance {
         Receptance::new(self.h + o.h, self.l + o.l, self.n + o.n, self.p + o.p)
     }
@@ -121,6 +122,7 @@ impl Add for Receptance {
 
 impl Sub for Receptance {
     type Output = Receptance;
+    #[inline]
     fn sub(self, o: Receptance) -> Receptance {
         Receptance::new(self.h - o.h, self.l - o.l, self.n - o.n, self.p - o.p)
     }
@@ -128,6 +130,7 @@ impl Sub for Receptance {
 
 impl Neg for Receptance {
     type Output = Receptance;
+    #[inline]
     fn neg(self) -> Receptance {
         Receptance::new(-self.h, -self.l, -self.n, -self.p)
     }
@@ -135,6 +138,7 @@ impl Neg for Receptance {
 
 impl Mul for Receptance {
     type Output = Receptance;
+    #[inline]
     fn mul(self, o: Receptance) -> Receptance {
         Receptance::new(
             self.h * o.h + self.l * o.n,
@@ -147,6 +151,7 @@ impl Mul for Receptance {
 
 impl Mul<Complex64> for Receptance {
     type Output = Receptance;
+    #[inline]
     fn mul(self, s: Complex64) -> Receptance {
         Receptance::new(self.h * s, self.l * s, self.n * s, self.p * s)
     }
@@ -359,6 +364,13 @@ impl Diagnostics {
         inv
     }
 
+    /// [`Diagnostics::invert`] kept out of line: the kernels take it only for lines [`try_invert`] turns away.
+    #[cold]
+    #[inline(never)]
+    fn invert_cold(&mut self, m: Receptance, freq: f64) -> Receptance {
+        self.invert(m, freq)
+    }
+
     fn finish(self) -> Result<(), RcsaError> {
         if self.freqs.is_empty() {
             Ok(())
@@ -374,12 +386,93 @@ impl Diagnostics {
     }
 }
 
-/// Interface compliance `K⁻¹` at one line (zero for a rigid joint); singular `K` is recorded in `diag`.
-#[inline]
-fn compliance(interface: &Interface, freq: f64, diag: &mut Diagnostics) -> Receptance {
-    match interface.stiffness(freq) {
-        None => Receptance::ZERO,
-        Some(k) => diag.invert(k, freq),
+/// The hot-path inversion of the coupling kernels: `m⁻¹` when a bound on its scaled condition number shows it
+/// is well inside `limit`, `None` otherwise (the caller then takes [`Diagnostics::invert`], which decides with
+/// the exact [`Receptance::condition`] and records the line).
+///
+/// With `c² = |h|/|p|` the scaled Frobenius norm and determinant of [`Receptance::condition_with`] give
+/// `cond ≤ F²/|det'| = (2|h||p| + |l|² + |n|²)/|det|` (and `cond ≥` half of it), so the test
+/// `(2 sqrt(|h|²|p|²) + |l|² + |n|²)² < (limit/2)² |det|²` needs one square root and no division, and a line it
+/// accepts is one the exact check accepts too; lines it turns away (near the limit, singular, zero diagonal,
+/// not finite) are decided by the exact check.
+#[inline(always)]
+fn try_invert(m: &Receptance, half_limit_sq: f64) -> Option<Receptance> {
+    let det = m.det();
+    let dd = det.norm_sqr();
+    let s = (m.h.norm_sqr() * m.p.norm_sqr()).sqrt();
+    let bound = 2.0 * s + m.l.norm_sqr() + m.n.norm_sqr();
+    // Written so that NaN anywhere fails the test.
+    if !(s > 0.0 && bound * bound < half_limit_sq * dd && dd < f64::INFINITY) {
+        return None;
+    }
+    let rn = 1.0 / dd;
+    let r = Complex64::new(det.re * rn, -det.im * rn);
+    let inv = Receptance::new(m.p * r, -m.l * r, -m.n * r, m.h * r);
+    // `x · 0` is 0 for finite `x` and NaN otherwise, so the sum is 0 exactly when every entry is finite.
+    let z = [inv.h, inv.l, inv.n, inv.p].iter().fold(0.0, |acc, v| acc + v.re * 0.0 + v.im * 0.0);
+    if z == 0.0 { Some(inv) } else { None }
+}
+
+/// `(limit/2)²` for [`try_invert`].
+fn half_limit_sq(limit: f64) -> f64 {
+    let half = 0.5 * limit;
+    half * half
+}
+
+/// Per-line interface compliance `K⁻¹` of a flexible joint, prepared once per call.
+#[derive(Clone, Copy)]
+enum Compliance {
+    /// Diagonal `k` and `c`: `K⁻¹ = diag(1/(k_tt + iωc_tt), 1/(k_rr + iωc_rr))`.
+    Diagonal { kt: f64, ct: f64, kr: f64, cr: f64 },
+    /// Full 2×2 `K = k + iωc`, inverted per line.
+    Full { k: [[f64; 2]; 2], c: [[f64; 2]; 2] },
+}
+
+impl Compliance {
+    /// `None` for a rigid joint (`K⁻¹ = 0`, no inversion at all).
+    fn new(interface: &Interface) -> Option<Self> {
+        match *interface {
+            Interface::Rigid => None,
+            Interface::Flexible { k, c } => {
+                if k[0][1] == 0.0 && k[1][0] == 0.0 && c[0][1] == 0.0 && c[1][0] == 0.0 {
+                    Some(Compliance::Diagonal { kt: k[0][0], ct: c[0][0], kr: k[1][1], cr: c[1][1] })
+                } else {
+                    Some(Compliance::Full { k, c })
+                }
+            }
+        }
+    }
+
+    /// `K⁻¹` at `freq`. A diagonal `K` has scaled condition number 1 (up to rounding), so with nonzero, finite
+    /// entries whose product stays in range it is inverted entry by entry when `limit > 4`; every other line
+    /// (and a full `K`) goes through the checks of [`try_invert`] and, failing those, [`Diagnostics::invert`].
+    #[inline(always)]
+    fn at(&self, freq: f64, half_limit_sq: f64, diag: &mut Diagnostics) -> Receptance {
+        let w = TAU * freq;
+        match *self {
+            Compliance::Diagonal { kt, ct, kr, cr } => {
+                let (a, b) = (Complex64::new(kt, w * ct), Complex64::new(kr, w * cr));
+                let (aa, bb) = (a.norm_sqr(), b.norm_sqr());
+                let q = aa * bb;
+                if half_limit_sq > 4.0 && q > 1e-300 && q < 1e300 {
+                    let (ra, rb) = (1.0 / aa, 1.0 / bb);
+                    let zero = Complex64::new(0.0, 0.0);
+                    Receptance::new(
+                        Complex64::new(a.re * ra, -a.im * ra),
+                        zero,
+                        zero,
+                        Complex64::new(b.re * rb, -b.im * rb),
+                    )
+                } else {
+                    diag.invert_cold(Receptance::diag(a, b), freq)
+                }
+            }
+            Compliance::Full { k, c } => {
+                let e = |i: usize, j: usize| Complex64::new(k[i][j], w * c[i][j]);
+                let m = Receptance::new(e(0, 0), e(0, 1), e(1, 0), e(1, 1));
+                try_invert(&m, half_limit_sq).unwrap_or_else(|| diag.invert_cold(m, freq))
+            }
+        }
     }
 }
 
@@ -397,13 +490,29 @@ pub fn couple(
     check_grid("substructure", &a.freqs_hz, "base", &base.freqs_hz)?;
     let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
     let mut diag = Diagnostics::new("(R22 + K^-1 + B)", options.max_condition);
-    let lines = (0..a.freqs_hz.len())
-        .map(|i| {
-            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
-            let x = diag.invert(a.r22[i] + kinv + base.lines[i], a.freqs_hz[i]);
-            a.r11[i] - a.r12[i] * x * a.r21[i]
-        })
-        .collect();
+    let lim = half_limit_sq(options.max_condition);
+    let n = a.freqs_hz.len();
+    let (f, r11, r12, r21, r22, b) =
+        (&a.freqs_hz[..n], &a.r11[..n], &a.r12[..n], &a.r21[..n], &a.r22[..n], &base.lines[..n]);
+    let mut lines = Vec::with_capacity(n);
+    // One loop per joint kind, so the rigid case carries no compliance at all.
+    match Compliance::new(interface) {
+        None => {
+            for i in 0..n {
+                let m = r22[i] + b[i];
+                let x = try_invert(&m, lim).unwrap_or_else(|| diag.invert_cold(m, f[i]));
+                lines.push(r11[i] - r12[i] * x * r21[i]);
+            }
+        }
+        Some(comp) => {
+            for i in 0..n {
+                let kinv = comp.at(f[i], lim, &mut kdiag);
+                let m = r22[i] + kinv + b[i];
+                let x = try_invert(&m, lim).unwrap_or_else(|| diag.invert_cold(m, f[i]));
+                lines.push(r11[i] - r12[i] * x * r21[i]);
+            }
+        }
+    }
     kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
@@ -423,13 +532,28 @@ pub fn decouple(
     check_grid("substructure", &a.freqs_hz, "assembly G11", &g11.freqs_hz)?;
     let mut kdiag = Diagnostics::new("interface stiffness K", options.max_condition);
     let mut diag = Diagnostics::new("(R11 - G11)", options.max_condition);
-    let lines = (0..a.freqs_hz.len())
-        .map(|i| {
-            let kinv = compliance(interface, a.freqs_hz[i], &mut kdiag);
-            let x = diag.invert(a.r11[i] - g11.lines[i], a.freqs_hz[i]);
-            a.r21[i] * x * a.r12[i] - a.r22[i] - kinv
-        })
-        .collect();
+    let lim = half_limit_sq(options.max_condition);
+    let n = a.freqs_hz.len();
+    let (f, r11, r12, r21, r22, g) =
+        (&a.freqs_hz[..n], &a.r11[..n], &a.r12[..n], &a.r21[..n], &a.r22[..n], &g11.lines[..n]);
+    let mut lines = Vec::with_capacity(n);
+    match Compliance::new(interface) {
+        None => {
+            for i in 0..n {
+                let m = r11[i] - g[i];
+                let x = try_invert(&m, lim).unwrap_or_else(|| diag.invert_cold(m, f[i]));
+                lines.push(r21[i] * x * r12[i] - r22[i]);
+            }
+        }
+        Some(comp) => {
+            for i in 0..n {
+                let kinv = comp.at(f[i], lim, &mut kdiag);
+                let m = r11[i] - g[i];
+                let x = try_invert(&m, lim).unwrap_or_else(|| diag.invert_cold(m, f[i]));
+                lines.push(r21[i] * x * r12[i] - r22[i] - kinv);
+            }
+        }
+    }
     kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
