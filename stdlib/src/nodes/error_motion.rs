@@ -573,9 +573,9 @@ impl Node for LdvIntegrate {
 mod tests {
     use super::*;
     use crate::error_motion::rig::Rig;
+    use crate::nodes::test_support::empty_recipe as recipe;
     use indexmap::IndexMap;
     use spindlelab_engine::diag::{Diagnostics, Span};
-    use spindlelab_engine::model::Recipe;
     use spindlelab_engine::node::Labelled;
     use spindlelab_engine::spec::{Ctx, EntityNames, ParamValue, check_value};
     use spindlelab_engine::syntax::{Raw, RawKind};
@@ -599,22 +599,6 @@ mod tests {
             values.insert(f.name.to_string(), v);
         }
         Params { values }
-    }
-
-    fn recipe() -> Recipe {
-        Recipe {
-            name: "test".into(),
-            description: None,
-            hash: String::new(),
-            materials: IndexMap::new(),
-            machines: IndexMap::new(),
-            assemblies: IndexMap::new(),
-            sensors: IndexMap::new(),
-            cutting: IndexMap::new(),
-            speeds: Vec::new(),
-            steps: Vec::new(),
-            outputs: Vec::new(),
-        }
     }
 
     /// Runs `node` on `signal` with parameters `set`; the outputs and the warnings.

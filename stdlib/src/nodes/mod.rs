@@ -56,3 +56,40 @@ fn non_negative(p: &Params, names: &[&str]) -> Result<(), NodeError> {
     }
     Ok(())
 }
+
+/// Helpers for node unit tests: parameters as the compiler makes them, and an empty recipe.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use spindlelab_engine::diag::{Diagnostics, SourceFile};
+    use spindlelab_engine::model::Recipe;
+    use spindlelab_engine::node::Node;
+    use spindlelab_engine::spec::{self, Ctx, EntityNames, Params};
+    use spindlelab_engine::syntax::load_yaml;
+
+    /// Node parameters as the compiler makes them from recipe text (defaults filled in).
+    pub(crate) fn params(node: &dyn Node, yaml: &str) -> Params {
+        let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };
+        let mut d = Diagnostics::new();
+        let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
+        let names = EntityNames::default();
+        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
+            .unwrap_or_else(|| panic!("{d}"))
+    }
+
+    /// A recipe with no entities, steps or outputs, for a node run on its own.
+    pub(crate) fn empty_recipe() -> Recipe {
+        Recipe {
+            name: "test".into(),
+            description: None,
+            hash: String::new(),
+            materials: Default::default(),
+            machines: Default::default(),
+            assemblies: Default::default(),
+            sensors: Default::default(),
+            cutting: Default::default(),
+            speeds: Vec::new(),
+            steps: Vec::new(),
+            outputs: Vec::new(),
+        }
+    }
+}

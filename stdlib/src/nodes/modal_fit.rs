@@ -305,23 +305,11 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
 mod tests {
     use super::*;
     use crate::modal_fit::ModeParams;
-    use spindlelab_engine::diag::{Diagnostics, SourceFile};
-    use spindlelab_engine::model::Recipe;
+    use crate::nodes::test_support::{empty_recipe, params};
     use spindlelab_engine::node::Labelled;
-    use spindlelab_engine::spec::{self, Ctx, EntityNames};
-    use spindlelab_engine::syntax::load_yaml;
     use spindlelab_engine::value::UnitLabel;
     use std::f64::consts::TAU;
     use std::sync::Arc;
-
-    fn params(node: &dyn Node, yaml: &str) -> Params {
-        let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };
-        let mut d = Diagnostics::new();
-        let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
-        let names = EntityNames::default();
-        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
-            .unwrap_or_else(|| panic!("{d}"))
-    }
 
     #[test]
     fn node_fits_two_modes_and_keeps_direction_and_speed() {
@@ -347,19 +335,7 @@ mod tests {
         )]
         .into_iter()
         .collect();
-        let recipe = Recipe {
-            name: "fit".into(),
-            description: None,
-            hash: String::new(),
-            materials: Default::default(),
-            machines: Default::default(),
-            assemblies: Default::default(),
-            sensors: Default::default(),
-            cutting: Default::default(),
-            speeds: Vec::new(),
-            steps: Vec::new(),
-            outputs: Vec::new(),
-        };
+        let recipe = empty_recipe();
         for method in ["simplex", "lscf"] {
             let p = params(&node, &format!("method: {method}\nv_sens: 10 %"));
             node.validate(&p).unwrap();

@@ -661,37 +661,8 @@ impl Node for RigShaker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::nodes::test_support::{empty_recipe as recipe, params};
     use crate::signal::dtft_at;
-    use spindlelab_engine::diag::{Diagnostics, SourceFile};
-    use spindlelab_engine::model::Recipe;
-    use spindlelab_engine::spec::{self, Ctx, EntityNames};
-    use spindlelab_engine::syntax::load_yaml;
-
-    /// Node parameters as the compiler makes them from recipe text (defaults filled in).
-    fn params(node: &dyn Node, yaml: &str) -> Params {
-        let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };
-        let mut d = Diagnostics::new();
-        let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
-        let names = EntityNames::default();
-        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
-            .unwrap_or_else(|| panic!("{d}"))
-    }
-
-    fn recipe() -> Recipe {
-        Recipe {
-            name: "rig".into(),
-            description: None,
-            hash: String::new(),
-            materials: Default::default(),
-            machines: Default::default(),
-            assemblies: Default::default(),
-            sensors: Default::default(),
-            cutting: Default::default(),
-            speeds: Vec::new(),
-            steps: Vec::new(),
-            outputs: Vec::new(),
-        }
-    }
 
     fn run(node: &dyn Node, p: &Params) -> Result<Outputs, NodeError> {
         let r = recipe();
