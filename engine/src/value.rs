@@ -129,12 +129,43 @@ pub struct ModalModel {
     pub modes: Vec<Mode>,
 }
 
-/// One mode: natural frequency (Hz), viscous damping ratio, modal mass (kg).
+/// One mode of a structure at one point and direction: natural frequency (Hz), viscous
+/// damping ratio and modal mass (kg). The one mode type of every kernel (modal fit, stability,
+/// spindle models): its receptance is Eq. 5.8, `1/(m(ω_n² − ω² + 2iζω_nω))`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Mode {
     pub freq_hz: f64,
     pub damping_ratio: f64,
     pub modal_mass: f64,
+}
+
+impl Mode {
+    /// The mode with modal stiffness `k` (N/m) instead of a modal mass: `m = k/(2πf)²`.
+    pub fn from_stiffness(freq_hz: f64, damping_ratio: f64, stiffness: f64) -> Mode {
+        let wn = std::f64::consts::TAU * freq_hz;
+        Mode { freq_hz, damping_ratio, modal_mass: stiffness / (wn * wn) }
+    }
+
+    /// Natural angular frequency `2πf`, rad/s.
+    pub fn omega(&self) -> f64 {
+        std::f64::consts::TAU * self.freq_hz
+    }
+
+    /// Modal stiffness `m(2πf)²`, N/m.
+    pub fn stiffness(&self) -> f64 {
+        let wn = self.omega();
+        self.modal_mass * wn * wn
+    }
+
+    /// Receptance at `omega` (rad/s), Eq. 5.8: `1/(m(ω_n² − ω² + 2iζω_nω))`, m/N.
+    #[inline]
+    pub fn receptance(&self, omega: f64) -> Complex64 {
+        let wn = self.omega();
+        let re = self.modal_mass * (wn * wn - omega * omega);
+        let im = 2.0 * self.damping_ratio * self.modal_mass * wn * omega;
+        let inv = 1.0 / (re * re + im * im);
+        Complex64::new(re * inv, -im * inv)
+    }
 }
 
 /// A free–free beam assembly: Timoshenko sections from the spindle end to the tip.
@@ -216,5 +247,22 @@ impl Value {
             Value::Table(_) => PortType::Table,
             Value::Scalar(_) => PortType::Scalar,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Mode;
+
+    #[test]
+    fn mode_receptance_has_its_static_and_resonant_closed_forms() {
+        let m = Mode::from_stiffness(820.0, 0.03, 2e7);
+        assert!((m.stiffness() / 2e7 - 1.0).abs() < 1e-14);
+        let h0 = m.receptance(0.0);
+        assert!((h0.re * 2e7 - 1.0).abs() < 1e-14 && h0.im == 0.0);
+        // At resonance the response is purely imaginary, −1/(2ζk).
+        let hr = m.receptance(m.omega());
+        assert!(hr.re.abs() < 1e-12 * hr.im.abs());
+        assert!((hr.im * 2.0 * 0.03 * 2e7 + 1.0).abs() < 1e-12);
     }
 }
