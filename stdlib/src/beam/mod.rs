@@ -16,6 +16,7 @@
 
 pub mod element;
 pub mod equivalent;
+mod jacobi;
 mod linalg;
 pub mod model;
 pub mod section;
@@ -26,7 +27,7 @@ pub mod table;
 mod tests;
 
 pub use equivalent::{FlutedTool, equivalent_diameter};
-pub use model::{BeamModel, MeshOptions, ModalModel, NodeSpring, Receptance};
+pub use model::{BeamModel, DampingForm, EigenSolver, MeshOptions, ModalModel, NodeSpring, Receptance};
 pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
 pub use spinning::{SpinningModel, SpinningReceptance, Whirl};
 
@@ -88,6 +89,13 @@ pub enum BeamError {
     /// The mass matrix is not positive definite.
     #[error("mass matrix is not positive definite")]
     MassNotDefinite,
+    /// The structurally damped model has (nearly) repeated complex modes, so it has no modal
+    /// form; the direct solve (`receptance_direct`) still applies.
+    #[error("the damped model has nearly repeated complex modes and no modal form; use the direct solve")]
+    DefectiveDamping,
+    /// The eigen-solver did not converge (a matrix with non-finite entries).
+    #[error("the eigen-solver did not converge")]
+    NoConvergence,
 }
 
 impl From<Material> for BeamMaterial {

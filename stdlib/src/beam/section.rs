@@ -220,6 +220,23 @@ impl BeamSegment {
     pub fn is_tapered(&self) -> bool {
         self.d_out_start != self.d_out_end
     }
+
+    /// The segment cut into `pieces` equal lengths, the taper continued piece to piece; with
+    /// one element per piece this meshes a segment into exactly `pieces` elements.
+    pub fn split(&self, pieces: usize) -> Vec<BeamSegment> {
+        let pieces = pieces.max(1);
+        (0..pieces)
+            .map(|k| {
+                let (a, b) = (k as f64 / pieces as f64, (k + 1) as f64 / pieces as f64);
+                BeamSegment {
+                    d_out_start: self.section_at(a).d_out,
+                    d_out_end: self.section_at(b).d_out,
+                    length: self.length / pieces as f64,
+                    ..*self
+                }
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -217,7 +217,7 @@ impl SpinningModel {
                     s[(elastic + i) * size + elastic + j] = speed * 0.5 * (rt[i * n + j] + rt[j * n + i]);
                 }
             }
-            let vals = symmetric_eigenvalues(&mut s, size);
+            let vals = symmetric_eigenvalues(&s, size).ok_or(BeamError::NoConvergence)?;
             let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             let zero = ZERO_WHIRL * top;
             let forward = vals.iter().filter(|v| **v > zero).map(|v| v / TAU).collect();

@@ -1,6 +1,7 @@
 //! Reference geometries of dissertation Table 5.1 (sections in mm there, metres here) with the
 //! Table 5.2 materials, and the §5.3 fluted end mill: one copy for tests, benches and examples.
 
+use super::{BeamSegment, segments_from_sections};
 use spindlelab_engine::model::{Component, Material, Section};
 
 /// Steel of Table 5.2 as a recipe material.
@@ -32,5 +33,19 @@ pub fn tool_holder_sections() -> Vec<Section> {
             inner: if i >= 5 { Some(CARBIDE) } else { None },
             d_equivalent: if i == 7 { Some(FLUTED_EQUIVALENT_DIAMETER) } else { None },
         })
+        .collect()
+}
+
+/// Element length the peer benchmark W1 meshes to, m.
+const W1_ELEMENT: f64 = 2e-3;
+
+/// Sections meshed as the W1 reference model meshes them: each in `max(1, round(L / 2 mm))`
+/// equal pieces with the taper continued, to be meshed one element per piece
+/// (`MeshOptions { max_element_length: 1.0, min_taper_elements: 1, .. }`). The Table 5.1
+/// tool-holder gives 52 elements, 106 dof.
+pub fn w01_segments(sections: &[Section]) -> Vec<BeamSegment> {
+    segments_from_sections(sections)
+        .iter()
+        .flat_map(|s| s.split(((s.length / W1_ELEMENT).round() as usize).max(1)))
         .collect()
 }
