@@ -307,15 +307,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let spindlelab::engine::value::Value::ModalModel(fitted) = ran.value("fit", "modes").as_ref().clone() else {
         panic!("fit.modes is not a modal model")
     };
-    let modes: Vec<stability::Mode> = fitted
-        .modes
-        .iter()
-        .map(|md| stability::Mode {
-            freq_hz: md.freq_hz,
-            damping_ratio: md.damping_ratio,
-            modal_mass_kg: md.modal_mass,
-        })
-        .collect();
+    let modes: Vec<stability::Mode> = fitted.modes.clone();
     assert_eq!(modes.len(), 1, "one mode identified");
     assert!((modes[0].freq_hz / fn_hz - 1.0).abs() < 1e-3 && (modes[0].damping_ratio / zeta - 1.0).abs() < 1e-2);
     let model = stability::ModalModel::new(modes.clone(), modes).unwrap();

@@ -275,10 +275,7 @@ fn modal(ctx: &NodeContext, port: &str) -> Result<Vec<stability::Mode>, NodeErro
     let Value::ModalModel(ModalModel { modes }) = ctx.input(port)? else {
         return Err(NodeError::input(port, "expected a modal model"));
     };
-    Ok(modes
-        .iter()
-        .map(|m| stability::Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass_kg: m.modal_mass })
-        .collect())
+    Ok(modes.clone())
 }
 
 impl Node for StabilitySd {

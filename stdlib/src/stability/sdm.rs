@@ -20,16 +20,8 @@ use num_complex::Complex64;
 use rayon::prelude::*;
 use std::f64::consts::TAU;
 
-/// One mode of a tool-point direction: `Φ(ω) = 1/(m (ω_n² − ω² + 2iζω_nω))`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Mode {
-    /// Natural frequency, Hz.
-    pub freq_hz: f64,
-    /// Viscous damping ratio.
-    pub damping_ratio: f64,
-    /// Modal mass, kg.
-    pub modal_mass_kg: f64,
-}
+/// The mode type of every kernel: natural frequency (Hz), damping ratio and modal mass (kg), receptance Eq. 5.8.
+pub use spindlelab_engine::value::Mode;
 
 /// Modes of the tool point along `x` (feed) and `y`; a direction without modes is rigid.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,8 +41,8 @@ impl ModalModel {
                     Some(format!("natural frequency {} Hz must be finite and > 0", m.freq_hz))
                 } else if !(m.damping_ratio.is_finite() && (0.0..1.0).contains(&m.damping_ratio)) {
                     Some(format!("damping ratio {} must be in [0, 1)", m.damping_ratio))
-                } else if !(m.modal_mass_kg.is_finite() && m.modal_mass_kg > 0.0) {
-                    Some(format!("modal mass {} kg must be finite and > 0", m.modal_mass_kg))
+                } else if !(m.modal_mass.is_finite() && m.modal_mass > 0.0) {
+                    Some(format!("modal mass {} kg must be finite and > 0", m.modal_mass))
                 } else {
                     None
                 };
@@ -73,17 +65,7 @@ impl ModalModel {
     pub fn receptance(&self, freqs_hz: &[f64]) -> Result<ToolPointFrf, StabilityError> {
         let sum = |modes: &[Mode], f: f64| {
             let w = TAU * f;
-            modes
-                .iter()
-                .map(|m| {
-                    let wn = TAU * m.freq_hz;
-                    Complex64::new(
-                        m.modal_mass_kg * (wn * wn - w * w),
-                        m.modal_mass_kg * 2.0 * m.damping_ratio * wn * w,
-                    )
-                    .inv()
-                })
-                .sum::<Complex64>()
+            modes.iter().map(|m| m.receptance(w)).sum::<Complex64>()
         };
         ToolPointFrf::new(
             freqs_hz.to_vec(),
@@ -321,7 +303,7 @@ impl Sd {
                 let w = TAU * mode.freq_hz;
                 omega.push(w);
                 zeta.push(mode.damping_ratio);
-                gain.push(1.0 / (mode.modal_mass_kg * w));
+                gain.push(1.0 / (mode.modal_mass * w));
                 dir.push(dr);
                 qcol.push(c);
             }

@@ -3,7 +3,7 @@ use num_complex::Complex64;
 use std::f64::consts::{PI, TAU};
 
 fn benchmark_model() -> ModalModel {
-    ModalModel::new(vec![Mode { freq_hz: 922.0, damping_ratio: 0.011, modal_mass_kg: 0.03993 }], vec![]).unwrap()
+    ModalModel::new(vec![Mode { freq_hz: 922.0, damping_ratio: 0.011, modal_mass: 0.03993 }], vec![]).unwrap()
 }
 
 fn benchmark_milling(immersion: f64) -> Milling {
@@ -116,8 +116,8 @@ fn zoa_sdof_minimum_matches_closed_form() {
 #[test]
 fn zoa_lobe_points_solve_characteristic_equation() {
     let model = ModalModel::new(
-        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass_kg: 0.4 }],
-        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass_kg: 0.3 }],
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
     )
     .unwrap();
     let freqs: Vec<f64> = (1..=4000).map(|i| 0.5 * i as f64).collect();
@@ -244,8 +244,8 @@ fn chatter_frequency_speed_mapping_agrees_with_sd() {
 #[test]
 fn sd_krylov_radius_matches_dense_eigensolve() {
     let two = ModalModel::new(
-        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
-        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass: 0.5 }],
+        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass: 0.4 }],
     )
     .unwrap();
     let quarter =
@@ -285,8 +285,8 @@ fn sd_krylov_radius_matches_dense_eigensolve() {
 #[test]
 fn sd_is_thread_count_independent() {
     let model = ModalModel::new(
-        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
-        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass: 0.5 }],
+        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass: 0.4 }],
     )
     .unwrap();
     let mill =
@@ -310,8 +310,8 @@ fn sd_is_thread_count_independent() {
 #[test]
 fn speed_dependent_equals_stationary_for_constant_frfs() {
     let model = ModalModel::new(
-        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass_kg: 0.4 }],
-        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass_kg: 0.3 }],
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
     )
     .unwrap();
     let freqs: Vec<f64> = (1..=2000).map(|i| i as f64).collect();
@@ -370,5 +370,5 @@ fn errors_name_the_problem() {
         zoa_lobes(&frf, &benchmark_milling(1.0), &ZoaOptions::default()),
         Err(StabilityError::NoResonance { .. })
     ));
-    assert!(ModalModel::new(vec![Mode { freq_hz: 100.0, damping_ratio: 1.5, modal_mass_kg: 1.0 }], vec![]).is_err());
+    assert!(ModalModel::new(vec![Mode { freq_hz: 100.0, damping_ratio: 1.5, modal_mass: 1.0 }], vec![]).is_err());
 }
