@@ -25,8 +25,8 @@ mod tests;
 
 pub use cutting::{CuttingCoefficients, Milling, MillingDirection};
 pub use sdm::{
-    Bifurcation, DepthLimit, ModalModel, Mode, SdOptions, SdPoint, StabilityMap, sd_depth_limit, sd_depth_limits,
-    sd_spectral_radius, sd_stability_map,
+    AUTO_STEPS_PER_NATURAL_PERIOD, Bifurcation, DepthLimit, ModalModel, Mode, SdOptions, SdPoint, StabilityMap,
+    StepCount, sd_depth_limit, sd_depth_limits, sd_spectral_radius, sd_stability_map, sd_steps,
 };
 pub use speed::{CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, speed_dependent_lobes};
 pub use trials::{Outcome, Trial, TrialScore, Verdict, score_trials};

@@ -20,7 +20,7 @@ fn fine_grid() -> Vec<f64> {
 }
 
 fn tight() -> SdOptions {
-    SdOptions { steps: 40, scan_points: 40, depth_tolerance_m: 1e-9 }
+    SdOptions { steps: StepCount::Fixed(40), scan_points: 40, depth_tolerance_m: 1e-9 }
 }
 
 /// Mean of `H(t)` over a revolution equals `−(N Kt/4π)[α]` (the ZOA's averaged matrix), and the exact step
@@ -156,7 +156,11 @@ fn sd_converges_with_steps() {
     let mill = benchmark_milling(1.0);
     let b: Vec<f64> = [10, 20, 40, 80, 160]
         .iter()
-        .map(|&m| sd_depth_limit(&model, &mill, 10_000.0, 1e-3, &SdOptions { steps: m, ..tight() }).unwrap().depth_m)
+        .map(|&m| {
+            sd_depth_limit(&model, &mill, 10_000.0, 1e-3, &SdOptions { steps: StepCount::Fixed(m), ..tight() })
+                .unwrap()
+                .depth_m
+        })
         .collect();
     let diffs: Vec<f64> = b.windows(2).map(|w| (w[0] - w[1]).abs()).collect();
     for w in diffs.windows(2) {
@@ -164,6 +168,28 @@ fn sd_converges_with_steps() {
     }
     assert!((b[2] - b[4]).abs() < 0.02 * b[4], "{b:?}");
     assert!((b[4] - 3.228e-4).abs() < 2e-6, "{b:?}");
+}
+
+/// At 7,000 rpm the two-tooth slotting benchmark's tooth period spans four natural periods, so 40 steps per tooth
+/// period are only ten per natural period and the limit is far (> 5 %) above the converged one; the automatic step
+/// count (from the natural period) lands within 1 % of a reference computed here at eight times its steps, itself
+/// checked to be converged (4× and 8× agree within 0.1 %). At high speed the floor of 40 steps holds.
+#[test]
+fn sd_auto_steps_converge_at_low_speed() {
+    let model = benchmark_model();
+    let mill = benchmark_milling(1.0);
+    let limit = |steps| sd_depth_limit(&model, &mill, 7000.0, 2e-3, &SdOptions { steps, ..tight() }).unwrap();
+    let auto = limit(StepCount::AUTO);
+    let m = auto.steps;
+    assert_eq!(m, sd_steps(&model, &mill, 7000.0, StepCount::AUTO).unwrap());
+    assert!(m > 40, "{m}");
+    let (fine, finer) = (limit(StepCount::Fixed(4 * m)), limit(StepCount::Fixed(8 * m)));
+    assert!((fine.depth_m / finer.depth_m - 1.0).abs() < 1e-3, "{} vs {}", fine.depth_m, finer.depth_m);
+    let reference = finer.depth_m;
+    assert!((auto.depth_m / reference - 1.0).abs() < 0.01, "auto ({m} steps) {} vs {reference}", auto.depth_m);
+    let old = limit(StepCount::Fixed(40));
+    assert!(old.depth_m / reference - 1.0 > 0.05, "40 steps {} vs {reference}", old.depth_m);
+    assert_eq!(sd_steps(&model, &mill, 30_000.0, StepCount::AUTO).unwrap(), 40);
 }
 
 /// Slotting benchmark (Insperger & Stépán 2004, IJNME 61:117–141, Fig. 6 parameters; also Ding et al. 2010,
@@ -267,7 +293,7 @@ fn sd_krylov_radius_matches_dense_eigensolve() {
     cases.push((two.clone(), quarter, 7000.0, 4e-3, 80));
     let (mut unstable, mut stable) = (0, 0);
     for (model, mill, speed, depth, steps) in cases {
-        let opts = SdOptions { steps, ..SdOptions::default() };
+        let opts = SdOptions::fixed(steps);
         let fast = sd_spectral_radius(&model, &mill, speed, depth, &opts).unwrap();
         let dense = sdm::sd_spectral_radius_dense(&model, &mill, speed, depth, &opts).unwrap();
         assert!(
