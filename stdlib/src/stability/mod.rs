@@ -30,7 +30,7 @@ pub use sdm::{
 };
 pub use speed::{CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, speed_dependent_lobes};
 pub use trials::{Outcome, Trial, TrialScore, Verdict, score_trials};
-pub use zoa::{Lobe, LobePoint, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions, zoa_lobes};
+pub use zoa::{Lobe, LobePoint, LobeSet, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions, zoa_lobes};
 
 use thiserror::Error;
 
