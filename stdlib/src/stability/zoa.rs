@@ -491,6 +491,9 @@ fn envelope_pass(grid: &[f64], freqs: &[f64], depths: &[f64], speeds: &[f64], k:
         }
         let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
         let (f1, a1, f, a) = (freqs[i - 1], depths[i - 1], freqs[i], depths[i]);
+        // The interpolated depth is at least min(a1, a) up to rounding: a grid speed whose limit is already at or
+        // below that bound (with a 1e-12 margin for the rounding) cannot be lowered, and skips the division.
+        let floor = a1.min(a) * (1.0 - 1e-12);
         while cursor > 0 && grid[cursor - 1] >= n {
             cursor -= 1;
         }
@@ -504,18 +507,24 @@ fn envelope_pass(grid: &[f64], freqs: &[f64], depths: &[f64], speeds: &[f64], k:
         let mut g = cursor;
         if n1 <= n {
             if g < grid.len() && grid[g] == n {
-                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                limit.offer(g, d, fc, k);
+                if floor < limit.depth_m[g] {
+                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                    limit.offer(g, d, fc, k);
+                }
             }
             while g > 0 && grid[g - 1] >= lo {
                 g -= 1;
-                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                limit.offer(g, d, fc, k);
+                if floor < limit.depth_m[g] {
+                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                    limit.offer(g, d, fc, k);
+                }
             }
         } else {
             while g < grid.len() && grid[g] <= hi {
-                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                limit.offer(g, d, fc, k);
+                if floor < limit.depth_m[g] {
+                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                    limit.offer(g, d, fc, k);
+                }
                 g += 1;
             }
         }
