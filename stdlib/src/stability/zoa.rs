@@ -506,11 +506,9 @@ fn envelope_pass(grid: &[f64], freqs: &[f64], depths: &[f64], speeds: &[f64], k:
         }
         let mut g = cursor;
         if n1 <= n {
-            if g < grid.len() && grid[g] == n {
-                if floor < limit.depth_m[g] {
-                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                    limit.offer(g, d, fc, k);
-                }
+            if g < grid.len() && grid[g] == n && floor < limit.depth_m[g] {
+                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                limit.offer(g, d, fc, k);
             }
             while g > 0 && grid[g - 1] >= lo {
                 g -= 1;
