@@ -10,8 +10,8 @@ use std::hint::black_box;
 
 fn two_mode() -> ModalModel {
     ModalModel::new(
-        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
-        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+        vec![Mode { freq_hz: 700.0, damping_ratio: 0.03, modal_mass: 0.5 }],
+        vec![Mode { freq_hz: 760.0, damping_ratio: 0.025, modal_mass: 0.4 }],
     )
     .expect("valid modes")
 }
@@ -36,8 +36,8 @@ fn bench_stability(c: &mut Criterion) {
         .map(|i| {
             let shift = 1.0 - 0.01 * i as f64;
             let m = ModalModel::new(
-                vec![Mode { freq_hz: 700.0 * shift, damping_ratio: 0.03, modal_mass_kg: 0.5 }],
-                vec![Mode { freq_hz: 760.0 * shift, damping_ratio: 0.025, modal_mass_kg: 0.4 }],
+                vec![Mode { freq_hz: 700.0 * shift, damping_ratio: 0.03, modal_mass: 0.5 }],
+                vec![Mode { freq_hz: 760.0 * shift, damping_ratio: 0.025, modal_mass: 0.4 }],
             )
             .expect("valid");
             SpeedFrf { speed_rpm: 500.0 * i as f64, frf: m.receptance(&coarse).expect("valid") }

@@ -307,15 +307,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let spindlelab::engine::value::Value::ModalModel(fitted) = ran.value("fit", "modes").as_ref().clone() else {
         panic!("fit.modes is not a modal model")
     };
-    let modes: Vec<stability::Mode> = fitted
-        .modes
-        .iter()
-        .map(|md| stability::Mode {
-            freq_hz: md.freq_hz,
-            damping_ratio: md.damping_ratio,
-            modal_mass_kg: md.modal_mass,
-        })
-        .collect();
+    let modes: Vec<stability::Mode> = fitted.modes.clone();
     assert_eq!(modes.len(), 1, "one mode identified");
     assert!((modes[0].freq_hz / fn_hz - 1.0).abs() < 1e-3 && (modes[0].damping_ratio / zeta - 1.0).abs() < 1e-2);
     let model = stability::ModalModel::new(modes.clone(), modes).unwrap();
@@ -339,4 +331,82 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let sd_min = node.depth_limit.iter().copied().fold(f64::INFINITY, f64::min);
     eprintln!("SD minimum {sd_min} m, ZOA minimum {} m", zoa.min_depth_m);
     assert!((sd_min / zoa.min_depth_m - 1.0).abs() < 0.15, "SD {sd_min} m vs ZOA {} m", zoa.min_depth_m);
+}
+
+/// The Insperger–Stépán tool stated in the recipe by `modal.model` (922 Hz, ζ 0.011, 0.03993 kg along the feed,
+/// rigid along y; the same mode by its stiffness in a second step) feeds `stability.sd` directly: the node's
+/// limits equal the kernel's on the same modes and options, speed by speed and in their minimum, the `steps`
+/// column is the kernel's automatic step count, and stating the mode by `k = m(2πf)²` gives the same limits.
+#[test]
+fn modal_model_node_states_the_benchmark_tool_for_sd() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = 0.03993 * (TAU * 922.0f64).powi(2);
+    let recipe = format!(
+        "spindlelab: 1\n{CUTTING}steps:\n  tool:\n    kind: modal.model\n    \
+         params: {{ x: [{{ frequency: 922 Hz, damping: 0.011, mass: 0.03993 kg }}] }}\n  \
+         tool_k:\n    kind: modal.model\n    \
+         params: {{ x: [{{ frequency: 922 Hz, damping: 0.011, stiffness: {k} N/m }}] }}\n  \
+         sd:\n    kind: stability.sd\n    params: {{ cutting: slot, speeds: 7000..17000 step 2500 rpm, max_depth: 2 mm }}\n    \
+         inputs: {{ modes_x: \"@tool.modes_x\", modes_y: \"@tool.modes_y\" }}\n  \
+         sd_k:\n    kind: stability.sd\n    params: {{ cutting: slot, speeds: 7000..17000 step 2500 rpm, max_depth: 2 mm }}\n    \
+         inputs: {{ modes_x: \"@tool_k.modes_x\", modes_y: \"@tool_k.modes_y\" }}\n"
+    );
+    let path = dir.path().join("sd.yaml");
+    std::fs::write(&path, recipe).unwrap();
+    let ran = run(&path);
+    let node = ran.lobes("sd", "lobes");
+    assert_eq!(node.speed_rpm, vec![7000.0, 9500.0, 12_000.0, 14_500.0, 17_000.0]);
+    let model = stability::ModalModel::new(
+        vec![stability::Mode { freq_hz: 922.0, damping_ratio: 0.011, modal_mass: 0.03993 }],
+        vec![],
+    )
+    .unwrap();
+    let mill =
+        Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let opts = stability::SdOptions::default();
+    let kernel = stability::sd_depth_limits(&model, &mill, &node.speed_rpm, 2e-3, &opts).unwrap();
+    for (d, l) in node.depth_limit.iter().zip(&kernel) {
+        assert!(*d == l.depth_m || (d - l.depth_m).abs() <= 1e-12, "node {d} m vs kernel {} m", l.depth_m);
+    }
+    assert!(node.depth_limit.iter().filter(|d| d.is_finite()).count() >= 3, "{:?}", node.depth_limit);
+    let min = |v: &mut dyn Iterator<Item = f64>| v.fold(f64::INFINITY, f64::min);
+    let (node_min, kernel_min) =
+        (min(&mut node.depth_limit.iter().copied()), min(&mut kernel.iter().map(|l| l.depth_m)));
+    assert!((node_min - kernel_min).abs() <= 1e-12, "{node_min} vs {kernel_min}");
+    let steps = column(&ran.table("sd", "table"), "steps").to_vec();
+    for (s, l) in steps.iter().zip(&kernel) {
+        assert_eq!(*s, l.steps as f64);
+    }
+    assert!(steps[0] > 40.0, "{steps:?}");
+    let by_k = ran.lobes("sd_k", "lobes");
+    for (a, b) in by_k.depth_limit.iter().zip(&node.depth_limit) {
+        assert!(a == b || (a - b).abs() <= 1e-9 * b, "stiffness {a} m vs mass {b} m");
+    }
+}
+
+/// A negative modal mass and a damping ratio of 1 are refused before anything runs (exit 2), each naming its
+/// step, the parameter and the offending value.
+#[test]
+fn modal_model_node_refuses_bad_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad-modes.yaml");
+    std::fs::write(
+        &path,
+        "spindlelab: 1\nsteps:\n  negative:\n    kind: modal.model\n    \
+         params: { x: [{ frequency: 922 Hz, damping: 0.011, mass: -0.04 kg }] }\n  \
+         overdamped:\n    kind: modal.model\n    \
+         params: { y: [{ frequency: 500 Hz, damping: 0.02, mass: 1 kg }, { frequency: 922 Hz, damping: 1, mass: 0.04 kg }] }\n",
+    )
+    .unwrap();
+    let e = rejected(path.to_str().unwrap(), false);
+    assert_has(
+        &e,
+        &[
+            "negative",
+            "mode 0 along x: modal mass -0.04 kg must be finite and > 0",
+            "overdamped",
+            "mode 1 along y: damping ratio 1 must be in [0, 1)",
+            "nothing was run",
+        ],
+    );
 }

@@ -56,4 +56,5 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::StabilitySpeedDependent::new()));
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));
+    registry.register(Arc::new(nodes::ModalModelNode::new()));
 }

@@ -26,7 +26,7 @@ pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
-pub use stability::{ChatterDetect, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore};
+pub use stability::{ChatterDetect, ModalModelNode, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore};
 pub use structure::{BeamCampbell, BeamReceptance, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;
 

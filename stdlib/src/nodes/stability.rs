@@ -8,7 +8,8 @@
 use crate::chatter::{self, ChatterError, ChatterKind, ChatterOptions, Record};
 use crate::stability::{
     self, Bifurcation, CoefficientTable, CuttingCoefficients, Milling, MillingDirection, Outcome, SdOptions,
-    SpeedDependentOptions, SpeedFrf, StabilityError, StabilityLimit, ToolPointFrf, Trial, Verdict, ZoaOptions,
+    SpeedDependentOptions, SpeedFrf, StabilityError, StabilityLimit, StepCount, ToolPointFrf, Trial, Verdict,
+    ZoaOptions,
 };
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -217,7 +218,7 @@ impl StabilitySd {
         StabilitySd {
             spec: NodeSpec {
                 kind: "stability.sd",
-                version: 1,
+                version: 2,
                 description: "Limiting depth per speed by first-order semi-discretization (Insperger & Stépán) of tool-point modal models in x (feed) and y, with the kind of chatter (Hopf or flip); spectral radii on a speed × depth grid.",
                 inputs: vec![
                     PortSpec::new("modes_x", PortType::ModalModel, "tool-point modes along x, the feed direction"),
@@ -234,7 +235,7 @@ impl StabilitySd {
                         "table",
                         PortType::Table,
                         "speed (rpm), depth_limit (m), chatter_frequency (Hz), kind (0 none, 1 Hopf, 2 flip, 3 fold), \
-                         restabilises (1 if a larger scanned depth is stable again)",
+                         restabilises (1 if a larger scanned depth is stable again), steps (per tooth period used)",
                     ),
                     PortSpec::new(
                         "map",
@@ -246,11 +247,11 @@ impl StabilitySd {
                     cutting_param(),
                     Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
                     Field::req("max_depth", T::Quantity(D::LENGTH), "largest axial depth scanned"),
-                    Field::def(
+                    Field::opt(
                         "steps",
-                        T::Integer { min: 2, max: 400 },
-                        "40",
-                        "time steps per tooth period (accuracy against run time)",
+                        T::Integer { min: 2, max: 2000 },
+                        "time steps per tooth period (default: per speed, at least 50 per shortest natural period, \
+                         40 to 1000)",
                     ),
                     Field::def(
                         "scan_points",
@@ -275,10 +276,7 @@ fn modal(ctx: &NodeContext, port: &str) -> Result<Vec<stability::Mode>, NodeErro
     let Value::ModalModel(ModalModel { modes }) = ctx.input(port)? else {
         return Err(NodeError::input(port, "expected a modal model"));
     };
-    Ok(modes
-        .iter()
-        .map(|m| stability::Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass_kg: m.modal_mass })
-        .collect())
+    Ok(modes.clone())
 }
 
 impl Node for StabilitySd {
@@ -302,7 +300,7 @@ impl Node for StabilitySd {
         let speeds = speeds_rpm(p)?;
         let max_depth = ctx.f64("max_depth")?;
         let opts = SdOptions {
-            steps: p.int("steps").unwrap_or(40) as usize,
+            steps: p.int("steps").map_or(StepCount::AUTO, |m| StepCount::Fixed(m as usize)),
             scan_points: p.int("scan_points").unwrap_or(40) as usize,
             depth_tolerance_m: p.f64("tolerance").unwrap_or(1e-7),
         };
@@ -334,6 +332,7 @@ impl Node for StabilitySd {
                 Column::new("chatter_frequency", "Hz", chatter.clone()),
                 Column::new("kind", "", limits.iter().map(kind).collect()),
                 Column::new("restabilises", "", limits.iter().map(|d| f64::from(u8::from(d.restabilises))).collect()),
+                Column::new("steps", "", limits.iter().map(|d| d.steps as f64).collect()),
             ],
         };
         let n = p.int("map_depths").unwrap_or(0) as usize;
@@ -359,6 +358,100 @@ impl Node for StabilitySd {
         };
         let lobes = Lobes { speed_rpm: speeds, depth_limit: depth, chatter_hz: chatter };
         Ok(outputs(vec![("lobes", Value::Lobes(lobes)), ("table", Value::Table(table)), ("map", Value::Table(map))]))
+    }
+}
+
+// ------------------------------------------------------------------ modal.model
+
+/// `modal.model`: tool-point modes stated in the recipe, per direction, as the modal models `stability.sd`
+/// takes (no FRF file or fit needed for a textbook case).
+pub struct ModalModelNode {
+    spec: NodeSpec,
+}
+
+impl Default for ModalModelNode {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+const MODE_ROW: &[Field] = &[
+    Field::req("frequency", T::Quantity(D::FREQUENCY), "natural frequency"),
+    Field::req("damping", T::Quantity(D::DIMENSIONLESS), "viscous damping ratio ζ, in [0, 1)"),
+    Field::opt("mass", T::Quantity(D::MASS), "modal mass (or give stiffness)"),
+    Field::opt("stiffness", T::Quantity(D::STIFFNESS), "modal stiffness k = m (2πf)² (or give mass)"),
+];
+
+impl ModalModelNode {
+    pub fn new() -> Self {
+        ModalModelNode {
+            spec: NodeSpec {
+                kind: "modal.model",
+                version: 1,
+                description: "Tool-point modes stated directly, per direction: natural frequency, damping ratio and modal mass or modal stiffness of each mode (receptance Eq. 5.8); the modal models x (feed) and y for stability.sd.",
+                inputs: vec![],
+                outputs: vec![
+                    PortSpec::new("modes_x", PortType::ModalModel, "modes along x, the feed direction"),
+                    PortSpec::new("modes_y", PortType::ModalModel, "modes along y"),
+                ],
+                params: vec![
+                    Field::opt(
+                        "x",
+                        T::ObjectList(MODE_ROW),
+                        "modes along x, rows {frequency, damping, mass} or {frequency, damping, stiffness} (none: \
+                         rigid)",
+                    ),
+                    Field::opt("y", T::ObjectList(MODE_ROW), "modes along y, rows as for x (none: rigid)"),
+                ],
+            },
+        }
+    }
+}
+
+/// The modes of the `x` and `y` parameters, checked: each row gives a mass or a stiffness (not both, positive),
+/// and [`stability::ModalModel::new`] checks frequency, damping and mass.
+fn stated_modes(p: &Params) -> Result<stability::ModalModel, NodeError> {
+    let mut dirs: [Vec<stability::Mode>; 2] = Default::default();
+    for (dir, modes) in ["x", "y"].into_iter().zip(dirs.iter_mut()) {
+        for (index, r) in p.objects(dir).unwrap_or_default().iter().enumerate() {
+            let bad = |what: String| NodeError::param(dir, format!("mode {index} along {dir}: {what}"));
+            let (f, zeta) = (r.f64("frequency").unwrap_or(f64::NAN), r.f64("damping").unwrap_or(f64::NAN));
+            let mode = match (r.f64("mass"), r.f64("stiffness")) {
+                (Some(m), None) => stability::Mode { freq_hz: f, damping_ratio: zeta, modal_mass: m },
+                (None, Some(k)) if !(k.is_finite() && k > 0.0) => {
+                    return Err(bad(format!("modal stiffness {k} N/m must be finite and > 0")));
+                }
+                (None, Some(k)) => stability::Mode::from_stiffness(f, zeta, k),
+                (Some(_), Some(_)) => return Err(bad("give the modal mass or the modal stiffness, not both".into())),
+                (None, None) => {
+                    return Err(bad("give its modal mass (`mass`) or modal stiffness (`stiffness`)".into()));
+                }
+            };
+            modes.push(mode);
+        }
+    }
+    let [x, y] = dirs;
+    stability::ModalModel::new(x, y).map_err(|e| match &e {
+        StabilityError::InvalidMode { direction, .. } => NodeError::param(direction, e.to_string()),
+        _ => NodeError::param("x", e.to_string()),
+    })
+}
+
+impl Node for ModalModelNode {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        stated_modes(p).map(|_| ())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let model = stated_modes(ctx.params)?;
+        Ok(outputs(vec![
+            ("modes_x", Value::ModalModel(ModalModel { modes: model.x })),
+            ("modes_y", Value::ModalModel(ModalModel { modes: model.y })),
+        ]))
     }
 }
 

@@ -120,15 +120,74 @@ pub struct LobePoint {
     pub chatter_hz: f64,
 }
 
-/// A run of lobe `index` over contiguous frequency lines (one eigenvalue branch), in order of frequency.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Lobe {
+/// Every lobe curve of [`zoa_lobes`], stored compactly: the chatter frequency and depth of each point of a run of
+/// contiguous lines with a root (one eigenvalue branch) once, shared by all lobes, and per lobe only the speeds.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LobeSet {
+    /// Number of lobes `k = 0 … lobes − 1`.
+    lobes: usize,
+    /// Runs as (branch, first point, number of points), in order of branch and frequency.
+    runs: Vec<(usize, usize, usize)>,
+    /// Chatter frequency of each run point, Hz.
+    chatter_hz: Vec<f64>,
+    /// Limiting depth of each run point, m.
+    depth_m: Vec<f64>,
+    /// Speed of each run point on each lobe, rpm: run `(_, start, len)`, lobe `k`, point `i` at
+    /// `lobes · start + k · len + i`.
+    speed_rpm: Vec<f64>,
+}
+
+/// One lobe curve of a [`LobeSet`]: lobe `index` over contiguous frequency lines of one eigenvalue branch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lobe<'a> {
     /// Lobe number `k` (number of whole waves between teeth).
     pub index: usize,
     /// Eigenvalue branch, 0 or 1.
     pub branch: usize,
-    /// Points in order of chatter frequency.
-    pub points: Vec<LobePoint>,
+    /// Chatter frequencies, Hz, increasing.
+    pub chatter_hz: &'a [f64],
+    /// Limiting depths, m.
+    pub depth_m: &'a [f64],
+    /// Speeds, rpm.
+    pub speed_rpm: &'a [f64],
+}
+
+impl<'a> Lobe<'a> {
+    /// The points in order of chatter frequency.
+    pub fn points(&self) -> impl Iterator<Item = LobePoint> + 'a {
+        let (f, a, n) = (self.chatter_hz, self.depth_m, self.speed_rpm);
+        (0..f.len()).map(move |i| LobePoint { speed_rpm: n[i], depth_m: a[i], chatter_hz: f[i] })
+    }
+}
+
+impl LobeSet {
+    /// Number of lobe curves (lobes × runs).
+    pub fn len(&self) -> usize {
+        self.lobes * self.runs.len()
+    }
+
+    /// True when no curve is kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The curves in order of branch, lobe number and frequency.
+    pub fn iter(&self) -> impl Iterator<Item = Lobe<'_>> + '_ {
+        (0..2).flat_map(move |branch| {
+            (0..self.lobes).flat_map(move |k| {
+                self.runs.iter().filter(move |r| r.0 == branch).map(move |&(_, start, len)| {
+                    let at = self.lobes * start + k * len;
+                    Lobe {
+                        index: k,
+                        branch,
+                        chatter_hz: &self.chatter_hz[start..start + len],
+                        depth_m: &self.depth_m[start..start + len],
+                        speed_rpm: &self.speed_rpm[at..at + len],
+                    }
+                })
+            })
+        })
+    }
 }
 
 /// The stability limit on a speed grid: the lowest lobe through each speed.
@@ -167,7 +226,7 @@ impl StabilityLimit {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ZoaLobes {
     /// Per-lobe curves (empty unless `keep_lobes`).
-    pub lobes: Vec<Lobe>,
+    pub lobes: LobeSet,
     /// The envelope on the requested speeds.
     pub limit: StabilityLimit,
     /// The smallest limiting depth of any line (the common minimum of all lobes), m.
@@ -352,13 +411,22 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
         });
     }
     let mut limit = StabilityLimit::unbounded(grid);
-    let mut lobes = Vec::new();
     let per_tooth = 60.0 / milling.teeth as f64;
-    let (grid_lo, grid_hi) = (grid.first().copied().unwrap_or(0.0), grid.last().copied().unwrap_or(0.0));
-    // Per branch, the runs of consecutive lines with a root as (f, N-scaled f, depth, e); the eigenproblem is
-    // solved once per line and each lobe is only a speed mapping n = 60 f/(N (k + e)) of the same points.
-    let mut run: Vec<(f64, f64, f64, f64)> = Vec::with_capacity(roots.len());
-    let mut speeds: Vec<f64> = Vec::with_capacity(roots.len());
+    let mut lobes = LobeSet { lobes: options.lobes, ..LobeSet::default() };
+    if options.keep_lobes {
+        // One allocation per array, sized exactly: every line with a root is one point of every lobe.
+        let points = roots.iter().flatten().filter(|r| r.is_some()).count();
+        lobes.chatter_hz.reserve_exact(points);
+        lobes.depth_m.reserve_exact(points);
+        lobes.speed_rpm.reserve_exact(points * options.lobes);
+    }
+    // Per branch, the runs of consecutive lines with a root as (f, N-scaled f, depth, e) in structure-of-arrays
+    // form; the eigenproblem is solved once per line and each lobe is only a speed mapping n = 60 f/(N (k + e))
+    // of the same points, written straight into the kept lobes (or a scratch row) and offered to the envelope.
+    let cap = roots.len();
+    let (mut rf, mut rc, mut ra, mut re) =
+        (Vec::with_capacity(cap), Vec::with_capacity(cap), Vec::with_capacity(cap), Vec::with_capacity(cap));
+    let mut scratch: Vec<f64> = Vec::with_capacity(if options.keep_lobes { 0 } else { cap });
     for branch in 0..2 {
         let mut start = 0;
         while start < roots.len() {
@@ -366,62 +434,66 @@ pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) ->
                 start += 1;
                 continue;
             }
-            run.clear();
+            rf.clear();
+            rc.clear();
+            ra.clear();
+            re.clear();
             let mut j = start;
             while let Some(Some(x)) = roots.get(j).map(|r| r[branch]) {
                 let f = frf.freqs_hz[j];
-                run.push((f, per_tooth * f, x.depth, x.e));
+                rf.push(f);
+                rc.push(per_tooth * f);
+                ra.push(x.depth);
+                re.push(x.e);
                 j += 1;
             }
             start = j;
+            if options.keep_lobes {
+                lobes.runs.push((branch, lobes.chatter_hz.len(), rf.len()));
+                lobes.chatter_hz.extend_from_slice(&rf);
+                lobes.depth_m.extend_from_slice(&ra);
+            }
             for k in 0..options.lobes {
                 let kf = k as f64;
-                speeds.clear();
-                speeds.extend(run.iter().map(|&(_, c, _, e)| c / (kf + e)));
-                if options.keep_lobes {
-                    let points = run.iter().zip(&speeds).map(|(&(f, _, a, _), &n)| LobePoint {
-                        speed_rpm: n,
-                        depth_m: a,
-                        chatter_hz: f,
-                    });
-                    lobes.push(Lobe { index: k, branch, points: points.collect() });
-                }
-                envelope_pass(grid, grid_lo, grid_hi, &run, &speeds, k, &mut limit);
+                let speeds = if options.keep_lobes {
+                    let at = lobes.speed_rpm.len();
+                    lobes.speed_rpm.extend(rc.iter().zip(&re).map(|(&c, &e)| c / (kf + e)));
+                    &lobes.speed_rpm[at..]
+                } else {
+                    scratch.clear();
+                    scratch.extend(rc.iter().zip(&re).map(|(&c, &e)| c / (kf + e)));
+                    &scratch[..]
+                };
+                envelope_pass(grid, &rf, &ra, speeds, k, &mut limit);
             }
         }
     }
-    // Lobes in the order branch, lobe number, frequency.
-    lobes.sort_by_key(|l: &Lobe| (l.branch, l.index));
     Ok(ZoaLobes { lobes, limit, min_depth_m: min_depth, min_depth_chatter_hz: min_f })
 }
 
-/// Offers lobe `k`'s run of points (`run[i] = (f, ·, depth, ·)` at speed `speeds[i]`) to the envelope: every grid
+/// Offers lobe `k`'s run of points (chatter frequency `freqs[i]`, depth `depths[i]` at speed `speeds[i]`) to the envelope: every grid
 /// speed between two consecutive points gets the linearly interpolated depth. The speed along a run changes
 /// smoothly, so the grid index is followed by walking rather than searched.
-fn envelope_pass(
-    grid: &[f64],
-    grid_lo: f64,
-    grid_hi: f64,
-    run: &[(f64, f64, f64, f64)],
-    speeds: &[f64],
-    k: usize,
-    limit: &mut StabilityLimit,
-) {
+fn envelope_pass(grid: &[f64], freqs: &[f64], depths: &[f64], speeds: &[f64], k: usize, limit: &mut StabilityLimit) {
     let Some(&first) = speeds.first() else { return };
+    let (grid_lo, grid_hi) = (grid.first().copied().unwrap_or(0.0), grid.last().copied().unwrap_or(0.0));
     // cursor = number of grid speeds below the current point n, which lies in the cell (cl, ch].
     let mut cursor = grid.partition_point(|&g| g < first);
     let cell = |c: usize| {
         (if c == 0 { f64::NEG_INFINITY } else { grid[c - 1] }, grid.get(c).copied().unwrap_or(f64::INFINITY))
     };
     let (mut cl, mut ch) = cell(cursor);
-    for i in 1..run.len() {
+    for i in 1..speeds.len() {
         let (n1, n) = (speeds[i - 1], speeds[i]);
         // Most segments lie strictly inside one grid cell and hold no grid speed.
         if n > cl && n < ch && n1 < ch {
             continue;
         }
         let (lo, hi) = if n1 <= n { (n1, n) } else { (n, n1) };
-        let ((f1, _, a1, _), (f, _, a, _)) = (run[i - 1], run[i]);
+        let (f1, a1, f, a) = (freqs[i - 1], depths[i - 1], freqs[i], depths[i]);
+        // The interpolated depth is at least min(a1, a) up to rounding: a grid speed whose limit is already at or
+        // below that bound (with a 1e-12 margin for the rounding) cannot be lowered, and skips the division.
+        let floor = a1.min(a) * (1.0 - 1e-12);
         while cursor > 0 && grid[cursor - 1] >= n {
             cursor -= 1;
         }
@@ -434,19 +506,23 @@ fn envelope_pass(
         }
         let mut g = cursor;
         if n1 <= n {
-            if g < grid.len() && grid[g] == n {
+            if g < grid.len() && grid[g] == n && floor < limit.depth_m[g] {
                 let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
                 limit.offer(g, d, fc, k);
             }
             while g > 0 && grid[g - 1] >= lo {
                 g -= 1;
-                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                limit.offer(g, d, fc, k);
+                if floor < limit.depth_m[g] {
+                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                    limit.offer(g, d, fc, k);
+                }
             }
         } else {
             while g < grid.len() && grid[g] <= hi {
-                let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
-                limit.offer(g, d, fc, k);
+                if floor < limit.depth_m[g] {
+                    let (d, fc) = segment_at(n1, a1, f1, n, a, f, grid[g]);
+                    limit.offer(g, d, fc, k);
+                }
                 g += 1;
             }
         }
