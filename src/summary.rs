@@ -60,6 +60,17 @@ fn describe(v: &Value) -> String {
         Value::ModalModel(m) => format!("modal model, {} modes", m.modes.len()),
         Value::ReceptanceSet(r) => format!("receptance set, {} lines", r.freq_hz.len()),
         Value::BeamModel(b) => format!("beam model, {} sections", b.sections.len()),
+        Value::Substructure(s) => {
+            let parts: Vec<String> = s
+                .parts
+                .iter()
+                .map(|p| {
+                    let first = p.natural_hz.get(p.rigid_modes).map_or(String::from("-"), |f| n(*f));
+                    format!("{} ({} modes, first flexible {first} Hz)", p.name, p.nu.len())
+                })
+                .collect();
+            format!("substructure of `{}`: {}", s.assembly, parts.join(", "))
+        }
         Value::Lobes(l) => format!("lobes, {} speeds", l.speed_rpm.len()),
     }
 }

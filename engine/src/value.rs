@@ -15,6 +15,7 @@ pub enum PortType {
     ReceptanceSet,
     ModalModel,
     BeamModel,
+    Substructure,
     Lobes,
     Table,
     Scalar,
@@ -28,6 +29,7 @@ impl PortType {
             PortType::ReceptanceSet => "2x2 receptance set",
             PortType::ModalModel => "modal model",
             PortType::BeamModel => "beam model",
+            PortType::Substructure => "substructure",
             PortType::Lobes => "stability lobes",
             PortType::Table => "table",
             PortType::Scalar => "scalar",
@@ -174,6 +176,41 @@ pub struct BeamModel {
     pub sections: Vec<crate::model::Section>,
 }
 
+/// A free–free substructure (a holder with its tool) reduced to its two coupling points, the
+/// tip and the spindle end: every complex mode of its FE model with the shapes kept at those
+/// points. Receptances between them are exact on any frequency grid, so the substructure is
+/// built once and coupled at every speed, direction or joint setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Substructure {
+    /// The assembly it was built from.
+    pub assembly: String,
+    /// One part when the tool joint is rigid; otherwise the holder (with the inserted shank),
+    /// then the protruding tool, joined by `tool_joint`.
+    pub parts: Vec<SubstructurePart>,
+    /// The tool joint between the parts: `[kt N/m, ct N·s/m, kr N·m/rad, cr N·m·s/rad]`.
+    pub tool_joint: Option<[f64; 4]>,
+}
+
+/// One free–free part of a [`Substructure`], in the modal form `Σ_r u_r u_rᵀ/(1 − sν_r)`,
+/// `s = σ + ω²` (the shift σ is the part's own).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubstructurePart {
+    /// `whole`, `holder` or `tool`.
+    pub name: String,
+    /// Length from the spindle end to the tip, m.
+    pub length: f64,
+    /// The shift σ, rad²/s².
+    pub shift: f64,
+    /// Number of rigid-body modes (the first ones).
+    pub rigid_modes: usize,
+    /// Undamped natural frequencies, Hz, ascending.
+    pub natural_hz: Vec<f64>,
+    /// Complex `ν_r` of every mode.
+    pub nu: Vec<Complex64>,
+    /// Mode shapes at tip y, tip θ, spindle-end y, spindle-end θ: one value per mode each.
+    pub shapes: [Vec<Complex64>; 4],
+}
+
 /// A stability lobe diagram: limiting depth of cut (m) over spindle speed (rpm).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Lobes {
@@ -230,6 +267,7 @@ pub enum Value {
     ReceptanceSet(ReceptanceSet),
     ModalModel(ModalModel),
     BeamModel(BeamModel),
+    Substructure(Substructure),
     Lobes(Lobes),
     Table(Table),
     Scalar(Scalar),
@@ -243,6 +281,7 @@ impl Value {
             Value::ReceptanceSet(_) => PortType::ReceptanceSet,
             Value::ModalModel(_) => PortType::ModalModel,
             Value::BeamModel(_) => PortType::BeamModel,
+            Value::Substructure(_) => PortType::Substructure,
             Value::Lobes(_) => PortType::Lobes,
             Value::Table(_) => PortType::Table,
             Value::Scalar(_) => PortType::Scalar,

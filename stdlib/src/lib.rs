@@ -47,6 +47,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ReadReceptance::new()));
     registry.register(Arc::new(nodes::BeamReceptance::new()));
     registry.register(Arc::new(nodes::BeamCampbell::new()));
+    registry.register(Arc::new(nodes::BeamSubstructure::new()));
     registry.register(Arc::new(nodes::SpindleReceptance::new()));
     registry.register(Arc::new(nodes::RcsaCouple::new()));
     registry.register(Arc::new(nodes::RcsaDecouple::new()));

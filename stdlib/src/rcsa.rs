@@ -288,6 +288,37 @@ pub enum RcsaError {
     },
 }
 
+/// A translational point mass `m` (kg, no rotary inertia) added at the point of a driving-point
+/// receptance G: `G' = G (I − ω² diag(m, 0) G)⁻¹`. It equals meshing the mass into the FE model,
+/// so one coupled structure serves both the measured configuration (sensor on the tip) and the
+/// cutting one (no sensor).
+pub fn with_point_mass(g: &ReceptanceFrf, mass: f64) -> Result<ReceptanceFrf, RcsaError> {
+    let mut lines = Vec::with_capacity(g.lines.len());
+    let mut bad = Vec::new();
+    for (&f, r) in g.freqs_hz.iter().zip(&g.lines) {
+        let w2m = (std::f64::consts::TAU * f).powi(2) * mass;
+        // (I − ω²DG) = [[a, −ω²m l], [0, 1]], a = 1 − ω²m h; its inverse is [[1/a, ω²m l/a], [0, 1]].
+        let a = Complex64::new(1.0, 0.0) - r.h * w2m;
+        if a.norm() == 0.0 || !a.is_finite() {
+            bad.push(f);
+            lines.push(*r);
+            continue;
+        }
+        let inv = Receptance::new(1.0 / a, r.l * w2m / a, Complex64::new(0.0, 0.0), Complex64::new(1.0, 0.0));
+        lines.push(*r * inv);
+    }
+    if let Some(&worst_freq_hz) = bad.first() {
+        return Err(RcsaError::IllConditioned {
+            operation: "(I − ω² m G) of the point mass",
+            freqs_hz: bad,
+            worst_condition: f64::INFINITY,
+            worst_freq_hz,
+            limit: f64::INFINITY,
+        });
+    }
+    Ok(ReceptanceFrf { freqs_hz: g.freqs_hz.clone(), lines })
+}
+
 fn check_grid(a: &'static str, fa: &[f64], b: &'static str, fb: &[f64]) -> Result<(), RcsaError> {
     if fa == fb {
         return Ok(());

@@ -27,7 +27,7 @@ pub mod table;
 mod tests;
 
 pub use equivalent::{FlutedTool, equivalent_diameter};
-pub use model::{BeamModel, DampingForm, EigenSolver, MeshOptions, ModalModel, NodeSpring, Receptance};
+pub use model::{BeamModel, DampingForm, EigenSolver, MeshOptions, ModalModel, NodeSpring, Receptance, ReducedModes};
 pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
 pub use spinning::{SpinningModel, SpinningReceptance, Whirl};
 
@@ -93,6 +93,12 @@ pub enum BeamError {
     /// form; the direct solve (`receptance_direct`) still applies.
     #[error("the damped model has nearly repeated complex modes and no modal form; use the direct solve")]
     DefectiveDamping,
+    /// Viscous dampers make the modal form frequency dependent, so it cannot be reduced to
+    /// coupling points.
+    #[error(
+        "node dampers make the model's damping frequency dependent; it has no reduced modal form (remove the dampers, or couple the full model)"
+    )]
+    NotReducible,
     /// The eigen-solver did not converge (a matrix with non-finite entries).
     #[error("the eigen-solver did not converge")]
     NoConvergence,

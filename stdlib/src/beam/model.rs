@@ -502,24 +502,105 @@ impl ModalModel {
         if self.form == DampingForm::Viscous {
             return self.model.receptance_direct(response, excitation, freqs);
         }
-        let mut top = 0.0f64;
-        for &f in freqs {
-            if !f.is_finite() || f < 0.0 {
-                return Err(BeamError::BadFrequency(f));
-            }
-            if f == 0.0 && self.rigid > 0 {
-                return Err(BeamError::Singular(f));
-            }
-            top = top.max(f);
-        }
         let n = self.n;
         let row = |dof: usize| &self.u[dof * n..(dof + 1) * n];
         let rows = [row(2 * response), row(2 * response + 1), row(2 * excitation), row(2 * excitation + 1)];
-        let sum = ModalSum::new(self, rows, TAU * top);
-        let mut out = Vec::with_capacity(freqs.len());
-        sum.run(freqs, &mut out)?;
-        Ok(out)
+        modal_lines(self.sigma, self.rigid, &self.nu, rows, freqs)
     }
+
+    /// The modes kept only at `nodes` (a substructure's coupling points), for receptances
+    /// between those nodes on any grid. Viscous dampers have no such form.
+    pub fn reduce(&self, nodes: &[usize]) -> Result<ReducedModes, BeamError> {
+        let count = self.n / 2;
+        if let Some(&node) = nodes.iter().find(|&&node| node >= count) {
+            return Err(BeamError::NoSuchNode { node, nodes: count });
+        }
+        if self.form == DampingForm::Viscous {
+            return Err(BeamError::NotReducible);
+        }
+        let n = self.n;
+        let shapes = nodes
+            .iter()
+            .flat_map(|&node| [2 * node, 2 * node + 1])
+            .map(|d| self.u[d * n..(d + 1) * n].to_vec())
+            .collect();
+        Ok(ReducedModes {
+            sigma: self.sigma,
+            rigid: self.rigid,
+            nu: self.nu.clone(),
+            shapes,
+            natural_hz: self.natural_frequencies(),
+        })
+    }
+}
+
+/// A [`ModalModel`] kept at a few nodes: every mode's ν and its shape at those nodes' dofs.
+/// Receptances between the nodes stay exact on any grid and cost O(modes) per line, so a
+/// substructure is computed once and coupled at every speed, direction or joint setting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReducedModes {
+    /// The shift σ of the modal form, rad²/s².
+    pub sigma: f64,
+    /// Number of rigid-body modes (the first ones).
+    pub rigid: usize,
+    /// Complex `ν_r` of every mode.
+    pub nu: Vec<Complex64>,
+    /// Mode shapes at the kept dofs: `shapes[2k]` (y) and `shapes[2k + 1]` (θ) of kept node k.
+    pub shapes: Vec<Vec<Complex64>>,
+    /// Undamped natural frequencies, Hz, ascending.
+    pub natural_hz: Vec<f64>,
+}
+
+impl ReducedModes {
+    /// Number of kept nodes.
+    pub fn points(&self) -> usize {
+        self.shapes.len() / 2
+    }
+
+    /// Receptances between kept nodes `response` and `excitation` (indices into the kept list).
+    pub fn receptance(&self, response: usize, excitation: usize, freqs: &[f64]) -> Result<Vec<Receptance>, BeamError> {
+        let points = self.points();
+        for node in [response, excitation] {
+            if node >= points {
+                return Err(BeamError::NoSuchNode { node, nodes: points });
+            }
+        }
+        if self.shapes.iter().any(|s| s.len() != self.nu.len()) {
+            return Err(BeamError::NotReducible);
+        }
+        let rows = [
+            &self.shapes[2 * response][..],
+            &self.shapes[2 * response + 1][..],
+            &self.shapes[2 * excitation][..],
+            &self.shapes[2 * excitation + 1][..],
+        ];
+        modal_lines(self.sigma, self.rigid, &self.nu, rows, freqs)
+    }
+}
+
+/// The modal sum `Σ_r u_r u_rᵀ/(1 − sν_r)` between two nodes (rows: response y, θ, excitation
+/// y, θ) at each frequency (Hz).
+fn modal_lines(
+    sigma: f64,
+    rigid: usize,
+    nu: &[Complex64],
+    rows: [&[Complex64]; 4],
+    freqs: &[f64],
+) -> Result<Vec<Receptance>, BeamError> {
+    let mut top = 0.0f64;
+    for &f in freqs {
+        if !f.is_finite() || f < 0.0 {
+            return Err(BeamError::BadFrequency(f));
+        }
+        if f == 0.0 && rigid > 0 {
+            return Err(BeamError::Singular(f));
+        }
+        top = top.max(f);
+    }
+    let sum = ModalSum::new(sigma, rigid, nu, rows, TAU * top);
+    let mut out = Vec::with_capacity(freqs.len());
+    sum.run(freqs, &mut out)?;
+    Ok(out)
 }
 
 /// Complex modes of the flexible subspace for [`DampingForm::Structural`]: in the shifted
@@ -598,9 +679,8 @@ struct ModalSum {
 }
 
 impl ModalSum {
-    fn new(model: &ModalModel, rows: [&[Complex64]; 4], w_max: f64) -> ModalSum {
+    fn new(sigma: f64, rigid: usize, nu: &[Complex64], rows: [&[Complex64]; 4], w_max: f64) -> ModalSum {
         let [ay, at, by, bt] = rows;
-        let sigma = model.sigma;
         let s_max = sigma + w_max * w_max;
         let mut sum = ModalSum {
             sigma,
@@ -613,21 +693,21 @@ impl ModalSum {
         };
         let mut stiff = Vec::new();
         let mut rho = 0.0f64;
-        for r in 0..model.n {
+        for r in 0..nu.len() {
             let res = [ay[r] * by[r], ay[r] * bt[r], at[r] * by[r], at[r] * bt[r]];
-            if r < model.rigid {
+            if r < rigid {
                 for (acc, v) in sum.rigid.iter_mut().zip(res) {
                     *acc += v.re;
                 }
                 continue;
             }
-            let x = model.nu[r] * s_max;
+            let x = nu[r] * s_max;
             if x.norm() <= SERIES_RATIO {
                 rho = rho.max(x.norm());
                 stiff.push((x, res));
             } else {
-                sum.nu_re.push(model.nu[r].re);
-                sum.nu_im.push(model.nu[r].im);
+                sum.nu_re.push(nu[r].re);
+                sum.nu_im.push(nu[r].im);
                 for (k, v) in res.iter().enumerate() {
                     sum.res[2 * k].push(v.re);
                     sum.res[2 * k + 1].push(v.im);

@@ -27,7 +27,7 @@ pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use stability::{ChatterDetect, ModalModelNode, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore};
-pub use structure::{BeamCampbell, BeamReceptance, RcsaCouple, RcsaDecouple, SpindleReceptance};
+pub use structure::{BeamCampbell, BeamReceptance, BeamSubstructure, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;
 
 use spindlelab_engine::node::NodeError;

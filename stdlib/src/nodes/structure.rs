@@ -1,7 +1,8 @@
 //! Structural-model and RCSA node kinds (dissertation §5.1, §5.4): `beam.receptance` (free–free
 //! Timoshenko FE model of an assembly), `spindle.receptance` (equivalent fixed-free
-//! Euler–Bernoulli spindle modes, Eqs. 5.5–5.12), `rcsa.couple` (Eqs. 5.3, 5.16–5.17) and
-//! `rcsa.decouple` (inverse RCSA, Eq. 5.4).
+//! Euler–Bernoulli spindle modes, Eqs. 5.5–5.12), `beam.substructure` (the FE model reduced to
+//! its coupling points, once), `rcsa.couple` (Eqs. 5.3, 5.16–5.17) and `rcsa.decouple` (inverse
+//! RCSA, Eq. 5.4).
 //!
 //! Substructure receptances come from the modal expansion of the FE model: one eigen-solution
 //! serves every frequency line, so a line costs a sum over the modes instead of a complex
@@ -13,7 +14,9 @@ use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, Receptanc
 use spindlelab_engine::model::{Component, Joint, Section};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, Frf, PortType, ReceptanceSet, Table, UnitLabel, Value};
+use spindlelab_engine::value::{
+    Column, Frf, PortType, ReceptanceSet, Substructure, SubstructurePart, Table, UnitLabel, Value,
+};
 use spindlelab_grammar::Dimension as D;
 use std::f64::consts::TAU;
 
@@ -273,6 +276,77 @@ fn two_port(
         Ok(modes.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
     };
     Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(tip, tip)?, r12: r(tip, 0)?, r21: r(0, tip)?, r22: r(0, 0)? })
+}
+
+/// The free–free parts of an assembly: the whole of it when its `tool_joint` is rigid; otherwise
+/// the holder (with the inserted shank) and the protruding tool, with the joint between them.
+fn assembly_parts<'a>(
+    a: &'a spindlelab_engine::model::Assembly,
+    name: &str,
+) -> Result<(Vec<(&'static str, &'a [Section])>, Option<[f64; 4]>), NodeError> {
+    let joint = match a.tool_joint {
+        Joint::Rigid => return Ok((vec![("whole", &a.sections[..])], None)),
+        joint => joint,
+    };
+    let split = a.sections.iter().position(|s| s.component == Component::Tool).unwrap_or(a.sections.len());
+    let (holder, tool) = a.sections.split_at(split);
+    if holder.is_empty() || tool.is_empty() {
+        return Err(NodeError::param(
+            "assembly",
+            format!(
+                "assembly `{name}` has a compliant `tool_joint` but no {} sections: the joint sits between the holder (`holder`, `holder+tool`) and the protruding tool (`tool`)",
+                if holder.is_empty() { "holder" } else { "`tool`" }
+            ),
+        ));
+    }
+    if let Some(s) = tool.iter().find(|s| s.component != Component::Tool) {
+        return Err(NodeError::param(
+            "assembly",
+            format!(
+                "assembly `{name}`: section `{}` follows a `tool` section; list the holder sections first, then the protruding tool",
+                s.name
+            ),
+        ));
+    }
+    // Checks that both stiffnesses are given.
+    interface_of(&joint, "assembly", &format!("the `tool_joint` of assembly `{name}`"))?;
+    let Joint::Compliant { kt, ct, kr, cr } = joint else { return Ok((vec![("whole", &a.sections[..])], None)) };
+    Ok((vec![("holder", holder), ("tool", tool)], Some([kt, ct, kr, cr])))
+}
+
+/// A part's FE model reduced to its tip and spindle end (a [`SubstructurePart`]).
+fn reduce_part(name: &str, sections: &[Section], mesh: &MeshOptions) -> Result<SubstructurePart, NodeError> {
+    let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
+    let model = BeamModel::from_segments(&beam::segments_from_sections(sections), mesh).map_err(fe)?;
+    let tip = model.n_nodes() - 1;
+    let reduced = model.modes().map_err(fe)?.reduce(&[tip, 0]).map_err(fe)?;
+    let mut shapes = reduced.shapes.into_iter();
+    let mut next = || shapes.next().unwrap_or_default();
+    Ok(SubstructurePart {
+        name: name.to_string(),
+        length: sections.iter().map(|s| s.length).sum(),
+        shift: reduced.sigma,
+        rigid_modes: reduced.rigid,
+        natural_hz: reduced.natural_hz,
+        nu: reduced.nu,
+        shapes: [next(), next(), next(), next()],
+    })
+}
+
+/// A substructure part's two-port on `freqs` (1 = tip, 2 = spindle end).
+fn part_two_port(part: &SubstructurePart, freqs: &[f64]) -> Result<TwoPort, NodeError> {
+    let reduced = beam::ReducedModes {
+        sigma: part.shift,
+        rigid: part.rigid_modes,
+        nu: part.nu.clone(),
+        shapes: part.shapes.to_vec(),
+        natural_hz: part.natural_hz.clone(),
+    };
+    let fe = |e: beam::BeamError| NodeError::input("structure", format!("part `{}`: {e}", part.name));
+    let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
+        Ok(reduced.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
+    };
+    Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(0, 0)?, r12: r(0, 1)?, r21: r(1, 0)?, r22: r(1, 1)? })
 }
 
 /// Two grids agree when they have the same length and every line within 1e-9 relative.
@@ -584,10 +658,10 @@ impl Default for RcsaCouple {
 impl RcsaCouple {
     pub fn new() -> Self {
         let mut params = vec![
-            Field::req(
+            Field::opt(
                 "assembly",
                 T::Entity(EntityKind::Assembly),
-                "holder and tool sections; its `tool_joint` is used",
+                "holder and tool sections, meshed here; its `tool_joint` is used (or connect `structure`)",
             ),
             Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tool tip"),
         ];
@@ -596,10 +670,16 @@ impl RcsaCouple {
         RcsaCouple {
             spec: NodeSpec {
                 kind: "rcsa.couple",
-                version: 1,
+                version: 2,
                 description: "RCSA: couples a free-free FE assembly to the spindle receptances at its base, G11 = R11 - R12 (R22 + K^-1 + B)^-1 R21 (Eqs. 5.3, 5.16-5.17); a compliant tool_joint makes it spindle-holder-tool.",
                 inputs: vec![
                     PortSpec::new("spindle", PortType::ReceptanceSet, "spindle receptances B at the holder base"),
+                    PortSpec::new(
+                        "structure",
+                        PortType::Substructure,
+                        "the holder and tool, reduced once by beam.substructure (instead of `assembly`)",
+                    )
+                    .optional(),
                     PortSpec::new(
                         "grid",
                         PortType::Frf,
@@ -628,51 +708,117 @@ impl Node for RcsaCouple {
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let spindle = input_on_grid(ctx, "spindle")?;
-        let a = assembly(ctx, "assembly")?;
         let interface = holder_interface(ctx)?;
-        let mesh = mesh(ctx.params);
         let tip_mass = sensor_mass(ctx)?;
         let freqs = spindle.freq_hz.clone();
         let base = to_frf(&spindle);
         let opts = rcsa_options(ctx.params);
         let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
-        let g = match a.tool_joint {
-            Joint::Rigid => {
-                let whole = two_port(&a.sections, &mesh, tip_mass, &freqs, "assembly")?;
-                rcsa::couple(&whole, &base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?
+        let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
+            Some(Value::Substructure(s)) => {
+                let ports = s.parts.iter().map(|p| part_two_port(p, &freqs)).collect::<Result<Vec<_>, _>>()?;
+                (ports, s.tool_joint)
             }
-            joint => {
-                let name = ctx.params.text("assembly").unwrap_or("");
-                let split = a.sections.iter().position(|s| s.component == Component::Tool).unwrap_or(a.sections.len());
-                let (holder, tool) = a.sections.split_at(split);
-                if holder.is_empty() || tool.is_empty() {
-                    return Err(NodeError::param(
+            Some(other) => {
+                return Err(NodeError::input(
+                    "structure",
+                    format!("expected a substructure, got {}", other.port_type()),
+                ));
+            }
+            None => {
+                let name = ctx.params.text("assembly").ok_or_else(|| {
+                    NodeError::param(
                         "assembly",
-                        format!(
-                            "assembly `{name}` has a compliant `tool_joint` but no {} sections: the joint sits between the holder (`holder`, `holder+tool`) and the protruding tool (`tool`)",
-                            if holder.is_empty() { "holder" } else { "`tool`" }
-                        ),
-                    ));
-                }
-                if let Some(s) = tool.iter().find(|s| s.component != Component::Tool) {
-                    return Err(NodeError::param(
-                        "assembly",
-                        format!(
-                            "assembly `{name}`: section `{}` follows a `tool` section; list the holder sections first, then the protruding tool",
-                            s.name
-                        ),
-                    ));
-                }
-                let tool_joint = interface_of(&joint, "assembly", &format!("the `tool_joint` of assembly `{name}`"))?;
-                let h = two_port(holder, &mesh, 0.0, &freqs, "assembly")?;
-                let t = two_port(tool, &mesh, tip_mass, &freqs, "assembly")?;
-                rcsa::couple_chain(&base, &[(&h, interface), (&t, tool_joint)], &opts)
-                    .map_err(|e| rcsa_error("spindle", e, hint))?
+                        "rcsa.couple needs `assembly`, or a substructure connected to `structure`",
+                    )
+                })?;
+                let a = assembly(ctx, "assembly")?;
+                let (parts, joint) = assembly_parts(a, name)?;
+                let mesh = mesh(ctx.params);
+                let ports = parts
+                    .iter()
+                    .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly"))
+                    .collect::<Result<Vec<_>, _>>()?;
+                (ports, joint)
             }
         };
+        let mut g = match (&ports[..], tool_joint) {
+            ([whole], _) => {
+                rcsa::couple(whole, &base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?
+            }
+            ([holder, tool], Some([kt, ct, kr, cr])) => {
+                rcsa::couple_chain(&base, &[(holder, interface), (tool, Interface::diagonal(kt, ct, kr, cr))], &opts)
+                    .map_err(|e| rcsa_error("spindle", e, hint))?
+            }
+            _ => return Err(NodeError::input("structure", "a substructure has one part, or two with a tool joint")),
+        };
+        if tip_mass > 0.0 {
+            g = rcsa::with_point_mass(&g, tip_mass).map_err(|e| {
+                rcsa_error("sensor", e, "the sensor mass resonates with the structure exactly on a line")
+            })?;
+        }
         let set = to_set(&g, spindle.direction.clone(), spindle.speed_rpm);
         let frf = h_of(&set);
         Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
+    }
+}
+
+// ------------------------------------------------------------------ beam.substructure
+
+/// `beam.substructure`: an assembly's free–free FE model reduced once to its tip and spindle end.
+pub struct BeamSubstructure {
+    spec: NodeSpec,
+}
+
+impl Default for BeamSubstructure {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl BeamSubstructure {
+    pub fn new() -> Self {
+        let mut params = vec![Field::req(
+            "assembly",
+            T::Entity(EntityKind::Assembly),
+            "holder and tool sections; a compliant `tool_joint` splits it into holder and tool",
+        )];
+        params.extend(mesh_params());
+        BeamSubstructure {
+            spec: NodeSpec {
+                kind: "beam.substructure",
+                version: 1,
+                description: "Free-free Timoshenko FE model of an assembly (§5.4) with structural damping, reduced to its tip and spindle end: every complex mode, computed once and coupled by rcsa.couple at every speed, direction and joint setting.",
+                inputs: vec![],
+                outputs: vec![PortSpec::new(
+                    "model",
+                    PortType::Substructure,
+                    "the holder and tool as complex modes at tip and spindle end",
+                )],
+                params,
+            },
+        }
+    }
+}
+
+impl Node for BeamSubstructure {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        check_mesh(p)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let name = ctx.params.text("assembly").unwrap_or("");
+        let a = assembly(ctx, "assembly")?;
+        let (parts, tool_joint) = assembly_parts(a, name)?;
+        let mesh = mesh(ctx.params);
+        let parts =
+            parts.iter().map(|(part, sections)| reduce_part(part, sections, &mesh)).collect::<Result<Vec<_>, _>>()?;
+        let model = Substructure { assembly: name.to_string(), parts, tool_joint };
+        Ok(outputs(vec![("model", Value::Substructure(model))]))
     }
 }
 
