@@ -9,7 +9,7 @@
 //! a real mode's residue is `R = 1/(2iMω_d)`, which gives its modal mass.
 
 use super::pick::Peak;
-use super::{FitError, ModeParams};
+use super::{FitError, Mode, im_peak};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -283,7 +283,7 @@ pub(super) fn fit_modes(
     peaks: &[Peak],
     order: Option<usize>,
     v_sens: f64,
-) -> Result<(Vec<ModeParams>, Vec<ModeParams>, usize), FitError> {
+) -> Result<(Vec<Mode>, Vec<Mode>, usize), FitError> {
     let d = data(freqs, h, range);
     let n = order.unwrap_or(4 * peaks.len()).clamp(8, 200) & !1;
     let a = poles(&d, n)?;
@@ -304,12 +304,12 @@ pub(super) fn fit_modes(
     for (pole, r) in stable.iter().zip(&res) {
         // R = 1/(2 i M ω_d) = −i/(2 M ω_d): M from the imaginary part.
         let mass = -1.0 / (2.0 * pole.lambda.im * r.im);
-        let mode = ModeParams { freq_hz: pole.f_hz, damping_ratio: pole.xi, modal_mass: mass };
+        let mode = Mode { freq_hz: pole.f_hz, damping_ratio: pole.xi, modal_mass: mass };
         if mass.is_finite() && mass > 0.0 { kept.push(mode) } else { rejected.push(mode) }
     }
-    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(q.im_peak()));
-    let (keep, drop): (Vec<ModeParams>, Vec<ModeParams>) =
-        kept.into_iter().partition(|q| q.im_peak() >= v_sens * largest);
+    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q)));
+    let (keep, drop): (Vec<Mode>, Vec<Mode>) =
+        kept.into_iter().partition(|q| im_peak(q) >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
         return Err(FitError::NothingLeft {

@@ -31,6 +31,7 @@ pub use refit::REFIT_ITERATIONS;
 use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};
 use crate::rcsa::{Receptance, ReceptanceFrf};
 use num_complex::Complex64;
+use spindlelab_engine::value::Mode;
 use std::f64::consts::TAU;
 use thiserror::Error;
 
@@ -154,34 +155,9 @@ pub enum FitError {
     },
 }
 
-/// One equivalent mode of Eq. 5.8: natural frequency, viscous damping ratio and modal mass.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ModeParams {
-    /// Natural frequency, Hz.
-    pub freq_hz: f64,
-    /// Viscous damping ratio ξ.
-    pub damping_ratio: f64,
-    /// Modal mass, kg.
-    pub modal_mass: f64,
-}
-
-impl ModeParams {
-    /// Modal stiffness `K = M (2πf)²`, N/m.
-    pub fn stiffness(&self) -> f64 {
-        let w = TAU * self.freq_hz;
-        self.modal_mass * w * w
-    }
-
-    /// Receptance of Eq. 5.8 at `omega` (rad/s): `1/(K − Mω² + iωC)`, m/N.
-    pub fn receptance(&self, omega: f64) -> Complex64 {
-        let wn = TAU * self.freq_hz;
-        mode_h(self.modal_mass, wn, self.damping_ratio, omega)
-    }
-
-    /// Peak magnitude of the imaginary part, `1/(2ξK)`, m/N (used by the v_sens cut-off).
-    pub fn im_peak(&self) -> f64 {
-        1.0 / (2.0 * self.damping_ratio * self.stiffness())
-    }
+/// Peak magnitude of a mode's imaginary part, `1/(2ξK)`, m/N (the v_sens cut-off compares modes by it).
+pub(crate) fn im_peak(mode: &Mode) -> f64 {
+    1.0 / (2.0 * mode.damping_ratio * mode.stiffness())
 }
 
 /// Eq. 5.8 for mass `m`, natural angular frequency `wn` and damping ratio `xi` at `w`:
@@ -299,7 +275,7 @@ pub struct BandError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalFit {
     /// Identified modes, by frequency.
-    pub modes: Vec<ModeParams>,
+    pub modes: Vec<Mode>,
     /// Each mode's band.
     pub bands: Vec<Band>,
     /// Each mode's equivalent beam.
@@ -313,7 +289,7 @@ pub struct ModalFit {
     /// Frequencies picked in step 1, Hz.
     pub picked_hz: Vec<f64>,
     /// Modes removed by §5.2.4.1 (simplex) or rejected by the stabilisation / mass checks (LSCF).
-    pub deleted: Vec<ModeParams>,
+    pub deleted: Vec<Mode>,
     /// Global iterations run (simplex), or orders tried (LSCF).
     pub iterations: usize,
     /// Sweeps of the joint beam refit (0 when it is off).

@@ -8,10 +8,10 @@
 //! ratio and the logarithm of the modal mass.
 
 use super::pick::{Peak, moving_average};
-use super::{Band, FitError, FitOptions, ModeParams, mode_bands, mode_h};
+use super::{Band, FitError, FitOptions, Mode, mode_bands, mode_h};
 
 /// Modes (by frequency), their bands, the deleted modes and the global iterations run.
-type Identified = (Vec<ModeParams>, Vec<Band>, Vec<ModeParams>, usize);
+type Identified = (Vec<Mode>, Vec<Band>, Vec<Mode>, usize);
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
@@ -53,17 +53,17 @@ impl Bounds {
     }
 }
 
-fn params_of(x: [f64; 3]) -> ModeParams {
-    ModeParams { freq_hz: x[0], damping_ratio: x[1], modal_mass: x[2].exp() }
+fn params_of(x: [f64; 3]) -> Mode {
+    Mode { freq_hz: x[0], damping_ratio: x[1], modal_mass: x[2].exp() }
 }
 
-fn x_of(m: &ModeParams) -> [f64; 3] {
+fn x_of(m: &Mode) -> [f64; 3] {
     [m.freq_hz, m.damping_ratio, m.modal_mass.ln()]
 }
 
 /// One mode being fitted with its band data.
 struct Slot {
-    mode: ModeParams,
+    mode: Mode,
     band: Band,
     bounds: Bounds,
     /// Angular frequencies of the band points, rad/s.
@@ -78,7 +78,7 @@ struct Slot {
 }
 
 impl Slot {
-    fn new(mode: ModeParams, band: Band, bounds: Bounds, freqs: &[f64], h: &[Complex64], points: usize) -> Self {
+    fn new(mode: Mode, band: Band, bounds: Bounds, freqs: &[f64], h: &[Complex64], points: usize) -> Self {
         let a = freqs.partition_point(|&f| f < band.lo_hz);
         let e = freqs.partition_point(|&f| f <= band.hi_hz);
         // Bands with more lines than `points` keep the measured lines nearest to `points` evenly spaced
@@ -168,7 +168,7 @@ fn nelder_mead(
 
 /// Step-1 estimate of a mode from its peak: ξ from the half-height width of the smoothed Im(H)
 /// (`Δf ≈ 2ξf` for Eq. 5.8), then `M` from the peak `|Im H| = 1/(2ξ M ω²)`.
-fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band: &Band) -> ModeParams {
+fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band: &Band) -> Mode {
     let i = peak.index - offset;
     let half = 0.5 * peak.im;
     let mut a = i;
@@ -183,7 +183,7 @@ fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band:
         (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
     let xi = (width / (2.0 * peak.freq_hz)).clamp(0.002, 0.2);
     let w = TAU * peak.freq_hz;
-    ModeParams { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
+    Mode { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
 }
 
 fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
@@ -196,7 +196,7 @@ fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
 /// Floating modes of §5.2.3: counts and ranges by Eqs. 5.14–5.15 around the three deepest peaks, frequencies
 /// uniform in `f_k ± 200 Hz`, damping uniform in `[0.005, 0.03]`, masses log-uniform between 1 and 100 times
 /// the most flexible mode's (the text's absolute 0–3 kg suits its artifact only).
-fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) -> Vec<ModeParams> {
+fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) -> Vec<Mode> {
     let mut order: Vec<&Peak> = peaks.iter().collect();
     order.sort_by(|a, b| a.im.total_cmp(&b.im));
     let im = |k: usize| order.get(k).map_or(0.0, |p| p.im.abs());
@@ -218,7 +218,7 @@ fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) ->
             let f = (centre + rng.random_range(-200.0..200.0)).clamp(lo, hi);
             let xi = rng.random_range(0.005..0.03);
             let m = reference_mass * 10f64.powf(rng.random_range(0.0..2.0));
-            out.push(ModeParams { freq_hz: f, damping_ratio: xi, modal_mass: m });
+            out.push(Mode { freq_hz: f, damping_ratio: xi, modal_mass: m });
         }
     }
     out
@@ -269,7 +269,7 @@ pub(super) fn fit_modes(
     let mut deletion_done = opts.delete_after >= opts.iterations;
     let mut previous = f64::INFINITY;
     let mut iterations = 0;
-    let mut current: Vec<ModeParams> = slots.iter().map(|s| s.mode).collect();
+    let mut current: Vec<Mode> = slots.iter().map(|s| s.mode).collect();
     while iterations < opts.iterations {
         let mut total = 0.0;
         for j in 0..slots.len() {

@@ -4,7 +4,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 /// Ten Eq. 5.8 modes between 250 and 4800 Hz with imaginary peaks within a factor of four of each other.
-fn ten_modes() -> Vec<ModeParams> {
+fn ten_modes() -> Vec<Mode> {
     let f = [250.0, 620.0, 1050.0, 1500.0, 1980.0, 2450.0, 3000.0, 3550.0, 4150.0, 4800.0];
     let xi = [0.03, 0.02, 0.025, 0.015, 0.02, 0.03, 0.018, 0.022, 0.025, 0.02];
     let peak = [1.0, 0.6, 0.8, 0.5, 0.7, 0.4, 0.6, 0.5, 0.3, 0.4];
@@ -12,13 +12,13 @@ fn ten_modes() -> Vec<ModeParams> {
         .map(|i| {
             let w = TAU * f[i];
             let m = 1.0 / (2.0 * xi[i] * w * w * peak[i] * 1e-6);
-            ModeParams { freq_hz: f[i], damping_ratio: xi[i], modal_mass: m }
+            Mode { freq_hz: f[i], damping_ratio: xi[i], modal_mass: m }
         })
         .collect()
 }
 
 /// 4,000 lines at 1.5 Hz, the sum of `modes` plus complex Gaussian noise of `noise` · |H| per line.
-fn synthetic(modes: &[ModeParams], noise: f64, seed: u64) -> (Vec<f64>, Vec<Complex64>) {
+fn synthetic(modes: &[Mode], noise: f64, seed: u64) -> (Vec<f64>, Vec<Complex64>) {
     let freqs: Vec<f64> = (1..=4000).map(|k| 1.5 * k as f64).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let h = freqs
@@ -33,7 +33,7 @@ fn synthetic(modes: &[ModeParams], noise: f64, seed: u64) -> (Vec<f64>, Vec<Comp
 }
 
 /// Worst relative frequency, damping and mass errors of `got` against `want` (matched by order).
-fn worst(got: &[ModeParams], want: &[ModeParams]) -> (f64, f64, f64) {
+fn worst(got: &[Mode], want: &[Mode]) -> (f64, f64, f64) {
     assert_eq!(got.len(), want.len(), "modes found: {:?}", got.iter().map(|m| m.freq_hz).collect::<Vec<_>>());
     got.iter().zip(want).fold((0.0_f64, 0.0_f64, 0.0_f64), |(a, b, c), (g, w)| {
         (
@@ -119,11 +119,11 @@ fn moving_average_matches_direct_sums() {
 #[test]
 fn no_mode_above_v_sens_is_an_error() {
     // A mode below the band dominates Im(H) at the band's lower edge; the one mode inside is 200 times weaker.
-    let big = ModeParams { freq_hz: 300.0, damping_ratio: 0.05, modal_mass: 0.5 };
+    let big = Mode { freq_hz: 300.0, damping_ratio: 0.05, modal_mass: 0.5 };
     let w = TAU * 2000.0;
     // Its Im peak is 1 % of the big mode's |Im H| at 400 Hz, under the default 5 % cut-off.
     let edge = big.receptance(TAU * 400.0).im.abs();
-    let small = ModeParams { freq_hz: 2000.0, damping_ratio: 0.02, modal_mass: 1.0 / (0.04 * w * w * 0.01 * edge) };
+    let small = Mode { freq_hz: 2000.0, damping_ratio: 0.02, modal_mass: 1.0 / (0.04 * w * w * 0.01 * edge) };
     let (freqs, h) = synthetic(&[big, small], 0.0, 1);
     let o = FitOptions { min_frequency_hz: 400.0, ..FitOptions::default() };
     match fit(&freqs, &h, &o) {
@@ -185,8 +185,8 @@ fn bands_follow_eq_5_13() {
 fn equivalent_beam_matches_the_mode_near_resonance() {
     let mat = BeamMaterial::STEEL;
     for mode in [
-        ModeParams { freq_hz: 900.0, damping_ratio: 0.03, modal_mass: 0.8 },
-        ModeParams { freq_hz: 3200.0, damping_ratio: 0.015, modal_mass: 0.2 },
+        Mode { freq_hz: 900.0, damping_ratio: 0.03, modal_mass: 0.8 },
+        Mode { freq_hz: 3200.0, damping_ratio: 0.015, modal_mass: 0.2 },
     ] {
         let band = Band { lo_hz: mode.freq_hz - 200.0, hi_hz: mode.freq_hz + 200.0, clipped: false };
         let beam = beam_for_mode(&mode, &band, &mat, 32).unwrap();
@@ -254,11 +254,11 @@ fn floating_modes_are_seeded_and_deleted_when_useless() {
 }
 
 /// Three modes like an artifact's direct FRF: 696, 1093 and 2369 Hz, ζ ≈ 3 %, 1.0, 0.87 and 0.30 kg.
-fn artifact_modes() -> Vec<ModeParams> {
+fn artifact_modes() -> Vec<Mode> {
     vec![
-        ModeParams { freq_hz: 696.0, damping_ratio: 0.03, modal_mass: 1.0 },
-        ModeParams { freq_hz: 1093.0, damping_ratio: 0.028, modal_mass: 0.87 },
-        ModeParams { freq_hz: 2369.0, damping_ratio: 0.032, modal_mass: 0.30 },
+        Mode { freq_hz: 696.0, damping_ratio: 0.03, modal_mass: 1.0 },
+        Mode { freq_hz: 1093.0, damping_ratio: 0.028, modal_mass: 0.87 },
+        Mode { freq_hz: 2369.0, damping_ratio: 0.032, modal_mass: 0.30 },
     ]
 }
 

@@ -240,14 +240,8 @@ fn report(ctx: &NodeContext, fit: &ModalFit, method: Method) {
 }
 
 fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
-    let modes = ModalModel {
-        modes: fit
-            .modes
-            .iter()
-            .map(|m| Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass: m.modal_mass })
-            .collect(),
-    };
-    let col = |f: &dyn Fn(&modal_fit::ModeParams) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
+    let modes = ModalModel { modes: fit.modes.clone() };
+    let col = |f: &dyn Fn(&Mode) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
     let modal_table = table(vec![
         Column::new("frequency", "Hz", col(&|m| m.freq_hz)),
         Column::new("damping_ratio", "", col(&|m| m.damping_ratio)),
@@ -304,7 +298,6 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::modal_fit::ModeParams;
     use crate::nodes::test_support::{empty_recipe, params};
     use spindlelab_engine::node::Labelled;
     use spindlelab_engine::value::UnitLabel;
@@ -315,8 +308,8 @@ mod tests {
     fn node_fits_two_modes_and_keeps_direction_and_speed() {
         let node = ModalFitNode::new();
         let modes = [
-            ModeParams { freq_hz: 800.0, damping_ratio: 0.03, modal_mass: 0.5 },
-            ModeParams { freq_hz: 2100.0, damping_ratio: 0.02, modal_mass: 0.3 },
+            Mode { freq_hz: 800.0, damping_ratio: 0.03, modal_mass: 0.5 },
+            Mode { freq_hz: 2100.0, damping_ratio: 0.02, modal_mass: 0.3 },
         ];
         let freq_hz: Vec<f64> = (1..=1000).map(|k| 3.0 * k as f64).collect();
         let values = freq_hz.iter().map(|&f| modes.iter().map(|m| m.receptance(TAU * f)).sum()).collect();
