@@ -309,9 +309,7 @@ pub(super) fn fit_modes(
         };
         let stable: Vec<Pole> = a
             .into_iter()
-            .filter(|p| {
-                b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi)
-            })
+            .filter(|p| b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi))
             .collect();
         let enough = stable.len() >= peaks.len();
         if best.as_ref().is_none_or(|(_, s)| stable.len() > s.len()) {
@@ -345,8 +343,7 @@ pub(super) fn fit_modes(
         if mass.is_finite() && mass > 0.0 { kept.push(mode) } else { rejected.push(mode) }
     }
     let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q)));
-    let (keep, drop): (Vec<Mode>, Vec<Mode>) =
-        kept.into_iter().partition(|q| im_peak(q) >= v_sens * largest);
+    let (keep, drop): (Vec<Mode>, Vec<Mode>) = kept.into_iter().partition(|q| im_peak(q) >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
         return Err(FitError::NothingLeft {

@@ -35,8 +35,8 @@ impl CostFunction for BeamCost<'_> {
         let Ok(beam) = FixedFreeBeam::equivalent(self.f_hz, p[0].exp(), p[1].exp(), self.material) else {
             return Ok(f64::INFINITY);
         };
-        let sum: f64 =
-            self.w.iter().zip(self.target).map(|(&w, t)| (beam.tip_receptance(w).h - t).norm_sqr().sqrt()).sum();
+        let fast = super::refit::FastH::new(beam);
+        let sum: f64 = self.w.iter().zip(self.target).map(|(&w, t)| (fast.h(w.sqrt()) - t).norm_sqr().sqrt()).sum();
         Ok(if sum.is_finite() { sum * self.scale } else { f64::INFINITY })
     }
 }

@@ -427,7 +427,8 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
     check_grid(freqs_hz, h)?;
     check_options(opts)?;
     let range = fit_range(freqs_hz, opts)?;
-    let peaks = pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens, 10f64.powf(opts.prominence_db / 20.0))?;
+    let peaks =
+        pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens, 10f64.powf(opts.prominence_db / 20.0))?;
     let picked_hz: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
     let (lo, hi) = (freqs_hz[range.start], freqs_hz[range.end - 1]);
     let df = (hi - lo) / (range.len() - 1) as f64;
@@ -481,11 +482,12 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
         beams = r.beams;
         refit_sweeps = r.sweeps;
     }
+    let fast: Vec<refit::FastH> = beams.iter().map(|b| refit::FastH::new(b.beam)).collect();
     let lines: Vec<Receptance> = freqs_hz
         .iter()
         .map(|&f| {
-            let w = TAU * f;
-            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.beam.tip_receptance(w))
+            let sw = (TAU * f).sqrt();
+            fast.iter().fold(Receptance::ZERO, |acc, b| acc + b.block(sw))
         })
         .collect();
     let fitted: Vec<Complex64> = lines.iter().map(|r| r.h).collect();

@@ -136,10 +136,3 @@ pub fn pick_modes(
     }
     Ok(peaks)
 }
-#[cfg(test)]
-pub(crate) fn debug_prom(h: &[Complex64], i: usize, w: usize) -> f64 {
-    let abs: Vec<f64> = h.iter().map(|v| v.norm()).collect();
-    let mut mag = Vec::new();
-    moving_average(&abs, w, &mut mag);
-    prominence(&mag, i, w).0
-}

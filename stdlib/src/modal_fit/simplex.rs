@@ -7,8 +7,8 @@
 //! what §5.2.4.1 looks for. The variables are the natural frequency (bounded by the mode's band), the damping
 //! ratio and the logarithm of the modal mass.
 
-use super::pick::{Peak, moving_average};
 use super::lsfd::{pair_basis, pair_h, pole, real_residue};
+use super::pick::{Peak, moving_average};
 use super::{Band, FitError, FitOptions, Mode, Residues, mode_bands, mode_h};
 
 /// Modes (by frequency), their residues, their bands, the deleted modes and the global iterations run.
@@ -181,7 +181,7 @@ impl ComplexModeCost<'_> {
             bv += r.re * v.re + r.im * v.im;
         }
         let det = guu * gvv - guv * guv;
-        if !(det > 1e-14 * guu * gvv) {
+        if det.is_nan() || det <= 1e-14 * guu * gvv {
             return (Complex64::new(0.0, 0.0), self.rr);
         }
         let a = (gvv * bu - guv * bv) / det;
@@ -215,7 +215,7 @@ fn nelder_mead<C: CostFunction<Param = Vec<f64>, Output = f64>>(
         simplex.push(z);
     }
     let fail = |e: ArgminError| FitError::Optimiser { f_hz, message: e.to_string() };
-    let solver = NelderMead::new(simplex).with_sd_tolerance(1e-9).map_err(fail)?;
+    let solver = NelderMead::new(simplex).with_sd_tolerance(1e-7).map_err(fail)?;
     let res = Executor::new(cost, solver).configure(|s| s.max_iters(max_iters)).timer(false).run().map_err(fail)?;
     let state = res.state();
 
@@ -348,7 +348,12 @@ pub(super) fn fit_modes(
             let slot = &mut slots[j];
             for (held, &w) in slot.held.iter_mut().zip(&slot.w) {
                 *held = if complex {
-                    current.iter().enumerate().filter(|(i, _)| *i != j).map(|(_, (_, a, l))| pair_h(*a, *l, w)).sum::<Complex64>()
+                    current
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i != j)
+                        .map(|(_, (_, a, l))| pair_h(*a, *l, w))
+                        .sum::<Complex64>()
                         - lower / (w * w)
                         + upper
                 } else {

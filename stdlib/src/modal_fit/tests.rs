@@ -297,45 +297,6 @@ fn beam_refit_brings_the_summed_beams_towards_the_noise() {
     }
 }
 
-#[test]
-#[ignore]
-fn scratch_w03() {
-    let f = [310.0, 620.0, 980.0, 1350.0, 1720.0, 2150.0, 2600.0, 3050.0, 3500.0, 3900.0];
-    let z = [0.020, 0.015, 0.030, 0.010, 0.025, 0.012, 0.020, 0.018, 0.022, 0.015];
-    let m = [0.5, 0.8, 0.6, 1.2, 0.9, 1.5, 1.0, 1.3, 1.1, 1.6];
-    let truth: Vec<Mode> = (0..10).map(|i| Mode { freq_hz: f[i], damping_ratio: z[i], modal_mass: m[i] }).collect();
-    let freqs: Vec<f64> = (1..=4000).map(|k| 1.25 * k as f64).collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let h: Vec<Complex64> = freqs.iter().map(|&fq| {
-        let v: Complex64 = truth.iter().map(|m| m.receptance(TAU * fq)).sum();
-        let (a, b): (f64, f64) = (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
-        v + Complex64::new(a, b) * (0.02 * v.norm() / std::f64::consts::SQRT_2)
-    }).collect();
-    for (hs, vs, pr) in [(5, 0.05, 1.0), (5, 0.001, 1.0), (5, 0.001, 1.41), (5, 0.001, 2.0), (5, 0.0005, 1.41), (3, 0.001, 1.41), (9, 0.001, 1.41)] {
-        let p = pick_modes(&freqs, &h, 0..4000, hs, vs, pr).map(|p| p.iter().map(|q| q.freq_hz).collect::<Vec<_>>());
-        println!("h {hs} v {vs} p {pr}: {p:?}");
-    }
-    for method in [Method::Simplex, Method::Lscf { order: None }] {
-        let t = std::time::Instant::now();
-        let r = fit(&freqs, &h, &FitOptions { method, beam_refit: false, ..FitOptions::default() });
-        let el = t.elapsed();
-        let r = r.unwrap();
-        println!("{method:?} default {:?} n {} {:?}", el, r.modes.len(), worst(&r.modes, &truth));
-    }
-}
-#[test]
-#[ignore]
-fn scratch_prom() {
-    let f = [310.0, 620.0, 980.0, 1350.0, 1720.0, 2150.0, 2600.0, 3050.0, 3500.0, 3900.0];
-    let z = [0.020, 0.015, 0.030, 0.010, 0.025, 0.012, 0.020, 0.018, 0.022, 0.015];
-    let m = [0.5, 0.8, 0.6, 1.2, 0.9, 1.5, 1.0, 1.3, 1.1, 1.6];
-    let truth: Vec<Mode> = (0..10).map(|i| Mode { freq_hz: f[i], damping_ratio: z[i], modal_mass: m[i] }).collect();
-    let freqs: Vec<f64> = (1..=4000).map(|k| 1.25 * k as f64).collect();
-    let h: Vec<Complex64> = freqs.iter().map(|&fq| truth.iter().map(|m| m.receptance(TAU * fq)).sum()).collect();
-    for fr in f { let i = (fr / 1.25) as usize - 1; println!("{fr}: prom {} |H| {}", super::pick::debug_prom(&h, i, 14), h[i].norm()); }
-    for k in (1300..1800).step_by(20) { println!("{} {:e}", freqs[k], h[k].norm()); }
-}
-
 /// The artifact's three modes with complex residues: each Eq. 5.8 residue `1/(2iMω_d)` turned by a phase, as
 /// non-proportional damping does (a real modal mass cannot carry it).
 fn complex_artifact() -> Vec<(Mode, Complex64)> {
@@ -348,14 +309,21 @@ fn complex_artifact() -> Vec<(Mode, Complex64)> {
 
 /// 3,000 lines at 1 Hz of `Σ A/(iω − λ) + conj`, plus `upper − lower/ω²`, with complex Gaussian noise of
 /// `noise · |H|` per line.
-fn synthetic_residues(modes: &[(Mode, Complex64)], lower: f64, upper: f64, noise: f64, seed: u64) -> (Vec<f64>, Vec<Complex64>) {
+fn synthetic_residues(
+    modes: &[(Mode, Complex64)],
+    lower: f64,
+    upper: f64,
+    noise: f64,
+    seed: u64,
+) -> (Vec<f64>, Vec<Complex64>) {
     let freqs: Vec<f64> = (1..=3000).map(|k| k as f64).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let h = freqs
         .iter()
         .map(|&f| {
             let w = TAU * f;
-            let v: Complex64 = modes.iter().map(|(m, a)| pair_h(*a, pole(m), w)).sum::<Complex64>() - lower / (w * w) + upper;
+            let v: Complex64 =
+                modes.iter().map(|(m, a)| pair_h(*a, pole(m), w)).sum::<Complex64>() - lower / (w * w) + upper;
             let (a, b): (f64, f64) = (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
             v + Complex64::new(a, b) * (noise * v.norm() / std::f64::consts::SQRT_2)
         })
@@ -401,22 +369,68 @@ fn residual_terms_recover_out_of_band_modes() {
     modes.push((low, real_residue(&low)));
     modes.push((high, real_residue(&high)));
     let (freqs, h) = synthetic_residues(&modes, 0.0, 0.0, 0.0, 1);
-    let o = FitOptions {
-        min_frequency_hz: 300.0,
-        residues: Residues::Complex,
-        beam_refit: false,
-        ..FitOptions::default()
-    };
+    let o =
+        FitOptions { min_frequency_hz: 300.0, residues: Residues::Complex, beam_refit: false, ..FitOptions::default() };
     let fit = fit(&freqs, &h, &o).unwrap();
     assert_eq!(fit.modes.len(), 3);
     let r = &fit.residue_fit;
-    println!("LR·M {}, UR·K {}, residual {}", r.lower * low.modal_mass, r.upper * high.stiffness(), r.relative_residual);
-    assert!((r.lower * low.modal_mass - 1.0).abs() < 0.02, "lower residual {} vs 1/M {}", r.lower, 1.0 / low.modal_mass);
-    assert!((r.upper * high.stiffness() - 1.0).abs() < 0.02, "upper residual {} vs 1/K {}", r.upper, 1.0 / high.stiffness());
+    println!(
+        "LR·M {}, UR·K {}, residual {}",
+        r.lower * low.modal_mass,
+        r.upper * high.stiffness(),
+        r.relative_residual
+    );
+    assert!(
+        (r.lower * low.modal_mass - 1.0).abs() < 0.02,
+        "lower residual {} vs 1/M {}",
+        r.lower,
+        1.0 / low.modal_mass
+    );
+    assert!(
+        (r.upper * high.stiffness() - 1.0).abs() < 0.02,
+        "upper residual {} vs 1/K {}",
+        r.upper,
+        1.0 / high.stiffness()
+    );
     // What remains is the residual terms' own approximation (the next terms are (30/300)² and (3000/30000)², 1 %
     // at the band's edges); real modes without residual terms leave the out-of-band modes' whole contribution.
     let real = super::fit(&freqs, &h, &FitOptions { residues: Residues::Real, ..o }).unwrap();
     let rr = real.residue_fit.relative_residual;
     println!("residual with residual terms {}, real modes without {rr}", r.relative_residual);
     assert!(r.relative_residual < 0.01 && rr > 3.0 * r.relative_residual, "{} vs {rr}", r.relative_residual);
+}
+
+/// The W3 peer workload: ten modes, f = 310..3900 Hz, ζ 1–3 %, m 0.5–1.6 kg, 4,000 lines at 1.25 Hz, 2 % noise.
+fn w03() -> (Vec<Mode>, Vec<f64>, Vec<Complex64>) {
+    let f = [310.0, 620.0, 980.0, 1350.0, 1720.0, 2150.0, 2600.0, 3050.0, 3500.0, 3900.0];
+    let z = [0.020, 0.015, 0.030, 0.010, 0.025, 0.012, 0.020, 0.018, 0.022, 0.015];
+    let m = [0.5, 0.8, 0.6, 1.2, 0.9, 1.5, 1.0, 1.3, 1.1, 1.6];
+    let truth: Vec<Mode> = (0..10).map(|i| Mode { freq_hz: f[i], damping_ratio: z[i], modal_mass: m[i] }).collect();
+    let freqs: Vec<f64> = (1..=4000).map(|k| 1.25 * k as f64).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let h = freqs
+        .iter()
+        .map(|&fq| {
+            let v: Complex64 = truth.iter().map(|m| m.receptance(TAU * fq)).sum();
+            let (a, b): (f64, f64) = (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
+            v + Complex64::new(a, b) * (0.02 * v.norm() / std::f64::consts::SQRT_2)
+        })
+        .collect();
+    (truth, freqs, h)
+}
+
+#[test]
+fn w03_ten_modes_over_four_decades_found_with_default_settings() {
+    // The modes' Im peaks span 13 µm/N to 35 nm/N (0.26 %): the default cut-off and the |H| prominence check must
+    // find all ten and no noise minimum. The peers report max f errors of 2e-4 and 5e-4 and ζ errors of 1.3 %
+    // (Nelder–Mead) and 7.9 % (LSCF/LSFD) on this workload.
+    let (truth, freqs, h) = w03();
+    for method in [Method::Simplex, Method::Lscf { order: None }] {
+        let fit = fit(&freqs, &h, &FitOptions { method, beam_refit: false, ..FitOptions::default() }).unwrap();
+        let (ef, ez, _) = worst(&fit.modes, &truth);
+        println!("{method:?}: max f error {ef:.2e}, max ζ error {ez:.2e}");
+        assert!(ef < 1e-3, "{method:?}: f error {ef}");
+        let bound = if method == Method::Simplex { 0.015 } else { 0.02 };
+        assert!(ez <= bound, "{method:?}: ζ error {ez}");
+    }
 }
