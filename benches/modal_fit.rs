@@ -3,7 +3,8 @@
 //! synthesis on the grid.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use spindlelab_stdlib::modal_fit::{FitOptions, Method, ModeParams, fit};
+use spindlelab_engine::value::Mode;
+use spindlelab_stdlib::modal_fit::{FitOptions, Method, fit};
 use spindlelab_stdlib::rcsa::Complex64;
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -28,10 +29,10 @@ fn frf() -> (Vec<f64>, Vec<Complex64>) {
     let f = [250.0, 620.0, 1050.0, 1500.0, 1980.0, 2450.0, 3000.0, 3550.0, 4150.0, 4800.0];
     let xi = [0.03, 0.02, 0.025, 0.015, 0.02, 0.03, 0.018, 0.022, 0.025, 0.02];
     let peak = [1.0, 0.6, 0.8, 0.5, 0.7, 0.4, 0.6, 0.5, 0.3, 0.4];
-    let modes: Vec<ModeParams> = (0..10)
+    let modes: Vec<Mode> = (0..10)
         .map(|i| {
             let w = TAU * f[i];
-            ModeParams { freq_hz: f[i], damping_ratio: xi[i], modal_mass: 1.0 / (2.0 * xi[i] * w * w * peak[i] * 1e-6) }
+            Mode { freq_hz: f[i], damping_ratio: xi[i], modal_mass: 1.0 / (2.0 * xi[i] * w * w * peak[i] * 1e-6) }
         })
         .collect();
     let freqs: Vec<f64> = (1..=4000).map(|k| 1.5 * k as f64).collect();

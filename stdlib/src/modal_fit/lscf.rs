@@ -9,7 +9,7 @@
 //! a real mode's residue is `R = 1/(2iMω_d)`, which gives its modal mass.
 
 use super::pick::Peak;
-use super::{FitError, ModeParams};
+use super::{FitError, Mode, im_peak};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -283,15 +283,45 @@ pub(super) fn fit_modes(
     peaks: &[Peak],
     order: Option<usize>,
     v_sens: f64,
-) -> Result<(Vec<ModeParams>, Vec<ModeParams>, usize), FitError> {
+    complex: bool,
+) -> Result<(Vec<Mode>, Vec<Mode>, usize), FitError> {
     let d = data(freqs, h, range);
-    let n = order.unwrap_or(4 * peaks.len()).clamp(8, 200) & !1;
-    let a = poles(&d, n)?;
-    let b = poles(&d, n + 2)?;
-    let stable: Vec<Pole> = a
-        .into_iter()
-        .filter(|p| b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi))
-        .collect();
+    // With no order given, four poles per picked peak (at least 8); when fewer poles than peaks are stable
+    // (noise or close modes), six and then eight per peak. Orders noise-free data cannot support (singular
+    // normal equations) are skipped.
+    let candidates: Vec<usize> = match order {
+        Some(n) => vec![n & !1],
+        None => [4, 6, 8].iter().map(|k| (k * peaks.len()).clamp(8, 200) & !1).collect(),
+    };
+    let mut best: Option<(usize, Vec<Pole>)> = None;
+    let mut last_err = None;
+    let mut tried = 0;
+    for &n in &candidates {
+        tried += 1;
+        let pair = poles(&d, n).and_then(|a| Ok((a, poles(&d, n + 2)?)));
+        let (a, b) = match pair {
+            Ok(ab) => ab,
+            Err(e @ FitError::Singular { .. }) if order.is_none() => {
+                last_err = Some(e);
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let stable: Vec<Pole> = a
+            .into_iter()
+            .filter(|p| b.iter().any(|q| (q.f_hz - p.f_hz).abs() <= 0.01 * p.f_hz && (q.xi - p.xi).abs() <= 0.2 * p.xi))
+            .collect();
+        let enough = stable.len() >= peaks.len();
+        if best.as_ref().is_none_or(|(_, s)| stable.len() > s.len()) {
+            best = Some((n, stable));
+        }
+        if enough {
+            break;
+        }
+    }
+    let Some((n, stable)) = best else {
+        return Err(last_err.unwrap_or(FitError::Singular { what: "denominator" }));
+    };
     if stable.is_empty() {
         return Err(FitError::NothingLeft {
             method: "lscf",
@@ -302,14 +332,18 @@ pub(super) fn fit_modes(
     let mut kept = Vec::new();
     let mut rejected = Vec::new();
     for (pole, r) in stable.iter().zip(&res) {
-        // R = 1/(2 i M ω_d) = −i/(2 M ω_d): M from the imaginary part.
-        let mass = -1.0 / (2.0 * pole.lambda.im * r.im);
-        let mode = ModeParams { freq_hz: pole.f_hz, damping_ratio: pole.xi, modal_mass: mass };
+        // R = 1/(2 i M ω_d) = −i/(2 M ω_d): M from the imaginary part; a complex residue keeps its modulus.
+        let mode = if complex {
+            super::lsfd::mode_of_residue(pole.f_hz, pole.xi, *r)
+        } else {
+            let mass = -1.0 / (2.0 * pole.lambda.im * r.im);
+            Mode { freq_hz: pole.f_hz, damping_ratio: pole.xi, modal_mass: mass }
+        };
+        let mass = mode.modal_mass;
         if mass.is_finite() && mass > 0.0 { kept.push(mode) } else { rejected.push(mode) }
     }
-    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(q.im_peak()));
-    let (keep, drop): (Vec<ModeParams>, Vec<ModeParams>) =
-        kept.into_iter().partition(|q| q.im_peak() >= v_sens * largest);
+    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q)));
+    let (keep, drop): (Vec<Mode>, Vec<Mode>) = kept.into_iter().partition(|q| im_peak(q) >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
         return Err(FitError::NothingLeft {
@@ -319,5 +353,5 @@ pub(super) fn fit_modes(
     }
     let mut keep = keep;
     keep.sort_by(|x, y| x.freq_hz.total_cmp(&y.freq_hz));
-    Ok((keep, rejected, 2))
+    Ok((keep, rejected, tried + 1))
 }

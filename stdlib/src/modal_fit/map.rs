@@ -1,7 +1,7 @@
 //! §5.2.5: each Eq. 5.8 mode becomes a solid fixed-free Euler–Bernoulli beam with the same first natural
 //! frequency (free length by Eq. 5.6) whose tip receptance matches the mode's around resonance.
 
-use super::{Band, ModeParams};
+use super::{Band, Mode};
 use crate::eb_modes::{BeamMaterial, EbError, FIXED_FREE_ROOT_1, FixedFreeBeam};
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
@@ -11,7 +11,7 @@ use std::f64::consts::{PI, TAU};
 /// Closed-form diameter of the beam whose first mode has tip modal mass `M` at `f`: the first cantilever
 /// mode's tip modal mass is `ρAL/4`, and with `L = sqrt(c d)` from Eq. 5.6
 /// (`c = 1.87510407²/(2πf) · sqrt(E/16ρ)`) this gives `M = (πρ/16) sqrt(c) d^{5/2}`.
-pub fn closed_form_diameter(mode: &ModeParams, material: &BeamMaterial) -> f64 {
+pub fn closed_form_diameter(mode: &Mode, material: &BeamMaterial) -> f64 {
     let c = FIXED_FREE_ROOT_1 * FIXED_FREE_ROOT_1 / (TAU * mode.freq_hz)
         * (material.e_pa / (16.0 * material.rho_kg_m3)).sqrt();
     (16.0 * mode.modal_mass / (PI * material.rho_kg_m3 * c.sqrt())).powf(0.4)
@@ -35,8 +35,8 @@ impl CostFunction for BeamCost<'_> {
         let Ok(beam) = FixedFreeBeam::equivalent(self.f_hz, p[0].exp(), p[1].exp(), self.material) else {
             return Ok(f64::INFINITY);
         };
-        let sum: f64 =
-            self.w.iter().zip(self.target).map(|(&w, t)| (beam.tip_receptance(w).h - t).norm_sqr().sqrt()).sum();
+        let fast = super::refit::FastH::new(beam);
+        let sum: f64 = self.w.iter().zip(self.target).map(|(&w, t)| (fast.h(w.sqrt()) - t).norm_sqr().sqrt()).sum();
         Ok(if sum.is_finite() { sum * self.scale } else { f64::INFINITY })
     }
 }
@@ -45,7 +45,7 @@ impl CostFunction for BeamCost<'_> {
 /// a two-parameter Nelder–Mead on `points` evenly spaced lines of `band` (at most ±3 half-power widths around
 /// the mode), so that the beam's tip `H` matches the mode's Eq. 5.8 FRF. The frequency is kept.
 pub fn beam_for_mode(
-    mode: &ModeParams,
+    mode: &Mode,
     band: &Band,
     material: &BeamMaterial,
     points: usize,

@@ -17,6 +17,7 @@
 //!   residual terms.
 
 mod lscf;
+mod lsfd;
 mod map;
 mod pick;
 mod refit;
@@ -24,6 +25,7 @@ mod simplex;
 #[cfg(test)]
 mod tests;
 
+pub use lsfd::{ResidueFit, lsfd, mode_of_residue, pair_h, pole, real_residue};
 pub use map::{beam_for_mode, closed_form_diameter};
 pub use pick::{Peak, moving_average, pick_modes};
 pub use refit::REFIT_ITERATIONS;
@@ -31,6 +33,7 @@ pub use refit::REFIT_ITERATIONS;
 use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};
 use crate::rcsa::{Receptance, ReceptanceFrf};
 use num_complex::Complex64;
+use spindlelab_engine::value::Mode;
 use std::f64::consts::TAU;
 use thiserror::Error;
 
@@ -154,34 +157,9 @@ pub enum FitError {
     },
 }
 
-/// One equivalent mode of Eq. 5.8: natural frequency, viscous damping ratio and modal mass.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ModeParams {
-    /// Natural frequency, Hz.
-    pub freq_hz: f64,
-    /// Viscous damping ratio ξ.
-    pub damping_ratio: f64,
-    /// Modal mass, kg.
-    pub modal_mass: f64,
-}
-
-impl ModeParams {
-    /// Modal stiffness `K = M (2πf)²`, N/m.
-    pub fn stiffness(&self) -> f64 {
-        let w = TAU * self.freq_hz;
-        self.modal_mass * w * w
-    }
-
-    /// Receptance of Eq. 5.8 at `omega` (rad/s): `1/(K − Mω² + iωC)`, m/N.
-    pub fn receptance(&self, omega: f64) -> Complex64 {
-        let wn = TAU * self.freq_hz;
-        mode_h(self.modal_mass, wn, self.damping_ratio, omega)
-    }
-
-    /// Peak magnitude of the imaginary part, `1/(2ξK)`, m/N (used by the v_sens cut-off).
-    pub fn im_peak(&self) -> f64 {
-        1.0 / (2.0 * self.damping_ratio * self.stiffness())
-    }
+/// Peak magnitude of a mode's imaginary part, `1/(2ξK)`, m/N (the v_sens cut-off compares modes by it).
+pub(crate) fn im_peak(mode: &Mode) -> f64 {
+    1.0 / (2.0 * mode.damping_ratio * mode.stiffness())
 }
 
 /// Eq. 5.8 for mass `m`, natural angular frequency `wn` and damping ratio `xi` at `w`:
@@ -200,11 +178,23 @@ pub enum Method {
     /// The §5.2 simplex procedure.
     Simplex,
     /// Least-squares complex frequency-domain estimate; `order` is the denominator order (number of poles,
-    /// even); `None` takes four poles per picked peak (at least 8).
+    /// even); `None` takes four poles per picked peak (at least 8), then six and eight while fewer poles than
+    /// peaks are stable.
     Lscf {
         /// Model order.
         order: Option<usize>,
     },
+}
+
+/// The residue model of the identified modes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Residues {
+    /// Real modal masses (Eq. 5.8, proportional damping), the dissertation's model.
+    Real,
+    /// A complex residue per mode (non-proportional damping): the simplex fits each mode's pole with its residue
+    /// solved by linear least squares, and the final residues with lower and upper residual terms come from an
+    /// LSFD estimate on the fit band (see [`lsfd`]); reported modal masses are `1/(2ω_d|A|)`.
+    Complex,
 }
 
 /// Options of [`fit`].
@@ -220,6 +210,10 @@ pub struct FitOptions {
     pub h_sens: usize,
     /// Peak cut-off as a fraction of the largest |Im H| in the band (`V_sens`, §5.2.1).
     pub v_sens: f64,
+    /// Least prominence of the smoothed `|H|` at a picked peak, dB (0 disables the check; see [`pick_modes`]).
+    pub prominence_db: f64,
+    /// Residue model.
+    pub residues: Residues,
     /// Global iterations of step 4 (§5.2.4).
     pub iterations: usize,
     /// Stuck modes are deleted after this many global iterations (§5.2.4.1); ≥ `iterations` disables deletion.
@@ -244,7 +238,9 @@ impl Default for FitOptions {
             min_frequency_hz: 0.0,
             max_frequency_hz: f64::INFINITY,
             h_sens: 5,
-            v_sens: 0.05,
+            v_sens: 0.001,
+            prominence_db: 3.0,
+            residues: Residues::Real,
             iterations: 20,
             delete_after: 14,
             floating_modes: false,
@@ -299,7 +295,7 @@ pub struct BandError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalFit {
     /// Identified modes, by frequency.
-    pub modes: Vec<ModeParams>,
+    pub modes: Vec<Mode>,
     /// Each mode's band.
     pub bands: Vec<Band>,
     /// Each mode's equivalent beam.
@@ -313,11 +309,15 @@ pub struct ModalFit {
     /// Frequencies picked in step 1, Hz.
     pub picked_hz: Vec<f64>,
     /// Modes removed by §5.2.4.1 (simplex) or rejected by the stabilisation / mass checks (LSCF).
-    pub deleted: Vec<ModeParams>,
+    pub deleted: Vec<Mode>,
     /// Global iterations run (simplex), or orders tried (LSCF).
     pub iterations: usize,
     /// Sweeps of the joint beam refit (0 when it is off).
     pub refit_sweeps: usize,
+    /// Residues of the modes, the residual terms and the relative L2 residual of the modal model on the fit band:
+    /// the LSFD estimate with complex residues, the Eq. 5.8 residues of the real modes (no residual terms)
+    /// otherwise.
+    pub residue_fit: ResidueFit,
 }
 
 /// Checks the grid: same lengths, at least [`MIN_LINES`] lines, finite and strictly increasing frequencies ≥ 0,
@@ -357,6 +357,9 @@ fn check_options(o: &FitOptions) -> Result<(), FitError> {
     }
     if !(o.v_sens > 0.0 && o.v_sens <= 1.0) {
         return bad("v_sens", o.v_sens, "must be in (0, 1]");
+    }
+    if !(o.prominence_db.is_finite() && o.prominence_db >= 0.0) {
+        return bad("prominence", o.prominence_db, "must be finite and ≥ 0 dB");
     }
     if o.band_points < 8 {
         return bad("band_points", o.band_points as f64, "must be at least 8");
@@ -424,16 +427,43 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
     check_grid(freqs_hz, h)?;
     check_options(opts)?;
     let range = fit_range(freqs_hz, opts)?;
-    let peaks = pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens)?;
+    let peaks =
+        pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens, 10f64.powf(opts.prominence_db / 20.0))?;
     let picked_hz: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
     let (lo, hi) = (freqs_hz[range.start], freqs_hz[range.end - 1]);
     let df = (hi - lo) / (range.len() - 1) as f64;
-    let (modes, bands, deleted, iterations) = match opts.method {
-        Method::Simplex => simplex::fit_modes(freqs_hz, h, range.clone(), &peaks, opts)?,
+    let complex = opts.residues == Residues::Complex;
+    let (mut modes, bands, deleted, iterations) = match opts.method {
+        Method::Simplex => {
+            let (modes, _, bands, deleted, iterations) = simplex::fit_modes(freqs_hz, h, range.clone(), &peaks, opts)?;
+            (modes, bands, deleted, iterations)
+        }
         Method::Lscf { order } => {
-            let (modes, rejected, orders) = lscf::fit_modes(freqs_hz, h, range.clone(), &peaks, order, opts.v_sens)?;
+            let (modes, rejected, orders) =
+                lscf::fit_modes(freqs_hz, h, range.clone(), &peaks, order, opts.v_sens, complex)?;
             let centres: Vec<f64> = modes.iter().map(|m| m.freq_hz).collect();
             (modes, mode_bands(&centres, lo, hi, df), rejected, orders)
+        }
+    };
+    let residue_fit = if complex {
+        let r = lsfd::lsfd(&freqs_hz[range.clone()], &h[range.clone()], &modes)?;
+        for (m, a) in modes.iter_mut().zip(&r.residues) {
+            *m = mode_of_residue(m.freq_hz, m.damping_ratio, *a);
+        }
+        r
+    } else {
+        let (mut num, mut den) = (0.0, 0.0);
+        for k in range.clone() {
+            let w = TAU * freqs_hz[k];
+            let modal: Complex64 = modes.iter().map(|m| m.receptance(w)).sum();
+            num += (h[k] - modal).norm_sqr();
+            den += h[k].norm_sqr();
+        }
+        ResidueFit {
+            residues: modes.iter().map(real_residue).collect(),
+            lower: 0.0,
+            upper: 0.0,
+            relative_residual: if den > 0.0 { (num / den).sqrt() } else { 0.0 },
         }
     };
     let mut beams = Vec::with_capacity(modes.len());
@@ -452,11 +482,12 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
         beams = r.beams;
         refit_sweeps = r.sweeps;
     }
+    let fast: Vec<refit::FastH> = beams.iter().map(|b| refit::FastH::new(b.beam)).collect();
     let lines: Vec<Receptance> = freqs_hz
         .iter()
         .map(|&f| {
-            let w = TAU * f;
-            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.beam.tip_receptance(w))
+            let sw = (TAU * f).sqrt();
+            fast.iter().fold(Receptance::ZERO, |acc, b| acc + b.block(sw))
         })
         .collect();
     let fitted: Vec<Complex64> = lines.iter().map(|r| r.h).collect();
@@ -504,5 +535,6 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
         deleted,
         iterations,
         refit_sweeps,
+        residue_fit,
     })
 }

@@ -11,6 +11,7 @@
 
 use super::{Band, EquivalentBeam};
 use crate::eb_modes::{BeamMaterial, FixedFreeBeam};
+use crate::rcsa::Receptance;
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
@@ -38,6 +39,8 @@ pub(super) struct FastH {
     scale: Complex64,
     /// `L (ρA/EI*)^{1/4}` (principal root), s^{1/2}.
     q: Complex64,
+    /// `EI*`, N·m².
+    ei: Complex64,
 }
 
 impl FastH {
@@ -45,7 +48,7 @@ impl FastH {
         let ei = beam.ei_complex();
         let len = beam.length_m;
         let q = (Complex64::from(beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25) * len;
-        FastH { beam, scale: Complex64::from(len * len * len) / ei, q }
+        FastH { beam, scale: Complex64::from(len * len * len) / ei, q, ei }
     }
 
     /// `H` at `sqrt_w = sqrt(ω)`.
@@ -66,6 +69,34 @@ impl FastH {
         let num = s * one_e2 - c * (Complex64::from(2.0) - one_e2);
         let den = x * x * x * (e * 2.0 + c * one_e2);
         self.scale * num / den
+    }
+}
+
+impl FastH {
+    /// The full tip block `H, L = N, P` (Eqs. 5.10–5.12) at `sqrt_w = sqrt(ω)`, with the same shared real
+    /// trigonometric and exponential terms as [`FastH::h`] (the beam's own evaluation below `|λL| = 1`).
+    pub(super) fn block(&self, sqrt_w: f64) -> Receptance {
+        let x = self.q * sqrt_w;
+        if x.norm_sqr() < SERIES_LIMIT * SERIES_LIMIT {
+            return self.beam.tip_receptance(sqrt_w * sqrt_w);
+        }
+        let (sa, ca) = x.re.sin_cos();
+        let (sb, cb) = x.im.sin_cos();
+        let (eb, emb) = (x.im.exp(), (-x.im).exp());
+        let (chb, shb) = (0.5 * (eb + emb), 0.5 * (eb - emb));
+        let s = Complex64::new(sa * chb, ca * shb);
+        let c = Complex64::new(ca * chb, -sa * shb);
+        let e = Complex64::new(cb, -sb) * (-x.re).exp();
+        let one_e2 = Complex64::from(1.0) + e * e;
+        let inv = one_e2.inv();
+        let tanh = (Complex64::from(2.0) - one_e2) * inv;
+        let sech = e * 2.0 * inv;
+        let lam = x / self.beam.length_m;
+        let lam_dn = lam * self.ei * (sech + c);
+        let inv1 = lam_dn.inv();
+        let inv2 = inv1 / lam;
+        let l = s * tanh * inv2;
+        Receptance::new((s - c * tanh) * inv2 / lam, l, l, (s + c * tanh) * inv1)
     }
 }
 
@@ -248,6 +279,10 @@ mod tests {
             let want = beam.tip_receptance(w).h;
             let got = fast.h(w.sqrt());
             assert!((got - want).norm() <= 1e-10 * want.norm(), "{f} Hz: {got} vs {want}");
+            let (block, full) = (fast.block(w.sqrt()), beam.tip_receptance(w));
+            for (a, b) in [(block.h, full.h), (block.l, full.l), (block.n, full.n), (block.p, full.p)] {
+                assert!((a - b).norm() <= 1e-10 * b.norm(), "{f} Hz: {a} vs {b}");
+            }
         }
     }
 }

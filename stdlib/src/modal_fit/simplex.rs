@@ -7,11 +7,12 @@
 //! what §5.2.4.1 looks for. The variables are the natural frequency (bounded by the mode's band), the damping
 //! ratio and the logarithm of the modal mass.
 
+use super::lsfd::{pair_basis, pair_h, pole, real_residue};
 use super::pick::{Peak, moving_average};
-use super::{Band, FitError, FitOptions, ModeParams, mode_bands, mode_h};
+use super::{Band, FitError, FitOptions, Mode, Residues, mode_bands, mode_h};
 
-/// Modes (by frequency), their bands, the deleted modes and the global iterations run.
-type Identified = (Vec<ModeParams>, Vec<Band>, Vec<ModeParams>, usize);
+/// Modes (by frequency), their residues, their bands, the deleted modes and the global iterations run.
+type Identified = (Vec<Mode>, Vec<Complex64>, Vec<Band>, Vec<Mode>, usize);
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
@@ -45,25 +46,28 @@ impl Bounds {
         (0..3).map(|i| (2.0 * (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]) - 1.0).clamp(-1.0, 1.0).asin()).collect()
     }
 
-    fn stuck(self, x: [f64; 3]) -> bool {
-        (0..3).any(|i| {
+    /// Whether any of the first `dims` variables sits at a bound.
+    fn stuck(self, x: [f64; 3], dims: usize) -> bool {
+        (0..dims).any(|i| {
             let u = (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]);
             !(STUCK..=1.0 - STUCK).contains(&u)
         })
     }
 }
 
-fn params_of(x: [f64; 3]) -> ModeParams {
-    ModeParams { freq_hz: x[0], damping_ratio: x[1], modal_mass: x[2].exp() }
+fn params_of(x: [f64; 3]) -> Mode {
+    Mode { freq_hz: x[0], damping_ratio: x[1], modal_mass: x[2].exp() }
 }
 
-fn x_of(m: &ModeParams) -> [f64; 3] {
+fn x_of(m: &Mode) -> [f64; 3] {
     [m.freq_hz, m.damping_ratio, m.modal_mass.ln()]
 }
 
 /// One mode being fitted with its band data.
 struct Slot {
-    mode: ModeParams,
+    mode: Mode,
+    /// Residue of the mode's pole pair (complex residues only; the Eq. 5.8 value otherwise).
+    residue: Complex64,
     band: Band,
     bounds: Bounds,
     /// Angular frequencies of the band points, rad/s.
@@ -75,10 +79,12 @@ struct Slot {
     /// `1/Σ|H^m|` and `1/Σ|Im H^m|` over the band points: objectives are relative.
     scale: f64,
     scale_im: f64,
+    /// `1/sqrt(Σ|H^m|²)` over the band points (the complex-residue objective is a relative L2 residual).
+    scale_l2: f64,
 }
 
 impl Slot {
-    fn new(mode: ModeParams, band: Band, bounds: Bounds, freqs: &[f64], h: &[Complex64], points: usize) -> Self {
+    fn new(mode: Mode, band: Band, bounds: Bounds, freqs: &[f64], h: &[Complex64], points: usize) -> Self {
         let a = freqs.partition_point(|&f| f < band.lo_hz);
         let e = freqs.partition_point(|&f| f <= band.hi_hz);
         // Bands with more lines than `points` keep the measured lines nearest to `points` evenly spaced
@@ -95,9 +101,11 @@ impl Slot {
         let hm: Vec<Complex64> = picks.iter().map(|&k| h[k]).collect();
         let sum: f64 = hm.iter().map(|v| v.norm()).sum();
         let sum_im: f64 = hm.iter().map(|v| v.im.abs()).sum();
+        let sum_sq: f64 = hm.iter().map(|v| v.norm_sqr()).sum();
         let n = fs.len();
         Slot {
             mode,
+            residue: real_residue(&mode),
             band,
             bounds,
             w: fs.iter().map(|f| TAU * f).collect(),
@@ -105,6 +113,7 @@ impl Slot {
             held: vec![Complex64::new(0.0, 0.0); n],
             scale: if sum > 0.0 { 1.0 / sum } else { 1.0 },
             scale_im: if sum_im > 0.0 { 1.0 / sum_im } else { 1.0 },
+            scale_l2: if sum_sq > 0.0 { 1.0 / sum_sq.sqrt() } else { 1.0 },
         }
     }
 }
@@ -142,10 +151,58 @@ impl CostFunction for ModeCost<'_> {
     }
 }
 
+/// The variable-projection objective of one mode with a complex residue: for the pole of `(f, ξ)` the residue
+/// `A` minimising `Σ|R − A/(iω − λ) − Ā/(iω − λ̄)|²` on the band (`R = H^m −` the other modes) is a 2×2 linear
+/// least-squares problem, so the simplex searches `(f, ξ)` only; the cost is the relative L2 residual.
+struct ComplexModeCost<'a> {
+    w: &'a [f64],
+    /// `H^m` minus the other modes at the band points.
+    r: &'a [Complex64],
+    /// `Σ|R|²`.
+    rr: f64,
+    bounds: Bounds,
+    /// `1/sqrt(Σ|H^m|²)`.
+    scale: f64,
+}
+
+impl ComplexModeCost<'_> {
+    /// Best residue for the pole at `z` and the squared residual it leaves.
+    fn project(&self, z: &[f64]) -> (Complex64, f64) {
+        let at = |i: usize| self.bounds.lo[i] + (self.bounds.hi[i] - self.bounds.lo[i]) * 0.5 * (1.0 + z[i].sin());
+        let mode = Mode { freq_hz: at(0), damping_ratio: at(1), modal_mass: 1.0 };
+        let lambda = pole(&mode);
+        let (mut guu, mut guv, mut gvv, mut bu, mut bv) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for (&w, r) in self.w.iter().zip(self.r) {
+            let (u, v) = pair_basis(lambda, w);
+            guu += u.norm_sqr();
+            gvv += v.norm_sqr();
+            guv += u.re * v.re + u.im * v.im;
+            bu += r.re * u.re + r.im * u.im;
+            bv += r.re * v.re + r.im * v.im;
+        }
+        let det = guu * gvv - guv * guv;
+        if det.is_nan() || det <= 1e-14 * guu * gvv {
+            return (Complex64::new(0.0, 0.0), self.rr);
+        }
+        let a = (gvv * bu - guv * bv) / det;
+        let b = (guu * bv - guv * bu) / det;
+        (Complex64::new(a, b), (self.rr - a * bu - b * bv).max(0.0))
+    }
+}
+
+impl CostFunction for ComplexModeCost<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, z: &Self::Param) -> Result<f64, ArgminError> {
+        Ok(self.project(z).1.sqrt() * self.scale)
+    }
+}
+
 /// Runs argmin's Nelder–Mead from `z0` with an initial simplex of axis steps `step`; returns the best point
 /// and its cost.
-fn nelder_mead(
-    cost: ModeCost,
+fn nelder_mead<C: CostFunction<Param = Vec<f64>, Output = f64>>(
+    cost: C,
     z0: Vec<f64>,
     step: f64,
     max_iters: u64,
@@ -158,7 +215,7 @@ fn nelder_mead(
         simplex.push(z);
     }
     let fail = |e: ArgminError| FitError::Optimiser { f_hz, message: e.to_string() };
-    let solver = NelderMead::new(simplex).with_sd_tolerance(1e-9).map_err(fail)?;
+    let solver = NelderMead::new(simplex).with_sd_tolerance(1e-7).map_err(fail)?;
     let res = Executor::new(cost, solver).configure(|s| s.max_iters(max_iters)).timer(false).run().map_err(fail)?;
     let state = res.state();
 
@@ -168,7 +225,7 @@ fn nelder_mead(
 
 /// Step-1 estimate of a mode from its peak: ξ from the half-height width of the smoothed Im(H)
 /// (`Δf ≈ 2ξf` for Eq. 5.8), then `M` from the peak `|Im H| = 1/(2ξ M ω²)`.
-fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band: &Band) -> ModeParams {
+fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band: &Band) -> Mode {
     let i = peak.index - offset;
     let half = 0.5 * peak.im;
     let mut a = i;
@@ -183,7 +240,7 @@ fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band:
         (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
     let xi = (width / (2.0 * peak.freq_hz)).clamp(0.002, 0.2);
     let w = TAU * peak.freq_hz;
-    ModeParams { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
+    Mode { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
 }
 
 fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
@@ -196,7 +253,7 @@ fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
 /// Floating modes of §5.2.3: counts and ranges by Eqs. 5.14–5.15 around the three deepest peaks, frequencies
 /// uniform in `f_k ± 200 Hz`, damping uniform in `[0.005, 0.03]`, masses log-uniform between 1 and 100 times
 /// the most flexible mode's (the text's absolute 0–3 kg suits its artifact only).
-fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) -> Vec<ModeParams> {
+fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) -> Vec<Mode> {
     let mut order: Vec<&Peak> = peaks.iter().collect();
     order.sort_by(|a, b| a.im.total_cmp(&b.im));
     let im = |k: usize| order.get(k).map_or(0.0, |p| p.im.abs());
@@ -218,7 +275,7 @@ fn floating(peaks: &[Peak], reference_mass: f64, lo: f64, hi: f64, seed: u64) ->
             let f = (centre + rng.random_range(-200.0..200.0)).clamp(lo, hi);
             let xi = rng.random_range(0.005..0.03);
             let m = reference_mass * 10f64.powf(rng.random_range(0.0..2.0));
-            out.push(ModeParams { freq_hz: f, damping_ratio: xi, modal_mass: m });
+            out.push(Mode { freq_hz: f, damping_ratio: xi, modal_mass: m });
         }
     }
     out
@@ -250,6 +307,7 @@ pub(super) fn fit_modes(
             ModeCost { w: &slot.w, hm: &slot.hm, held: &slot.held, bounds, imag_only: true, scale: slot.scale_im };
         let (z, _) = nelder_mead(cost, bounds.z_at(x_of(&m0)), 0.2, 400, m0.freq_hz)?;
         slot.mode = params_of(bounds.x_at(&z));
+        slot.residue = real_residue(&slot.mode);
         slots.push(slot);
     }
 
@@ -269,30 +327,71 @@ pub(super) fn fit_modes(
     let mut deletion_done = opts.delete_after >= opts.iterations;
     let mut previous = f64::INFINITY;
     let mut iterations = 0;
-    let mut current: Vec<ModeParams> = slots.iter().map(|s| s.mode).collect();
+    let dims = if opts.residues == Residues::Complex { 2 } else { 3 };
+    let snapshot = |slots: &[Slot]| -> Vec<(Mode, Complex64, Complex64)> {
+        slots.iter().map(|s| (s.mode, s.residue, pole(&s.mode))).collect()
+    };
+    let mut current = snapshot(&slots);
+    let complex = opts.residues == Residues::Complex;
     while iterations < opts.iterations {
         let mut total = 0.0;
+        // With complex residues the modes outside the band enter through the LSFD residual terms of the current
+        // poles, held like the other modes.
+        let (lower, upper) = if complex {
+            let modes: Vec<Mode> = current.iter().map(|c| c.0).collect();
+            let r = super::lsfd::lsfd(&freqs[range.clone()], &h[range.clone()], &modes)?;
+            (r.lower, r.upper)
+        } else {
+            (0.0, 0.0)
+        };
         for j in 0..slots.len() {
             let slot = &mut slots[j];
             for (held, &w) in slot.held.iter_mut().zip(&slot.w) {
-                *held = current
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| *i != j)
-                    .map(|(_, m)| mode_h(m.modal_mass, TAU * m.freq_hz, m.damping_ratio, w))
-                    .sum();
+                *held = if complex {
+                    current
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i != j)
+                        .map(|(_, (_, a, l))| pair_h(*a, *l, w))
+                        .sum::<Complex64>()
+                        - lower / (w * w)
+                        + upper
+                } else {
+                    current
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i != j)
+                        .map(|(_, (m, _, _))| mode_h(m.modal_mass, TAU * m.freq_hz, m.damping_ratio, w))
+                        .sum()
+                };
             }
-            let cost = ModeCost {
-                w: &slot.w,
-                hm: &slot.hm,
-                held: &slot.held,
-                bounds: slot.bounds,
-                imag_only: false,
-                scale: slot.scale,
+            let c = if complex {
+                let r: Vec<Complex64> = slot.hm.iter().zip(&slot.held).map(|(a, b)| a - b).collect();
+                let rr = r.iter().map(|v| v.norm_sqr()).sum();
+                let cost = ComplexModeCost { w: &slot.w, r: &r, rr, bounds: slot.bounds, scale: slot.scale_l2 };
+                let z0 = slot.bounds.z_at(x_of(&slot.mode))[..2].to_vec();
+                let (z, c) = nelder_mead(cost, z0, 0.05, 200, slot.mode.freq_hz)?;
+                let cost = ComplexModeCost { w: &slot.w, r: &r, rr, bounds: slot.bounds, scale: slot.scale_l2 };
+                let (a, _) = cost.project(&z);
+                let x = slot.bounds.x_at(&[z[0], z[1], 0.0]);
+                slot.mode = super::lsfd::mode_of_residue(x[0], x[1], a);
+                slot.residue = a;
+                c
+            } else {
+                let cost = ModeCost {
+                    w: &slot.w,
+                    hm: &slot.hm,
+                    held: &slot.held,
+                    bounds: slot.bounds,
+                    imag_only: false,
+                    scale: slot.scale,
+                };
+                let (z, c) = nelder_mead(cost, slot.bounds.z_at(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
+                slot.mode = params_of(slot.bounds.x_at(&z));
+                slot.residue = real_residue(&slot.mode);
+                c
             };
-            let (z, c) = nelder_mead(cost, slot.bounds.z_at(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
-            slot.mode = params_of(slot.bounds.x_at(&z));
-            current[j] = slot.mode;
+            current[j] = (slot.mode, slot.residue, pole(&slot.mode));
             total += c;
         }
         iterations += 1;
@@ -303,14 +402,14 @@ pub(super) fn fit_modes(
             let before = slots.len();
             let mut kept = Vec::with_capacity(before);
             for s in slots.drain(..) {
-                if s.bounds.stuck(x_of(&s.mode)) {
+                if s.bounds.stuck(x_of(&s.mode), dims) {
                     deleted.push(s.mode);
                 } else {
                     kept.push(s);
                 }
             }
             slots = kept;
-            current = slots.iter().map(|s| s.mode).collect();
+            current = snapshot(&slots);
             if slots.len() < before {
                 previous = f64::INFINITY;
                 continue;
@@ -328,6 +427,7 @@ pub(super) fn fit_modes(
     }
     slots.sort_by(|a, b| a.mode.freq_hz.total_cmp(&b.mode.freq_hz));
     let modes = slots.iter().map(|s| s.mode).collect();
+    let residues = slots.iter().map(|s| s.residue).collect();
     let bands = slots.iter().map(|s| s.band).collect();
-    Ok((modes, bands, deleted, iterations))
+    Ok((modes, residues, bands, deleted, iterations))
 }

@@ -1,7 +1,7 @@
 //! `modal.fit`: equivalent modes and fixed-free Euler–Bernoulli beams of a direct tip FRF (§5.2, Eqs. 5.7–5.12).
 
 use crate::eb_modes::BeamMaterial;
-use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit};
+use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Column, Frf, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
@@ -48,6 +48,16 @@ impl ModalFitNode {
                         PortType::Table,
                         "relative residual per mode band, of the modes, of the beams and of the beams before the joint refit",
                     ),
+                    PortSpec::new(
+                        "residues",
+                        PortType::Table,
+                        "per mode: frequency, damping ratio and complex residue A (H = Σ A/(iω − λ) + conj)",
+                    ),
+                    PortSpec::new(
+                        "residual_terms",
+                        PortType::Table,
+                        "one row: lower residual LR (term −LR/ω²), its mass 1/LR, upper residual UR and the relative L2 residual of the modal model on the fit band",
+                    ),
                 ],
                 params: vec![
                     Field::def(
@@ -71,8 +81,20 @@ impl ModalFitNode {
                     Field::def(
                         "v_sens",
                         T::Quantity(D::DIMENSIONLESS),
-                        "5 %",
+                        "0.1 %",
                         "peak cut-off as a fraction of the largest |Im H| (§5.2.1)",
+                    ),
+                    Field::def(
+                        "prominence",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "3",
+                        "least prominence of the smoothed |H| at a picked peak, dB (0: off); rejects noise minima of Im H where the FRF is flat",
+                    ),
+                    Field::def(
+                        "residues",
+                        T::Choice(&["real", "complex"]),
+                        "real",
+                        "real modal masses (Eq. 5.8) or complex residues with lower and upper residual terms (LSFD), for non-proportional damping",
                     ),
                     Field::def(
                         "iterations",
@@ -108,7 +130,7 @@ impl ModalFitNode {
                     Field::opt(
                         "order",
                         T::Integer { min: 4, max: 200 },
-                        "LSCF model order (number of poles; default four per picked peak)",
+                        "LSCF model order (number of poles; default four per picked peak, at least 8, raised to six and eight while fewer poles than peaks are stable)",
                     ),
                 ],
             },
@@ -144,7 +166,7 @@ impl Node for ModalFitNode {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::non_negative(p, &["min_frequency"])?;
+        super::non_negative(p, &["min_frequency", "prominence"])?;
         super::positive(p, &["max_frequency", "v_sens"])?;
         if let Some(v) = p.f64("v_sens")
             && v > 1.0
@@ -203,7 +225,12 @@ impl Node for ModalFitNode {
             min_frequency_hz: p.f64("min_frequency").unwrap_or(0.0),
             max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
             h_sens: int(p, "h_sens", 5),
-            v_sens: p.f64("v_sens").unwrap_or(0.05),
+            v_sens: p.f64("v_sens").unwrap_or(0.001),
+            prominence_db: p.f64("prominence").unwrap_or(3.0),
+            residues: match p.text("residues") {
+                Some("complex") => Residues::Complex,
+                _ => Residues::Real,
+            },
             iterations: int(p, "iterations", 20),
             delete_after: int(p, "delete_after", 14),
             floating_modes: p.bool("floating_modes").unwrap_or(false),
@@ -240,14 +267,8 @@ fn report(ctx: &NodeContext, fit: &ModalFit, method: Method) {
 }
 
 fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
-    let modes = ModalModel {
-        modes: fit
-            .modes
-            .iter()
-            .map(|m| Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass: m.modal_mass })
-            .collect(),
-    };
-    let col = |f: &dyn Fn(&modal_fit::ModeParams) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
+    let modes = ModalModel { modes: fit.modes.clone() };
+    let col = |f: &dyn Fn(&Mode) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
     let modal_table = table(vec![
         Column::new("frequency", "Hz", col(&|m| m.freq_hz)),
         Column::new("damping_ratio", "", col(&|m| m.damping_ratio)),
@@ -268,6 +289,19 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
         Column::new("modal_error", "", e.iter().map(|b| b.modal).collect()),
         Column::new("beam_error", "", e.iter().map(|b| b.beam).collect()),
         Column::new("mapped_beam_error", "", e.iter().map(|b| b.mapped).collect()),
+    ]);
+    let r = &fit.residue_fit;
+    let residues = table(vec![
+        Column::new("frequency", "Hz", col(&|m| m.freq_hz)),
+        Column::new("damping_ratio", "", col(&|m| m.damping_ratio)),
+        Column::new("residue_re", "m/(N s)", r.residues.iter().map(|a| a.re).collect()),
+        Column::new("residue_im", "m/(N s)", r.residues.iter().map(|a| a.im).collect()),
+    ]);
+    let residual_terms = table(vec![
+        Column::new("lower_residual", "m/(N s^2)", vec![r.lower]),
+        Column::new("lower_mass", "kg", vec![if r.lower != 0.0 { 1.0 / r.lower } else { f64::INFINITY }]),
+        Column::new("upper_residual", "m/N", vec![r.upper]),
+        Column::new("relative_residual", "", vec![r.relative_residual]),
     ]);
     let fitted = Frf {
         freq_hz: frf.freq_hz.clone(),
@@ -295,6 +329,8 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
         ("fitted", Value::Frf(fitted)),
         ("tip", Value::ReceptanceSet(tip)),
         ("band_errors", band_errors),
+        ("residues", residues),
+        ("residual_terms", residual_terms),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
@@ -304,7 +340,6 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::modal_fit::ModeParams;
     use crate::nodes::test_support::{empty_recipe, params};
     use spindlelab_engine::node::Labelled;
     use spindlelab_engine::value::UnitLabel;
@@ -315,8 +350,8 @@ mod tests {
     fn node_fits_two_modes_and_keeps_direction_and_speed() {
         let node = ModalFitNode::new();
         let modes = [
-            ModeParams { freq_hz: 800.0, damping_ratio: 0.03, modal_mass: 0.5 },
-            ModeParams { freq_hz: 2100.0, damping_ratio: 0.02, modal_mass: 0.3 },
+            Mode { freq_hz: 800.0, damping_ratio: 0.03, modal_mass: 0.5 },
+            Mode { freq_hz: 2100.0, damping_ratio: 0.02, modal_mass: 0.3 },
         ];
         let freq_hz: Vec<f64> = (1..=1000).map(|k| 3.0 * k as f64).collect();
         let values = freq_hz.iter().map(|&f| modes.iter().map(|m| m.receptance(TAU * f)).sum()).collect();
