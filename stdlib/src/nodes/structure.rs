@@ -278,12 +278,12 @@ fn two_port(
     Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(tip, tip)?, r12: r(tip, 0)?, r21: r(0, tip)?, r22: r(0, 0)? })
 }
 
+/// Named free–free parts of an assembly, and the tool joint `[kt, ct, kr, cr]` between two.
+type Parts<'a> = (Vec<(&'static str, &'a [Section])>, Option<[f64; 4]>);
+
 /// The free–free parts of an assembly: the whole of it when its `tool_joint` is rigid; otherwise
 /// the holder (with the inserted shank) and the protruding tool, with the joint between them.
-fn assembly_parts<'a>(
-    a: &'a spindlelab_engine::model::Assembly,
-    name: &str,
-) -> Result<(Vec<(&'static str, &'a [Section])>, Option<[f64; 4]>), NodeError> {
+fn assembly_parts<'a>(a: &'a spindlelab_engine::model::Assembly, name: &str) -> Result<Parts<'a>, NodeError> {
     let joint = match a.tool_joint {
         Joint::Rigid => return Ok((vec![("whole", &a.sections[..])], None)),
         joint => joint,
