@@ -252,6 +252,9 @@ fn structure_failures_at_run_time_say_what_and_what_to_do() {
             "node `mismatch` failed",
             "frequency grids differ: `spindle` has 200 lines, 25 … 5000 Hz but `grid` has 100 lines, 30 … 3000 Hz",
             "`grid_mismatch: resample`",
+            // Neither `assembly` nor a connected `structure`.
+            "node `nothing_to_couple` failed",
+            "rcsa.couple needs `assembly`, or a substructure connected to `structure`",
             "node `beyond` failed",
             "cannot resample `spindle` onto `grid`",
             "does not extrapolate",
