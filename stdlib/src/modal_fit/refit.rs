@@ -58,14 +58,7 @@ impl FastH {
         if x.norm_sqr() < SERIES_LIMIT * SERIES_LIMIT {
             return self.beam.tip_receptance(sqrt_w * sqrt_w).h;
         }
-        let (sa, ca) = x.re.sin_cos();
-        let (sb, cb) = x.im.sin_cos();
-        let (eb, emb) = (x.im.exp(), (-x.im).exp());
-        let (chb, shb) = (0.5 * (eb + emb), 0.5 * (eb - emb));
-        let s = Complex64::new(sa * chb, ca * shb);
-        let c = Complex64::new(ca * chb, -sa * shb);
-        let e = Complex64::new(cb, -sb) * (-x.re).exp();
-        let one_e2 = Complex64::from(1.0) + e * e;
+        let (s, c, e, one_e2) = trig_terms(x);
         let num = s * one_e2 - c * (Complex64::from(2.0) - one_e2);
         let den = x * x * x * (e * 2.0 + c * one_e2);
         self.scale * num / den
@@ -80,14 +73,7 @@ impl FastH {
         if x.norm_sqr() < SERIES_LIMIT * SERIES_LIMIT {
             return self.beam.tip_receptance(sqrt_w * sqrt_w);
         }
-        let (sa, ca) = x.re.sin_cos();
-        let (sb, cb) = x.im.sin_cos();
-        let (eb, emb) = (x.im.exp(), (-x.im).exp());
-        let (chb, shb) = (0.5 * (eb + emb), 0.5 * (eb - emb));
-        let s = Complex64::new(sa * chb, ca * shb);
-        let c = Complex64::new(ca * chb, -sa * shb);
-        let e = Complex64::new(cb, -sb) * (-x.re).exp();
-        let one_e2 = Complex64::from(1.0) + e * e;
+        let (s, c, e, one_e2) = trig_terms(x);
         let inv = one_e2.inv();
         let tanh = (Complex64::from(2.0) - one_e2) * inv;
         let sech = e * 2.0 * inv;
@@ -98,6 +84,20 @@ impl FastH {
         let l = s * tanh * inv2;
         Receptance::new((s - c * tanh) * inv2 / lam, l, l, (s + c * tanh) * inv1)
     }
+}
+
+/// `sin x`, `cos x`, `e = exp(−x)` and `1 + e²` of a complex `x = λL`, from
+/// shared real trigonometric and exponential terms (no complex `sin`/`cos` calls).
+#[inline]
+fn trig_terms(x: Complex64) -> (Complex64, Complex64, Complex64, Complex64) {
+    let (sa, ca) = x.re.sin_cos();
+    let (sb, cb) = x.im.sin_cos();
+    let (eb, emb) = (x.im.exp(), (-x.im).exp());
+    let (chb, shb) = (0.5 * (eb + emb), 0.5 * (eb - emb));
+    let s = Complex64::new(sa * chb, ca * shb);
+    let c = Complex64::new(ca * chb, -sa * shb);
+    let e = Complex64::new(cb, -sb) * (-x.re).exp();
+    (s, c, e, Complex64::from(1.0) + e * e)
 }
 
 /// One band's data: `sqrt(ω)` of its lines, the measured `H^m` there and `1/Σ|H^m|`.
