@@ -2,7 +2,7 @@
 //! complex residues and the residual terms,
 //! `H(ω) = Σ_r [A_r/(iω − λ_r) + Ā_r/(iω − λ̄_r)] − LR/ω² + UR`,
 //! so they follow from one linear least-squares problem (real and imaginary parts stacked, each line weighted by
-//! `1/|H|` so that every line counts by its relative error, solved by Householder QR with unit-norm columns).
+//! `1/|H|` so that every line counts by its relative error, solved by faer's Householder QR with unit-norm columns).
 //! A real (proportionally damped) mode of Eq. 5.8 has `A = 1/(2iMω_d)`; a complex `A` carries the phase of a
 //! non-proportionally damped mode, which a real modal mass cannot represent. `LR` is the mass line of modes below
 //! the band (`1/M` of a rigid-body-like mode), `UR` the static flexibility `1/K` of modes above it.
@@ -63,9 +63,10 @@ pub(super) fn pair_basis(lambda: Complex64, w: f64) -> (Complex64, Complex64) {
     (phi + psi, Complex64::new(psi.im - phi.im, phi.re - psi.re))
 }
 
-/// Least-squares solution of the dense `rows × cols` system `a x ≈ y` (column-major `a`) by Householder QR;
-/// `None` when a column is (numerically) dependent on the others.
+/// Least-squares solution of the dense `rows × cols` system `a x ≈ y` (column-major `a`) by faer's
+/// Householder QR; `None` when a column is (numerically) dependent on the others.
 pub(super) fn least_squares(a: &mut [f64], y: &mut [f64], rows: usize, cols: usize) -> Option<Vec<f64>> {
+    use faer::linalg::solvers::SolveLstsq;
     // Unit-norm columns first: the residue, 1/ω² and constant columns differ by many orders of magnitude.
     let mut scale = vec![0.0; cols];
     for (c, sc) in scale.iter_mut().enumerate() {
@@ -76,35 +77,14 @@ pub(super) fn least_squares(a: &mut [f64], y: &mut [f64], rows: usize, cols: usi
         *sc = 1.0 / n;
         a[c * rows..(c + 1) * rows].iter_mut().for_each(|v| *v /= n);
     }
-    let mut diag = vec![0.0; cols];
-    for k in 0..cols {
-        let (done, rest) = a.split_at_mut((k + 1) * rows);
-        let col = &mut done[k * rows..];
-        let norm = col[k..].iter().map(|v| v * v).sum::<f64>().sqrt();
-        if norm <= 1e-12 {
-            return None;
-        }
-        let alpha = if col[k] > 0.0 { -norm } else { norm };
-        col[k] -= alpha;
-        let vnorm2 = col[k..].iter().map(|v| v * v).sum::<f64>();
-        diag[k] = alpha;
-        let v = &col[k..];
-        for c in rest.chunks_exact_mut(rows) {
-            let t = 2.0 * v.iter().zip(&c[k..]).map(|(p, q)| p * q).sum::<f64>() / vnorm2;
-            c[k..].iter_mut().zip(v).for_each(|(q, p)| *q -= t * p);
-        }
-        let t = 2.0 * v.iter().zip(&y[k..]).map(|(p, q)| p * q).sum::<f64>() / vnorm2;
-        y[k..].iter_mut().zip(v).for_each(|(q, p)| *q -= t * p);
+    let qr = faer::MatRef::from_column_major_slice(a, rows, cols).qr();
+    let r = qr.thin_R();
+    if (0..cols).any(|k| r[(k, k)].abs() <= 1e-12) {
+        return None;
     }
-    let mut x = vec![0.0; cols];
-    for k in (0..cols).rev() {
-        let mut s = y[k];
-        for (j, xj) in x.iter().enumerate().skip(k + 1) {
-            s -= a[j * rows + k] * xj;
-        }
-        x[k] = s / diag[k];
-    }
-    x.iter_mut().zip(&scale).for_each(|(v, s)| *v *= s);
+    let mut rhs = faer::Mat::<f64>::from_fn(rows, 1, |i, _| y[i]);
+    qr.solve_lstsq_in_place(rhs.as_mut());
+    let x: Vec<f64> = (0..cols).map(|k| rhs[(k, 0)] * scale[k]).collect();
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
