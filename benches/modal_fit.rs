@@ -2,28 +2,14 @@
 //! simplex procedure and by LSCF, each including the beam mapping (§5.2.5), the joint beam refit (also timed without it) and the G11
 //! synthesis on the grid.
 
+mod common;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_engine::value::Mode;
 use spindlelab_stdlib::modal_fit::{FitOptions, Method, fit};
 use spindlelab_stdlib::rcsa::Complex64;
 use std::f64::consts::TAU;
 use std::hint::black_box;
-
-/// SplitMix64 step: a small deterministic generator for the noise.
-fn next(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// Standard normal pair by Box–Muller.
-fn gauss(state: &mut u64) -> (f64, f64) {
-    let (u, v) = (next(state).max(1e-300), next(state));
-    let r = (-2.0 * u.ln()).sqrt();
-    (r * (TAU * v).cos(), r * (TAU * v).sin())
-}
 
 fn frf() -> (Vec<f64>, Vec<Complex64>) {
     let f = [250.0, 620.0, 1050.0, 1500.0, 1980.0, 2450.0, 3000.0, 3550.0, 4150.0, 4800.0];
@@ -36,15 +22,7 @@ fn frf() -> (Vec<f64>, Vec<Complex64>) {
         })
         .collect();
     let freqs: Vec<f64> = (1..=4000).map(|k| 1.5 * k as f64).collect();
-    let mut state = 7;
-    let h = freqs
-        .iter()
-        .map(|&fq| {
-            let v: Complex64 = modes.iter().map(|m| m.receptance(TAU * fq)).sum();
-            let (a, b) = gauss(&mut state);
-            v + Complex64::new(a, b) * (0.02 * v.norm() / std::f64::consts::SQRT_2)
-        })
-        .collect();
+    let h = common::noisy_frf(&modes, &freqs, 7);
     (freqs, h)
 }
 

@@ -5,32 +5,17 @@
 //! Both methods run with the default settings (peak picking included), identify all ten modes and map them
 //! to equivalent beams; the joint beam refit is off (the peers fit modal parameters only).
 
+mod common;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_engine::value::Mode;
 use spindlelab_stdlib::modal_fit::{FitOptions, Method, fit};
 use spindlelab_stdlib::rcsa::Complex64;
-use std::f64::consts::TAU;
 use std::hint::black_box;
 
 const FN: [f64; 10] = [310.0, 620.0, 980.0, 1350.0, 1720.0, 2150.0, 2600.0, 3050.0, 3500.0, 3900.0];
 const ZETA: [f64; 10] = [0.020, 0.015, 0.030, 0.010, 0.025, 0.012, 0.020, 0.018, 0.022, 0.015];
 const MASS: [f64; 10] = [0.5, 0.8, 0.6, 1.2, 0.9, 1.5, 1.0, 1.3, 1.1, 1.6];
-
-/// SplitMix64 step: a uniform number in [0, 1).
-fn next(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// Standard normal pair by Box–Muller.
-fn gauss(state: &mut u64) -> (f64, f64) {
-    let (u, v) = (next(state).max(1e-300), next(state));
-    let r = (-2.0 * u.ln()).sqrt();
-    (r * (TAU * v).cos(), r * (TAU * v).sin())
-}
 
 fn truth() -> Vec<Mode> {
     (0..10).map(|i| Mode { freq_hz: FN[i], damping_ratio: ZETA[i], modal_mass: MASS[i] }).collect()
@@ -39,15 +24,7 @@ fn truth() -> Vec<Mode> {
 fn frf() -> (Vec<f64>, Vec<Complex64>) {
     let modes = truth();
     let freqs: Vec<f64> = (1..=4000).map(|k| 1.25 * k as f64).collect();
-    let mut state = 7;
-    let h = freqs
-        .iter()
-        .map(|&f| {
-            let v: Complex64 = modes.iter().map(|m| m.receptance(TAU * f)).sum();
-            let (a, b) = gauss(&mut state);
-            v + Complex64::new(a, b) * (0.02 * v.norm() / std::f64::consts::SQRT_2)
-        })
-        .collect();
+    let h = common::noisy_frf(&modes, &freqs, 7);
     (freqs, h)
 }
 
