@@ -3,6 +3,7 @@
 //! This crate is the front: the `spindlelab` binary, the registry of built-in nodes, and the
 //! run summary that the CLI prints and the snapshot tests record.
 
+pub mod fit;
 pub mod summary;
 
 pub use spindlelab_engine as engine;

@@ -45,9 +45,19 @@ enum Command {
         /// Print nothing but errors.
         #[arg(long, short)]
         quiet: bool,
+        /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
+        set: Vec<(String, String)>,
+        /// Run the recipe as written, without its `fit:` block.
+        #[arg(long)]
+        no_fit: bool,
     },
     /// Check a recipe: report every problem, run nothing.
-    Check { recipe: PathBuf },
+    Check {
+        recipe: PathBuf,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
+        set: Vec<(String, String)>,
+    },
     /// Dry run: which nodes would run and why, and which come from the cache.
     Plan {
         recipe: PathBuf,
@@ -55,6 +65,8 @@ enum Command {
         out: Option<PathBuf>,
         #[arg(long)]
         no_cache: bool,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
+        set: Vec<(String, String)>,
     },
     /// Draw the compiled graph (Graphviz DOT or Mermaid).
     Graph {
@@ -81,8 +93,26 @@ fn color() -> bool {
     std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none()
 }
 
+/// `NAME=VALUE` of `--set`.
+fn parse_set(text: &str) -> Result<(String, String), String> {
+    match text.split_once('=') {
+        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => {
+            Ok((n.trim().to_string(), v.trim().to_string()))
+        }
+        _ => Err(format!("`{text}` is not NAME=VALUE (e.g. `kt=3e8N/m`)")),
+    }
+}
+
 fn compile(path: &Path, registry: &engine::node::Registry) -> Result<Compiled, ExitCode> {
-    match engine::compile_file(path, registry) {
+    compile_with(path, &[], registry)
+}
+
+fn compile_with(
+    path: &Path,
+    set: &[(String, String)],
+    registry: &engine::node::Registry,
+) -> Result<Compiled, ExitCode> {
+    match engine::compile_file_with(path, set, registry) {
         Ok(c) => {
             if !c.warnings.is_empty() {
                 eprint!("{}", c.warnings.render(&c.sources, color()));
@@ -104,7 +134,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let registry = spindlelab::registry();
     match cli.command {
-        Command::Check { recipe } => match compile(&recipe, &registry) {
+        Command::Check { recipe, set } => match compile_with(&recipe, &set, &registry) {
             Ok(c) => {
                 println!(
                     "{}: ok — {} steps, {} node instances, {} outputs",
@@ -128,7 +158,7 @@ fn main() -> ExitCode {
             }
             Err(code) => code,
         },
-        Command::Plan { recipe, out, no_cache } => match compile(&recipe, &registry) {
+        Command::Plan { recipe, out, no_cache, set } => match compile_with(&recipe, &set, &registry) {
             Ok(c) => {
                 let out = out.unwrap_or_else(|| default_out(&c));
                 let opts = RunOptions::new(&out);
@@ -176,14 +206,41 @@ fn main() -> ExitCode {
             );
             ExitCode::SUCCESS
         }
-        Command::Run { recipe, out, keep_going, no_cache, threads, quiet } => {
-            let c = match compile(&recipe, &registry) {
+        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, set, no_fit } => {
+            let mut c = match compile_with(&recipe, &set, &registry) {
                 Ok(c) => c,
                 Err(code) => return code,
             };
             let out = out.unwrap_or_else(|| default_out(&c));
-            let opts =
-                RunOptions { out_dir: out.clone(), use_cache: !no_cache, keep_going, threads, release_consumed: true };
+            let mut fitted = None;
+            if c.recipe.fit.is_some() && !no_fit {
+                let report = match spindlelab::fit::fit(&c, &set, &registry, threads) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        eprintln!("error: fit: {e}");
+                        return ExitCode::from(EXIT_BAD_INPUT);
+                    }
+                };
+                if !quiet {
+                    print!("{}", spindlelab::summary::fit_summary(&report));
+                }
+                // The run that writes the outputs is the recipe with the fitted values.
+                let mut with_fit: Vec<(String, String)> =
+                    set.iter().filter(|(n, _)| !report.params.iter().any(|p| &p.name == n)).cloned().collect();
+                with_fit.extend(report.overrides());
+                c = match compile_with(&recipe, &with_fit, &registry) {
+                    Ok(c) => c,
+                    Err(code) => return code,
+                };
+                fitted = Some(report);
+            }
+            let opts = RunOptions {
+                use_cache: !no_cache,
+                keep_going,
+                threads,
+                release_consumed: true,
+                ..RunOptions::new(out.clone())
+            };
             let bar = if std::io::stderr().is_terminal() && !quiet {
                 let b = ProgressBar::new(c.graph.instances.len() as u64);
                 b.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {wide_msg}").expect("template"));
@@ -197,6 +254,18 @@ fn main() -> ExitCode {
             };
             let outcome = engine::run(&c, &registry, &opts, &progress);
             bar.finish_and_clear();
+            if let Some(report) = &fitted {
+                if let Err(e) = spindlelab::fit::write_fit_files(&c, report, &out) {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(EXIT_FAILURE);
+                }
+                if !report.converged {
+                    eprintln!(
+                        "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
+                        report.evaluations
+                    );
+                }
+            }
             match outcome {
                 Ok(report) => {
                     if !quiet {

@@ -113,3 +113,23 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
     }
     out
 }
+
+/// The fit's outcome as the CLI prints it: each parameter from start to fitted value in the
+/// recipe's own unit, with its standard deviation, and the objective before and after.
+pub fn fit_summary(r: &crate::fit::FitReport) -> String {
+    let mut out = format!(
+        "fit ({}): objective {:.4e} -> {:.4e} in {} evaluations, {:.2} s{}\n",
+        r.method,
+        r.objective_before,
+        r.objective_after,
+        r.evaluations,
+        r.seconds,
+        if r.converged { "" } else { " (not converged)" }
+    );
+    for p in &r.params {
+        let sigma = p.sigma.map(|s| format!(" ± {:.2e}", s)).unwrap_or_default();
+        let bound = if p.at_bound { "  (at a bound)" } else { "" };
+        out.push_str(&format!("  {:<12} {:>11.4e} -> {:>11.4e}{sigma} {}{bound}\n", p.name, p.start, p.value, p.unit));
+    }
+    out
+}

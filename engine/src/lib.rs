@@ -27,6 +27,8 @@ use std::path::{Path, PathBuf};
 /// A recipe that compiled: the resolved recipe, its graph and the sources it came from.
 pub struct Compiled {
     pub path: PathBuf,
+    /// The tree as loaded, before parameters were substituted: a fit recompiles from it.
+    pub raw: syntax::Raw,
     pub recipe: Recipe,
     pub graph: Graph,
     pub sources: Vec<SourceFile>,
@@ -57,15 +59,44 @@ impl std::error::Error for CompileError {}
 
 /// Loads, resolves and compiles a recipe file, reporting every problem at once.
 pub fn compile_file(path: &Path, registry: &Registry) -> Result<Compiled, CompileError> {
+    compile_file_with(path, &[], registry)
+}
+
+/// [`compile_file`] with parameters set from outside (`--set kt=3e8N/m`): `(name, value text)`.
+pub fn compile_file_with(
+    path: &Path,
+    overrides: &[(String, String)],
+    registry: &Registry,
+) -> Result<Compiled, CompileError> {
     let mut diags = Diagnostics::new();
     let loaded = syntax::load_file(path, &mut diags);
     let sources: Vec<SourceFile> = loaded.iter().map(|l| l.file.clone()).collect();
-    let recipe = loaded.as_ref().and_then(|l| l.raw.as_ref()).and_then(|raw| model::resolve(raw, registry, &mut diags));
+    let raw = loaded.and_then(|l| l.raw);
+    match raw {
+        Some(raw) => compile_raw(path, raw, overrides, sources, registry, diags),
+        None => {
+            diags.sort();
+            Err(CompileError { diagnostics: diags, sources })
+        }
+    }
+}
+
+/// Resolves and compiles a loaded raw tree with parameter overrides. A fit calls it once
+/// per evaluation, so nothing here reads the recipe file again.
+pub fn compile_raw(
+    path: &Path,
+    raw: syntax::Raw,
+    overrides: &[(String, String)],
+    sources: Vec<SourceFile>,
+    registry: &Registry,
+    mut diags: Diagnostics,
+) -> Result<Compiled, CompileError> {
+    let recipe = model::resolve(&raw, overrides, registry, &mut diags);
     let graph = recipe.as_ref().filter(|_| !diags.has_errors()).map(|r| graph::compile(r, registry, &mut diags));
     diags.sort();
     match (recipe, graph) {
         (Some(recipe), Some(graph)) if !diags.has_errors() => {
-            Ok(Compiled { path: path.to_path_buf(), recipe, graph, sources, warnings: diags })
+            Ok(Compiled { path: path.to_path_buf(), raw, recipe, graph, sources, warnings: diags })
         }
         _ => Err(CompileError { diagnostics: diags, sources }),
     }

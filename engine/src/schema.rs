@@ -10,11 +10,11 @@ use spindlelab_grammar::Dimension;
 fn field_schema(ty: &FieldType) -> Value {
     match ty {
         FieldType::Quantity(d) if *d == Dimension::DIMENSIONLESS => json!({
-            "anyOf": [{"type": "number"}, {"type": "string", "pattern": "^\\s*[-+]?[0-9.]"}],
+            "anyOf": [{"type": "number"}, {"type": "string", "pattern": "^\\s*([-+]?[0-9.]|\\$[A-Za-z_])"}],
         }),
         FieldType::Quantity(d) => json!({
             "type": "string",
-            "pattern": "^\\s*[-+]?[0-9.]",
+            "pattern": "^\\s*([-+]?[0-9.]|\\$[A-Za-z_])",
             "description": format!("{} with a unit, SI {}", d.name().unwrap_or("quantity"), d.si_unit()),
         }),
         FieldType::QuantityList(d) => json!({
@@ -110,6 +110,26 @@ pub fn recipe_schema(registry: &Registry) -> Value {
     }
     props.insert("speeds".into(), field_schema(&FieldType::QuantityList(Dimension::ROTATIONAL_SPEED)));
     props.insert("steps".into(), json!({"type": "object", "additionalProperties": step}));
+    props.insert(
+        "params".into(),
+        json!({"type": "object", "description": "named values (`kt: 2e8 N/m`) used as `$kt`; `--set kt=…` and fits vary them",
+            "additionalProperties": {"anyOf": [{"type": "number"}, {"type": "string"}]}}),
+    );
+    let bound = json!({"anyOf": [{"type": "number"}, {"type": "string"}]});
+    props.insert(
+        "fit".into(),
+        json!({"type": "object", "additionalProperties": false, "required": ["free", "objective"],
+        "properties": {
+            "free": {"type": "object", "description": "declared parameters the fit moves, with bounds in their unit",
+                "additionalProperties": {"type": "object", "required": ["min", "max"], "additionalProperties": false,
+                    "properties": {"min": bound, "max": bound, "scale": {"enum": ["linear", "log"]}}}},
+            "objective": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}],
+                "description": "outputs (`@step.port`, FRF or scalar) whose sum of squares is minimised"},
+            "method": {"enum": ["least-squares", "nelder-mead"]},
+            "max_evaluations": {"type": "integer", "minimum": 1, "maximum": 100000},
+            "tolerance": {"anyOf": [{"type": "number"}, {"type": "string"}]}
+        }}),
+    );
     props.insert(
         "outputs".into(),
         json!({"type": "array", "items": {"type": "object", "required": ["from", "file"], "additionalProperties": false,

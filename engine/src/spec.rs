@@ -160,6 +160,12 @@ pub enum ParamValue {
 impl ParamValue {
     /// Location-free text of the value; cache keys and the recipe hash are built on it.
     pub fn canonical(&self, out: &mut String) {
+        self.canonical_with(out, &|_, _| None);
+    }
+
+    /// [`ParamValue::canonical`], with each named entity followed by what `entity` says of
+    /// it (the digest of its contents, for cache keys that follow an entity's values).
+    pub fn canonical_with(&self, out: &mut String, entity: &dyn Fn(EntityKind, &str) -> Option<String>) {
         match self {
             ParamValue::Quantity { value, dim } => {
                 let _ = write!(out, "{:016x}{dim:?}", value.to_bits());
@@ -185,12 +191,15 @@ impl ParamValue {
             }
             ParamValue::Entity { kind, name } => {
                 let _ = write!(out, "{kind:?}:{name:?}");
+                if let Some(d) = entity(*kind, name) {
+                    let _ = write!(out, "#{d}");
+                }
             }
-            ParamValue::Object(p) => p.canonical(out),
+            ParamValue::Object(p) => p.canonical_with(out, entity),
             ParamValue::Objects(list) => {
                 out.push('[');
                 for p in list {
-                    p.canonical(out);
+                    p.canonical_with(out, entity);
                     out.push(',');
                 }
                 out.push(']');
@@ -199,7 +208,7 @@ impl ParamValue {
                 out.push('{');
                 for (k, v) in m {
                     let _ = write!(out, "{k:?}=");
-                    v.canonical(out);
+                    v.canonical_with(out, entity);
                     out.push(';');
                 }
                 out.push('}');
@@ -309,10 +318,15 @@ impl Params {
         }
     }
     pub fn canonical(&self, out: &mut String) {
+        self.canonical_with(out, &|_, _| None);
+    }
+
+    /// [`Params::canonical`] with entity digests (see [`ParamValue::canonical_with`]).
+    pub fn canonical_with(&self, out: &mut String, entity: &dyn Fn(EntityKind, &str) -> Option<String>) {
         out.push('{');
         for (k, v) in &self.values {
             let _ = write!(out, "{k:?}=");
-            v.canonical(out);
+            v.canonical_with(out, entity);
             out.push(';');
         }
         out.push('}');
@@ -495,6 +509,10 @@ fn example_unit(d: Dimension) -> &'static str {
 
 /// Checks one raw value against a field type.
 pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<ParamValue> {
+    // A `$name` left after substitution names no parameter; that has been reported.
+    if raw.as_str().is_some_and(|s| s.trim_start().starts_with('$')) {
+        return None;
+    }
     match ty {
         FieldType::Quantity(dim) => {
             if let RawKind::Int(_) | RawKind::Float(_) = raw.kind {

@@ -14,6 +14,7 @@ pub mod frf;
 pub mod impact;
 pub mod modal_fit;
 pub mod nodes;
+pub mod optimize;
 pub mod phase;
 pub mod rcsa;
 pub mod rig;

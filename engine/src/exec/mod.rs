@@ -33,7 +33,15 @@ pub struct RunOptions {
     /// run and no output file reads them, to bound memory; the result then shows them as
     /// released.
     pub release_consumed: bool,
+    /// Outputs already computed in this process, by cache key: instances found here are
+    /// not run again (a fit re-evaluates only what its parameters reach).
+    pub memo: Option<Arc<Memo>>,
+    /// Settle only these steps and what they need, instead of every output and leaf.
+    pub targets: Option<Vec<String>>,
 }
+
+/// Outputs and warnings of computed instances, by cache key, kept in memory.
+pub type Memo = std::collections::HashMap<String, (Arc<Produced>, Vec<String>)>;
 
 impl RunOptions {
     pub fn new(out_dir: impl Into<PathBuf>) -> Self {
@@ -43,6 +51,8 @@ impl RunOptions {
             keep_going: false,
             threads: None,
             release_consumed: false,
+            memo: None,
+            targets: None,
         }
     }
 
@@ -146,8 +156,8 @@ pub fn execute(
     let cache = opts.use_cache.then(|| opts.cache());
     let n = graph.instances.len();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
-    if let Some(c) = &cache {
-        settle_from_cache(recipe, graph, registry, c, &mut outcomes);
+    if cache.is_some() || opts.memo.is_some() || opts.targets.is_some() {
+        settle_known(recipe, graph, registry, cache.as_ref(), opts, &mut outcomes);
     }
     let mut stop = false;
     let mut done_count = 0usize;
@@ -207,6 +217,11 @@ pub fn execute(
 /// Which instances a run must settle, given which have a cache entry: those an output file
 /// reads, those nothing consumes, and the inputs of every needed instance that is not cached.
 pub fn needed(recipe: &Recipe, graph: &Graph, cached: &[bool]) -> Vec<bool> {
+    needed_for(recipe, graph, cached, None)
+}
+
+/// [`needed`], or with `targets`, only the instances of those steps and what they need.
+pub fn needed_for(recipe: &Recipe, graph: &Graph, cached: &[bool], targets: Option<&[String]>) -> Vec<bool> {
     let n = graph.instances.len();
     let mut needed = vec![false; n];
     let mut consumed = vec![false; n];
@@ -215,14 +230,18 @@ pub fn needed(recipe: &Recipe, graph: &Graph, cached: &[bool]) -> Vec<bool> {
             consumed[d] = true;
         }
     }
-    for out in &recipe.outputs {
-        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
+    let roots: Vec<&str> = match targets {
+        Some(t) => t.iter().map(String::as_str).collect(),
+        None => recipe.outputs.iter().map(|o| o.from.step.as_str()).collect(),
+    };
+    for step in roots {
+        for &i in graph.by_step.get(step).into_iter().flatten() {
             needed[i] = true;
         }
     }
     // Instances are in topological order: consumers come after their inputs.
     for i in (0..n).rev() {
-        if !consumed[i] {
+        if !consumed[i] && targets.is_none() {
             needed[i] = true;
         }
         if needed[i] && !cached[i] {
@@ -264,27 +283,32 @@ fn release(graph: &Graph, registry: &Registry, keep: &[bool], outcomes: &mut [Op
     }
 }
 
-fn settle_from_cache(
+fn settle_known(
     recipe: &Recipe,
     graph: &Graph,
     registry: &Registry,
-    cache: &Cache,
+    cache: Option<&Cache>,
+    opts: &RunOptions,
     outcomes: &mut [Option<Outcome>],
 ) {
     let n = graph.instances.len();
-    let mut entries: Vec<Option<cache::Entry>> = graph
+    let mut entries: Vec<Option<(Arc<Produced>, Vec<String>)>> = graph
         .instances
         .iter()
         .map(|inst| {
+            if let Some(hit) = opts.memo.as_ref().and_then(|m| m.get(&inst.key)) {
+                return Some(hit.clone());
+            }
             let node = registry.get(&inst.kind).expect("compiled kind");
-            if node.cacheable() { cache.get(&inst.key) } else { None }
+            let cache = cache.filter(|_| node.cacheable())?;
+            cache.get(&inst.key).map(|e| (share(e.outputs), e.warnings))
         })
         .collect();
     let cached: Vec<bool> = entries.iter().map(Option::is_some).collect();
-    let needed = needed(recipe, graph, &cached);
+    let needed = needed_for(recipe, graph, &cached, opts.targets.as_deref());
     for i in 0..n {
         match (needed[i], entries[i].take()) {
-            (true, Some(e)) => outcomes[i] = Some(Outcome::Cached { outputs: share(e.outputs), warnings: e.warnings }),
+            (true, Some((outputs, warnings))) => outcomes[i] = Some(Outcome::Cached { outputs, warnings }),
             (false, e) => outcomes[i] = Some(Outcome::Unneeded { cached: e.is_some() }),
             (true, None) => {}
         }

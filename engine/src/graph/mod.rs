@@ -172,7 +172,7 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                     .iter()
                     .map(|(k, v)| {
                         let mut s = String::new();
-                        v.canonical(&mut s);
+                        v.canonical_with(&mut s, &|k, n| recipe.entity_digest(k, n));
                         (k.clone(), digest(&s))
                     })
                     .collect();

@@ -4,28 +4,34 @@
 //! node kinds with checked parameters, and inputs name existing step outputs.
 
 mod entities;
+mod fit;
+mod params;
 mod resolve;
 
 pub use entities::{
     Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
     fields as entity_fields,
 };
+pub use fit::{FitMethod, FitScale, FitSpec, FreeParam};
+pub use params::{ParamQuantity, Parameter, command_line_span};
 pub use resolve::resolve;
 
 use crate::diag::Span;
-use crate::spec::{ParamValue, Params};
+use crate::spec::{EntityKind, ParamValue, Params};
 use indexmap::IndexMap;
 
 /// The recipe format version this engine reads.
 pub const FORMAT_VERSION: i64 = 1;
 
 /// A resolved recipe: entities, steps and outputs, all checked.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Recipe {
     pub name: String,
     pub description: Option<String>,
     /// Hash of the recipe's meaning (not its layout or comments): blake3 of the canonical raw tree.
     pub hash: String,
+    /// Digest of each entity's contents (see [`Recipe::entity_digest`]).
+    pub entity_digests: IndexMap<(EntityKind, String), String>,
     pub materials: IndexMap<String, Material>,
     pub machines: IndexMap<String, Machine>,
     pub assemblies: IndexMap<String, Assembly>,
@@ -35,11 +41,21 @@ pub struct Recipe {
     pub speeds: Vec<f64>,
     pub steps: Vec<Step>,
     pub outputs: Vec<Output>,
+    /// Declared parameters (`params:`) with the values in force.
+    pub params: IndexMap<String, Parameter>,
+    /// The `fit:` block, when the recipe has one.
+    pub fit: Option<FitSpec>,
 }
 
 impl Recipe {
     pub fn step(&self, id: &str) -> Option<&Step> {
         self.steps.iter().find(|s| s.id == id)
+    }
+
+    /// The digest of an entity's contents (and of the entities it names): cache keys carry
+    /// it beside the entity's name, so editing a material reruns the steps that use it.
+    pub fn entity_digest(&self, kind: EntityKind, name: &str) -> Option<String> {
+        self.entity_digests.get(&(kind, name.to_string())).cloned()
     }
 }
 

@@ -24,6 +24,8 @@ const TOP_KEYS: &[&str] = &[
     "speeds",
     "steps",
     "outputs",
+    "params",
+    "fit",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file"];
@@ -48,9 +50,17 @@ fn unknown_keys(raw: &Raw, known: &[&str], what: &str, diags: &mut Diagnostics) 
     }
 }
 
-/// Resolves a raw recipe against the node registry.
-pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Option<Recipe> {
+/// Resolves a raw recipe against the node registry, with parameters set by `overrides`
+/// (`name`, value text) in place of their declared values.
+pub fn resolve(
+    raw: &Raw,
+    overrides: &[(String, String)],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Option<Recipe> {
     let errors_before = diags.error_count();
+    let (substituted, params) = super::params::substitute(raw, overrides, diags);
+    let raw = &substituted;
     let Some(_) = raw.as_map() else {
         diags.error_help(
             Some(&raw.span),
@@ -143,6 +153,7 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
         .unwrap_or_default();
     let outputs = resolve_outputs(raw.get("outputs"), &steps, &step_names, registry, diags);
     check_cycles(&steps, diags);
+    let fit = raw.get("fit").and_then(|f| super::fit::resolve_fit(f, &params, &steps, registry, diags));
 
     if diags.error_count() > errors_before {
         return None;
@@ -150,10 +161,12 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
     let mut canonical = String::new();
     raw.canonical(&mut canonical);
     let hash = blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string();
+    let entity_digests = entity_digests(&checked);
     Some(Recipe {
         name,
         description,
         hash,
+        entity_digests,
         machines: checked[&EntityKind::Machine]
             .iter()
             .map(|(n, p)| (n.clone(), build_machine(p, &materials)))
@@ -168,7 +181,37 @@ pub fn resolve(raw: &Raw, registry: &Registry, diags: &mut Diagnostics) -> Optio
         speeds,
         steps,
         outputs,
+        params,
+        fit,
     })
+}
+
+/// The digest of every entity's contents, the entities it names included (an assembly's
+/// materials), so a cache key that names an entity changes when its values do.
+fn entity_digests(checked: &IndexMap<EntityKind, IndexMap<String, Params>>) -> IndexMap<(EntityKind, String), String> {
+    fn digest_of(
+        kind: EntityKind,
+        name: &str,
+        checked: &IndexMap<EntityKind, IndexMap<String, Params>>,
+        depth: usize,
+    ) -> Option<String> {
+        let params = checked.get(&kind)?.get(name)?;
+        let mut text = format!("{kind:?}:{name:?}=");
+        // Entities name entities of other kinds only (assemblies and machines name
+        // materials); the depth bound keeps a malformed recipe from recursing.
+        let refs = |k: EntityKind, n: &str| if depth < 4 { digest_of(k, n, checked, depth + 1) } else { None };
+        params.canonical_with(&mut text, &refs);
+        Some(blake3::hash(text.as_bytes()).to_hex()[..16].to_string())
+    }
+    let mut out = IndexMap::new();
+    for (kind, entries) in checked {
+        for name in entries.keys() {
+            if let Some(d) = digest_of(*kind, name, checked, 0) {
+                out.insert((*kind, name.clone()), d);
+            }
+        }
+    }
+    out
 }
 
 /// Rules that cross fields: geometry that cannot exist, coefficient pairs, joints.
@@ -382,7 +425,7 @@ fn build_cutting(p: &Params) -> Cutting {
 }
 
 /// Parses `@step.port` (the `@` may be left out where only a reference makes sense).
-fn parse_port_ref(text: &str) -> Option<PortRef> {
+pub(super) fn parse_port_ref(text: &str) -> Option<PortRef> {
     let t = text.trim().strip_prefix('@').unwrap_or(text.trim());
     let (step, port) = t.split_once('.')?;
     (valid_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })

@@ -78,18 +78,6 @@ pub(crate) mod test_support {
 
     /// A recipe with no entities, steps or outputs, for a node run on its own.
     pub(crate) fn empty_recipe() -> Recipe {
-        Recipe {
-            name: "test".into(),
-            description: None,
-            hash: String::new(),
-            materials: Default::default(),
-            machines: Default::default(),
-            assemblies: Default::default(),
-            sensors: Default::default(),
-            cutting: Default::default(),
-            speeds: Vec::new(),
-            steps: Vec::new(),
-            outputs: Vec::new(),
-        }
+        Recipe { name: "test".into(), ..Recipe::default() }
     }
 }
