@@ -236,7 +236,10 @@ impl ParamValue {
             ParamValue::Object(_) => "{…}".into(),
             ParamValue::Objects(l) => format!("[{} items]", l.len()),
             ParamValue::Map(m) => format!("{{{} keys}}", m.len()),
-            ParamValue::File { path, .. } => path.display().to_string(),
+            // The file's name: sweep labels over measured files stay short.
+            ParamValue::File { path, .. } => {
+                path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+            }
         }
     }
 }

@@ -5,6 +5,7 @@
 
 mod entities;
 mod fit;
+mod measurements;
 mod params;
 mod resolve;
 

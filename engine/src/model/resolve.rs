@@ -26,6 +26,7 @@ const TOP_KEYS: &[&str] = &[
     "outputs",
     "params",
     "fit",
+    "measurements",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file"];
@@ -60,7 +61,9 @@ pub fn resolve(
 ) -> Option<Recipe> {
     let errors_before = diags.error_count();
     let (substituted, params) = super::params::substitute(raw, overrides, diags);
-    let raw = &substituted;
+    let base_dir = std::path::Path::new(&*raw.span.file).parent().map(std::path::Path::to_path_buf);
+    let desugared = super::measurements::desugar(&substituted, base_dir.as_deref(), diags);
+    let raw = &desugared;
     let Some(_) = raw.as_map() else {
         diags.error_help(
             Some(&raw.span),

@@ -7,7 +7,9 @@
 use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{PortType, Value};
+use spindlelab_engine::value::{PortType, UnitLabel, Value};
+use spindlelab_grammar::{Dimension as D, parse_unit};
+use std::f64::consts::TAU;
 use std::path::Path;
 
 const FORMATS: &[&str] = &["auto", "csv", "uff"];
@@ -119,7 +121,7 @@ impl ReadFrf {
         ReadFrf {
             spec: NodeSpec {
                 kind: "read.frf",
-                version: 1,
+                version: 2,
                 description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4); units to SI.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF, frequencies in Hz, values in SI units")],
@@ -132,6 +134,16 @@ impl ReadFrf {
                         T::Choice(&["x", "y", "z"]),
                         "UFF: take the FRF whose response is in this direction; CSV: the direction of a file without `# direction`",
                     ),
+                    Field::opt(
+                        "speed",
+                        T::Quantity(D::ROTATIONAL_SPEED),
+                        "the spindle speed of the measurement: fills a file without one, and must agree with a file that states it",
+                    ),
+                    Field::opt(
+                        "units",
+                        T::Text,
+                        "the unit of the file's values (`m/N`, `um/N`, `m/s^2/N`): a file without `# units:` is read in it, one whose units are of another kind is refused",
+                    ),
                 ],
             },
         }
@@ -143,6 +155,13 @@ impl Node for ReadFrf {
         &self.spec
     }
 
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        if let Some(u) = p.text("units") {
+            parse_unit(u).map_err(|e| NodeError::param("units", format!("`{u}` is not a unit: {e}")))?;
+        }
+        super::non_negative(p, &["speed"])
+    }
+
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let (path, format) = source(ctx.params)?;
         let select =
@@ -151,7 +170,41 @@ impl Node for ReadFrf {
         for note in loaded.notes {
             ctx.warn(note);
         }
-        Ok([("frf".to_string(), Value::Frf(loaded.value))].into_iter().collect())
+        let mut frf = loaded.value;
+        let shown = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        if let Some(w) = ctx.params.f64("speed") {
+            let rpm = w * 60.0 / TAU;
+            match frf.speed_rpm {
+                Some(s) if (s - rpm).abs() > 1e-6 * rpm.abs().max(1.0) => {
+                    return Err(NodeError::param(
+                        "speed",
+                        format!("{shown} was measured at {s} rpm (its `# speed_rpm`), the recipe says {rpm} rpm"),
+                    ));
+                }
+                Some(_) => {}
+                None => frf.speed_rpm = Some(rpm),
+            }
+        }
+        if let Some(u) = ctx.params.text("units") {
+            let want = parse_unit(u).map_err(|e| NodeError::param("units", e.to_string()))?;
+            match parse_unit(&frf.unit.symbol).ok().filter(|_| !frf.unit.symbol.trim().is_empty()) {
+                Some(have) if have.dim != want.dim => {
+                    return Err(NodeError::param(
+                        "units",
+                        format!(
+                            "{shown} holds values in {} (its `# units:`), the recipe says `{u}`, a different kind of FRF; state the file's own units, or convert the file",
+                            frf.unit.symbol
+                        ),
+                    ));
+                }
+                Some(_) => {}
+                None => {
+                    frf.values.iter_mut().for_each(|v| *v *= want.scale);
+                    frf.unit = UnitLabel::new(want.dim.si_unit());
+                }
+            }
+        }
+        Ok([("frf".to_string(), Value::Frf(frf))].into_iter().collect())
     }
 }
 

@@ -565,14 +565,22 @@ impl SpindleReceptance {
     pub fn new() -> Self {
         let mut params = vec![
             Field::req("machine", T::Entity(EntityKind::Machine), "a machine with a `spindle` model"),
-            Field::def("direction", T::Choice(&["x", "y"]), "x", "which direction's modes"),
-            Field::def("speed", T::Quantity(D::ROTATIONAL_SPEED), "0 rpm", "spindle speed for the speed laws"),
+            Field::opt(
+                "direction",
+                T::Choice(&["x", "y"]),
+                "which direction's modes; default: the `grid` FRF's direction, else x",
+            ),
+            Field::opt(
+                "speed",
+                T::Quantity(D::ROTATIONAL_SPEED),
+                "spindle speed for the speed laws; default: the `grid` FRF's speed, else 0 rpm",
+            ),
         ];
         params.extend(grid_params());
         SpindleReceptance {
             spec: NodeSpec {
                 kind: "spindle.receptance",
-                version: 1,
+                version: 2,
                 description: "Spindle-machine receptances at the holder base as the sum of equivalent fixed-free Euler-Bernoulli modes (Eqs. 5.5-5.7, 5.10-5.12) at a speed.",
                 inputs: vec![grid_port()],
                 outputs: vec![
@@ -611,7 +619,13 @@ impl Node for SpindleReceptance {
                 ),
             ));
         };
-        let dir = p.text("direction").unwrap_or("x");
+        // Direction and speed default to those of the measurement the model is evaluated
+        // for, so one step serves every file of a measurement set.
+        let measured = match ctx.inputs_of("grid").first().map(|l| l.value.as_ref()) {
+            Some(Value::Frf(f)) => Some(f),
+            _ => None,
+        };
+        let dir = p.text("direction").or_else(|| measured.and_then(|f| f.direction.as_deref())).unwrap_or("x");
         let Some((_, modes)) = spindle.modes.iter().find(|(d, _)| d == dir) else {
             let have: Vec<&str> = spindle.modes.iter().map(|(d, _)| d.as_str()).collect();
             return Err(NodeError::param(
@@ -627,7 +641,11 @@ impl Node for SpindleReceptance {
         }
         let freqs = grid(ctx)?;
         let rpm = |w: f64| w * 60.0 / TAU;
-        let speed = rpm(p.f64("speed").unwrap_or(0.0));
+        let speed = match (p.f64("speed"), measured.and_then(|f| f.speed_rpm)) {
+            (Some(w), _) => rpm(w),
+            (None, Some(s)) => s,
+            (None, None) => 0.0,
+        };
         let eq: Vec<EquivalentMode> = modes
             .iter()
             .map(|m| EquivalentMode { f_hz: m.freq_hz, d_m: m.diameter, eta: m.loss_factor, kf: m.kf, keta: m.keta })
