@@ -4,6 +4,7 @@
 //! run summary that the CLI prints and the snapshot tests record.
 
 pub mod fit;
+pub mod import;
 pub mod summary;
 
 pub use spindlelab_engine as engine;

@@ -81,6 +81,15 @@ enum Command {
     },
     /// Print the JSON Schema of the YAML recipe (for editors with a YAML language server).
     Schema,
+    /// Write the recipe of a baseline case file (`case.json`): entities, the measured files
+    /// as a measurement set, the measured and the cutting configuration.
+    Import {
+        /// The case file.
+        case: PathBuf,
+        /// Where to write the recipe (default: print it). Put it beside the case's data files.
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -196,6 +205,38 @@ fn main() -> ExitCode {
                     .unwrap_or_default();
                 eprintln!("error: unknown node kind `{k}`{hint}");
                 return ExitCode::from(EXIT_BAD_INPUT);
+            }
+            ExitCode::SUCCESS
+        }
+        Command::Import { case, out } => {
+            let shown = case.display().to_string();
+            let text = match std::fs::read_to_string(&case) {
+                Ok(t) => t,
+                Err(e) => {
+                    eprintln!("error: cannot read {shown}: {e}");
+                    return ExitCode::from(EXIT_BAD_INPUT);
+                }
+            };
+            let recipe = match spindlelab::import::recipe_from_case(&text, &shown) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(EXIT_BAD_INPUT);
+                }
+            };
+            match out {
+                None => print!("{recipe}"),
+                Some(path) => {
+                    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+                    let written = tempfile::NamedTempFile::new_in(dir).and_then(|mut tmp| {
+                        std::io::Write::write_all(&mut tmp, recipe.as_bytes())?;
+                        tmp.persist(&path).map(|_| ()).map_err(|e| e.error)
+                    });
+                    if let Err(e) = written {
+                        eprintln!("error: cannot write {}: {e}", path.display());
+                        return ExitCode::from(EXIT_FAILURE);
+                    }
+                }
             }
             ExitCode::SUCCESS
         }

@@ -2,6 +2,8 @@
 //! port, and run the binary on a bad fixture of `tests/bad/`.
 #![allow(dead_code)] // each test crate uses a different part
 
+pub mod case;
+
 use spindlelab::engine::exec::RunOptions;
 use spindlelab::engine::value::{Lobes, ReceptanceSet, Scalar, Table, Value};
 use spindlelab::engine::{self, Compiled};

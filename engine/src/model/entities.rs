@@ -13,7 +13,11 @@ const RATIO: T = T::Quantity(D::DIMENSIONLESS);
 pub const MATERIAL: &[Field] = &[
     Field::req("E", T::Quantity(D::PRESSURE), "Young's modulus"),
     Field::req("rho", T::Quantity(D::DENSITY), "density"),
-    Field::req("nu", RATIO, "Poisson's ratio"),
+    Field::opt(
+        "nu",
+        RATIO,
+        "Poisson's ratio: needed by Timoshenko sections (shear) and by contact; Euler–Bernoulli spindle modes do without",
+    ),
     Field::def("eta", RATIO, "0", "structural loss factor of the complex modulus E(1 + i eta)"),
 ];
 

@@ -149,6 +149,7 @@ pub fn resolve(
     };
 
     let steps = resolve_steps(raw.get("steps"), &raw.span, registry, &ctx, diags);
+    check_poisson(raw, &checked, &materials, &steps, diags);
     let step_names: Vec<String> = raw
         .get("steps")
         .and_then(Raw::as_map)
@@ -217,11 +218,59 @@ fn entity_digests(checked: &IndexMap<EntityKind, IndexMap<String, Params>>) -> I
     out
 }
 
+/// Poisson's ratio may be left out of a material only where nothing uses it: Timoshenko
+/// sections need it for the shear modulus, and steps that name a material (contact) too.
+fn check_poisson(
+    raw: &Raw,
+    checked: &IndexMap<EntityKind, IndexMap<String, Params>>,
+    materials: &IndexMap<String, Material>,
+    steps: &[Step],
+    diags: &mut Diagnostics,
+) {
+    let lacks = |name: &str| materials.get(name).is_some_and(|m| m.poisson.is_nan());
+    let at = |name: &str| raw.get("materials").and_then(|m| m.get(name)).map(|v| v.span.clone());
+    let mut reported: Vec<String> = Vec::new();
+    for (aname, p) in &checked[&EntityKind::Assembly] {
+        for s in p.objects("sections").unwrap_or(&[]) {
+            for key in ["outer", "inner"] {
+                if let Some(m) = s.text(key)
+                    && lacks(m)
+                    && !reported.iter().any(|r| r == m)
+                {
+                    reported.push(m.to_string());
+                    diags.error_help(
+                        at(m).as_ref(),
+                        format!("material `{m}` has no `nu`, which the Timoshenko sections of assembly `{aname}` need for their shear stiffness"),
+                        "add Poisson's ratio, e.g. `nu: 0.29` for steel",
+                    );
+                }
+            }
+        }
+    }
+    for step in steps {
+        for (k, v) in &step.params.values {
+            if let ParamValue::Entity { kind: EntityKind::Material, name } = v
+                && lacks(name)
+            {
+                diags.error_help(
+                    step.param_spans.get(k).or(at(name).as_ref()),
+                    format!("step `{}` uses material `{name}` for contact, and it has no `nu`", step.id),
+                    format!("add Poisson's ratio to material `{name}`, e.g. `nu: 0.29` for steel"),
+                );
+            }
+        }
+    }
+}
+
 /// Rules that cross fields: geometry that cannot exist, coefficient pairs, joints.
 fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags: &mut Diagnostics) {
     match kind {
         EntityKind::Material => {
             for (f, lo, hi) in [("E", 0.0, f64::INFINITY), ("rho", 0.0, f64::INFINITY), ("nu", -1.0, 0.5)] {
+                // Poisson's ratio may be left out; what needs it says so.
+                if f == "nu" && p.get(f).is_none() {
+                    continue;
+                }
                 let v = p.f64(f).unwrap_or(f64::NAN);
                 if !(v > lo && v < hi) {
                     let at = raw.get(f).map(|r| r.span.clone());
