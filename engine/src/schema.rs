@@ -115,6 +115,19 @@ pub fn recipe_schema(registry: &Registry) -> Value {
         json!({"type": "object", "description": "named values (`kt: 2e8 N/m`) used as `$kt`; `--set kt=…` and fits vary them",
             "additionalProperties": {"anyOf": [{"type": "number"}, {"type": "string"}]}}),
     );
+    props.insert(
+        "measurements".into(),
+        json!({"type": "object", "description": "measured FRF files, each set read by a `read.frf` step of its name, one instance per file",
+            "additionalProperties": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}},
+                {"type": "object", "required": ["files"], "additionalProperties": false, "properties": {
+                    "files": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}],
+                        "description": "file names or globs, relative to the recipe's folder"},
+                    "format": {"enum": ["auto", "csv", "uff"]},
+                    "direction": {"enum": ["x", "y", "z"]},
+                    "speed": {"type": "string"},
+                    "units": {"type": "string"},
+                    "description": {"type": "string"}}}]}}),
+    );
     let bound = json!({"anyOf": [{"type": "number"}, {"type": "string"}]});
     props.insert(
         "fit".into(),
