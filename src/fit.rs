@@ -192,9 +192,14 @@ pub fn fit(
     }
     let opts =
         SearchOptions { max_evaluations: spec.max_evaluations.saturating_sub(1).max(1), tolerance: spec.tolerance };
-    let result: Option<SearchResult> = match spec.method {
-        FitMethod::LeastSquares => optimize::levenberg_marquardt(&mut evaluate, &z0, opts),
-        FitMethod::NelderMead => optimize::nelder_mead(&mut evaluate, &z0, opts),
+    let local = match spec.method {
+        FitMethod::LeastSquares => optimize::levenberg_marquardt,
+        FitMethod::NelderMead => optimize::nelder_mead,
+    };
+    let result: Option<SearchResult> = if spec.starts == 0 {
+        local(&mut evaluate, &z0, opts)
+    } else {
+        optimize::multistart(&mut evaluate, &z0, spec.starts, 3, opts, local)
     };
     let result = result.ok_or_else(|| FitError::Start(last_failure.borrow().clone().unwrap_or_default()))?;
     let sigmas = result.jacobian.as_ref().and_then(|j| optimize::coordinate_sigmas(j, result.cost));

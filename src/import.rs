@@ -332,10 +332,20 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         let _ = writeln!(w, "  measured_model:");
         let _ = writeln!(w, "    kind: rcsa.couple");
         if sensor.is_some() {
-            let _ = writeln!(w, "    params: {{ sensor: sensor }}   # the sensor's mass sits on the tool tip");
+            let _ = writeln!(
+                w,
+                "    params: {{ interface: machine, machine: test_spindle, sensor: sensor }}   # the sensor's mass sits on the tool tip"
+            );
+        } else {
+            let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
         }
         let _ =
             writeln!(w, "    inputs: {{ spindle: \"@spindle.receptance\", structure: \"@holder_tool_model.model\" }}");
+        let _ =
+            writeln!(w, "  # Model against measurement, in units of the measurement's noise (about 1 at the floor).");
+        let _ = writeln!(w, "  gap:");
+        let _ = writeln!(w, "    kind: frf.gap");
+        let _ = writeln!(w, "    inputs: {{ model: \"@measured_model.frf\", measured: \"@tool_tip.frf\" }}");
     }
     if let Some(c) = cutting {
         let mut speeds: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
@@ -346,7 +356,13 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         speeds.dedup();
         let lo = speeds.first().copied().unwrap_or(0.0);
         let hi = speeds.last().copied().unwrap_or(0.0);
-        let step = ((hi - lo) / 24.0).max(1.0).round();
+        // A round step giving at most 40 speeds, the span widened to whole steps so the
+        // ends of the trials' range are on the grid.
+        let step = [100.0, 250.0, 500.0, 1000.0, 2000.0, 2500.0, 5000.0, 10_000.0]
+            .into_iter()
+            .find(|s| (hi - lo) / s <= 40.0)
+            .unwrap_or(((hi - lo) / 40.0).ceil());
+        let (lo, hi) = ((lo / step).floor() * step, (hi / step).ceil() * step);
         let _ = writeln!(w);
         let _ = writeln!(w, "  # Cutting configuration: no sensor; x and y over the speeds of the trials.");
         let _ = writeln!(w, "  spindle_cutting:");
@@ -357,13 +373,21 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         let _ = writeln!(w, "      speed: {}..{} step {} rpm", num(lo), num(hi), num(step));
         let _ = writeln!(w, "  cutting_model:");
         let _ = writeln!(w, "    kind: rcsa.couple");
+        let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
         let _ = writeln!(
             w,
             "    inputs: {{ spindle: \"@spindle_cutting.receptance\", structure: \"@holder_tool_model.model\" }}"
         );
         let _ = writeln!(w, "  lobes:");
         let _ = writeln!(w, "    kind: stability.speed_dependent");
-        let _ = writeln!(w, "    params: {{ cutting: trials }}");
+        match c.trial_rpm_range {
+            Some([a, b]) => {
+                let _ = writeln!(w, "    params: {{ cutting: trials, speeds: {}..{} step 5 rpm }}", num(a), num(b));
+            }
+            None => {
+                let _ = writeln!(w, "    params: {{ cutting: trials }}");
+            }
+        }
         let _ = writeln!(w, "    inputs: {{ frfs: \"@cutting_model.frf\" }}");
         if let Some(t) = meas.and_then(|m| m.trials.as_deref()) {
             let _ = writeln!(w, "  trials:");

@@ -11,6 +11,7 @@ pub mod eb_modes;
 pub mod error_motion;
 pub mod filter;
 pub mod frf;
+pub mod gap;
 pub mod impact;
 pub mod modal_fit;
 pub mod nodes;
@@ -59,4 +60,9 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));
     registry.register(Arc::new(nodes::ModalModelNode::new()));
+    registry.register(Arc::new(nodes::FrfGap::new()));
+    registry.register(Arc::new(nodes::SubstructureJoint::new()));
+    registry.register(Arc::new(nodes::ReceptanceTipMass::new()));
+    registry.register(Arc::new(nodes::FrfPhaseSlope::new()));
+    registry.register(Arc::new(nodes::FrfAddMode::new()));
 }

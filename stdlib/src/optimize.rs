@@ -204,6 +204,76 @@ pub fn nelder_mead(f: &mut Residuals<'_>, z0: &[f64], opts: SearchOptions) -> Op
     Some(SearchResult { z, residuals, cost, start_cost, evaluations, converged, jacobian: None })
 }
 
+/// The `k`-th point (from 1) of the Halton sequence in `n` dimensions: a deterministic,
+/// evenly spread sample of the unit box.
+pub fn halton(k: usize, n: usize) -> Vec<f64> {
+    const PRIMES: [usize; 16] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
+    (0..n)
+        .map(|d| {
+            let b = PRIMES[d % PRIMES.len()];
+            let (mut f, mut r, mut i) = (1.0, 0.0, k);
+            while i > 0 {
+                f /= b as f64;
+                r += f * (i % b) as f64;
+                i /= b;
+            }
+            r
+        })
+        .collect()
+}
+
+/// A global search for residuals with several basins (a resonance that must move onto the
+/// measured one): the start point and `samples` Halton points of the box are evaluated,
+/// then `local` runs from the best `runs` of them, each with an equal share of what is left
+/// of the budget, until two runs end on the same minimum. The best end point wins.
+pub fn multistart(
+    f: &mut Residuals<'_>,
+    z0: &[f64],
+    samples: usize,
+    runs: usize,
+    opts: SearchOptions,
+    local: fn(&mut Residuals<'_>, &[f64], SearchOptions) -> Option<SearchResult>,
+) -> Option<SearchResult> {
+    let n = z0.len();
+    let mut scored: Vec<(f64, Vec<f64>)> = Vec::with_capacity(samples + 1);
+    let mut used = 0usize;
+    let mut start_cost = f64::INFINITY;
+    for k in 0..=samples {
+        let z = if k == 0 { z0.to_vec() } else { halton(k, n) };
+        used += 1;
+        let c = f(&z).map_or(f64::INFINITY, |r| sum_sq(&r));
+        if k == 0 {
+            start_cost = c;
+        }
+        if c.is_finite() {
+            scored.push((c, z));
+        }
+    }
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let runs = runs.clamp(1, scored.len().max(1));
+    let mut best: Option<SearchResult> = None;
+    for (i, (_, z)) in scored.iter().take(runs).enumerate() {
+        // What an earlier run did not use passes on to the later ones.
+        let share = opts.max_evaluations.saturating_sub(used) / (runs - i);
+        let Some(mut r) = local(f, z, SearchOptions { max_evaluations: share.max(n + 2), ..opts }) else { continue };
+        used += r.evaluations;
+        // Two runs from different starts ending on one minimum: that basin is the deepest
+        // the samples found, and further runs would only repeat it.
+        let agrees = best.as_ref().is_some_and(|b| (r.cost - b.cost).abs() <= 1e-6 * b.cost.max(f64::MIN_POSITIVE));
+        if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+            r.start_cost = start_cost;
+            best = Some(r);
+        }
+        if agrees {
+            break;
+        }
+    }
+    best.map(|mut b| {
+        b.evaluations = used;
+        b
+    })
+}
+
 /// Standard deviations of the unit coordinates from the Jacobian at the optimum:
 /// `cov = s² (JᵀJ)⁻¹` with `s² = cost / (m − n)`, the residual variance. `None` when `JᵀJ`
 /// is singular (a parameter the data do not determine).
@@ -221,6 +291,7 @@ pub fn coordinate_sigmas(jacobian: &Mat<f64>, cost: f64) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use num_complex::Complex64;
 
     /// A decaying exponential `a exp(-b t)` sampled at 40 points, parameters mapped from
     /// the unit box: a ∈ [0, 10], b ∈ [0, 5].
@@ -262,6 +333,30 @@ mod tests {
         let opts = SearchOptions { max_evaluations: 200, tolerance: 1e-12 };
         let r = levenberg_marquardt(&mut f, &[0.5, 0.5], opts).unwrap();
         assert!(r.z[0] <= 1.0 && r.z[0] > 0.99, "{:?}", r.z);
+    }
+
+    #[test]
+    fn multistart_leaves_a_local_minimum_that_traps_a_local_search() {
+        // A resonance at f0 = 200 + 800 z Hz compared with one at 700 Hz: from z = 0.05 the
+        // residual is flat (the peaks do not overlap), so a local search stays put.
+        let model = |z: f64, f: f64| 1.0 / Complex64::new(1.0 - (f / (200.0 + 800.0 * z)).powi(2), 0.02 * f / 700.0);
+        let mut f = |z: &[f64]| -> Option<Vec<f64>> {
+            Some(
+                (0..400)
+                    .flat_map(|k| {
+                        let fr = 100.0 + 2.5 * k as f64;
+                        let d = model(z[0], fr) - model(0.625, fr);
+                        [d.re, d.im]
+                    })
+                    .collect(),
+            )
+        };
+        let opts = SearchOptions { max_evaluations: 300, tolerance: 1e-12 };
+        let local = levenberg_marquardt(&mut f, &[0.05], opts).unwrap();
+        assert!((local.z[0] - 0.625).abs() > 0.05, "the local search should be trapped: {:?}", local.z);
+        let global = multistart(&mut f, &[0.05], 20, 3, opts, levenberg_marquardt).unwrap();
+        assert!((global.z[0] - 0.625).abs() < 1e-6, "{:?}", global.z);
+        assert!(global.evaluations <= 300 + 3 * 3);
     }
 
     #[test]

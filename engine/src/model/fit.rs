@@ -12,7 +12,7 @@ use crate::value::PortType;
 use indexmap::IndexMap;
 use spindlelab_grammar::parse_quantity;
 
-const FIT_KEYS: &[&str] = &["free", "objective", "method", "max_evaluations", "tolerance"];
+const FIT_KEYS: &[&str] = &["free", "objective", "method", "max_evaluations", "tolerance", "starts"];
 const FREE_KEYS: &[&str] = &["min", "max", "scale"];
 
 /// How a fit searches.
@@ -54,6 +54,10 @@ pub struct FitSpec {
     pub max_evaluations: usize,
     /// Relative decrease of the objective below which the search stops.
     pub tolerance: f64,
+    /// Points of the bounds box sampled before the search, which then starts from the best
+    /// few (residuals of resonant models have several basins); 0 searches from the start
+    /// values only. Default: 16 per free parameter.
+    pub starts: usize,
     pub span: Span,
 }
 
@@ -143,11 +147,11 @@ pub fn resolve_fit(
         },
     };
     let max_evaluations = match raw.get("max_evaluations") {
-        None => 400,
+        None => 200 * free.len().max(1),
         Some(Raw { kind: RawKind::Int(n), .. }) if (1..=100_000).contains(n) => *n as usize,
         Some(v) => {
             diags.error_help(Some(&v.span), "`max_evaluations` must be a whole number", "between 1 and 100000");
-            400
+            0
         }
     };
     let tolerance = match raw.get("tolerance") {
@@ -160,12 +164,21 @@ pub fn resolve_fit(
             }
         },
     };
+    let starts = match raw.get("starts") {
+        None => 16 * free.len(),
+        Some(Raw { kind: RawKind::Int(n), .. }) if (0..=10_000).contains(n) => *n as usize,
+        Some(v) => {
+            diags.error_help(Some(&v.span), "`starts` must be a whole number", "between 0 (no sampling) and 10000");
+            0
+        }
+    };
     (diags.error_count() == before).then(|| FitSpec {
         free,
         objective,
         method,
         max_evaluations,
         tolerance,
+        starts,
         span: raw.span.clone(),
     })
 }

@@ -148,14 +148,14 @@ fn block(m: &beam::Receptance) -> Receptance {
     Receptance::new(m[0][0], m[0][1], m[1][0], m[1][1])
 }
 
-fn to_frf(s: &ReceptanceSet) -> ReceptanceFrf {
+pub(super) fn to_frf(s: &ReceptanceSet) -> ReceptanceFrf {
     ReceptanceFrf {
         freqs_hz: s.freq_hz.clone(),
         lines: (0..s.freq_hz.len()).map(|i| Receptance::new(s.h[i], s.l[i], s.n[i], s.p[i])).collect(),
     }
 }
 
-fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Option<f64>) -> ReceptanceSet {
+pub(super) fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Option<f64>) -> ReceptanceSet {
     ReceptanceSet {
         freq_hz: f.freqs_hz.clone(),
         h: f.lines.iter().map(|r| r.h).collect(),
@@ -168,7 +168,7 @@ fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Option<f64>) 
 }
 
 /// The direct receptance `H` of a set as an FRF (m/N), direction and speed carried.
-fn h_of(s: &ReceptanceSet) -> Frf {
+pub(super) fn h_of(s: &ReceptanceSet) -> Frf {
     Frf {
         freq_hz: s.freq_hz.clone(),
         values: s.h.clone(),
@@ -180,7 +180,7 @@ fn h_of(s: &ReceptanceSet) -> Frf {
     }
 }
 
-fn outputs(items: Vec<(&str, Value)>) -> Outputs {
+pub(super) fn outputs(items: Vec<(&str, Value)>) -> Outputs {
     items.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
@@ -283,9 +283,15 @@ type Parts<'a> = (Vec<(&'static str, &'a [Section])>, Option<[f64; 4]>);
 
 /// The free–free parts of an assembly: the whole of it when its `tool_joint` is rigid; otherwise
 /// the holder (with the inserted shank) and the protruding tool, with the joint between them.
-fn assembly_parts<'a>(a: &'a spindlelab_engine::model::Assembly, name: &str) -> Result<Parts<'a>, NodeError> {
+/// With `split`, a rigidly joined assembly is split too (no joint between the parts), so a
+/// joint can be put there later (`substructure.joint`) without reducing the parts again.
+fn assembly_parts<'a>(
+    a: &'a spindlelab_engine::model::Assembly,
+    name: &str,
+    split: bool,
+) -> Result<Parts<'a>, NodeError> {
     let joint = match a.tool_joint {
-        Joint::Rigid => return Ok((vec![("whole", &a.sections[..])], None)),
+        Joint::Rigid if !split => return Ok((vec![("whole", &a.sections[..])], None)),
         joint => joint,
     };
     let split = a.sections.iter().position(|s| s.component == Component::Tool).unwrap_or(a.sections.len());
@@ -310,7 +316,9 @@ fn assembly_parts<'a>(a: &'a spindlelab_engine::model::Assembly, name: &str) -> 
     }
     // Checks that both stiffnesses are given.
     interface_of(&joint, "assembly", &format!("the `tool_joint` of assembly `{name}`"))?;
-    let Joint::Compliant { kt, ct, kr, cr } = joint else { return Ok((vec![("whole", &a.sections[..])], None)) };
+    let Joint::Compliant { kt, ct, kr, cr } = joint else {
+        return Ok((vec![("holder", holder), ("tool", tool)], None));
+    };
     Ok((vec![("holder", holder), ("tool", tool)], Some([kt, ct, kr, cr])))
 }
 
@@ -751,7 +759,7 @@ impl Node for RcsaCouple {
                     )
                 })?;
                 let a = assembly(ctx, "assembly")?;
-                let (parts, joint) = assembly_parts(a, name)?;
+                let (parts, joint) = assembly_parts(a, name, false)?;
                 let mesh = mesh(ctx.params);
                 let ports = parts
                     .iter()
@@ -764,11 +772,15 @@ impl Node for RcsaCouple {
             ([whole], _) => {
                 rcsa::couple(whole, &base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?
             }
-            ([holder, tool], Some([kt, ct, kr, cr])) => {
-                rcsa::couple_chain(&base, &[(holder, interface), (tool, Interface::diagonal(kt, ct, kr, cr))], &opts)
+            ([holder, tool], joint) => {
+                let at_tool = match joint {
+                    Some([kt, ct, kr, cr]) => Interface::diagonal(kt, ct, kr, cr),
+                    None => Interface::Rigid,
+                };
+                rcsa::couple_chain(&base, &[(holder, interface), (tool, at_tool)], &opts)
                     .map_err(|e| rcsa_error("spindle", e, hint))?
             }
-            _ => return Err(NodeError::input("structure", "a substructure has one part, or two with a tool joint")),
+            _ => return Err(NodeError::input("structure", "a substructure has one part, or two (holder and tool)")),
         };
         if tip_mass > 0.0 {
             g = rcsa::with_point_mass(&g, tip_mass).map_err(|e| {
@@ -796,16 +808,24 @@ impl Default for BeamSubstructure {
 
 impl BeamSubstructure {
     pub fn new() -> Self {
-        let mut params = vec![Field::req(
-            "assembly",
-            T::Entity(EntityKind::Assembly),
-            "holder and tool sections; a compliant `tool_joint` splits it into holder and tool",
-        )];
+        let mut params = vec![
+            Field::req(
+                "assembly",
+                T::Entity(EntityKind::Assembly),
+                "holder and tool sections; a compliant `tool_joint` splits it into holder and tool",
+            ),
+            Field::def(
+                "split",
+                T::Choice(&["auto", "holder_face"]),
+                "auto",
+                "`holder_face`: reduce holder and tool separately even with a rigid tool joint, so `substructure.joint` can put a joint there; `auto`: split only at a compliant `tool_joint`",
+            ),
+        ];
         params.extend(mesh_params());
         BeamSubstructure {
             spec: NodeSpec {
                 kind: "beam.substructure",
-                version: 1,
+                version: 2,
                 description: "Free-free Timoshenko FE model of an assembly (§5.4) with structural damping, reduced to its tip and spindle end: every complex mode, computed once and coupled by rcsa.couple at every speed, direction and joint setting.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new(
@@ -831,7 +851,7 @@ impl Node for BeamSubstructure {
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let name = ctx.params.text("assembly").unwrap_or("");
         let a = assembly(ctx, "assembly")?;
-        let (parts, tool_joint) = assembly_parts(a, name)?;
+        let (parts, tool_joint) = assembly_parts(a, name, ctx.params.text("split") == Some("holder_face"))?;
         let mesh = mesh(ctx.params);
         let parts =
             parts.iter().map(|(part, sections)| reduce_part(part, sections, &mesh)).collect::<Result<Vec<_>, _>>()?;

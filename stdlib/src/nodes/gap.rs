@@ -1,0 +1,250 @@
+//! `frf.gap`: a model's FRF against a measured one, in units of the measurement's noise.
+
+use crate::gap::{self, NoiseModel};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::value::{Column, Frf, PortType, Scalar, Table, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
+pub struct FrfGap {
+    spec: NodeSpec,
+}
+
+impl Default for FrfGap {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrfGap {
+    pub fn new() -> Self {
+        FrfGap {
+            spec: NodeSpec {
+                kind: "frf.gap",
+                version: 1,
+                description: "The gap between a model FRF and a measured one: relative complex L2, the noise floor (from the coherence or a declared noise model) and their ratio (about 1 for a model that explains the data), peak-frequency error, where the discrepancy is largest, a per-band table, and the noise-weighted residual a fit minimises.",
+                inputs: vec![
+                    PortSpec::new(
+                        "model",
+                        PortType::Frf,
+                        "the prediction, on the measured lines (connect the measurement as the model's `grid`)",
+                    ),
+                    PortSpec::new(
+                        "measured",
+                        PortType::Frf,
+                        "the measurement, with coherence unless the noise is declared",
+                    ),
+                ],
+                outputs: vec![
+                    PortSpec::new("ratio", PortType::Scalar, "rel_l2 / noise_floor: about 1 at the noise floor"),
+                    PortSpec::new(
+                        "summary",
+                        PortType::Table,
+                        "one row: rel_l2, noise_floor, ratio, peak_hz_model, peak_hz_measured, peak_freq_error, max_discrepancy_hz, max_discrepancy_rel, lines, speed (rpm), direction (0 x, 1 y, 2 z, −1 unknown)",
+                    ),
+                    PortSpec::new("bands", PortType::Table, "per band: lo, hi (Hz), rel_l2, noise_floor, ratio, lines"),
+                    PortSpec::new(
+                        "residual",
+                        PortType::Frf,
+                        "(H_model − H_meas)/(noise_floor·‖H_meas‖) on the compared lines: Σ|r|² = ratio², the objective of a fit",
+                    ),
+                ],
+                params: vec![
+                    Field::opt(
+                        "band",
+                        T::QuantityList(D::FREQUENCY),
+                        "[low, high] Hz to compare (default: every measured line the model covers)",
+                    ),
+                    Field::def(
+                        "noise",
+                        T::Choice(&["coherence", "declared"]),
+                        "coherence",
+                        "where the noise of each line comes from: the measured coherence γ (σ² = |H|²(1/γ − 1)/20), or `sigma_rel`, `floor_rel` and `rolloff`",
+                    ),
+                    Field::opt(
+                        "sigma_rel",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "declared noise: relative noise of each line (e.g. 1.5 %)",
+                    ),
+                    Field::opt(
+                        "floor_rel",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "declared noise: absolute floor as a fraction of max|H|",
+                    ),
+                    Field::opt(
+                        "rolloff",
+                        T::Quantity(D::FREQUENCY),
+                        "declared noise: the floor rises as √(1 + (f/rolloff)⁴) beyond the excitation's roll-off",
+                    ),
+                    Field::def(
+                        "bands",
+                        T::Integer { min: 1, max: 1000 },
+                        "10",
+                        "number of equal-width bands in the `bands` table",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+fn declared(p: &Params) -> Result<Option<NoiseModel>, NodeError> {
+    if p.text("noise") != Some("declared") {
+        return Ok(None);
+    }
+    let need = |name: &str| {
+        p.f64(name)
+            .ok_or_else(|| NodeError::param(name, "`noise: declared` needs `sigma_rel`, `floor_rel` and `rolloff`"))
+    };
+    let (sigma_rel, floor_rel, rolloff_hz) = (need("sigma_rel")?, need("floor_rel")?, need("rolloff")?);
+    Ok(Some(NoiseModel::Declared { sigma_rel, floor_rel, rolloff_hz }))
+}
+
+impl Node for FrfGap {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        declared(p)?;
+        super::non_negative(p, &["sigma_rel", "floor_rel"])?;
+        super::positive(p, &["rolloff"])?;
+        if let Some(b) = p.list("band")
+            && (b.len() != 2 || b[0] >= b[1])
+        {
+            return Err(NodeError::param("band", "give `[low, high]` with low below high"));
+        }
+        Ok(())
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let (Value::Frf(model), Value::Frf(meas)) = (ctx.input("model")?, ctx.input("measured")?) else {
+            return Err(NodeError::input("model", "expected FRFs"));
+        };
+        let noise = declared(ctx.params)?.unwrap_or(NoiseModel::Coherence);
+        let (lo, hi) = match ctx.params.list("band") {
+            Some([a, b]) => (*a, *b),
+            _ => (f64::NEG_INFINITY, f64::INFINITY),
+        };
+        let (m_lo, m_hi) = match (model.freq_hz.first(), model.freq_hz.last()) {
+            (Some(a), Some(b)) => (*a, *b),
+            _ => return Err(NodeError::input("model", "the model has no lines")),
+        };
+        // Pair each measured line in the band with the model's line at the same frequency.
+        let (mut f, mut hm, mut hx, mut coh) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut outside, mut bad) = (0usize, 0usize);
+        let mut j = 0usize;
+        for (k, (&fk, &h)) in meas.freq_hz.iter().zip(&meas.values).enumerate() {
+            if fk < lo || fk > hi {
+                continue;
+            }
+            let tol = 1e-9 * fk.abs().max(1.0);
+            if fk < m_lo - tol || fk > m_hi + tol {
+                outside += 1;
+                continue;
+            }
+            let c = meas.coherence.as_ref().map(|c| c[k]);
+            if !(h.re.is_finite() && h.im.is_finite()) || c.is_some_and(|c| !c.is_finite()) {
+                bad += 1;
+                continue;
+            }
+            while j + 1 < model.freq_hz.len() && model.freq_hz[j] < fk - tol {
+                j += 1;
+            }
+            if (model.freq_hz[j] - fk).abs() > tol {
+                return Err(NodeError::input(
+                    "model",
+                    format!(
+                        "the model has no line at {fk} Hz, where the measurement has one (nearest {} Hz): evaluate the model on the measured lines by connecting the measurement as its `grid`",
+                        model.freq_hz[j]
+                    ),
+                ));
+            }
+            let v = model.values[j];
+            if !(v.re.is_finite() && v.im.is_finite()) {
+                return Err(NodeError::input("model", format!("the model is not finite at {fk} Hz")));
+            }
+            f.push(fk);
+            hm.push(v);
+            hx.push(h);
+            if let Some(c) = c {
+                coh.push(c);
+            }
+        }
+        if bad > 0 {
+            ctx.warn(format!("{bad} measured line(s) are not finite (NaN or infinite) and were left out"));
+        }
+        if f.is_empty() {
+            return Err(NodeError::input(
+                "measured",
+                format!(
+                    "no measured line lies in the model's range {m_lo}..{m_hi} Hz{}",
+                    if lo.is_finite() { format!(" and the band {lo}..{hi} Hz") } else { String::new() }
+                ),
+            ));
+        }
+        if outside > 0 {
+            ctx.warn(format!(
+                "the model covers {m_lo}..{m_hi} Hz; {outside} measured line(s) outside it were left out, {} compared",
+                f.len()
+            ));
+        }
+        let bands = usize::try_from(ctx.params.int("bands").unwrap_or(10)).unwrap_or(10);
+        let coherence = meas.coherence.as_ref().map(|_| coh.as_slice());
+        let g =
+            gap::gap(&f, &hm, &hx, coherence, noise, bands).map_err(|e| NodeError::input("measured", e.to_string()))?;
+        let direction = match meas.direction.as_deref().or(model.direction.as_deref()) {
+            Some("x") => 0.0,
+            Some("y") => 1.0,
+            Some("z") => 2.0,
+            _ => -1.0,
+        };
+        let speed = meas.speed_rpm.or(model.speed_rpm).unwrap_or(f64::NAN);
+        let one = |name: &str, unit: &str, v: f64| Column::new(name, unit, vec![v]);
+        let summary = Table {
+            columns: vec![
+                one("rel_l2", "", g.rel_l2),
+                one("noise_floor", "", g.noise_floor),
+                one("ratio", "", g.ratio),
+                one("peak_hz_model", "Hz", g.peak_hz_model),
+                one("peak_hz_measured", "Hz", g.peak_hz_measured),
+                one("peak_freq_error", "", g.peak_freq_error),
+                one("max_discrepancy_hz", "Hz", g.max_discrepancy_hz),
+                one("max_discrepancy_rel", "", g.max_discrepancy_rel),
+                one("lines", "", g.freq_hz.len() as f64),
+                one("speed", "rpm", speed),
+                one("direction", "", direction),
+            ],
+        };
+        let col = |name: &str, unit: &str, get: &dyn Fn(&gap::BandGap) -> f64| {
+            Column::new(name, unit, g.bands.iter().map(get).collect())
+        };
+        let band_table = Table {
+            columns: vec![
+                col("lo", "Hz", &|b| b.lo_hz),
+                col("hi", "Hz", &|b| b.hi_hz),
+                col("rel_l2", "", &|b| b.rel_l2),
+                col("noise_floor", "", &|b| b.noise_floor),
+                col("ratio", "", &|b| b.ratio),
+                col("lines", "", &|b| b.lines as f64),
+            ],
+        };
+        let residual = Frf {
+            freq_hz: g.freq_hz.clone(),
+            values: g.residual.clone(),
+            coherence: None,
+            unit: UnitLabel::new(""),
+            direction: meas.direction.clone(),
+            speed_rpm: meas.speed_rpm,
+            sensor: meas.sensor.clone(),
+        };
+        Ok([
+            ("ratio".to_string(), Value::Scalar(Scalar::new(g.ratio, ""))),
+            ("summary".to_string(), Value::Table(summary)),
+            ("bands".to_string(), Value::Table(band_table)),
+            ("residual".to_string(), Value::Frf(residual)),
+        ]
+        .into_iter()
+        .collect())
+    }
+}
