@@ -3,6 +3,7 @@
 //! This crate is the front: the `spindlelab` binary, the registry of built-in nodes, and the
 //! run summary that the CLI prints and the snapshot tests record.
 
+pub mod diagnose;
 pub mod fit;
 pub mod import;
 pub mod summary;

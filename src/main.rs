@@ -90,6 +90,19 @@ enum Command {
         #[arg(short, long)]
         out: Option<PathBuf>,
     },
+    /// Find where the recipe's model and its measurements disagree, name the missing physical
+    /// effect, add it and show the gap shrink: writes `diagnosis.json`, `diagnosis.md` and
+    /// `diagnosed.yaml`.
+    Diagnose {
+        /// A YAML recipe that declares its measurements and compares them (`frf.gap`).
+        recipe: PathBuf,
+        /// Output directory (default: `out/<recipe name>/diagnosis`).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Print nothing but errors.
+        #[arg(short, long)]
+        quiet: bool,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -205,6 +218,36 @@ fn main() -> ExitCode {
                     .unwrap_or_default();
                 eprintln!("error: unknown node kind `{k}`{hint}");
                 return ExitCode::from(EXIT_BAD_INPUT);
+            }
+            ExitCode::SUCCESS
+        }
+        Command::Diagnose { recipe, out, quiet } => {
+            let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
+                Ok(d) => d,
+                Err(e @ spindlelab::diagnose::DiagnoseError::Io { .. }) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(EXIT_FAILURE);
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(EXIT_BAD_INPUT);
+                }
+            };
+            let out = out.unwrap_or_else(|| {
+                let stem = recipe.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+                Path::new("out").join(stem).join("diagnosis")
+            });
+            if let Err(e) = spindlelab::diagnose::write(&d, &out) {
+                eprintln!("error: {e}");
+                return ExitCode::from(EXIT_FAILURE);
+            }
+            if !quiet {
+                print!("{}", spindlelab::diagnose::markdown(&d));
+                println!(
+                    "\nwrote diagnosis.json, diagnosis.md and diagnosed.yaml to {} in {:.1} s",
+                    out.display(),
+                    d.seconds
+                );
             }
             ExitCode::SUCCESS
         }

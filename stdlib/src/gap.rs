@@ -33,6 +33,9 @@ pub struct Gap {
     pub noise_floor: f64,
     /// `rel_l2 / noise_floor`.
     pub ratio: f64,
+    /// Effective number of independent lines, `(Σσ²)²/Σσ⁴`: at the noise floor `ratio²` has
+    /// mean 1 and standard deviation `1/√n_eff`, so a ratio is judged against it.
+    pub n_eff: f64,
     /// Peak of |H| smoothed over 5 lines, Hz: model and measurement.
     pub peak_hz_model: f64,
     pub peak_hz_measured: f64,
@@ -150,6 +153,7 @@ pub fn gap(
     if noise_power <= 0.0 {
         return Err(GapError::NoNoise);
     }
+    let n_eff = noise_power * noise_power / var.iter().map(|v| v * v).sum::<f64>();
     let rel_l2 = (err / power).sqrt();
     let noise_floor = (noise_power / power).sqrt();
     let ratio = rel_l2 / noise_floor;
@@ -194,6 +198,7 @@ pub fn gap(
         rel_l2,
         noise_floor,
         ratio,
+        n_eff,
         peak_hz_model: peak_model,
         peak_hz_measured: peak_meas,
         peak_freq_error: (peak_model - peak_meas).abs() / peak_meas,
@@ -239,6 +244,8 @@ mod tests {
         let r2: f64 = g.residual.iter().map(|r| r.norm_sqr()).sum();
         assert!((r2 - g.ratio * g.ratio).abs() < 1e-12 * r2, "Σ|r|² {r2} vs ratio² {}", g.ratio * g.ratio);
         assert_eq!(g.bands.iter().map(|b| b.lines).sum::<usize>(), f.len());
+        // Equal variances on every line would give n_eff = n; resonant data concentrate the noise.
+        assert!(g.n_eff > 10.0 && g.n_eff < f.len() as f64, "n_eff {}", g.n_eff);
     }
 
     #[test]

@@ -97,6 +97,19 @@ pub const CUTTING: &[Field] = &[
     Field::opt("Kt", T::Quantity(D::PRESSURE), "tangential coefficient"),
     Field::opt("Kn", T::Quantity(D::PRESSURE), "normal coefficient"),
     Field::opt("calibrated_at", T::Quantity(D::ROTATIONAL_SPEED), "speed at which the coefficients were calibrated"),
+    Field::def("Ks_change", RATIO, "0", "speed law: Ks(n) = Ks (1 + Ks_change (n - calibrated_at)/change_per)"),
+    Field::def(
+        "beta_change",
+        T::Quantity(D::ANGLE),
+        "0 deg",
+        "speed law: beta(n) = beta + beta_change (n - calibrated_at)/change_per",
+    ),
+    Field::def(
+        "change_per",
+        T::Quantity(D::ROTATIONAL_SPEED),
+        "10000 rpm",
+        "speed step of the `Ks_change` and `beta_change` law",
+    ),
     Field::opt("feed_per_tooth", T::Quantity(D::LENGTH), "feed per tooth"),
     Field::opt("workpiece", T::Text, "workpiece material"),
     Field::opt("trial_speeds", T::QuantityList(D::ROTATIONAL_SPEED), "speed range of cutting trials"),
@@ -245,6 +258,11 @@ pub struct Cutting {
     pub kt: f64,
     pub kn: f64,
     pub calibrated_at: Option<f64>,
+    /// Linear speed law about `calibrated_at`: relative change of Ks and change of β (rad)
+    /// per `change_per` (rad/s) of speed; zero for speed-independent coefficients.
+    pub ks_change: f64,
+    pub beta_change: f64,
+    pub change_per: f64,
     pub feed_per_tooth: Option<f64>,
     pub workpiece: Option<String>,
     pub trial_speeds: Vec<f64>,

@@ -343,6 +343,22 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
                     "give either `Ks` and `beta`, or `Kt` and `Kn`",
                 );
             }
+            let law = p.f64("Ks_change").is_some_and(|v| v != 0.0) || p.f64("beta_change").is_some_and(|v| v != 0.0);
+            if law && p.get("calibrated_at").is_none() {
+                diags.error_help(
+                    Some(&raw.span),
+                    format!("cutting `{name}` has a speed law (`Ks_change`, `beta_change`) but no `calibrated_at`"),
+                    "give the speed the law is about, e.g. `calibrated_at: 12000 rpm`",
+                );
+            }
+            if p.f64("change_per").is_some_and(|v| !(v > 0.0)) {
+                let at = raw.get("change_per").map(|r| r.span.clone());
+                diags.error_help(
+                    at.as_ref(),
+                    format!("cutting `{name}`: `change_per` must be a positive speed"),
+                    "e.g. `change_per: 10000 rpm`",
+                );
+            }
         }
         EntityKind::Machine => {
             if let Some(jraw) = raw.get("holder_interface") {
@@ -470,6 +486,9 @@ fn build_cutting(p: &Params) -> Cutting {
         kt,
         kn,
         calibrated_at: p.f64("calibrated_at"),
+        ks_change: p.f64("Ks_change").unwrap_or(0.0),
+        beta_change: p.f64("beta_change").unwrap_or(0.0),
+        change_per: p.f64("change_per").unwrap_or(f64::NAN),
         feed_per_tooth: p.f64("feed_per_tooth"),
         workpiece: p.text("workpiece").map(str::to_string),
         trial_speeds: p.list("trial_speeds").map(<[f64]>::to_vec).unwrap_or_default(),

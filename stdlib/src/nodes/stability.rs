@@ -514,7 +514,7 @@ impl StabilitySpeedDependent {
                     Field::opt(
                         "speeds",
                         T::QuantityList(D::ROTATIONAL_SPEED),
-                        "evenly spaced speed grid, e.g. `1000..4000 step 5 rpm` (default: the measured span every 5 rpm)",
+                        "speeds: an evenly spaced grid, e.g. `1000..4000 step 5 rpm`, or an ascending list (the trials' speeds) (default: the measured span every 5 rpm)",
                     ),
                     Field::def(
                         "stationary_speed",
@@ -549,17 +549,50 @@ fn grid(p: &Params) -> Result<Option<(f64, f64, f64)>, NodeError> {
     }
     let step = rpm[1] - rpm[0];
     if step.is_nan() || step <= 0.0 || rpm.windows(2).any(|w| ((w[1] - w[0]) - step).abs() > 1e-6 * step.max(1.0)) {
-        return Err(NodeError::param("speeds", "give an evenly spaced ascending grid, e.g. `1000..4000 step 5 rpm`"));
+        // An explicit ascending list (the speeds of the trials, say): the step is NaN.
+        if rpm.iter().all(|s| s.is_finite()) && rpm.windows(2).all(|w| w[1] > w[0]) {
+            return Ok(Some((lo, hi, f64::NAN)));
+        }
+        return Err(NodeError::param(
+            "speeds",
+            "give an ascending list or an evenly spaced grid, e.g. `1000..4000 step 5 rpm`",
+        ));
     }
     Ok(Some((lo, hi, step)))
 }
 
-fn coefficient_table(p: &Params, mill: &Milling, span: (f64, f64)) -> Result<CoefficientTable, NodeError> {
+fn coefficient_table(
+    p: &Params,
+    mill: &Milling,
+    law: Option<&spindlelab_engine::model::Cutting>,
+    span: (f64, f64),
+) -> Result<CoefficientTable, NodeError> {
     let Some(rows) = p.objects("coefficients") else {
-        // Constant coefficients: a flat spline through two knots covering every speed.
         let c = mill.coefficients;
-        let hi = span.1.max(span.0) + 1.0;
-        return Ok(CoefficientTable::KtKn(vec![[span.0.min(0.0) - 1.0, c.kt, c.kn], [hi, c.kt, c.kn]]));
+        let (lo, hi) = (span.0.min(0.0) - 1.0, span.1.max(span.0) + 1.0);
+        // The cutting setup's linear speed law, sampled at knots a cubic reproduces exactly.
+        if let Some(cut) = law.filter(|c| c.ks_change != 0.0 || c.beta_change != 0.0) {
+            let (Some(reference), per) = (cut.calibrated_at.map(to_rpm), to_rpm(cut.change_per)) else {
+                return Err(NodeError::param("cutting", "a speed law needs `calibrated_at`"));
+            };
+            let (ks, beta) = (c.kt.hypot(c.kn), c.kt.atan2(c.kn));
+            let rows: Vec<[f64; 3]> = (0..4)
+                .map(|i| {
+                    let n = lo + (hi - lo) * i as f64 / 3.0;
+                    let t = (n - reference) / per;
+                    [n, ks * (1.0 + cut.ks_change * t), beta + cut.beta_change * t]
+                })
+                .collect();
+            if rows.iter().any(|r| !(r[1] > 0.0) || !(r[2] > 0.0 && r[2] < std::f64::consts::FRAC_PI_2 * 2.0)) {
+                return Err(NodeError::param(
+                    "cutting",
+                    format!("the speed law gives Ks ≤ 0 or β outside (0, 180°) within {lo:.0}–{hi:.0} rpm"),
+                ));
+            }
+            return Ok(CoefficientTable::KsBeta(rows));
+        }
+        // Constant coefficients: a flat spline through two knots covering every speed.
+        return Ok(CoefficientTable::KtKn(vec![[lo, c.kt, c.kn], [hi, c.kt, c.kn]]));
     };
     if rows.is_empty() {
         return Err(NodeError::param("coefficients", "the table is empty; give rows or leave it out"));
@@ -704,11 +737,14 @@ impl Node for StabilitySpeedDependent {
         let range = grid(p)?;
         let options = SpeedDependentOptions {
             range_rpm: range.map(|(lo, hi, _)| (lo, hi)),
-            step_rpm: range.map_or(5.0, |r| r.2),
+            step_rpm: range.map_or(5.0, |r| if r.2.is_nan() { 5.0 } else { r.2 }),
             lobes: p.int("lobes").unwrap_or(20) as usize,
             allow_extrapolation: p.bool("extrapolate").unwrap_or(false),
+            speeds_rpm: range.filter(|r| r.2.is_nan()).and_then(|_| speed_list(p)),
         };
-        let coeffs = coefficient_table(p, &mill, range.map_or(span, |(lo, hi, _)| (lo.min(span.0), hi.max(span.1))))?;
+        let law = p.text("cutting").and_then(|n| ctx.recipe.cutting.get(n));
+        let coeffs =
+            coefficient_table(p, &mill, law, range.map_or(span, |(lo, hi, _)| (lo.min(span.0), hi.max(span.1))))?;
         let frfs: Vec<SpeedFrf> = measured.into_iter().map(|(speed_rpm, frf)| SpeedFrf { speed_rpm, frf }).collect();
         let limits = stability::speed_dependent_lobes(
             &frfs,
@@ -892,7 +928,7 @@ impl TrialsScore {
         TrialsScore {
             spec: NodeSpec {
                 kind: "trials.score",
-                version: 1,
+                version: 2,
                 description: "Scores cutting trials (CSV rpm,depth_mm,outcome[,chatter_freq_hz]) against a stability diagram: predicted outcome, right or wrong and distance to the boundary per trial, and the fraction right.",
                 inputs: vec![PortSpec::new("lobes", PortType::Lobes, "the diagram: limiting depth over speed")],
                 outputs: vec![
@@ -907,12 +943,32 @@ impl TrialsScore {
                         PortType::Scalar,
                         "fraction of the trials inside the diagram predicted right",
                     ),
+                    PortSpec::new(
+                        "misclassified",
+                        PortType::Scalar,
+                        "number of trials inside the diagram predicted wrong",
+                    ),
+                    PortSpec::new(
+                        "misfit",
+                        PortType::Scalar,
+                        "√Σ max(0, margin ∓ ln(depth/limit))² over the trials (− for chatter, + for stable): 0 when \
+                         every trial is right by the margin, and continuous in the diagram, so a fit can move a \
+                         boundary across the trials",
+                    ),
                 ],
-                params: vec![Field::req(
-                    "file",
-                    T::File,
-                    "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`, outcome `stable` or `chatter`",
-                )],
+                params: vec![
+                    Field::req(
+                        "file",
+                        T::File,
+                        "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`, outcome `stable` or `chatter`",
+                    ),
+                    Field::def(
+                        "margin",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "0 %",
+                        "`misfit` also counts right trials closer than this (in ln depth) to the boundary, so a fit centres the boundary between the stable and the chattering cuts",
+                    ),
+                ],
             },
         }
     }
@@ -1018,6 +1074,17 @@ impl Node for TrialsScore {
             }
         }
         let [speed, depth, outcome, predicted, right, limit, distance] = cols;
+        let misclassified = right.iter().filter(|r| **r == 0.0).count();
+        let margin = ctx.params.f64("margin").unwrap_or(0.0);
+        let misfit = (0..speed.len())
+            .filter(|&k| right[k] >= 0.0 && limit[k] > 0.0)
+            .map(|k| {
+                // Positive inside the chatter region for a chattering cut, inside the stable one for a stable cut.
+                let side = if outcome[k] == 1.0 { 1.0 } else { -1.0 };
+                (margin - side * (depth[k] / limit[k]).ln()).max(0.0).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
         let verdicts = Table {
             columns: vec![
                 Column::new("speed", "rpm", speed),
@@ -1029,6 +1096,11 @@ impl Node for TrialsScore {
                 Column::new("distance", "m", distance),
             ],
         };
-        Ok(outputs(vec![("verdicts", Value::Table(verdicts)), ("score", Value::Scalar(Scalar::new(fraction, "")))]))
+        Ok(outputs(vec![
+            ("verdicts", Value::Table(verdicts)),
+            ("score", Value::Scalar(Scalar::new(fraction, ""))),
+            ("misclassified", Value::Scalar(Scalar::new(misclassified as f64, ""))),
+            ("misfit", Value::Scalar(Scalar::new(misfit, ""))),
+        ]))
     }
 }

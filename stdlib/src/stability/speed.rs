@@ -28,7 +28,7 @@ pub enum CoefficientTable {
 }
 
 /// Options of [`speed_dependent_lobes`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SpeedDependentOptions {
     /// Speed range, rpm; `None` spans the measured FRF speeds. Speeds ≤ 0 of the grid are skipped.
     pub range_rpm: Option<(f64, f64)>,
@@ -38,11 +38,20 @@ pub struct SpeedDependentOptions {
     pub lobes: usize,
     /// Extend the end cubics beyond the measured speeds instead of refusing.
     pub allow_extrapolation: bool,
+    /// Explicit ascending speeds (rpm) instead of the range and step: the limit at each
+    /// speed is computed on its own, so a diagram at the trials' speeds scores them exactly.
+    pub speeds_rpm: Option<Vec<f64>>,
 }
 
 impl Default for SpeedDependentOptions {
     fn default() -> Self {
-        SpeedDependentOptions { range_rpm: None, step_rpm: 5.0, lobes: 20, allow_extrapolation: false }
+        SpeedDependentOptions {
+            range_rpm: None,
+            step_rpm: 5.0,
+            lobes: 20,
+            allow_extrapolation: false,
+            speeds_rpm: None,
+        }
     }
 }
 
@@ -302,8 +311,13 @@ pub fn speed_dependent_lobes(
             requirement: "finite and not below the start",
         });
     }
-    let count = ((hi - lo) / options.step_rpm + 1e-9).floor() as usize + 1;
-    let speeds: Vec<f64> = (0..count).map(|i| lo + options.step_rpm * i as f64).filter(|&s| s > 0.0).collect();
+    let speeds: Vec<f64> = match &options.speeds_rpm {
+        Some(list) => list.iter().copied().filter(|&s| s > 0.0).collect(),
+        None => {
+            let count = ((hi - lo) / options.step_rpm + 1e-9).floor() as usize + 1;
+            (0..count).map(|i| lo + options.step_rpm * i as f64).filter(|&s| s > 0.0).collect()
+        }
+    };
     // Probe the cutting setup once for its error (teeth, immersion) before the parallel loop.
     Milling::new(
         teeth,

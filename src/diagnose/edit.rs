@@ -1,0 +1,216 @@
+//! Edits of a YAML recipe's text that keep everything else byte for byte, so an augmented
+//! recipe diffs against its input only where an effect was added.
+//!
+//! Every edit finds its place through the parsed raw tree (each value knows its byte
+//! range), changes the text and parses it again, so the next edit sees the new text.
+
+use crate::engine::diag::{Diagnostics, SourceFile};
+use crate::engine::syntax::{Raw, RawKind, load_yaml};
+use std::sync::Arc;
+
+/// One step of a path into the raw tree: a mapping key or a list index.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Seg {
+    Key(String),
+    Index(usize),
+}
+
+/// A path such as `["machines", "m", "spindle", "modes", "x", 0]`.
+pub fn path(parts: &[&str]) -> Vec<Seg> {
+    parts.iter().map(|p| p.parse::<usize>().map(Seg::Index).unwrap_or_else(|_| Seg::Key(p.to_string()))).collect()
+}
+
+/// Why an edit could not be made.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum EditError {
+    #[error("the recipe has no `{0}`")]
+    Missing(String),
+    #[error("`{0}` has no place in the text (a recipe made by a script cannot be edited)")]
+    NoPlace(String),
+    #[error("the edited recipe does not parse: {0}")]
+    Parse(String),
+}
+
+/// A recipe's text and its parse.
+#[derive(Debug, Clone)]
+pub struct RecipeText {
+    pub file: Arc<str>,
+    pub text: String,
+    pub raw: Raw,
+}
+
+fn show(p: &[Seg]) -> String {
+    p.iter()
+        .map(|s| match s {
+            Seg::Key(k) => k.clone(),
+            Seg::Index(i) => i.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(".")
+}
+
+impl RecipeText {
+    /// Parses `text` (named `file` in messages).
+    pub fn new(file: &str, text: String) -> Result<Self, EditError> {
+        let file: Arc<str> = Arc::from(file);
+        let raw = parse(&file, &text)?;
+        Ok(RecipeText { file, text, raw })
+    }
+
+    pub fn source(&self) -> SourceFile {
+        SourceFile { path: self.file.clone(), text: Arc::from(self.text.as_str()) }
+    }
+
+    /// The value at `p`.
+    pub fn get(&self, p: &[Seg]) -> Option<&Raw> {
+        let mut at = &self.raw;
+        for s in p {
+            at = match (s, &at.kind) {
+                (Seg::Key(k), RawKind::Map(m)) => &m.iter().find(|(key, _)| &key.name == k)?.1,
+                (Seg::Index(i), RawKind::Seq(v)) => v.get(*i)?,
+                _ => return None,
+            };
+        }
+        Some(at)
+    }
+
+    /// Byte offset and indentation of the first key of the mapping at `p`, and whether the
+    /// mapping is written in flow style (`{ a: 1 }`).
+    fn first_key(&self, p: &[Seg]) -> Result<(usize, usize, bool), EditError> {
+        let map = self.get(p).ok_or_else(|| EditError::Missing(show(p)))?;
+        let RawKind::Map(entries) = &map.kind else { return Err(EditError::Missing(show(p))) };
+        let (key, _) = entries.first().ok_or_else(|| EditError::NoPlace(show(p)))?;
+        let (at, _) = key.span.bytes.ok_or_else(|| EditError::NoPlace(show(p)))?;
+        // A quoted key starts at its quote.
+        let before = self.text[..at].trim_end_matches([' ', '\t']);
+        let flow = before.ends_with('{') || before.ends_with(',');
+        let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
+        let indent = self.text[line_start..at].chars().count();
+        Ok((at, indent, flow))
+    }
+
+    fn splice(&mut self, at: usize, insert: &str) -> Result<(), EditError> {
+        let mut text = self.text.clone();
+        text.insert_str(at, insert);
+        self.raw = parse(&self.file, &text)?;
+        self.text = text;
+        Ok(())
+    }
+
+    /// Adds `key: value` to the mapping at `p`, as its first entry (so a block mapping's
+    /// indentation and a flow mapping's braces need no searching for an end).
+    pub fn insert_key(&mut self, p: &[Seg], key: &str, value: &str) -> Result<(), EditError> {
+        let (at, indent, flow) = self.first_key(p)?;
+        let insert = if flow { format!("{key}: {value}, ") } else { format!("{key}: {value}\n{}", " ".repeat(indent)) };
+        self.splice(at, &insert)
+    }
+
+    /// Sets `key` in the mapping at `p`: replaces its value when present, adds it otherwise.
+    pub fn set_key(&mut self, p: &[Seg], key: &str, value: &str) -> Result<(), EditError> {
+        let mut full = p.to_vec();
+        full.push(Seg::Key(key.to_string()));
+        if self.get(&full).is_some() { self.replace_scalar(&full, value) } else { self.insert_key(p, key, value) }
+    }
+
+    /// Replaces the scalar at `p` with `value`, keeping its quotes if it had them.
+    pub fn replace_scalar(&mut self, p: &[Seg], value: &str) -> Result<(), EditError> {
+        let v = self.get(p).ok_or_else(|| EditError::Missing(show(p)))?;
+        let (a, b) = v.span.bytes.ok_or_else(|| EditError::NoPlace(show(p)))?;
+        let old = &self.text[a..b];
+        let new = match old.chars().next().filter(|c| *c == '"' || *c == '\'') {
+            Some(q) => format!("{q}{value}{q}"),
+            None => value.to_string(),
+        };
+        let mut text = self.text.clone();
+        text.replace_range(a..b, &new);
+        self.raw = parse(&self.file, &text)?;
+        self.text = text;
+        Ok(())
+    }
+
+    /// Inserts lines (a comment and a step, say) in the `steps:` block before step `before`,
+    /// at its indentation; `block` is written as if the steps were not indented.
+    pub fn insert_step_before(&mut self, before: &str, block: &str) -> Result<(), EditError> {
+        let p = path(&["steps", before]);
+        let key = self
+            .get(&path(&["steps"]))
+            .and_then(|s| s.as_map())
+            .and_then(|m| m.iter().find(|(k, _)| k.name == before))
+            .map(|(k, _)| k.span.clone())
+            .ok_or_else(|| EditError::Missing(show(&p)))?;
+        let (at, _) = key.bytes.ok_or_else(|| EditError::NoPlace(show(&p)))?;
+        let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
+        let indent = " ".repeat(self.text[line_start..at].chars().count());
+        let mut insert = String::new();
+        for (i, line) in block.lines().enumerate() {
+            if i > 0 {
+                insert.push_str(&indent);
+            }
+            insert.push_str(line);
+            insert.push('\n');
+        }
+        insert.push_str(&indent);
+        self.splice(at, &insert)
+    }
+
+    /// Declares (or re-declares) a recipe parameter `name: value` in the top-level `params:`.
+    pub fn declare_param(&mut self, name: &str, value: &str) -> Result<(), EditError> {
+        if self.get(&path(&["params"])).is_some_and(|p| p.as_map().is_some_and(|m| !m.is_empty())) {
+            return self.set_key(&path(&["params"]), name, value);
+        }
+        if self.get(&path(&["params"])).is_some() {
+            return Err(EditError::NoPlace("params".into()));
+        }
+        // No `params:` yet: open one before `steps:`.
+        let key = self
+            .raw
+            .as_map()
+            .and_then(|m| m.iter().find(|(k, _)| k.name == "steps"))
+            .map(|(k, _)| k.span.clone())
+            .ok_or_else(|| EditError::Missing("steps".into()))?;
+        let (at, _) = key.bytes.ok_or_else(|| EditError::NoPlace("steps".into()))?;
+        self.splice(at, &format!("params:\n  {name}: {value}\n\n"))
+    }
+
+    /// Appends text at the end (a `fit:` block for an evaluation).
+    pub fn append(&mut self, block: &str) -> Result<(), EditError> {
+        let mut text = self.text.clone();
+        if !text.ends_with('\n') {
+            text.push('\n');
+        }
+        text.push_str(block);
+        self.raw = parse(&self.file, &text)?;
+        self.text = text;
+        Ok(())
+    }
+}
+
+fn parse(file: &Arc<str>, text: &str) -> Result<Raw, EditError> {
+    let mut diags = Diagnostics::new();
+    let src = SourceFile { path: file.clone(), text: Arc::from(text) };
+    load_yaml(&src, &mut diags)
+        .ok_or_else(|| EditError::Parse(diags.iter().map(|d| d.message.clone()).collect::<Vec<_>>().join("; ")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { f: 820 Hz, d: 125 mm }\nsteps:\n  a:\n    kind: k\n    params: { p: 1 }\n  b:\n    kind: k\n    inputs: { x: \"@a.out\" }\n";
+
+    #[test]
+    fn edits_touch_only_their_place() {
+        let mut r = RecipeText::new("t.yaml", TEXT.to_string()).unwrap();
+        r.insert_key(&path(&["machines", "m", "modes", "x", "0"]), "kf", "$kf").unwrap();
+        r.replace_scalar(&path(&["steps", "b", "inputs", "x"]), "@c.out").unwrap();
+        r.insert_step_before("b", "# new\nc:\n  kind: k2\n  inputs: { y: \"@a.out\" }").unwrap();
+        r.insert_key(&path(&["steps", "a"]), "note", "here").unwrap();
+        r.declare_param("kf", "0").unwrap();
+        let want = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { kf: $kf, f: 820 Hz, d: 125 mm }\nparams:\n  kf: 0\n\nsteps:\n  a:\n    note: here\n    kind: k\n    params: { p: 1 }\n  # new\n  c:\n    kind: k2\n    inputs: { y: \"@a.out\" }\n  b:\n    kind: k\n    inputs: { x: \"@c.out\" }\n";
+        assert_eq!(r.text, want);
+        r.declare_param("kf", "0.5").unwrap();
+        assert!(r.text.contains("params:\n  kf: 0.5\n"), "{}", r.text);
+        r.declare_param("other", "1 g").unwrap();
+        assert!(r.text.contains("params:\n  other: 1 g\n  kf: 0.5\n"), "{}", r.text);
+    }
+}

@@ -1,0 +1,456 @@
+//! The library of candidate effects. Each is a transform of the recipe: it declares
+//! parameters (starting where the effect is absent), puts them where the physics acts, and
+//! bounds them physically. The library is a list of trait objects, so another source of
+//! effects (a plugin) adds to it without touching the search.
+
+use super::edit::{EditError, RecipeText, Seg, path};
+use super::roles::Roles;
+use crate::engine::Compiled;
+use serde_json::{Map, Value as Json, json};
+use std::f64::consts::PI;
+
+const RPM: f64 = PI / 30.0;
+
+/// Where an effect acts; a measurement-only effect leaves the cutting configuration alone,
+/// which is how the trials tell it from a structural one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scope {
+    Measurement,
+    Structure,
+    Cutting,
+}
+
+/// A free parameter an effect declares, in the unit it is written in.
+#[derive(Debug, Clone)]
+pub struct Free {
+    pub name: String,
+    pub unit: &'static str,
+    pub start: f64,
+    pub min: f64,
+    pub max: f64,
+    pub log: bool,
+}
+
+impl Free {
+    fn lin(name: &str, unit: &'static str, start: f64, min: f64, max: f64) -> Free {
+        Free { name: name.into(), unit, start, min, max, log: false }
+    }
+    fn log(name: &str, unit: &'static str, start: f64, min: f64, max: f64) -> Free {
+        Free { name: name.into(), unit, start, min, max, log: true }
+    }
+    pub fn text(&self, v: f64) -> String {
+        if self.unit.is_empty() { format!("{v:e}") } else { format!("{v:e} {}", self.unit) }
+    }
+}
+
+/// Why an effect does not apply to a recipe (it is then left out, and the reason reported).
+pub type NotApplicable = String;
+
+/// A physical effect the baseline model may lack.
+pub trait Effect: Sync + Send {
+    /// The vocabulary name (`interface_compliance`).
+    fn name(&self) -> &'static str;
+    fn scope(&self) -> Scope;
+    /// One line on what the effect is, for the report.
+    fn description(&self) -> &'static str;
+    /// Adds the effect to the recipe text with its parameters declared at their starts.
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable>;
+    /// Independent starting points worth sampling in the bounds box (several basins).
+    fn starts(&self, free: &[Free]) -> usize {
+        let _ = free;
+        0
+    }
+    /// The fitted values in the vocabulary's parameter names and units (SI, `_deg`, …).
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json>;
+}
+
+/// The built-in library, in the order effects are applied when combined (a tip mass acts
+/// on receptances, a delay on the FRF that results).
+pub fn library() -> Vec<Box<dyn Effect>> {
+    vec![
+        Box::new(InterfaceCompliance),
+        Box::new(FluteReducedStiffness),
+        Box::new(SpindleSpeedStiffening),
+        Box::new(MassLoading),
+        Box::new(SensorDelay),
+        Box::new(SpeedDependentCuttingCoefficients),
+    ]
+}
+
+fn e(err: EditError) -> NotApplicable {
+    err.to_string()
+}
+
+fn value(values: &[(String, f64)], name: &str) -> f64 {
+    values.iter().find(|(n, _)| n == name).map_or(f64::NAN, |v| v.1)
+}
+
+/// Declares every free parameter at its start.
+fn declare(r: &mut RecipeText, free: &[Free]) -> Result<(), NotApplicable> {
+    for f in free.iter().rev() {
+        r.declare_param(&f.name, &f.text(f.start)).map_err(e)?;
+    }
+    Ok(())
+}
+
+/// Puts a new step between each gap and the model it compares, rewiring the gap's `model`
+/// input: `make(source)` gives the step's text. Sources that are already wrapped by this
+/// step name are left alone.
+fn wrap_gap_models(
+    roles: &Roles,
+    r: &mut RecipeText,
+    step: &str,
+    make: &dyn Fn(&str) -> Result<String, NotApplicable>,
+) -> Result<(), NotApplicable> {
+    let mut done: Vec<(String, String)> = Vec::new();
+    for (k, gap) in roles.gaps.iter().enumerate() {
+        let current = r
+            .get(&path(&["steps", &gap.step, "inputs", "model"]))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+            .ok_or_else(|| format!("gap `{}` has no `model` input in the text", gap.step))?;
+        let name = match done.iter().find(|(src, _)| *src == current) {
+            Some((_, n)) => n.clone(),
+            None => {
+                let n = if roles.gaps.len() == 1 || done.is_empty() { step.to_string() } else { format!("{step}_{k}") };
+                r.insert_step_before(&gap.step, &make(&current)?).map_err(e)?;
+                done.push((current.clone(), n.clone()));
+                n
+            }
+        };
+        r.replace_scalar(&path(&["steps", &gap.step, "inputs", "model"]), &format!("@{name}.frf")).map_err(e)?;
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+
+/// A sensor's phase lag linear in frequency (§2.3, Eq. 2.11): acts on the measured FRFs only.
+pub struct SensorDelay;
+
+impl Effect for SensorDelay {
+    fn name(&self) -> &'static str {
+        "sensor_delay"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Measurement
+    }
+    fn description(&self) -> &'static str {
+        "the measuring chain's phase lag, linear in frequency (H exp(i s f)); measured FRFs only"
+    }
+    fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        if roles.gaps.is_empty() {
+            return Err("no model is compared with a measurement".into());
+        }
+        // ±60 deg/kHz spans the gauges of §2.3 (about −14 deg/kHz) several times over.
+        let free = vec![Free::lin("sensor_phase_slope", "deg/kHz", 0.0, -60.0, 60.0)];
+        declare(r, &free)?;
+        wrap_gap_models(roles, r, "sensor_delay", &|src| {
+            Ok(format!(
+                "# Diagnosed: the sensor's phase lag (sensor_delay), measured configuration only.\nsensor_delay:\n  kind: frf.phase_slope\n  params: {{ slope: $sensor_phase_slope }}\n  inputs: {{ frf: \"{src}\" }}"
+            ))
+        })?;
+        Ok(free)
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        m.insert("phase_slope_deg_per_khz".into(), json!(value(values, "sensor_phase_slope")));
+        m
+    }
+}
+
+/// A translational mass at the tip beyond the declared sensor mass: measured FRFs only.
+pub struct MassLoading;
+
+impl Effect for MassLoading {
+    fn name(&self) -> &'static str {
+        "mass_loading"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Measurement
+    }
+    fn description(&self) -> &'static str {
+        "a point mass on the tip beyond the declared sensor mass, G' = G (I − ω² diag(m, 0) G)⁻¹; measured FRFs only"
+    }
+    fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        // The mass acts on the 2×2 tip receptances, so each gap's model must be a coupling.
+        for g in &roles.gaps {
+            if !roles.measured_couplings.contains(&g.model.step) {
+                return Err(format!("the model of gap `{}` is not a tip coupling (rcsa.couple)", g.step));
+            }
+        }
+        // Down to minus the declared sensor mass (the declared one too heavy), up to 50 g.
+        let declared_g = roles.sensor_mass_kg * 1e3;
+        let free = vec![Free::lin("added_tip_mass", "g", 0.0, -declared_g, 50.0)];
+        declare(r, &free)?;
+        wrap_gap_models(roles, r, "added_mass", &|src| {
+            let coupling = src.trim_start_matches('@').split('.').next().unwrap_or_default();
+            Ok(format!(
+                "# Diagnosed: a mass on the tip beyond the declared sensor's (mass_loading), measured configuration only.\nadded_mass:\n  kind: receptance.tip_mass\n  params: {{ mass: $added_tip_mass }}\n  inputs: {{ tip: \"@{coupling}.tip\" }}"
+            ))
+        })?;
+        Ok(free)
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        m.insert("added_mass_kg".into(), json!(value(values, "added_tip_mass") * 1e-3));
+        m
+    }
+}
+
+/// A compliant tool–holder joint at the holder face: the tool overhang coupled to the holder
+/// through `diag(kt + iω ct, kr + iω cr)`; acts while cutting too.
+pub struct InterfaceCompliance;
+
+impl Effect for InterfaceCompliance {
+    fn name(&self) -> &'static str {
+        "interface_compliance"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "a compliant tool–holder joint at the holder face, K = diag(kt + iω ct, kr + iω cr) (§5.4); measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let sub = roles.substructure.as_ref().ok_or("no beam.substructure step reduces the holder and tool")?;
+        r.set_key(&path(&["steps", sub, "params"]), "split", "holder_face").map_err(e)?;
+        // Holder–tool joints of shrink-fit and collet holders span these ranges; the start is
+        // a joint stiff enough to be rigid for the tool modes.
+        let free = vec![
+            Free::log("joint_kt", "N/m", 1e10, 1e6, 1e11),
+            Free::log("joint_ct", "N*s/m", 100.0, 1.0, 1e4),
+            Free::log("joint_kr", "N*m/rad", 1e8, 1e3, 1e9),
+            Free::log("joint_cr", "N*m*s/rad", 1.0, 1e-2, 1e3),
+        ];
+        declare(r, &free)?;
+        let first = roles
+            .measured_couplings
+            .iter()
+            .chain(&roles.cutting_couplings)
+            .next()
+            .ok_or("no rcsa.couple step uses the substructure")?
+            .clone();
+        r.insert_step_before(
+            &first,
+            &format!(
+                "# Diagnosed: a compliant tool–holder joint at the holder face (interface_compliance).\nholder_face_joint:\n  kind: substructure.joint\n  params: {{ kt: $joint_kt, ct: $joint_ct, kr: $joint_kr, cr: $joint_cr }}\n  inputs: {{ structure: \"@{sub}.model\" }}"
+            ),
+        )
+        .map_err(e)?;
+        for c in roles.measured_couplings.iter().chain(&roles.cutting_couplings) {
+            r.replace_scalar(&path(&["steps", c, "inputs", "structure"]), "@holder_face_joint.structure").map_err(e)?;
+        }
+        Ok(free)
+    }
+    fn starts(&self, free: &[Free]) -> usize {
+        16 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        for (k, n) in [
+            ("kt_n_per_m", "joint_kt"),
+            ("ct_ns_per_m", "joint_ct"),
+            ("kr_nm_per_rad", "joint_kr"),
+            ("cr_nms_per_rad", "joint_cr"),
+        ] {
+            m.insert(k.into(), json!(value(values, n)));
+        }
+        m
+    }
+}
+
+/// The fluted part of the tool modelled as a solid cylinder of an equivalent diameter
+/// (§5.3, Fig. 5.16) for stiffness, shear, mass and rotary inertia.
+pub struct FluteReducedStiffness;
+
+impl FluteReducedStiffness {
+    /// `(section index, name, nominal diameter m)` of each fluted section.
+    fn fluted(roles: &Roles, c: &Compiled) -> Vec<(usize, String, f64)> {
+        let Some(a) = roles.assembly.as_ref().and_then(|a| c.recipe.assemblies.get(a)) else { return vec![] };
+        a.sections
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.fluted)
+            .map(|(i, s)| (i, s.name.clone(), s.d_out_spindle_end))
+            .collect()
+    }
+}
+
+impl Effect for FluteReducedStiffness {
+    fn name(&self) -> &'static str {
+        "flute_reduced_stiffness"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "the fluted section as a solid cylinder of an equivalent diameter below the nominal one (§5.3); measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let assembly = roles.assembly.as_ref().ok_or("no assembly is modelled")?;
+        let fluted = Self::fluted(roles, c);
+        let Some(&(_, _, d)) = fluted.first() else {
+            return Err(format!("assembly `{assembly}` has no section of `kind: fluted`"));
+        };
+        let d_mm = d * 1e3;
+        // The flutes take away at most what §5.3's search allows (a quarter of the diameter
+        // left would be no tool); they never add stiffness.
+        let free = vec![Free::lin("flute_d_equivalent", "mm", d_mm, 0.5 * d_mm, d_mm)];
+        for (i, _, _) in &fluted {
+            let p: Vec<Seg> = path(&["assemblies", assembly, "sections", &i.to_string()]);
+            r.set_key(&p, "d_equivalent", "$flute_d_equivalent").map_err(e)?;
+        }
+        declare(r, &free)?;
+        Ok(free)
+    }
+    fn starts(&self, free: &[Free]) -> usize {
+        8 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
+        let fluted = Self::fluted(roles, c);
+        let d = fluted.first().map_or(f64::NAN, |f| f.2);
+        let de = value(values, "flute_d_equivalent") * 1e-3;
+        let mut m = Map::new();
+        m.insert("sections".into(), json!(fluted.iter().map(|f| f.1.clone()).collect::<Vec<_>>()));
+        m.insert("nominal_diameter_m".into(), json!(d));
+        m.insert("equivalent_diameter_m".into(), json!(de));
+        m.insert("equivalent_diameter_ratio".into(), json!(de / d));
+        m
+    }
+}
+
+/// Spindle modes whose frequency and damping change with speed beyond the baseline law:
+/// `f(n) = f (1 + kf (n/ref)²)`, `η(n) = η (1 + kη (n/ref)²)` with kf and kη fitted per mode.
+pub struct SpindleSpeedStiffening;
+
+impl SpindleSpeedStiffening {
+    /// `(direction, mode index, kf, keta)` of every mode in a measured direction.
+    fn modes(roles: &Roles, c: &Compiled) -> Vec<(String, usize, f64, f64)> {
+        let Some(s) = roles.machine.as_ref().and_then(|m| c.recipe.machines.get(m)).and_then(|m| m.spindle.as_ref())
+        else {
+            return vec![];
+        };
+        s.modes
+            .iter()
+            .filter(|(d, _)| roles.directions.contains(d))
+            .flat_map(|(d, modes)| modes.iter().enumerate().map(move |(i, m)| (d.clone(), i, m.kf, m.keta)))
+            .collect()
+    }
+}
+
+impl Effect for SpindleSpeedStiffening {
+    fn name(&self) -> &'static str {
+        "spindle_speed_stiffening"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "spindle modes stiffening (and damping changing) with speed beyond the baseline speed law; measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
+        let spindle = c
+            .recipe
+            .machines
+            .get(machine)
+            .and_then(|m| m.spindle.as_ref())
+            .ok_or("the machine has no spindle modes")?;
+        let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
+        if roles.speeds_rpm.len() < 2 || top <= 0.0 {
+            return Err("the measurements are at one speed; a speed law needs FRFs at two speeds or more".into());
+        }
+        let modes = Self::modes(roles, c);
+        if modes.is_empty() {
+            return Err("the machine has no spindle modes in the measured directions".into());
+        }
+        // At the fastest measured speed a mode moves by at most ±30 % in frequency and its
+        // loss factor by at most ±80 %; at the fastest speed the recipe uses (the cutting
+        // configuration's) a mode keeps at least half its frequency and a tenth of its loss.
+        let s2 = (top * RPM / spindle.ref_speed).powi(2);
+        let s2_all = (roles.top_speed_rpm.max(top) * RPM / spindle.ref_speed).powi(2);
+        let mut free = Vec::new();
+        for (d, i, kf, keta) in &modes {
+            let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
+            let (nf, ne) = (format!("spindle_{d}{i}_kf"), format!("spindle_{d}{i}_keta"));
+            r.set_key(&p, "keta", &format!("${ne}")).map_err(e)?;
+            r.set_key(&p, "kf", &format!("${nf}")).map_err(e)?;
+            let kf_min = (kf - 0.3 / s2).max(-0.5 / s2_all).min(*kf);
+            let keta_min = (keta - 0.8 / s2).max(-0.9 / s2_all).min(*keta);
+            free.push(Free::lin(&nf, "", *kf, kf_min, kf + 0.3 / s2));
+            free.push(Free::lin(&ne, "", *keta, keta_min, keta + 0.8 / s2));
+        }
+        declare(r, &free)?;
+        Ok(free)
+    }
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
+        let changes: Vec<Json> = Self::modes(roles, c)
+            .iter()
+            .map(|(d, i, kf, keta)| {
+                json!({
+                    "direction": d,
+                    "mode_index": i,
+                    "delta_kf": value(values, &format!("spindle_{d}{i}_kf")) - kf,
+                    "delta_keta": value(values, &format!("spindle_{d}{i}_keta")) - keta,
+                })
+            })
+            .collect();
+        let mut m = Map::new();
+        m.insert("changes".into(), Json::Array(changes));
+        m
+    }
+}
+
+/// Cutting coefficients that change linearly with speed about the calibration speed
+/// (§6.2): the trials move, the FRFs do not.
+pub struct SpeedDependentCuttingCoefficients;
+
+impl Effect for SpeedDependentCuttingCoefficients {
+    fn name(&self) -> &'static str {
+        "speed_dependent_cutting_coefficients"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Cutting
+    }
+    fn description(&self) -> &'static str {
+        "cutting coefficients changing linearly with speed about the calibration speed, Ks(n) = Ks (1 + a Δn), β(n) = β + b Δn; trials only"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let cutting = roles.cutting.as_ref().ok_or("no stability diagram is scored against trials")?;
+        if roles.trials.is_none() {
+            return Err("no cutting trials are scored".into());
+        }
+        if c.recipe.cutting.get(cutting).is_some_and(|c| c.calibrated_at.is_none()) {
+            return Err(format!("cutting `{cutting}` states no `calibrated_at` speed to hold the law about"));
+        }
+        // Per 10000 rpm: Ks within ±60 %, β within ±15°.
+        let free = vec![
+            Free::lin("cutting_ks_change", "", 0.0, -0.6, 0.6),
+            Free::lin("cutting_beta_change", "deg", 0.0, -15.0, 15.0),
+        ];
+        let p = path(&["cutting", cutting]);
+        r.set_key(&p, "change_per", "10000 rpm").map_err(e)?;
+        r.set_key(&p, "beta_change", "$cutting_beta_change").map_err(e)?;
+        r.set_key(&p, "Ks_change", "$cutting_ks_change").map_err(e)?;
+        declare(r, &free)?;
+        Ok(free)
+    }
+    fn starts(&self, free: &[Free]) -> usize {
+        8 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
+        let reference = roles
+            .cutting
+            .as_ref()
+            .and_then(|n| c.recipe.cutting.get(n))
+            .and_then(|c| c.calibrated_at)
+            .map_or(f64::NAN, |w| w / RPM);
+        let mut m = Map::new();
+        m.insert("reference_rpm".into(), json!(reference));
+        m.insert("ks_relative_change_per_10000_rpm".into(), json!(value(values, "cutting_ks_change")));
+        m.insert("beta_change_deg_per_10000_rpm".into(), json!(value(values, "cutting_beta_change")));
+        m
+    }
+}
