@@ -328,6 +328,19 @@ fn evaluate(
     Ok((Evaluation { files, trials, trial_speeds_rpm: trial_speeds }, memo))
 }
 
+/// The text to evaluate: the stability diagram at the trials' speeds only (each speed's
+/// limit is computed on its own, so the trials' verdicts are exactly those of the full
+/// diagram, at a fraction of the cost).
+fn at_trial_speeds(r: &RecipeText, roles: &Roles, trial_speeds: &[f64]) -> Result<RecipeText, String> {
+    let mut r = r.clone();
+    if let (Some(lobes), false) = (&roles.lobes, trial_speeds.is_empty()) {
+        let speeds: Vec<String> = trial_speeds.iter().map(|s| format!("{s} rpm")).collect();
+        r.set_key(&edit::path(&["steps", lobes, "params"]), "speeds", &format!("[{}]", speeds.join(", ")))
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(r)
+}
+
 /// The fit block for `free`, minimising `objective`.
 fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -> String {
     let mut s = String::from("fit:\n  free:\n");
@@ -337,7 +350,7 @@ fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -
     }
     let obj: Vec<String> = objective.iter().map(|o| format!("\"{o}\"")).collect();
     s.push_str(&format!("  objective: [{}]\n  method: {method}\n  starts: {starts}\n", obj.join(", ")));
-    s.push_str(&format!("  max_evaluations: {}\n", (150 * free.len()).max(300)));
+    s.push_str(&format!("  max_evaluations: {}\n", (100 * free.len()).max(200)));
     s
 }
 
@@ -422,22 +435,18 @@ fn try_candidate(
         _ => (ctx.roles.gaps.iter().map(|g| format!("@{}.residual", g.step)).collect(), "least-squares"),
     };
     let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(&mine)).max().unwrap_or(0) } else { 0 };
+    let text = match at_trial_speeds(&text, ctx.roles, &ctx.baseline.trial_speeds_rpm) {
+        Ok(t) => t,
+        Err(e) => {
+            c.skipped = Some(e);
+            return c;
+        }
+    };
     let mut fitting = text.clone();
-    if cutting && let (Some(lobes), Some(trials)) = (&ctx.roles.lobes, &ctx.roles.trials) {
-        // The diagram at the trials' speeds only (each speed's limit is computed on its own,
-        // so their verdicts are exact), and a margin that centres the boundary between
-        // the stable and the chattering cuts.
-        let speeds: Vec<String> = reference.trial_speeds_rpm.iter().map(|s| format!("{s} rpm")).collect();
-        let edits = fitting
-            .set_key(&edit::path(&["steps", lobes, "params"]), "speeds", &format!("[{}]", speeds.join(", ")))
-            .and_then(|_| {
-                fitting.set_key(
-                    &edit::path(&["steps", trials, "params"]),
-                    "margin",
-                    &format!("{} %", TRIAL_MARGIN * 100.0),
-                )
-            });
-        if let Err(e) = edits {
+    if cutting && let Some(trials) = &ctx.roles.trials {
+        // A margin that centres the boundary between the stable and the chattering cuts.
+        let margin = format!("{} %", TRIAL_MARGIN * 100.0);
+        if let Err(e) = fitting.set_key(&edit::path(&["steps", trials, "params"]), "margin", &margin) {
             c.skipped = Some(e.to_string());
             return c;
         }
@@ -482,8 +491,9 @@ fn try_candidate(
     for e in effects {
         c.params.insert(e.name().to_string(), Json::Object(e.report(&values, ctx.roles, ctx.compiled)));
     }
+    // A cutting effect is informed by the trials alone; the rest by the FRFs and trials.
     let k = mine.len() as f64;
-    let n = after.observations();
+    let n = if cutting { after.trials.map_or(2.0, |t| t.0.max(2) as f64) } else { after.observations() };
     c.bic = after.deviance() + after.trial_cost() + k * n.ln();
     let reference_bic = reference.deviance() + reference.trial_cost();
     c.delta_bic = reference_bic - c.bic;
@@ -496,7 +506,6 @@ fn try_candidate(
     c.seconds = t0.elapsed().as_secs_f64();
     c.evaluation = Some(after);
     c.values = values;
-    let _ = ctx.baseline;
     c
 }
 
@@ -539,14 +548,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
             MAX_NOISE_FLOOR, noisy[0].file, noisy[0].noise_floor
         )));
     }
-    roles.directions = baseline.files.iter().map(|f| f.direction.clone()).collect();
-    roles.directions.sort();
-    roles.directions.dedup();
-    roles.speeds_rpm = baseline.files.iter().map(|f| f.speed_rpm).collect();
-    roles.speeds_rpm.sort_by(f64::total_cmp);
-    roles.speeds_rpm.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
-    roles.top_speed_rpm =
-        roles.speeds_rpm.iter().chain(&baseline.trial_speeds_rpm).fold(roles.top_speed_rpm, |a, &b| a.max(b));
+    roles.measured(&baseline);
     let ctx = Ctx {
         path,
         base: &base,
@@ -602,7 +604,25 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 .min_by(|a, b| a.bic.total_cmp(&b.bic))
                 .cloned();
             candidates.extend(tried);
-            chosen = best_pair;
+            // A pair is kept only if neither of its effects alone, refitted from the pair's
+            // values, explains the data as well (a single fit can miss its basin).
+            if let Some(pair) = &best_pair {
+                let members: Vec<&dyn Effect> =
+                    pair.effects.iter().filter_map(|n| singles.iter().copied().find(|e| e.name() == *n)).collect();
+                let pruned: Vec<Candidate> =
+                    members.par_iter().map(|e| try_candidate(&ctx, &[*e], &[], &[], &pair.values, &baseline)).collect();
+                let simpler = pruned
+                    .iter()
+                    .filter(|c| {
+                        c.skipped.is_none() && c.explains && c.delta_bic > BIC_STRONG && c.bic - pair.bic <= BIC_STRONG
+                    })
+                    .min_by(|a, b| a.bic.total_cmp(&b.bic))
+                    .cloned();
+                candidates.extend(pruned);
+                chosen = simpler.or(best_pair);
+            } else {
+                chosen = None;
+            }
         }
         candidates.splice(0..0, fitted);
         if let Some(ch) = &chosen {
@@ -639,7 +659,8 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
     let after = if named.is_empty() {
         baseline.clone()
     } else {
-        compile_text(&diagnosed, path, &[], registry)
+        at_trial_speeds(&diagnosed, &roles, &baseline.trial_speeds_rpm)
+            .and_then(|t| compile_text(&t, path, &[], registry))
             .and_then(|c| evaluate(&c, &roles, registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0))
             .map_err(|e| recipe_err(format!("the diagnosed recipe does not run: {e}")))?
     };
@@ -822,4 +843,38 @@ pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
         tmp.persist(&dest).map_err(|e| io(&dest, e.error))?;
     }
     Ok(())
+}
+
+/// The recipe at `path` with `effects` added at the given values (recipe parameter names and
+/// the units the library writes them in): the forward model of the library, for generating
+/// data with a known answer. Effects are applied in library order.
+pub fn with_effects(
+    path: &Path,
+    registry: &Registry,
+    effects: &[(&str, Vec<(&str, f64)>)],
+) -> Result<String, DiagnoseError> {
+    let shown = path.display().to_string();
+    let err = |message: String| DiagnoseError::Recipe { path: shown.clone(), message };
+    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+    let mut r = RecipeText::new(&shown, text).map_err(|e| err(e.to_string()))?;
+    let compiled = compile_text(&r, path, &[], registry).map_err(DiagnoseError::Input)?;
+    let mut roles = Roles::find(&compiled);
+    let (baseline, _) = evaluate(&compiled, &roles, registry, None).map_err(err)?;
+    roles.measured(&baseline);
+    let lib = effects::library();
+    if let Some((n, _)) = effects.iter().find(|(n, _)| !lib.iter().any(|e| e.name() == *n)) {
+        return Err(err(format!("no effect `{n}` in the library")));
+    }
+    for e in lib.iter().filter(|e| effects.iter().any(|(n, _)| *n == e.name())) {
+        let free = e.apply(&roles, &compiled, &mut r).map_err(err)?;
+        let values = &effects.iter().find(|(n, _)| *n == e.name()).expect("listed").1;
+        for (name, v) in values {
+            let f = free
+                .iter()
+                .find(|f| f.name == *name)
+                .ok_or_else(|| err(format!("{} has no parameter `{name}`", e.name())))?;
+            r.declare_param(name, &f.text(*v)).map_err(|e| err(e.to_string()))?;
+        }
+    }
+    Ok(r.text)
 }

@@ -37,6 +37,20 @@ pub struct Roles {
     pub top_speed_rpm: f64,
 }
 
+impl Roles {
+    /// Takes the measured directions and speeds, and the trials' speeds, from the baseline.
+    pub fn measured(&mut self, baseline: &super::Evaluation) {
+        self.directions = baseline.files.iter().map(|f| f.direction.clone()).collect();
+        self.directions.sort();
+        self.directions.dedup();
+        self.speeds_rpm = baseline.files.iter().map(|f| f.speed_rpm).collect();
+        self.speeds_rpm.sort_by(f64::total_cmp);
+        self.speeds_rpm.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+        self.top_speed_rpm =
+            self.speeds_rpm.iter().chain(&baseline.trial_speeds_rpm).fold(self.top_speed_rpm, |a, &b| a.max(b));
+    }
+}
+
 fn input<'a>(s: &'a Step, port: &str) -> Option<&'a PortRef> {
     s.inputs.iter().find(|b| b.port == port).map(|b| &b.from)
 }

@@ -144,7 +144,8 @@ impl Node for FrfGap {
                 continue;
             }
             let c = meas.coherence.as_ref().map(|c| c[k]);
-            if !(h.re.is_finite() && h.im.is_finite()) || c.is_some_and(|c| !c.is_finite()) {
+            // A line of zero coherence (or one rounded to zero) has no noise estimate.
+            if !(h.re.is_finite() && h.im.is_finite()) || c.is_some_and(|c| !(c.is_finite() && c > 0.0)) {
                 bad += 1;
                 continue;
             }
@@ -172,7 +173,9 @@ impl Node for FrfGap {
             }
         }
         if bad > 0 {
-            ctx.warn(format!("{bad} measured line(s) are not finite (NaN or infinite) and were left out"));
+            ctx.warn(format!(
+                "{bad} measured line(s) are not finite (NaN or infinite) or have zero coherence, and were left out"
+            ));
         }
         if f.is_empty() {
             return Err(NodeError::input(

@@ -1,0 +1,32 @@
+//! A full diagnosis over the whole effect library, from the recipe `spindlelab import`
+//! writes: `train_02` (a hidden tool–holder joint; two FRFs, 39 trials) and `train_03`
+//! (spindle stiffening with speed; eight FRFs at four speeds).
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::path::Path;
+use std::time::Duration;
+
+fn bench(c: &mut Criterion) {
+    let registry = spindlelab::registry();
+    let mut group = c.benchmark_group("diagnose");
+    group.sample_size(10).measurement_time(Duration::from_secs(60));
+    for case in ["train_02", "train_03"] {
+        let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/training").join(case);
+        let dir = tempfile::tempdir().expect("temporary folder");
+        for entry in std::fs::read_dir(&from).expect("case folder") {
+            let p = entry.expect("entry").path();
+            if p.extension().is_some_and(|e| e == "csv") {
+                std::fs::copy(&p, dir.path().join(p.file_name().expect("name"))).expect("copy");
+            }
+        }
+        let json = std::fs::read_to_string(from.join("case.json")).expect("case");
+        let recipe = spindlelab::import::recipe_from_case(&json, "case.json").expect("import");
+        let path = dir.path().join("recipe.yaml");
+        std::fs::write(&path, recipe).expect("write");
+        group.bench_function(case, |b| b.iter(|| spindlelab::diagnose::diagnose(&path, &registry).expect("diagnosis")));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
