@@ -19,6 +19,7 @@ use spindlelab_engine::value::{
 };
 use spindlelab_grammar::Dimension as D;
 use std::f64::consts::TAU;
+use std::sync::{Arc, Mutex};
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
 
@@ -355,6 +356,28 @@ fn part_two_port(part: &SubstructurePart, freqs: &[f64]) -> Result<TwoPort, Node
         Ok(reduced.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
     };
     Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(0, 0)?, r12: r(0, 1)?, r21: r(1, 0)?, r22: r(1, 1)? })
+}
+
+/// Two-ports already evaluated, by part and grid: a fit or a diagnosis couples the same
+/// parts on the same lines hundreds of times while only a joint or the spindle changes, and
+/// summing the parts' modes is most of a coupling's cost. A hit is checked against the full
+/// part and grid, so it is exactly the value the sum would give.
+fn cached_two_port(part: &SubstructurePart, freqs: &[f64]) -> Result<Arc<TwoPort>, NodeError> {
+    type Entry = (SubstructurePart, Arc<TwoPort>);
+    /// Enough for the parts of a few assemblies on a few grids (each about 1 MB).
+    const KEEP: usize = 12;
+    static CACHE: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
+    let hit = |c: &[Entry]| c.iter().find(|(p, t)| p == part && t.freqs_hz == freqs).map(|(_, t)| Arc::clone(t));
+    if let Some(t) = hit(&CACHE.lock().unwrap_or_else(|e| e.into_inner())) {
+        return Ok(t);
+    }
+    let t = Arc::new(part_two_port(part, freqs)?);
+    let mut c = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    if c.len() >= KEEP {
+        c.remove(0);
+    }
+    c.push((part.clone(), Arc::clone(&t)));
+    Ok(t)
 }
 
 /// Two grids agree when they have the same length and every line within 1e-9 relative.
@@ -742,7 +765,7 @@ impl Node for RcsaCouple {
         let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
         let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
             Some(Value::Substructure(s)) => {
-                let ports = s.parts.iter().map(|p| part_two_port(p, &freqs)).collect::<Result<Vec<_>, _>>()?;
+                let ports = s.parts.iter().map(|p| cached_two_port(p, &freqs)).collect::<Result<Vec<_>, _>>()?;
                 (ports, s.tool_joint)
             }
             Some(other) => {
@@ -763,7 +786,7 @@ impl Node for RcsaCouple {
                 let mesh = mesh(ctx.params);
                 let ports = parts
                     .iter()
-                    .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly"))
+                    .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly").map(Arc::new))
                     .collect::<Result<Vec<_>, _>>()?;
                 (ports, joint)
             }
@@ -777,7 +800,7 @@ impl Node for RcsaCouple {
                     Some([kt, ct, kr, cr]) => Interface::diagonal(kt, ct, kr, cr),
                     None => Interface::Rigid,
                 };
-                rcsa::couple_chain(&base, &[(holder, interface), (tool, at_tool)], &opts)
+                rcsa::couple_chain(&base, &[(&**holder, interface), (&**tool, at_tool)], &opts)
                     .map_err(|e| rcsa_error("spindle", e, hint))?
             }
             _ => return Err(NodeError::input("structure", "a substructure has one part, or two (holder and tool)")),
