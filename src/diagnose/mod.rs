@@ -341,6 +341,20 @@ fn at_trial_speeds(r: &RecipeText, roles: &Roles, trial_speeds: &[f64]) -> Resul
     Ok(r)
 }
 
+/// The distinct speeds (rpm) of the scored trials, read from the trials file; empty when
+/// the recipe scores none or the file cannot be read (the run then says why).
+fn trial_speeds(c: &Compiled, roles: &Roles) -> Vec<f64> {
+    let Some(file) = roles.trials.as_ref().and_then(|t| c.recipe.step(t)).and_then(|s| s.params.file("file")) else {
+        return vec![];
+    };
+    let Ok(text) = std::fs::read_to_string(file) else { return vec![] };
+    let Ok(trials) = crate::stdlib::nodes::parse_trials(&text, &file.display().to_string()) else { return vec![] };
+    let mut speeds: Vec<f64> = trials.iter().map(|t| t.speed_rpm).collect();
+    speeds.sort_by(f64::total_cmp);
+    speeds.dedup();
+    speeds
+}
+
 /// The fit block for `free`, minimising `objective`.
 fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -> String {
     let mut s = String::from("fit:\n  free:\n");
@@ -539,8 +553,14 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
             "nothing compares a model with a measurement: declare the measured FRFs (`measurements:`) and an `frf.gap` step whose `model` is the prediction (see `spindlelab import`)".into(),
         ));
     }
-    let (baseline, memo) = evaluate(&compiled, &roles, registry, None)
+    // The trials' speeds, so every evaluation computes the lobes there only.
+    let trial_speeds = trial_speeds(&compiled, &roles);
+    let at_trials = at_trial_speeds(&base, &roles, &trial_speeds).map_err(recipe_err)?;
+    let evaluated = compile_text(&at_trials, path, &[], registry)
+        .and_then(|c| evaluate(&c, &roles, registry, None))
         .map_err(|e| recipe_err(format!("the model as written does not run: {e}")))?;
+    let (mut baseline, memo) = evaluated;
+    baseline.trial_speeds_rpm = trial_speeds;
     let noisy: Vec<&FileGap> = baseline.files.iter().filter(|f| !(f.noise_floor < MAX_NOISE_FLOOR)).collect();
     if noisy.len() == baseline.files.len() {
         return Err(recipe_err(format!(

@@ -29,7 +29,9 @@ pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
-pub use stability::{ChatterDetect, ModalModelNode, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore};
+pub use stability::{
+    ChatterDetect, ModalModelNode, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore, parse_trials,
+};
 pub use structure::{BeamCampbell, BeamReceptance, BeamSubstructure, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;
 pub use transform::{FrfAddMode, FrfPhaseSlope, ReceptanceTipMass, SubstructureJoint};
