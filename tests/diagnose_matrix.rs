@@ -93,14 +93,14 @@ fn generate(dir: &Path, case: &Case) {
         }
         std::fs::write(dir.join(&file), text).unwrap();
     }
-    // Trials at random speeds of the diagram, 8–30 % in depth from the true limit (as the
-    // training cases place them).
+    // Sixty trials at random speeds of the diagram, 8–25 % in depth from the true limit (the
+    // training cases keep them at least 8 % away).
     let Value::Lobes(l) = out(c.graph.by_step[&lobes_step][0])["speed_dependent"].as_ref().clone() else { panic!() };
     let mut text = String::from("# synthetic trials\nrpm,depth_mm,outcome,chatter_freq_hz\n");
-    for _ in 0..45 {
+    for _ in 0..60 {
         let k = rng.random_range(0..l.speed_rpm.len());
         let chatter = rng.random_bool(0.5);
-        let away: f64 = rng.random_range(0.08..0.3);
+        let away: f64 = rng.random_range(0.08..0.25);
         let depth = l.depth_limit[k] * if chatter { (away).exp() } else { (-away).exp() };
         let _ = writeln!(text, "{},{:.5},{},", l.speed_rpm[k], depth * 1e3, if chatter { "chatter" } else { "stable" });
     }
@@ -211,8 +211,8 @@ fn matrix() -> Vec<Case> {
         (
             "speed_dependent_cutting_coefficients",
             vec![
-                vec![("cutting_ks_change", -0.2), ("cutting_beta_change", 2.0)],
-                vec![("cutting_ks_change", 0.25), ("cutting_beta_change", -3.0)],
+                vec![("cutting_ks_change", -0.3), ("cutting_beta_change", 2.0)],
+                vec![("cutting_ks_change", 0.35), ("cutting_beta_change", -3.0)],
             ],
         ),
     ];
@@ -245,7 +245,8 @@ fn matrix() -> Vec<Case> {
         let name = p.iter().map(|e| e.0).collect::<Vec<_>>().join(" + ");
         add(name, p, None, 0.02);
     }
-    for sigma in [0.01, 0.03] {
+    // Controls are cheap (nothing to fit when nothing disagrees): several noise draws.
+    for sigma in [0.01, 0.01, 0.02, 0.02, 0.03, 0.03] {
         add(format!("control σ {}%", sigma * 100.0), vec![], None, sigma);
     }
     add("probe-mount resonance x 4200 Hz".into(), vec![], Some(("x", 4200.0, 1.5e8, 0.05)), 0.02);
@@ -292,5 +293,5 @@ fn the_synthetic_matrix_is_identified_without_false_alarms() {
         errors.iter().fold(0.0f64, |a, b| a.max(*b)) * 100.0
     );
     assert_eq!(false_alarms, 0);
-    assert!(identified >= 0.95, "identification {identified}");
+    assert!(with_effect.is_empty() || identified >= 0.95, "identification {identified}");
 }
