@@ -784,7 +784,7 @@ fn diagnosed_header(
     for e in named {
         s.push_str(&format!("#   {}: {}\n", e.name(), e.description()));
         let p = Json::Object(e.report(values, roles, c));
-        s.push_str(&format!("#     {p}\n"));
+        s.push_str(&format!("#     {}\n", readable(&p)));
     }
     if named.is_empty() {
         s.push_str("#   Nothing was added: the recipe below is the input.\n");
@@ -792,15 +792,31 @@ fn diagnosed_header(
     s
 }
 
+/// A value as a person reads it: numbers to five significant digits, keys unquoted.
+fn readable(v: &Json) -> String {
+    match v {
+        Json::Number(n) => {
+            let x = n.as_f64().unwrap_or(f64::NAN);
+            if x == x.trunc() && x.abs() < 1e6 { format!("{x}") } else { format!("{x:.4e}") }
+        }
+        Json::String(s) => s.clone(),
+        Json::Array(a) => format!("[{}]", a.iter().map(readable).collect::<Vec<_>>().join(", ")),
+        Json::Object(m) => {
+            format!("{{{}}}", m.iter().map(|(k, v)| format!("{k}: {}", readable(v))).collect::<Vec<_>>().join(", "))
+        }
+        other => other.to_string(),
+    }
+}
+
 /// The readable summary, `diagnosis.md`.
 pub fn markdown(d: &Diagnosis) -> String {
     let mut s = format!("# Diagnosis of `{}`\n\n**Verdict: {}.**\n\n", d.recipe, d.verdict);
     for e in &d.effects {
         s.push_str(&format!(
-            "- **{}** — {}\n  - parameters: `{}`\n",
+            "- **{}** — {}\n  - parameters: {}\n",
             e.name,
             e.evidence["description"].as_str().unwrap_or(""),
-            e.params
+            readable(&e.params)
         ));
         if let Some(b) = e.evidence["delta_bic"].as_f64() {
             s.push_str(&format!("  - evidence: BIC {b:.1} better than the model without it\n"));
