@@ -159,19 +159,7 @@ pub fn fit(
         let result = exec::execute(&trial.recipe, &trial.graph, registry, &opts, &|_, _| {});
         // The first evaluation (the start point) seeds the memo every later one reads.
         if base_memo.borrow().is_none() {
-            let memo: Memo = trial
-                .graph
-                .instances
-                .iter()
-                .zip(&result.outcomes)
-                .filter_map(|(inst, o)| match o {
-                    Outcome::Computed { outputs, warnings, .. } => {
-                        Some((inst.key.clone(), (Arc::clone(outputs), warnings.clone())))
-                    }
-                    _ => None,
-                })
-                .collect();
-            *base_memo.borrow_mut() = Some(Arc::new(memo));
+            *base_memo.borrow_mut() = Some(Arc::new(result.memo(&trial.graph)));
         }
         match residuals(&trial, &result.outcomes) {
             Ok(r) if r.iter().all(|v| v.is_finite()) => Some(r),

@@ -25,10 +25,13 @@ fn base_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/training").join(BASE)
 }
 
+/// Effects by name, each with its recipe parameters' values.
+type Effects = Vec<(&'static str, Vec<(&'static str, f64)>)>;
+
 /// One case of the matrix.
 struct Case {
     name: String,
-    effects: Vec<(&'static str, Vec<(&'static str, f64)>)>,
+    effects: Effects,
     /// `(direction, f Hz, k N/m, η)`: a resonance outside the library added to that direction.
     resonance: Option<(&'static str, f64, f64, f64)>,
     sigma_rel: f64,
@@ -186,11 +189,12 @@ fn run(case: &Case) -> Outcome_ {
 fn matrix() -> Vec<Case> {
     let mut cases = Vec::new();
     let mut seed = 1;
-    let mut add = |name: String, effects: Vec<(&'static str, Vec<(&'static str, f64)>)>, resonance, sigma_rel| {
+    let mut add = |name: String, effects: Effects, resonance, sigma_rel| {
         seed += 1;
         cases.push(Case { name, effects, resonance, sigma_rel, seed });
     };
-    let singles: Vec<(&str, Vec<Vec<(&str, f64)>>)> = vec![
+    type Strengths<'a> = Vec<Vec<(&'a str, f64)>>;
+    let singles: Vec<(&str, Strengths)> = vec![
         ("sensor_delay", vec![vec![("sensor_phase_slope", -8.0)], vec![("sensor_phase_slope", -20.0)]]),
         ("mass_loading", vec![vec![("added_tip_mass", 2.0)], vec![("added_tip_mass", 8.0)]]),
         (
@@ -227,7 +231,7 @@ fn matrix() -> Vec<Case> {
             add(format!("{effect} #{} σ {}%", i + 1, sigma * 100.0), vec![(effect, strengths[i].clone())], None, sigma);
         }
     }
-    let pairs: Vec<Vec<(&'static str, Vec<(&'static str, f64)>)>> = vec![
+    let pairs: Vec<Effects> = vec![
         vec![("sensor_delay", vec![("sensor_phase_slope", -14.0)]), ("mass_loading", vec![("added_tip_mass", 5.0)])],
         vec![
             (

@@ -313,19 +313,7 @@ fn evaluate(
             trial_speeds.dedup();
         }
     }
-    let memo: Memo = c
-        .graph
-        .instances
-        .iter()
-        .zip(&result.outcomes)
-        .filter_map(|(inst, o)| match o {
-            Outcome::Computed { outputs, warnings, .. } => {
-                Some((inst.key.clone(), (Arc::clone(outputs), warnings.clone())))
-            }
-            _ => None,
-        })
-        .collect();
-    Ok((Evaluation { files, trials, trial_speeds_rpm: trial_speeds }, memo))
+    Ok((Evaluation { files, trials, trial_speeds_rpm: trial_speeds }, result.memo(&c.graph)))
 }
 
 /// The text to evaluate: the stability diagram at the trials' speeds only (each speed's
@@ -541,7 +529,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
     }
     let text = std::fs::read_to_string(path).map_err(|e| recipe_err(format!("cannot read the recipe: {e}")))?;
     let base = RecipeText::new(&shown, text).map_err(|e| recipe_err(e.to_string()))?;
-    let compiled = compile_text(&base, path, &[], registry).map_err(|e| DiagnoseError::Input(e))?;
+    let compiled = compile_text(&base, path, &[], registry).map_err(DiagnoseError::Input)?;
     if compiled.recipe.fit.is_some() {
         return Err(recipe_err(
             "the recipe has a `fit:` block; a diagnosis fits its own parameters: remove the block (or run the fitted recipe)".into(),
@@ -561,7 +549,8 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         .map_err(|e| recipe_err(format!("the model as written does not run: {e}")))?;
     let (mut baseline, memo) = evaluated;
     baseline.trial_speeds_rpm = trial_speeds;
-    let noisy: Vec<&FileGap> = baseline.files.iter().filter(|f| !(f.noise_floor < MAX_NOISE_FLOOR)).collect();
+    let noisy: Vec<&FileGap> =
+        baseline.files.iter().filter(|f| f.noise_floor.is_nan() || f.noise_floor >= MAX_NOISE_FLOOR).collect();
     if noisy.len() == baseline.files.len() {
         return Err(recipe_err(format!(
             "every measurement is noise (noise floor {} of the signal or more, e.g. `{}` at {:.2}): no discrepancy can be judged",

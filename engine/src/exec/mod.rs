@@ -129,6 +129,22 @@ pub struct RunResult {
 }
 
 impl RunResult {
+    /// What this run computed, by cache key, for a later run in the same process to reuse
+    /// (`RunOptions::memo`): a fit's start point seeds every later evaluation.
+    pub fn memo(&self, graph: &Graph) -> Memo {
+        graph
+            .instances
+            .iter()
+            .zip(&self.outcomes)
+            .filter_map(|(inst, o)| match o {
+                Outcome::Computed { outputs, warnings, .. } => {
+                    Some((inst.key.clone(), (Arc::clone(outputs), warnings.clone())))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     pub fn failures<'g>(&'g self, graph: &'g Graph) -> impl Iterator<Item = (&'g str, &'g NodeError)> {
         self.outcomes.iter().zip(&graph.instances).filter_map(|(o, i)| match o {
             Outcome::Failed(e) => Some((i.id.as_str(), e)),

@@ -351,7 +351,7 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
                     "give the speed the law is about, e.g. `calibrated_at: 12000 rpm`",
                 );
             }
-            if p.f64("change_per").is_some_and(|v| !(v > 0.0)) {
+            if p.f64("change_per").is_some_and(|v| v.is_nan() || v <= 0.0) {
                 let at = raw.get("change_per").map(|r| r.span.clone());
                 diags.error_help(
                     at.as_ref(),

@@ -583,7 +583,8 @@ fn coefficient_table(
                     [n, ks * (1.0 + cut.ks_change * t), beta + cut.beta_change * t]
                 })
                 .collect();
-            if rows.iter().any(|r| !(r[1] > 0.0) || !(r[2] > 0.0 && r[2] < std::f64::consts::FRAC_PI_2 * 2.0)) {
+            let physical = |r: &[f64; 3]| r[1] > 0.0 && r[2] > 0.0 && r[2] < std::f64::consts::PI;
+            if !rows.iter().all(physical) {
                 return Err(NodeError::param(
                     "cutting",
                     format!("the speed law gives Ks ≤ 0 or β outside (0, 180°) within {lo:.0}–{hi:.0} rpm"),
