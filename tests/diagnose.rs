@@ -245,3 +245,15 @@ fn a_measurement_that_is_all_noise_is_refused() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("every measurement is noise"), "{err}");
 }
+
+/// A recipe that fits its own parameters is refused: the diagnosis fits the effects' ones.
+#[test]
+fn a_recipe_with_a_fit_block_is_refused() {
+    let recipe = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/train-02/joint-fit.yaml");
+    let dir = tempfile::tempdir().unwrap();
+    let o = spindlelab(&["diagnose".as_ref(), recipe.as_os_str(), "-o".as_ref(), dir.path().join("o").as_os_str()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("joint-fit.yaml") && err.contains("`fit:` block"), "{err}");
+    assert!(!dir.path().join("o").exists());
+}

@@ -477,13 +477,6 @@ fn try_candidate(
     let after = match after {
         Ok(a) => a,
         Err(e) => {
-            if let Ok(dir) = std::env::var("SPINDLELAB_DIAGNOSE_DEBUG") {
-                let _ = std::fs::write(Path::new(&dir).join(format!("{}.yaml", c.effects.join("+"))), &text.text);
-                let _ = std::fs::write(
-                    Path::new(&dir).join(format!("{}.set", c.effects.join("+"))),
-                    format!("{overrides:?}"),
-                );
-            }
             c.skipped = Some(format!("the fitted model cannot be evaluated: {e}"));
             return c;
         }
@@ -509,12 +502,6 @@ fn try_candidate(
     c.evaluation = Some(after);
     c.values = values;
     c
-}
-
-/// The text of the recipe with `effects` at their fitted `values`.
-fn write_augmented(ctx: &Ctx, effects: &[&dyn Effect], values: &[(String, f64)]) -> Result<RecipeText, String> {
-    let (r, _) = augmented(ctx, effects, values)?;
-    Ok(r)
 }
 
 /// Diagnoses the recipe at `path`.
@@ -664,7 +651,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
     }
 
     // The augmented recipe, run again.
-    let diagnosed = write_augmented(&ctx, &named, &named_values).map_err(recipe_err)?;
+    let (diagnosed, _) = augmented(&ctx, &named, &named_values).map_err(recipe_err)?;
     let after = if named.is_empty() {
         baseline.clone()
     } else {
