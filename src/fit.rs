@@ -273,18 +273,15 @@ pub fn fitted_recipe(compiled: &Compiled, report: &FitReport) -> Option<String> 
 
 /// Writes `fit.json` (the report) and `fitted.yaml` (the recipe with the fitted values)
 /// into the output directory, each written whole or not at all.
-pub fn write_fit_files(compiled: &Compiled, report: &FitReport, out_dir: &std::path::Path) -> std::io::Result<()> {
-    let write = |name: &str, text: &str| -> std::io::Result<()> {
-        let mut tmp = tempfile::NamedTempFile::new_in(out_dir)?;
-        std::io::Write::write_all(&mut tmp, text.as_bytes())?;
-        tmp.persist(out_dir.join(name)).map_err(|e| e.error)?;
-        Ok(())
-    };
-    write(FIT_REPORT_FILE, &serde_json::to_string_pretty(report).expect("report serialises"))?;
+/// The fit's report (`fit.json`) and written-back recipe (`fitted.yaml`), as files of the run
+/// that uses the fitted values (committed with its outputs).
+pub fn fit_files(compiled: &Compiled, report: &FitReport) -> Vec<(String, String)> {
+    let mut files =
+        vec![(FIT_REPORT_FILE.to_string(), serde_json::to_string_pretty(report).expect("report serialises"))];
     if let Some(text) = fitted_recipe(compiled, report) {
-        write(FITTED_RECIPE_FILE, &text)?;
+        files.push((FITTED_RECIPE_FILE.to_string(), text));
     }
-    Ok(())
+    files
 }
 
 /// File names of a fit's report and written-back recipe in the output directory.

@@ -149,10 +149,31 @@ fn compile_with(
 }
 
 fn default_out(c: &Compiled) -> PathBuf {
-    PathBuf::from("out").join(&c.recipe.name)
+    PathBuf::from("out").join(engine::model::slug(&c.recipe.name))
+}
+
+/// The most worker threads a run starts, whatever `-j` asks: more than a few per core only
+/// costs memory (each thread reserves a stack).
+fn clamp_threads(asked: Option<usize>) -> Option<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let most = (8 * cores).min(256);
+    asked.map(|n| {
+        let used = n.clamp(1, most);
+        if used != n {
+            eprintln!("warning: -j {n} is outside 1..={most} for this machine's {cores} core(s); using {used}");
+        }
+        used
+    })
 }
 
 fn main() -> ExitCode {
+    // Output into a closed pipe (`spindlelab nodes | head -1`) ends the process quietly, as
+    // for any Unix filter, instead of a panic in `println!`.
+    #[cfg(unix)]
+    // SAFETY: restoring the default action of one signal before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let registry = spindlelab::registry();
     match cli.command {
@@ -224,7 +245,7 @@ fn main() -> ExitCode {
         Command::Diagnose { recipe, out, quiet } => {
             let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
                 Ok(d) => d,
-                Err(e @ spindlelab::diagnose::DiagnoseError::Io { .. }) => {
+                Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
                     eprintln!("error: {e}");
                     return ExitCode::from(EXIT_FAILURE);
                 }
@@ -239,7 +260,8 @@ fn main() -> ExitCode {
             });
             if let Err(e) = spindlelab::diagnose::write(&d, &out) {
                 eprintln!("error: {e}");
-                return ExitCode::from(EXIT_FAILURE);
+                let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
+                return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
             }
             if !quiet {
                 print!("{}", spindlelab::diagnose::markdown(&d));
@@ -291,6 +313,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Command::Run { recipe, out, keep_going, no_cache, threads, quiet, set, no_fit } => {
+            let threads = clamp_threads(threads);
             let mut c = match compile_with(&recipe, &set, &registry) {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -323,6 +346,7 @@ fn main() -> ExitCode {
                 keep_going,
                 threads,
                 release_consumed: true,
+                extra_files: fitted.as_ref().map(|r| spindlelab::fit::fit_files(&c, r)).unwrap_or_default(),
                 ..RunOptions::new(out.clone())
             };
             let bar = if std::io::stderr().is_terminal() && !quiet {
@@ -338,11 +362,15 @@ fn main() -> ExitCode {
             };
             let outcome = engine::run(&c, &registry, &opts, &progress);
             bar.finish_and_clear();
+            let notes = match &outcome {
+                Ok(r) => &r.result.notes[..],
+                Err(RunError::NodesFailed { report, .. }) => &report.result.notes[..],
+                Err(_) => &[],
+            };
+            for n in notes {
+                eprintln!("warning: {n}");
+            }
             if let Some(report) = &fitted {
-                if let Err(e) = spindlelab::fit::write_fit_files(&c, report, &out) {
-                    eprintln!("error: {e}");
-                    return ExitCode::from(EXIT_FAILURE);
-                }
                 if !report.converged {
                     eprintln!(
                         "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
@@ -393,9 +421,9 @@ fn main() -> ExitCode {
                     }
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
-                Err(e @ RunError::Io { .. }) => {
+                Err(RunError::Output(e)) => {
                     eprintln!("error: {e}");
-                    ExitCode::from(EXIT_FAILURE)
+                    ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
                 }
             }
         }

@@ -108,8 +108,9 @@ pub enum RunError {
     /// Some instances failed; the report says what the others did and what was written.
     #[error("{} node instance(s) failed", .failures.len())]
     NodesFailed { failures: Vec<(String, String)>, report: Box<RunReport> },
-    #[error("cannot write `{path}`: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    /// The output folder is busy, holds a link that leads elsewhere, or cannot be written.
+    #[error("{0}")]
+    Output(exec::CommitError),
 }
 
 /// Everything a run produced.
@@ -123,26 +124,25 @@ pub struct RunReport {
 
 /// Runs a compiled recipe and writes its outputs and manifest into `opts.out_dir`.
 ///
-/// Outputs are rendered into a staging directory and moved into place only when all of
-/// them are ready; with `keep_going`, outputs whose instances all succeeded are written
-/// even if others failed. The cache keeps every computed instance either way.
+/// The run holds the output folder's lock throughout; its files and manifest go into a fresh
+/// run folder that replaces the previous run as one ([`exec::commit`]). With `keep_going`,
+/// outputs whose instances all succeeded are written even if others failed; a failed run
+/// otherwise commits only its manifest, so no earlier output stands beside it unmarked. The
+/// cache keeps every computed instance either way.
 pub fn run(
     compiled: &Compiled,
     registry: &Registry,
     opts: &RunOptions,
     progress: &(dyn Fn(usize, &str) + Sync),
 ) -> Result<RunReport, RunError> {
-    let io = |path: &Path, source| RunError::Io { path: path.to_path_buf(), source };
-    if let Err(e) = std::fs::create_dir_all(&opts.out_dir) {
-        return Err(io(&opts.out_dir, e));
-    }
+    let dir = exec::OutputDir::open(&opts.out_dir).map_err(RunError::Output)?;
     let result = exec::execute(&compiled.recipe, &compiled.graph, registry, opts, progress);
-    let staging = match tempfile::Builder::new().prefix(".staging-").tempdir_in(&opts.out_dir) {
-        Ok(d) => d,
-        Err(e) => return Err(io(&opts.out_dir, e)),
-    };
-    let mut ready: Vec<(PathBuf, String)> = Vec::new();
-    for out in &compiled.recipe.outputs {
+    let failures: Vec<(String, String)> =
+        result.failures(&compiled.graph).map(|(id, e)| (id.to_string(), e.to_string())).collect();
+    let complete = failures.is_empty() && result.outcomes.iter().all(|o| !matches!(o, Outcome::Skipped));
+    let mut staged = dir.stage().map_err(RunError::Output)?;
+    let mut written = Vec::new();
+    for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
         // Sweep columns: every numeric assignment behind the instances, upstream ones included.
@@ -157,48 +157,23 @@ pub fn run(
             continue;
         }
         let text = exec::write::render(out.format, &axes, &rows);
-        let staged = staging.path().join(out.file.replace(['/', '\\'], "__"));
-        if let Err(e) = std::fs::write(&staged, text) {
-            return Err(io(&staged, e));
-        }
-        ready.push((staged, out.file.clone()));
+        staged.write(&out.file, text.as_bytes()).map_err(RunError::Output)?;
+        written.push(out.file.clone());
     }
-    let failures: Vec<(String, String)> =
-        result.failures(&compiled.graph).map(|(id, e)| (id.to_string(), e.to_string())).collect();
-    let complete = failures.is_empty() && result.outcomes.iter().all(|o| !matches!(o, Outcome::Skipped));
-    let mut written = Vec::new();
-    if complete || opts.keep_going {
-        for (staged, rel) in &ready {
-            let dest = opts.out_dir.join(rel);
-            if let Some(parent) = dest.parent()
-                && let Err(e) = std::fs::create_dir_all(parent)
-            {
-                return Err(io(parent, e));
-            }
-            if let Err(e) = std::fs::rename(staged, &dest) {
-                return Err(io(&dest, e));
-            }
-            written.push(rel.clone());
-        }
+    for (rel, text) in &opts.extra_files {
+        staged.write(rel, text.as_bytes()).map_err(RunError::Output)?;
     }
-    let manifest = exec::Manifest::build(
+    let mut manifest = exec::Manifest::build(
         &compiled.recipe,
         &compiled.path.display().to_string(),
         &compiled.graph,
         &result,
         written.clone(),
     );
-    let manifest_path = opts.out_dir.join(exec::manifest::MANIFEST_FILE);
+    manifest.files = staged.files().iter().cloned().collect();
     let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
-    let write_manifest = || -> std::io::Result<()> {
-        let mut tmp = tempfile::NamedTempFile::new_in(&opts.out_dir)?;
-        std::io::Write::write_all(&mut tmp, json.as_bytes())?;
-        tmp.persist(&manifest_path).map_err(|e| e.error)?;
-        Ok(())
-    };
-    if let Err(e) = write_manifest() {
-        return Err(io(&manifest_path, e));
-    }
+    staged.write(exec::manifest::MANIFEST_FILE, json.as_bytes()).map_err(RunError::Output)?;
+    staged.commit().map_err(RunError::Output)?;
     let report = RunReport { result, manifest, written };
     if failures.is_empty() { Ok(report) } else { Err(RunError::NodesFailed { failures, report: Box::new(report) }) }
 }

@@ -22,7 +22,7 @@ pub mod effects;
 pub mod roles;
 
 use crate::engine::diag::Diagnostics;
-use crate::engine::exec::{self, Memo, Outcome, RunOptions};
+use crate::engine::exec::{self, Memo, OutputDir, Outcome, RunOptions};
 use crate::engine::node::Registry;
 use crate::engine::value::{Table, Value};
 use crate::engine::{Compiled, compile_raw};
@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use roles::Roles;
 use serde::Serialize;
 use serde_json::{Map, Value as Json};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -60,8 +60,9 @@ pub enum DiagnoseError {
     Input(String),
     #[error("{path}: {message}")]
     Recipe { path: String, message: String },
-    #[error("cannot write `{path}`: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    /// The output folder is busy, holds a planted link, or cannot be written.
+    #[error("{0}")]
+    Output(exec::CommitError),
 }
 
 /// One measured FRF's gap.
@@ -843,18 +844,16 @@ pub fn markdown(d: &Diagnosis) -> String {
 /// Writes `diagnosis.json`, `diagnosis.md` and `diagnosed.yaml` into `out`, each whole or
 /// not at all.
 pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
-    let io = |path: &Path, source| DiagnoseError::Io { path: path.to_path_buf(), source };
-    std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
+    // The three files replace the folder's previous diagnosis as one set.
+    let dir = OutputDir::open(out).map_err(DiagnoseError::Output)?;
+    let mut staged = dir.stage().map_err(DiagnoseError::Output)?;
     let json = serde_json::to_string_pretty(d).expect("diagnosis serialises");
     for (name, text) in
         [("diagnosis.json", json), ("diagnosis.md", markdown(d)), ("diagnosed.yaml", d.diagnosed_recipe.clone())]
     {
-        let dest = out.join(name);
-        let mut tmp = tempfile::NamedTempFile::new_in(out).map_err(|e| io(out, e))?;
-        std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| io(&dest, e))?;
-        tmp.persist(&dest).map_err(|e| io(&dest, e.error))?;
+        staged.write(name, text.as_bytes()).map_err(DiagnoseError::Output)?;
     }
-    Ok(())
+    staged.commit().map_err(DiagnoseError::Output)
 }
 
 /// The recipe at `path` with `effects` added at the given values (recipe parameter names and

@@ -44,6 +44,13 @@ pub struct Manifest {
     pub computed: usize,
     pub nodes: Vec<ManifestNode>,
     pub outputs: Vec<String>,
+    /// Every file of the run but this manifest, relative to the output folder, with its
+    /// BLAKE3 hash (hex).
+    #[serde(default)]
+    pub files: IndexMap<String, String>,
+    /// What the run noticed about itself (cache entries it could not use and recomputed).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 pub const MANIFEST_FILE: &str = "manifest.json";
@@ -103,6 +110,8 @@ impl Manifest {
             computed: nodes.iter().filter(|n| n.status == "computed").count(),
             nodes,
             outputs,
+            files: IndexMap::new(),
+            notes: result.notes.clone(),
         }
     }
 

@@ -3,10 +3,12 @@
 //! the numbers are identical whatever the thread count.
 
 mod cache;
+pub mod commit;
 pub mod manifest;
 pub mod write;
 
-pub use cache::Cache;
+pub use cache::{Cache, Lookup};
+pub use commit::{CommitError, OutputDir};
 pub use manifest::{Manifest, ManifestNode, PlanEntry, PlanReason, plan};
 
 use crate::graph::Graph;
@@ -38,6 +40,9 @@ pub struct RunOptions {
     pub memo: Option<Arc<Memo>>,
     /// Settle only these steps and what they need, instead of every output and leaf.
     pub targets: Option<Vec<String>>,
+    /// Further files of the run (relative path, text), committed with its outputs: a fit's
+    /// report and fitted recipe.
+    pub extra_files: Vec<(String, String)>,
 }
 
 /// Outputs and warnings of computed instances, by cache key, kept in memory.
@@ -53,6 +58,7 @@ impl RunOptions {
             release_consumed: false,
             memo: None,
             targets: None,
+            extra_files: Vec::new(),
         }
     }
 
@@ -126,6 +132,8 @@ impl Outcome {
 pub struct RunResult {
     pub outcomes: Vec<Outcome>,
     pub seconds: f64,
+    /// What the run noticed about itself: cache entries it could not use and recomputed.
+    pub notes: Vec<String>,
 }
 
 impl RunResult {
@@ -165,15 +173,19 @@ pub fn execute(
     let pool = {
         let mut b = rayon::ThreadPoolBuilder::new();
         if let Some(n) = opts.threads {
-            b = b.num_threads(n.max(1));
+            b = b.num_threads(n.clamp(1, 256));
         }
-        b.build().expect("thread pool")
+        // Threads the system refuses (a memory limit) leave one worker: same numbers, slower.
+        b.build()
+            .or_else(|_| rayon::ThreadPoolBuilder::new().num_threads(1).build())
+            .expect("a one-thread pool can always be built")
     };
     let cache = opts.use_cache.then(|| opts.cache());
     let n = graph.instances.len();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
+    let mut notes = Vec::new();
     if cache.is_some() || opts.memo.is_some() || opts.targets.is_some() {
-        settle_known(recipe, graph, registry, cache.as_ref(), opts, &mut outcomes);
+        settle_known(recipe, graph, registry, cache.as_ref(), opts, &mut outcomes, &mut notes);
     }
     let mut stop = false;
     let mut done_count = 0usize;
@@ -227,6 +239,7 @@ pub fn execute(
     RunResult {
         outcomes: outcomes.into_iter().map(|o| o.expect("settled")).collect(),
         seconds: start.elapsed().as_secs_f64(),
+        notes,
     }
 }
 
@@ -306,6 +319,7 @@ fn settle_known(
     cache: Option<&Cache>,
     opts: &RunOptions,
     outcomes: &mut [Option<Outcome>],
+    notes: &mut Vec<String>,
 ) {
     let n = graph.instances.len();
     let mut entries: Vec<Option<(Arc<Produced>, Vec<String>)>> = graph
@@ -317,7 +331,14 @@ fn settle_known(
             }
             let node = registry.get(&inst.kind).expect("compiled kind");
             let cache = cache.filter(|_| node.cacheable())?;
-            cache.get(&inst.key).map(|e| (share(e.outputs), e.warnings))
+            match cache.lookup(&inst.key) {
+                cache::Lookup::Hit(e) => Some((share(e.outputs), e.warnings)),
+                cache::Lookup::Miss => None,
+                cache::Lookup::Damaged(why) => {
+                    notes.push(format!("the cache entry of `{}` was not used ({why}); it is recomputed", inst.id));
+                    None
+                }
+            }
         })
         .collect();
     let cached: Vec<bool> = entries.iter().map(Option::is_some).collect();

@@ -155,8 +155,27 @@ pub struct Loaded<T> {
     pub notes: Vec<String>,
 }
 
+/// The largest data file read (CSV, UFF, trials): a device or a pipe named as a file stops
+/// here instead of filling memory.
+pub const MAX_DATA_BYTES: u64 = 512 * 1024 * 1024;
+
+/// Reads at most `cap` bytes of any kind of file (a regular file, `/dev/zero`, a pipe); more
+/// is an error that says so, never an allocation sized by the file.
+pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    let f = std::fs::File::open(path)?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::Read::take(f, cap + 1), &mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("the file is larger than the {} MiB limit", cap / (1024 * 1024)),
+        ));
+    }
+    Ok(bytes)
+}
+
 fn read_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {
-    std::fs::read(path).map_err(|source| FormatError::Io { path: path.display().to_string(), source })
+    read_capped(path, MAX_DATA_BYTES).map_err(|source| FormatError::Io { path: path.display().to_string(), source })
 }
 
 fn skipped_notes(path: &str, skipped: &[Skipped]) -> Vec<String> {

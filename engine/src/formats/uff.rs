@@ -907,7 +907,9 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
 
 /// Record 12 in ASCII: `needed` numbers over as many lines as it takes, then `-1`.
 fn read_ascii(cur: &mut Cursor, hl: usize, needed: usize, points: usize) -> Result<Vec<f64>, FormatError> {
-    let mut values = Vec::with_capacity(needed);
+    // Reserve only what the rest of the file can hold (a value takes at least two bytes),
+    // never what the header claims.
+    let mut values = Vec::with_capacity(needed.min((cur.bytes.len() - cur.pos) / 2 + 1));
     loop {
         let Some((n, text)) = cur.next_line() else {
             return Err(FormatError::Expected {
@@ -972,10 +974,11 @@ fn read_binary(
     even: bool,
 ) -> Result<Vec<f64>, FormatError> {
     let width = if ty.is_double() { 8 } else { 4 };
-    let nbytes = needed * width;
     let start = cur.pos;
     let available = cur.bytes.len() - start;
     let what = format!("dataset 58b ({points} points, {}{})", ty.name(), if even { "" } else { " with abscissa" });
+    // A header count the file cannot hold is a truncated file, not an overflow.
+    let nbytes = needed.checked_mul(width).unwrap_or(usize::MAX);
     let data = cur.take(nbytes).ok_or_else(|| FormatError::Truncated {
         at: cur.loc(hl, 0),
         what: what.clone(),

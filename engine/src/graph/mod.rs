@@ -43,6 +43,10 @@ impl Instance {
     }
 }
 
+/// The most node instances a recipe may expand to (sweeps and their products); each costs a
+/// few kilobytes before it runs, and far fewer suffice for any study we know of.
+pub const MAX_INSTANCES: usize = 50_000;
+
 /// The compiled graph: instances in a topological order.
 #[derive(Debug, Clone)]
 pub struct Graph {
@@ -124,6 +128,31 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                 families.len() - 1
             });
             family_of_binding.push(Some(idx));
+        }
+        // The step's instance count before anything is built: a product of large sweeps is
+        // refused with the size it would have had, not discovered by running out of memory.
+        let upstream = families.iter().fold(1usize, |n, f| n.saturating_mul(f.len()));
+        let own = step.sweep.iter().fold(1usize, |n, a| n.saturating_mul(a.values.len()));
+        let would_be = instances.len().saturating_add(upstream.saturating_mul(own));
+        if would_be > MAX_INSTANCES {
+            let sizes: Vec<String> = families
+                .iter()
+                .map(|f| format!("{} upstream", f.len()))
+                .chain(step.sweep.iter().map(|a| format!("{} `{}`", a.values.len(), a.param)))
+                .collect();
+            diags.push(
+                crate::diag::Diagnostic::error(
+                    Some(step.span.clone()),
+                    format!(
+                        "step `{}` would make the recipe {} node instances ({}), over the limit of {MAX_INSTANCES}",
+                        step.id,
+                        if would_be == usize::MAX { "more than 10^19".to_string() } else { would_be.to_string() },
+                        sizes.join(" × ")
+                    ),
+                )
+                .with_help("sweep fewer points (a coarser `step`), or split the study into several recipes"),
+            );
+            break;
         }
         // Upstream combinations (product over families), then own sweep points.
         let mut combos: Vec<Vec<usize>> = vec![Vec::new()];

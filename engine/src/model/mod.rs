@@ -146,3 +146,27 @@ pub(crate) fn report_invalid(
         help.unwrap_or_else(|| "check the step's parameters".into()),
     );
 }
+
+/// A recipe name as a folder name: letters, digits, `-`, `_` and inner dots kept, anything
+/// else (a `/`, a space) made `-`, leading dots and dashes dropped, so the default output folder
+/// `out/<slug>` can never lead out of `out/`.
+pub fn slug(name: &str) -> String {
+    let s: String =
+        name.chars().map(|c| if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') { c } else { '-' }).collect();
+    let s = s.trim_start_matches(['.', '-']).trim_end_matches('.');
+    if s.is_empty() { "recipe".to_string() } else { s.chars().take(100).collect() }
+}
+
+#[cfg(test)]
+mod slug_tests {
+    #[test]
+    fn a_name_becomes_a_plain_folder_name() {
+        use super::slug;
+        assert_eq!(slug("impact-study"), "impact-study");
+        assert_eq!(slug(".."), "recipe");
+        assert_eq!(slug("../../x"), "x");
+        assert_eq!(slug("/elsewhere/x"), "elsewhere-x");
+        assert_eq!(slug("my run 2"), "my-run-2");
+        assert_eq!(slug("a..b"), "a..b");
+    }
+}

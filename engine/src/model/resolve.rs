@@ -31,6 +31,9 @@ const TOP_KEYS: &[&str] = &[
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file"];
 
+/// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
+const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml"];
+
 fn valid_name(s: &str) -> bool {
     let mut chars = s.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
@@ -816,6 +819,21 @@ fn resolve_outputs(
             );
             continue;
         }
+        // One spelling per file: `./t.csv` and `t.csv` are the same file.
+        let normal: std::path::PathBuf = path
+            .components()
+            .filter(|c| matches!(c, std::path::Component::Normal(_)))
+            .collect();
+        let fname_owned = normal.to_string_lossy().to_string();
+        let fname = fname_owned.as_str();
+        if RESERVED_OUTPUTS.contains(&fname) || fname.starts_with(".spindlelab") {
+            diags.error_help(
+                Some(&file.span),
+                format!("`{fname}` is a file spindlelab writes itself"),
+                "choose another file name",
+            );
+            continue;
+        }
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some("csv") => OutputFormat::Csv,
             Some("json") => OutputFormat::Json,
@@ -865,6 +883,12 @@ fn resolve_outputs(
         }
         if outputs.iter().any(|o: &Output| o.file == fname) {
             diags.error(Some(&file.span), format!("two outputs write `{fname}`"));
+            continue;
+        }
+        if let Some(o) = outputs.iter().find(|o: &&Output| {
+            fname.starts_with(&format!("{}/", o.file)) || o.file.starts_with(&format!("{fname}/"))
+        }) {
+            diags.error(Some(&file.span), format!("`{fname}` and `{}` cannot both be written: one is inside the other", o.file));
             continue;
         }
         outputs.push(Output { from: r, file: fname.to_string(), format, span: item.span.clone() });

@@ -26,33 +26,45 @@ pub struct LoadedSource {
     pub raw: Option<Raw>,
 }
 
+enum RecipeRead {
+    TooLarge,
+    Io(std::io::Error),
+}
+
+/// The bytes of a recipe, at most [`MAX_RECIPE_BYTES`] of them, from any kind of file.
+fn read_recipe_bytes(path: &Path) -> Result<Vec<u8>, RecipeRead> {
+    let f = std::fs::File::open(path).map_err(RecipeRead::Io)?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::Read::take(f, MAX_RECIPE_BYTES + 1), &mut bytes)
+        .map_err(RecipeRead::Io)?;
+    if bytes.len() as u64 > MAX_RECIPE_BYTES { Err(RecipeRead::TooLarge) } else { Ok(bytes) }
+}
+
 /// Reads a recipe file (`.yaml`, `.yml` or `.rhai`) and parses it, pushing every problem found.
 pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
     let shown: Arc<str> = Arc::from(path.display().to_string());
     let span = Span::file_only(shown.clone());
-    let meta = match std::fs::metadata(path) {
-        Ok(m) => m,
-        Err(e) => {
+    // Read at most one byte past the cap, whatever the file is (`/dev/zero`, a pipe).
+    if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+        diags.push(Diagnostic::error(Some(span), "cannot read the recipe: it is a folder").with_help("name a recipe file"));
+        return None;
+    }
+    let bytes = match read_recipe_bytes(path) {
+        Ok(b) => b,
+        Err(RecipeRead::TooLarge) => {
             diags.push(
-                Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")).with_help("check the path"),
+                Diagnostic::error(
+                    Some(span),
+                    format!("the recipe is over the {MAX_RECIPE_BYTES} byte limit for a recipe"),
+                )
+                .with_help("keep measured data in CSV or UFF files and name them in the recipe"),
             );
             return None;
         }
-    };
-    if meta.len() > MAX_RECIPE_BYTES {
-        diags.push(
-            Diagnostic::error(
-                Some(span),
-                format!("the recipe is {} bytes, over the {} byte limit for a recipe", meta.len(), MAX_RECIPE_BYTES),
-            )
-            .with_help("keep measured data in CSV or UFF files and name them in the recipe"),
-        );
-        return None;
-    }
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) => {
-            diags.push(Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")));
+        Err(RecipeRead::Io(e)) => {
+            diags.push(
+                Diagnostic::error(Some(span), format!("cannot read the recipe: {e}")).with_help("check the path"),
+            );
             return None;
         }
     };

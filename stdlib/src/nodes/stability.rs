@@ -1034,8 +1034,10 @@ impl Node for TrialsScore {
             return Err(NodeError::input("lobes", "expected stability lobes"));
         };
         let path = ctx.params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
-        let text = std::fs::read_to_string(path)
+        let bytes = spindlelab_engine::formats::read_capped(path, spindlelab_engine::formats::MAX_DATA_BYTES)
             .map_err(|e| NodeError::param("file", format!("cannot read {}: {e}", path.display())))?;
+        let text = String::from_utf8(bytes)
+            .map_err(|_| NodeError::param("file", format!("{} is not UTF-8 text", path.display())))?;
         let trials = parse_trials(&text, &path.display().to_string())?;
         let score = stability::score_trials(&lobes.speed_rpm, &lobes.depth_limit, &trials).map_err(|e| match e {
             StabilityError::InvalidDiagram { .. } => NodeError::input("lobes", e.to_string()),
