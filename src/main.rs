@@ -81,6 +81,11 @@ enum Command {
     },
     /// Print the JSON Schema of the YAML recipe (for editors with a YAML language server).
     Schema,
+    /// See and bound the cache of output folders: `du`, `gc`, `clean`.
+    Cache {
+        #[command(subcommand)]
+        action: CacheAction,
+    },
     /// Write the recipe of a baseline case file (`case.json`): entities, the measured files
     /// as a measurement set, the measured and the cutting configuration.
     Import {
@@ -102,6 +107,25 @@ enum Command {
         /// Print nothing but errors.
         #[arg(short, long)]
         quiet: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum CacheAction {
+    /// Show the size of each output folder's cache.
+    Du {
+        /// Output folders (default: every folder under `out/`).
+        folders: Vec<PathBuf>,
+    },
+    /// Remove the entries that neither the latest run of the folder nor the one before used.
+    Gc {
+        /// Output folders (default: every folder under `out/`).
+        folders: Vec<PathBuf>,
+    },
+    /// Remove the whole cache of each folder (the outputs stay).
+    Clean {
+        /// Output folders (default: every folder under `out/`).
+        folders: Vec<PathBuf>,
     },
 }
 
@@ -305,6 +329,7 @@ fn main() -> ExitCode {
             }
             ExitCode::SUCCESS
         }
+        Command::Cache { action } => cache_command(action),
         Command::Schema => {
             println!(
                 "{}",
@@ -428,6 +453,76 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// The output folders a `cache` command acts on: those named, or every folder under `out/`
+/// that has a cache.
+fn cache_folders(named: Vec<PathBuf>) -> Vec<PathBuf> {
+    if !named.is_empty() {
+        return named;
+    }
+    let mut found: Vec<PathBuf> = std::fs::read_dir("out")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| engine::exec::cache_dir(p).is_dir())
+        .collect();
+    found.sort();
+    found
+}
+
+fn human_bytes(b: u64) -> String {
+    match b {
+        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64),
+        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
+        b => format!("{b} B"),
+    }
+}
+
+fn cache_command(action: CacheAction) -> ExitCode {
+    use engine::exec::{Cache, Manifest, OutputDir, commit::META_DIR};
+    let (folders, verb) = match action {
+        CacheAction::Du { folders } => (cache_folders(folders), "du"),
+        CacheAction::Gc { folders } => (cache_folders(folders), "gc"),
+        CacheAction::Clean { folders } => (cache_folders(folders), "clean"),
+    };
+    let mut code = ExitCode::SUCCESS;
+    for folder in folders {
+        let cache = Cache::new(engine::exec::cache_dir(&folder));
+        if !cache.dir().is_dir() {
+            println!("{}: no cache", folder.display());
+            continue;
+        }
+        if verb == "du" {
+            let (n, bytes) = cache.usage();
+            println!("{}: {n} entries, {}", folder.display(), human_bytes(bytes));
+            continue;
+        }
+        // Changing the cache needs the folder: not while a run uses it.
+        let _held = match OutputDir::open(&folder) {
+            Ok(d) => d,
+            Err(e) => {
+                eprintln!("error: {e}");
+                code = ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE });
+                continue;
+            }
+        };
+        let (n, bytes) = if verb == "clean" {
+            cache.retain(|_| false)
+        } else {
+            let meta = folder.join(META_DIR);
+            let keep: std::collections::HashSet<String> = ["current", "previous"]
+                .iter()
+                .filter_map(|run| Manifest::read(&meta.join(run)))
+                .flat_map(|m| m.nodes.into_iter().map(|n| n.key))
+                .collect();
+            cache.retain(|k| keep.contains(k))
+        };
+        println!("{}: removed {n} entries, {}", folder.display(), human_bytes(bytes));
+    }
+    code
 }
 
 fn describe_node(spec: &engine::node::NodeSpec) -> String {

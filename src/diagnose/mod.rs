@@ -22,7 +22,7 @@ pub mod effects;
 pub mod roles;
 
 use crate::engine::diag::Diagnostics;
-use crate::engine::exec::{self, Memo, OutputDir, Outcome, RunOptions};
+use crate::engine::exec::{self, Memo, Outcome, OutputDir, RunOptions};
 use crate::engine::node::Registry;
 use crate::engine::value::{Table, Value};
 use crate::engine::{Compiled, compile_raw};

@@ -94,6 +94,46 @@ impl Cache {
     pub fn dir(&self) -> &std::path::Path {
         &self.dir
     }
+
+    /// Every entry file with its key and size in bytes.
+    fn entries(&self) -> Vec<(String, PathBuf, u64)> {
+        let mut out = Vec::new();
+        for sub in std::fs::read_dir(&self.dir).into_iter().flatten().flatten() {
+            if !sub.file_type().is_ok_and(|t| t.is_dir()) {
+                continue;
+            }
+            for e in std::fs::read_dir(sub.path()).into_iter().flatten().flatten() {
+                let name = e.file_name().to_string_lossy().to_string();
+                if let Some(key) = name.strip_suffix(".bin") {
+                    let size = e.metadata().map_or(0, |m| m.len());
+                    out.push((key.to_string(), e.path(), size));
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    /// Number of entries and their total size in bytes.
+    pub fn usage(&self) -> (usize, u64) {
+        let e = self.entries();
+        (e.len(), e.iter().map(|(_, _, s)| s).sum())
+    }
+
+    /// Removes every entry whose key `keep` rejects; returns how many and how many bytes.
+    pub fn retain(&self, keep: impl Fn(&str) -> bool) -> (usize, u64) {
+        let (mut n, mut bytes) = (0, 0);
+        for (key, path, size) in self.entries() {
+            if !keep(&key) && std::fs::remove_file(&path).is_ok() {
+                n += 1;
+                bytes += size;
+            }
+        }
+        for sub in std::fs::read_dir(&self.dir).into_iter().flatten().flatten() {
+            let _ = std::fs::remove_dir(sub.path()); // only the emptied ones go
+        }
+        (n, bytes)
+    }
 }
 
 /// What [`Cache::lookup`] found.

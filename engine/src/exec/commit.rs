@@ -106,9 +106,8 @@ impl OutputDir {
         std::fs::read_link(self.meta.join(name)).ok()
     }
 
-    /// Removes run folders other than the current and previous one, staging folders of the
-    /// older layout and temporary files of interrupted cache writes.
-    fn clean_leftovers(&self) {
+    /// Removes run folders other than the current and the previous one.
+    fn remove_old_runs(&self) {
         let keep: Vec<PathBuf> = [CURRENT, PREVIOUS].iter().filter_map(|n| self.link_target(n)).collect();
         if let Ok(rd) = std::fs::read_dir(self.meta.join(RUNS)) {
             for e in rd.flatten() {
@@ -118,6 +117,12 @@ impl OutputDir {
                 }
             }
         }
+    }
+
+    /// Removes run folders other than the current and previous one, staging folders of the
+    /// older layout and temporary files of interrupted cache writes.
+    fn clean_leftovers(&self) {
+        self.remove_old_runs();
         if let Ok(rd) = std::fs::read_dir(&self.meta) {
             for e in rd.flatten() {
                 if e.file_name().to_string_lossy().starts_with(".tmp") {
@@ -205,6 +210,7 @@ impl Staged<'_> {
             let _ = d.sync_all();
         }
         remove_dangling_links(root, root, 0);
+        self.dir.remove_old_runs();
         Ok(())
     }
 }

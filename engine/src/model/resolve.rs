@@ -820,10 +820,8 @@ fn resolve_outputs(
             continue;
         }
         // One spelling per file: `./t.csv` and `t.csv` are the same file.
-        let normal: std::path::PathBuf = path
-            .components()
-            .filter(|c| matches!(c, std::path::Component::Normal(_)))
-            .collect();
+        let normal: std::path::PathBuf =
+            path.components().filter(|c| matches!(c, std::path::Component::Normal(_))).collect();
         let fname_owned = normal.to_string_lossy().to_string();
         let fname = fname_owned.as_str();
         if RESERVED_OUTPUTS.contains(&fname) || fname.starts_with(".spindlelab") {
@@ -885,10 +883,14 @@ fn resolve_outputs(
             diags.error(Some(&file.span), format!("two outputs write `{fname}`"));
             continue;
         }
-        if let Some(o) = outputs.iter().find(|o: &&Output| {
-            fname.starts_with(&format!("{}/", o.file)) || o.file.starts_with(&format!("{fname}/"))
-        }) {
-            diags.error(Some(&file.span), format!("`{fname}` and `{}` cannot both be written: one is inside the other", o.file));
+        if let Some(o) = outputs
+            .iter()
+            .find(|o: &&Output| fname.starts_with(&format!("{}/", o.file)) || o.file.starts_with(&format!("{fname}/")))
+        {
+            diags.error(
+                Some(&file.span),
+                format!("`{fname}` and `{}` cannot both be written: one is inside the other", o.file),
+            );
             continue;
         }
         outputs.push(Output { from: r, file: fname.to_string(), format, span: item.span.clone() });

@@ -46,7 +46,9 @@ pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
     let span = Span::file_only(shown.clone());
     // Read at most one byte past the cap, whatever the file is (`/dev/zero`, a pipe).
     if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
-        diags.push(Diagnostic::error(Some(span), "cannot read the recipe: it is a folder").with_help("name a recipe file"));
+        diags.push(
+            Diagnostic::error(Some(span), "cannot read the recipe: it is a folder").with_help("name a recipe file"),
+        );
         return None;
     }
     let bytes = match read_recipe_bytes(path) {
