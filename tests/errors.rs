@@ -523,7 +523,7 @@ fn run_time_failures_name_the_instance_and_write_no_outputs() {
         assert!(!out.join(file).exists(), "{file} written: {written:?}");
     }
     assert!(
-        written.iter().all(|p| p == "manifest.json" || p.starts_with(".spindlelab-cache")),
+        written.iter().all(|p| p == "manifest.json" || p.starts_with(".spindlelab")),
         "unexpected files: {written:?}"
     );
     insta::assert_snapshot!("runtime_failure", e);

@@ -3,7 +3,7 @@
 //! The validator, the JSON Schema, `spindlelab nodes` and the docs all read these tables,
 //! so what the engine accepts and what it documents cannot drift apart.
 
-use crate::diag::{Diagnostics, Span};
+use crate::diag::{Diagnostic, Diagnostics, Span};
 use crate::syntax::{Raw, RawKind};
 use indexmap::IndexMap;
 use spindlelab_grammar::{self as grammar, Dimension};
@@ -401,6 +401,9 @@ pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &
         match entries.iter().find(|(k, _)| k.name == field.name) {
             Some((_, v)) => match check_value(v, &field.ty, &format!("`{}` of {what}", field.name), ctx, diags) {
                 Some(pv) => {
+                    if let ParamValue::Quantity { value, dim } = &pv {
+                        check_plausible(field.name, *value, *dim, v, diags);
+                    }
                     values.insert(field.name.to_string(), pv);
                 }
                 None => ok = false,
@@ -778,4 +781,62 @@ fn check_word(raw: &Raw, choices: &[&str], what: &str, diags: &mut Diagnostics) 
         None => diags.error_help(Some(&raw.span), msg, format!("use one of {}", choices.join(" | "))),
     }
     None
+}
+
+/// The range a quantity usually falls in (SI), by the parameter's name where the name says
+/// more than its dimension does (a radius, a loss factor), else by its dimension. Outside it
+/// the value is kept but warned about: `6.35 m` meant as `6.35 mm` gives a hammer tip the size
+/// of a room and a meganewton peak force, without any error.
+pub fn plausible_range(name: &str, dim: Dimension) -> Option<(f64, f64)> {
+    let n = name.to_ascii_lowercase();
+    let section = ["radius", "diameter", "d_out", "d_in", "d_eq", "length", "overhang", "stickout"];
+    match dim {
+        d if d == Dimension::LENGTH && section.iter().any(|k| n.contains(k)) => Some((1e-5, 2.0)),
+        d if d == Dimension::LENGTH => Some((1e-12, 20.0)),
+        d if d == Dimension::MASS => Some((1e-7, 1e4)),
+        d if d == Dimension::DENSITY => Some((100.0, 3e4)),
+        d if d == Dimension::PRESSURE && (n == "e" || n.contains("modulus")) => Some((1e8, 2e12)),
+        d if d == Dimension::PRESSURE => Some((1e4, 2e12)),
+        d if d == Dimension::STIFFNESS => Some((1e-3, 1e18)),
+        d if d == Dimension::FREQUENCY => Some((1e-3, 1e7)),
+        d if d == Dimension::ROTATIONAL_SPEED => Some((1e-3, 1e5)),
+        d if d == Dimension::TIME => Some((1e-10, 1e5)),
+        d if d == Dimension::DIMENSIONLESS && (n == "eta" || n.starts_with("loss")) => Some((0.0, 1.0)),
+        d if d == Dimension::DIMENSIONLESS && (n == "nu" || n == "poisson") => Some((0.0, 0.5)),
+        _ => None,
+    }
+}
+
+/// Warns when a quantity lies outside [`plausible_range`], naming the unit that would put it
+/// inside when there is one (`mm` for a length given in `m`).
+fn check_plausible(name: &str, value: f64, dim: Dimension, raw: &Raw, diags: &mut Diagnostics) {
+    let Some((lo, hi)) = plausible_range(name, dim) else { return };
+    if value == 0.0 || (lo..=hi).contains(&value.abs()) {
+        return;
+    }
+    let text = raw.scalar_text().unwrap_or_default();
+    let number = text.split_whitespace().next().unwrap_or("");
+    let alternatives: &[(&str, f64)] = match dim {
+        d if d == Dimension::LENGTH => &[("mm", 1e-3), ("µm", 1e-6), ("m", 1.0)],
+        d if d == Dimension::MASS => &[("g", 1e-3), ("kg", 1.0)],
+        d if d == Dimension::PRESSURE => &[("GPa", 1e9), ("MPa", 1e6), ("N/mm^2", 1e6)],
+        d if d == Dimension::FREQUENCY => &[("Hz", 1.0), ("kHz", 1e3)],
+        d if d == Dimension::ROTATIONAL_SPEED => &[("rpm", std::f64::consts::TAU / 60.0)],
+        d if d == Dimension::TIME => &[("ms", 1e-3), ("s", 1.0)],
+        _ => &[],
+    };
+    let shown = number.parse::<f64>().ok();
+    let hint = alternatives.iter().find(|(_, f)| shown.is_some_and(|x| (lo..=hi).contains(&(x * f).abs())));
+    let range = match dim {
+        d if d == Dimension::DIMENSIONLESS => format!("{lo} to {hi}"),
+        _ => format!("{lo:e} to {hi:e} {}", dim.si_unit()),
+    };
+    let mut d = Diagnostic::warning(
+        Some(raw.span.clone()),
+        format!("`{text}` for `{name}` is outside the usual range ({range}); it is used as written"),
+    );
+    if let Some((unit, _)) = hint {
+        d = d.with_help(format!("did you mean `{number} {unit}`?"));
+    }
+    diags.push(d);
 }

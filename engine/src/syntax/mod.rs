@@ -54,10 +54,14 @@ pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
     let bytes = match read_recipe_bytes(path) {
         Ok(b) => b,
         Err(RecipeRead::TooLarge) => {
+            let size = match std::fs::metadata(path) {
+                Ok(m) if m.is_file() => format!("{} bytes", m.len()),
+                _ => "longer than that".to_string(),
+            };
             diags.push(
                 Diagnostic::error(
                     Some(span),
-                    format!("the recipe is over the {MAX_RECIPE_BYTES} byte limit for a recipe"),
+                    format!("the recipe is {size}, over the {MAX_RECIPE_BYTES} byte limit for a recipe"),
                 )
                 .with_help("keep measured data in CSV or UFF files and name them in the recipe"),
             );
