@@ -443,3 +443,47 @@ fn uff_headers_that_claim_more_points_than_the_file_holds_are_errors() {
         assert!(text(&o).contains("big.uff"), "{kind}: {}", text(&o));
     }
 }
+
+#[test]
+fn an_implausible_quantity_is_warned_about_with_the_likely_unit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let study =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/impact-study.yaml")).unwrap();
+    let line = study.lines().position(|l| l.contains("tip_radius:")).expect("the study sets a tip radius") + 1;
+    let bad: String = study
+        .lines()
+        .map(|l| {
+            if l.contains("tip_radius:") {
+                format!("{}tip_radius: 6.35 m", &l[..l.find("tip_radius").unwrap()])
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(tmp.path().join("r.yaml"), bad).unwrap();
+    let o = run_in(tmp.path(), &["check", "r.yaml"]);
+    no_panic(&o);
+    assert!(o.status.success(), "a warning, not an error: {}", text(&o));
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.contains(&format!("r.yaml:{line}:")), "{said}");
+    assert!(said.contains("`6.35 m` for `tip_radius` is outside the usual range"), "{said}");
+    assert!(said.contains("did you mean `6.35 mm`?"), "{said}");
+}
+
+#[test]
+fn a_data_file_that_is_not_csv_never_has_its_lines_quoted() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("secret.csv"), "root:x:0:0:root:/root:/bin/bash\n").unwrap();
+    std::fs::write(
+        tmp.path().join("r.yaml"),
+        "spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: { file: secret.csv }\n",
+    )
+    .unwrap();
+    let o = run_in(tmp.path(), &["run", "r.yaml", "-o", "o", "-q"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let said = text(&o);
+    assert!(said.contains("secret.csv:1"), "{said}");
+    assert!(!said.contains("root:x"), "a line of the file was quoted: {said}");
+}
