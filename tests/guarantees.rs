@@ -486,4 +486,14 @@ fn a_data_file_that_is_not_csv_never_has_its_lines_quoted() {
     let said = text(&o);
     assert!(said.contains("secret.csv:1"), "{said}");
     assert!(!said.contains("root:x"), "a line of the file was quoted: {said}");
+    // An absolute path is refused when the recipe is loaded, before anything is read.
+    std::fs::write(
+        tmp.path().join("r.yaml"),
+        "spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: { file: /etc/passwd }\n",
+    )
+    .unwrap();
+    let o = run_in(tmp.path(), &["check", "r.yaml"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("is an absolute path") && text(&o).contains("r.yaml:6:"), "{}", text(&o));
 }
