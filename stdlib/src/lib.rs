@@ -13,6 +13,7 @@ pub mod filter;
 pub mod frf;
 pub mod gap;
 pub mod impact;
+pub mod milling;
 pub mod modal_fit;
 pub mod nodes;
 pub mod optimize;
@@ -56,6 +57,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ModalFitNode::new()));
     registry.register(Arc::new(nodes::StabilityLobes::new()));
     registry.register(Arc::new(nodes::StabilitySd::new()));
+    registry.register(Arc::new(nodes::MillingSimulate::new()));
     registry.register(Arc::new(nodes::StabilitySpeedDependent::new()));
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));

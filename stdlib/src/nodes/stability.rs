@@ -25,7 +25,7 @@ fn to_rpm(w: f64) -> f64 {
     (w * RPM * 1e6).round() / 1e6
 }
 
-fn cutting_param() -> Field {
+pub(super) fn cutting_param() -> Field {
     Field::req("cutting", T::Entity(EntityKind::Cutting), "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β")
 }
 
@@ -34,7 +34,7 @@ fn lobes_param() -> Field {
 }
 
 /// The cutting entity a node names, as the kernels' [`Milling`] (its constant coefficients).
-fn milling(ctx: &NodeContext) -> Result<Milling, NodeError> {
+pub(super) fn milling(ctx: &NodeContext) -> Result<Milling, NodeError> {
     let name = ctx.params.text("cutting").ok_or_else(|| NodeError::param("cutting", "missing"))?;
     let c = ctx
         .recipe
@@ -272,7 +272,7 @@ impl StabilitySd {
     }
 }
 
-fn modal(ctx: &NodeContext, port: &str) -> Result<Vec<stability::Mode>, NodeError> {
+pub(super) fn modal(ctx: &NodeContext, port: &str) -> Result<Vec<stability::Mode>, NodeError> {
     let Value::ModalModel(ModalModel { modes }) = ctx.input(port)? else {
         return Err(NodeError::input(port, "expected a modal model"));
     };
