@@ -410,3 +410,20 @@ fn modal_model_node_refuses_bad_modes() {
         ],
     );
 }
+
+#[test]
+fn milling_simulation_failures_say_what_and_what_to_do() {
+    let e = rejected("milling-failures.yaml", true);
+    assert_has(
+        &e,
+        &[
+            "node `feedless` failed",
+            "parameter `feed_per_tooth`",
+            "give `feed_per_tooth`, here or in the cutting setup `no_feed`",
+            "node `wrong_runout` failed",
+            "runout is given for 3 teeth, the cut has 2",
+            "node `endless` failed",
+            "more than 20000000",
+        ],
+    );
+}
