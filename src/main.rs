@@ -395,13 +395,11 @@ fn main() -> ExitCode {
             for n in notes {
                 eprintln!("warning: {n}");
             }
-            if let Some(report) = &fitted {
-                if !report.converged {
-                    eprintln!(
-                        "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
-                        report.evaluations
-                    );
-                }
+            if let Some(report) = fitted.as_ref().filter(|r| !r.converged) {
+                eprintln!(
+                    "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
+                    report.evaluations
+                );
             }
             match outcome {
                 Ok(report) => {

@@ -209,7 +209,7 @@ impl Staged<'_> {
         if let Ok(d) = File::open(meta) {
             let _ = d.sync_all();
         }
-        remove_dangling_links(root, root, 0);
+        remove_dangling_links(root, 0);
         self.dir.remove_old_runs();
         Ok(())
     }
@@ -281,7 +281,7 @@ fn switch_link(meta: &Path, name: &str, target: &Path) -> Result<(), CommitError
 
 /// Removes links through `current` whose file the committed run does not have. Does not
 /// descend into nested output folders (those with their own `.spindlelab`).
-fn remove_dangling_links(root: &Path, dir: &Path, depth: usize) {
+fn remove_dangling_links(dir: &Path, depth: usize) {
     if depth > 32 {
         return;
     }
@@ -298,7 +298,7 @@ fn remove_dangling_links(root: &Path, dir: &Path, depth: usize) {
                 let _ = std::fs::remove_file(&path);
             }
         } else if ft.is_dir() && !path.join(META_DIR).exists() {
-            remove_dangling_links(root, &path, depth + 1);
+            remove_dangling_links(&path, depth + 1);
             // A folder left empty by removed links goes too.
             let _ = std::fs::remove_dir(&path);
         }

@@ -654,6 +654,24 @@ pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, Format
     Ok(r)
 }
 
+/// A header row as an error shows it: quoted only when it looks like a CSV header (cells of
+/// names), so a file that is not a data file at all (a password file named by mistake or on
+/// purpose) never has its contents printed.
+fn shown_header(raw: &str) -> String {
+    let t = raw.trim();
+    let names = t.contains(',')
+        && t.split(',').all(|c| {
+            let c = c.trim().trim_matches('"');
+            !c.is_empty()
+                && c.chars().all(|ch| ch.is_alphanumeric() || matches!(ch, '_' | ' ' | '-' | '.' | '(' | ')' | '/'))
+        });
+    if names {
+        format!("`{}`", t.chars().take(120).collect::<String>())
+    } else {
+        format!("a line of {} characters that is not a CSV header row", t.chars().count())
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -815,23 +833,5 @@ pub(crate) mod tests {
         assert!(matches!(e, FormatError::Ragged { found: 3, expected: 4, .. }), "{e}");
         let e = read_frf(b"# speed_rpm: fast\nfreq_hz,real,imag\n1,2,3\n", "f.csv").unwrap_err();
         assert_eq!(e.line_column(), (1, 14));
-    }
-}
-
-/// A header row as an error shows it: quoted only when it looks like a CSV header (cells of
-/// names), so a file that is not a data file at all (a password file named by mistake or on
-/// purpose) never has its contents printed.
-fn shown_header(raw: &str) -> String {
-    let t = raw.trim();
-    let names = t.contains(',')
-        && t.split(',').all(|c| {
-            let c = c.trim().trim_matches('"');
-            !c.is_empty()
-                && c.chars().all(|ch| ch.is_alphanumeric() || matches!(ch, '_' | ' ' | '-' | '.' | '(' | ')' | '/'))
-        });
-    if names {
-        format!("`{}`", t.chars().take(120).collect::<String>())
-    } else {
-        format!("a line of {} characters that is not a CSV header row", t.chars().count())
     }
 }

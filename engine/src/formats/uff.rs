@@ -978,7 +978,7 @@ fn read_binary(
     let available = cur.bytes.len() - start;
     let what = format!("dataset 58b ({points} points, {}{})", ty.name(), if even { "" } else { " with abscissa" });
     // A header count the file cannot hold is a truncated file, not an overflow.
-    let nbytes = needed.checked_mul(width).unwrap_or(usize::MAX);
+    let nbytes = needed.saturating_mul(width);
     let data = cur.take(nbytes).ok_or_else(|| FormatError::Truncated {
         at: cur.loc(hl, 0),
         what: what.clone(),
