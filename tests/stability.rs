@@ -121,13 +121,14 @@ fn limit_at(l: &Lobes, speed: f64) -> f64 {
     l.depth_limit[i]
 }
 
-/// The recipe's claim (§6.4, Haas TM1 near 3800 rpm): the stationary diagram is more conservative than the
-/// speed-dependent one at 3800 rpm, and trials there above the stationary limit but below the speed-dependent one
-/// are stable and predicted so. The trials file agrees with the noise-free branch it was set from (stable exactly
-/// below its speed-dependent limit), the speed-dependent diagram scores better than the stationary one, and the
-/// trial outside the diagram is reported, not scored.
+/// Regression test of the example recipe (§6.4, Haas TM1 near 3800 rpm), not validation: its trials were set
+/// from the recipe's own noise-free branch and its rig is built to stiffen with speed, so the scores and the
+/// factor between the diagrams follow from the recipe itself. It holds the recipe's numbers (the limits in bands
+/// around this version's values, 14/14 and 11/14), that the measured chain stays within 5 % of the noise-free
+/// one, and that the trial outside the diagram is reported, not scored. The independent check of the lobes is
+/// the time-domain simulation (`stdlib/src/milling/tests.rs`).
 #[test]
-fn speed_dependent_sld_recipe_shows_the_stationary_diagram_is_conservative_at_3800_rpm() {
+fn regression_speed_dependent_sld_recipe_stationary_diagram_is_conservative_at_3800_rpm() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let ran = run(&root.join("scripts/speed-dependent-sld.yaml"));
     let (dynamic, fixed) = (ran.lobes("sld", "speed_dependent"), ran.lobes("sld", "stationary"));
@@ -330,7 +331,9 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     .unwrap();
     let sd_min = node.depth_limit.iter().copied().fold(f64::INFINITY, f64::min);
     eprintln!("SD minimum {sd_min} m, ZOA minimum {} m", zoa.min_depth_m);
-    assert!((sd_min / zoa.min_depth_m - 1.0).abs() < 0.15, "SD {sd_min} m vs ZOA {} m", zoa.min_depth_m);
+    // Two methods, not one: they are 4.6 % apart here (the ZOA averages the cut over the tooth
+    // period); the bound sits just above that, so either drifting shows.
+    assert!((sd_min / zoa.min_depth_m - 1.0).abs() < 0.06, "SD {sd_min} m vs ZOA {} m", zoa.min_depth_m);
 }
 
 /// The Insperger–Stépán tool stated in the recipe by `modal.model` (922 Hz, ζ 0.011, 0.03993 kg along the feed,
