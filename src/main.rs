@@ -54,23 +54,31 @@ enum Command {
     },
     /// Check a recipe: report every problem, run nothing.
     Check {
+        /// Recipe file (`.yaml` or `.rhai`).
         recipe: PathBuf,
+        /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
         set: Vec<(String, String)>,
     },
     /// Dry run: which nodes would run and why, and which come from the cache.
     Plan {
+        /// Recipe file (`.yaml` or `.rhai`).
         recipe: PathBuf,
+        /// Output directory whose cache and manifest to compare with (default: `out/<recipe name>`).
         #[arg(short, long)]
         out: Option<PathBuf>,
+        /// Plan as if the cache were empty.
         #[arg(long)]
         no_cache: bool,
+        /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
         set: Vec<(String, String)>,
     },
     /// Draw the compiled graph (Graphviz DOT or Mermaid).
     Graph {
+        /// Recipe file (`.yaml` or `.rhai`).
         recipe: PathBuf,
+        /// Output format.
         #[arg(long, short, value_enum, default_value_t = GraphFormat::Dot)]
         format: GraphFormat,
     },

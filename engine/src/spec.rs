@@ -84,8 +84,8 @@ impl FieldType {
     pub fn describe(&self) -> String {
         match self {
             FieldType::Quantity(d) if *d == Dimension::DIMENSIONLESS => "number".into(),
-            FieldType::Quantity(d) => format!("{} [{}]", dim_name(*d), d.si_unit()),
-            FieldType::QuantityList(d) => format!("list or range of {} [{}]", dim_name(*d), d.si_unit()),
+            FieldType::Quantity(d) => format!("{} [{}]", dim_name(*d), shown_unit(*d)),
+            FieldType::QuantityList(d) => format!("list or range of {} [{}]", dim_name(*d), shown_unit(*d)),
             FieldType::Integer { min, max } => format!("integer {min}..={max}"),
             FieldType::Bool => "true/false".into(),
             FieldType::Text => "text".into(),
@@ -493,6 +493,14 @@ fn dim_error(raw: &Raw, text: &str, expected: Dimension, found: Dimension, what:
         format!("use a unit of {} such as `{}`", dim_name(expected), example_unit(expected))
     };
     diags.error_help(Some(&raw.span), format!("wrong unit for {what}: `{text}`: {err}"), help);
+}
+
+/// The unit a description shows: the one recipes write (`rpm`, `mm`), else SI.
+fn shown_unit(d: Dimension) -> String {
+    match example_unit(d) {
+        "an SI unit" => d.si_unit(),
+        u => u.to_string(),
+    }
 }
 
 fn example_unit(d: Dimension) -> &'static str {
