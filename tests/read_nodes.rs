@@ -184,3 +184,30 @@ fn file_parameters_are_documented_in_the_schema() {
     let pattern = s["properties"]["outputs"]["items"]["properties"]["file"]["pattern"].as_str().unwrap();
     assert!(pattern.contains("uff"), "{pattern}");
 }
+
+/// An FRF saved by a European-locale spreadsheet (byte-order mark, `;` separators, decimal
+/// commas, capitalised headers) runs through `read.frf` from the command line and is written
+/// back in the plain form, with the same numbers.
+#[test]
+fn an_frf_saved_by_a_spreadsheet_reads_through_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("m.csv"),
+        "\u{feff}# units: m/N\r\nFreq_Hz;Real;Imag\r\n100;1,5e-6;-2,25e-7\r\n200;2,5e-6;-3e-7\r\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("r.yaml"),
+        "spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: { file: m.csv }\noutputs:\n  - { from: \"@m.frf\", file: plain.csv }\n",
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(["run", "r.yaml", "-o", "o", "-q"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let back = formats::csv::read_frf(&std::fs::read(dir.path().join("o/plain.csv")).unwrap(), "plain.csv").unwrap();
+    assert_eq!(back.freq_hz, vec![100.0, 200.0]);
+    assert_eq!(back.values[0], spindlelab::stdlib::rcsa::Complex64::new(1.5e-6, -2.25e-7));
+}

@@ -190,6 +190,47 @@ fn as_text<'a>(bytes: &'a [u8], path: &str) -> Result<&'a str, FormatError> {
     }
 }
 
+/// A CSV as spreadsheets save it, rewritten to the plain form, or `None` when it is plain
+/// already: a byte-order mark dropped (Excel writes one), `;` separators with decimal commas
+/// (`1,5;2,0` in European locales) made `1.5,2.0`, and with `fixed_header` the column header
+/// row lowercased (`Freq_Hz,Real,Imag`). Every change keeps each character in its place, so
+/// lines and columns in messages still point into the file as written.
+fn from_spreadsheet(bytes: &[u8], fixed_header: bool) -> Option<Vec<u8>> {
+    let body = bytes.strip_prefix(b"\xef\xbb\xbf".as_slice());
+    let text = body.unwrap_or(bytes);
+    let mut lines = text.split(|b| *b == b'\n');
+    let header = lines.find(|l| {
+        let t = l.trim_ascii();
+        !t.is_empty() && !t.starts_with(b"#")
+    })?;
+    let semicolons = header.contains(&b';') && !header.contains(&b',');
+    let upper = fixed_header && header.iter().any(u8::is_ascii_uppercase);
+    if body.is_none() && !semicolons && !upper {
+        return None;
+    }
+    let mut out = Vec::with_capacity(text.len());
+    let mut seen_header = false;
+    for (i, line) in text.split(|b| *b == b'\n').enumerate() {
+        if i > 0 {
+            out.push(b'\n');
+        }
+        let t = line.trim_ascii();
+        if t.starts_with(b"#") || t.is_empty() {
+            out.extend_from_slice(line);
+            continue;
+        }
+        let is_header = !seen_header;
+        seen_header = true;
+        out.extend(line.iter().map(|&b| match b {
+            b',' if semicolons => b'.',
+            b';' if semicolons => b',',
+            b if is_header && upper => b.to_ascii_lowercase(),
+            b => b,
+        }));
+    }
+    Some(out)
+}
+
 fn split_sheet<'a>(bytes: &'a [u8], path: &str) -> Result<Sheet<'a>, FormatError> {
     let text = as_text(bytes, path)?;
     if text.trim().is_empty() {
@@ -316,7 +357,8 @@ fn quantity(m: &Meta, dim: Dimension, example: &str, path: &str) -> Result<f64, 
 /// any order and other `#` lines are comments; the sample rate is required, `t0` defaults
 /// to 0 and a channel missing from `# units` has no unit. Units are brought to SI.
 pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatError> {
-    let sheet = split_sheet(bytes, path)?;
+    let spreadsheet = from_spreadsheet(bytes, false);
+    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
     let mut sample_rate = None;
     let mut t0 = 0.0;
     // The `# units` line and its `(channel, unit, column)` entries.
@@ -460,7 +502,8 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
 /// optional `coherence` column; `# units`, `# direction`, `# speed_rpm` and `# sensor`
 /// header lines are optional and may come in any order.
 pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
-    let sheet = split_sheet(bytes, path)?;
+    let spreadsheet = from_spreadsheet(bytes, true);
+    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
     let mut unit = String::new();
     let mut direction = None;
     let mut speed_rpm = None;
@@ -597,7 +640,8 @@ fn receptance_units(m: &Meta, path: &str) -> Result<[f64; 4], FormatError> {
 /// `freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im`; `# units`, `# direction` and
 /// `# speed_rpm` are optional and in any order. Units are brought to SI.
 pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, FormatError> {
-    let sheet = split_sheet(bytes, path)?;
+    let spreadsheet = from_spreadsheet(bytes, true);
+    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
     let mut scale = [1.0; 4];
     let mut direction = None;
     let mut speed = None;
@@ -833,5 +877,28 @@ pub(crate) mod tests {
         assert!(matches!(e, FormatError::Ragged { found: 3, expected: 4, .. }), "{e}");
         let e = read_frf(b"# speed_rpm: fast\nfreq_hz,real,imag\n1,2,3\n", "f.csv").unwrap_err();
         assert_eq!(e.line_column(), (1, 14));
+    }
+
+    /// The same FRF as a spreadsheet saves it: with a byte-order mark, with `;` and decimal
+    /// commas, with capitalised headers; each reads as the plain file does, and an error still
+    /// points at the line and column of the file as written.
+    #[test]
+    fn spreadsheet_forms_of_an_frf_read_as_the_plain_file() {
+        let plain =
+            read_frf(b"# units: m/N\nfreq_hz,real,imag\n100,1.5e-6,-2.25e-7\n200,2.5e-6,-3e-7\n", "p.csv").unwrap();
+        for text in [
+            "\u{feff}# units: m/N\nfreq_hz,real,imag\n100,1.5e-6,-2.25e-7\n200,2.5e-6,-3e-7\n",
+            "# units: m/N\nfreq_hz;real;imag\n100;1,5e-6;-2,25e-7\n200;2,5e-6;-3e-7\n",
+            "\u{feff}Freq_Hz,Real,Imag\r\n100,1.5e-6,-2.25e-7\r\n200,2.5e-6,-3e-7\r\n",
+        ] {
+            let f = read_frf(text.as_bytes(), "s.csv").unwrap_or_else(|e| panic!("{text:?}: {e}"));
+            assert_eq!(
+                (f.freq_hz.clone(), f.values.clone()),
+                (plain.freq_hz.clone(), plain.values.clone()),
+                "{text:?}"
+            );
+        }
+        let e = read_frf("freq_hz;real;imag\n100;1,5e-6;x\n".as_bytes(), "s.csv").unwrap_err();
+        assert_eq!(e.line_column(), (2, 12), "{e}");
     }
 }
