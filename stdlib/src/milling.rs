@@ -101,7 +101,6 @@ struct ModeStep {
 impl ModeStep {
     fn new(freq_hz: f64, zeta: f64, mass: f64, dt: f64) -> ModeStep {
         let wn = TAU * freq_hz;
-        let k = mass * wn * wn;
         // Eigenvalues of [[0, 1], [−wn², −2ζwn]] (complex for ζ < 1).
         let s = Complex64::new(-zeta * wn, wn * (1.0 - zeta * zeta).max(0.0).sqrt());
         let (e1, e2) = ((s * dt).exp(), (s.conj() * dt).exp());
@@ -122,7 +121,6 @@ impl ModeStep {
         // A0⁻¹ = [[−2ζ/wn, −1/wn²], [1, 0]].
         let g = [a[0][1] / mass, (a[1][1] - 1.0) / mass];
         let b = [-2.0 * zeta / wn * g[0] - g[1] / (wn * wn), g[0]];
-        let _ = k;
         ModeStep { a, b }
     }
 
