@@ -856,6 +856,24 @@ pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
     staged.commit().map_err(DiagnoseError::Output)
 }
 
+/// Evaluates the recipe at `path` as written: every gap step against its measurement and the
+/// trials against the lobes at the trials' speeds, with nothing fitted. This is the number a
+/// diagnosis starts from, and what a recipe with effects added by hand comes to.
+pub fn evaluate_file(path: &Path, registry: &Registry) -> Result<Evaluation, DiagnoseError> {
+    let shown = path.display().to_string();
+    let err = |message: String| DiagnoseError::Recipe { path: shown.clone(), message };
+    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the recipe: {e}")))?;
+    let base = RecipeText::new(&shown, text).map_err(|e| err(e.to_string()))?;
+    let compiled = compile_text(&base, path, &[], registry).map_err(DiagnoseError::Input)?;
+    let roles = Roles::find(&compiled);
+    let speeds = trial_speeds(&compiled, &roles);
+    let at_trials = at_trial_speeds(&base, &roles, &speeds).map_err(err)?;
+    let c = compile_text(&at_trials, path, &[], registry).map_err(DiagnoseError::Input)?;
+    let (mut evaluation, _) = evaluate(&c, &roles, registry, None).map_err(err)?;
+    evaluation.trial_speeds_rpm = speeds;
+    Ok(evaluation)
+}
+
 /// The recipe at `path` with `effects` added at the given values (recipe parameter names and
 /// the units the library writes them in): the forward model of the library, for generating
 /// data with a known answer. Effects are applied in library order.
