@@ -121,47 +121,70 @@ fn limit_at(l: &Lobes, speed: f64) -> f64 {
     l.depth_limit[i]
 }
 
-/// Regression test of the example recipe (§6.4, Haas TM1 near 3800 rpm), not validation: its trials were set
-/// from the recipe's own noise-free branch and its rig is built to stiffen with speed, so the scores and the
-/// factor between the diagrams follow from the recipe itself. It holds the recipe's numbers (the limits in bands
-/// around this version's values, 14/14 and 11/14), that the measured chain stays within 5 % of the noise-free
-/// one, and that the trial outside the diagram is reported, not scored. The independent check of the lobes is
-/// the time-domain simulation (`stdlib/src/milling/tests.rs`).
+/// Validation of the example recipe's diagrams (§6.4, Haas TM1 near 3800 rpm) against the time-domain
+/// simulation: the trials' outcomes in `scripts/data/sld-trials.csv` are what `trials.simulate` gives on the
+/// recipe's noise-free tool point (modes fitted at each trial's speed, 200 revolutions), so the file holds the
+/// simulation's verdicts and not the lobes'. The noise-free and the measured speed-dependent ZOA diagrams
+/// classify all 14 trials inside them as the simulation does; the stationary diagram misses 3, the cuts at
+/// 3800 rpm above its limit that the simulation finds stable. The trial outside the diagram is reported, not
+/// scored.
 #[test]
-fn regression_speed_dependent_sld_recipe_stationary_diagram_is_conservative_at_3800_rpm() {
+fn speed_dependent_sld_agrees_with_the_time_domain_simulation_of_every_trial() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ran = run(&root.join("scripts/speed-dependent-sld.yaml"));
+    let sim = ran.table("truth_trials", "verdicts");
+    let (speed, depth, recorded, simulated) =
+        (column(&sim, "speed"), column(&sim, "depth"), column(&sim, "outcome"), column(&sim, "simulated"));
+    let inside = speed.iter().filter(|s| **s <= 4000.0).count();
+    assert_eq!(inside, 14);
+    for i in 0..speed.len() {
+        if speed[i] > 4000.0 {
+            assert_eq!(simulated[i], -1.0, "the 4200 rpm trial is outside the FRFs' speeds");
+        } else {
+            assert_eq!(
+                recorded[i], simulated[i],
+                "trial {i} ({} rpm, {} m): the file is not the simulation's",
+                speed[i], depth[i]
+            );
+        }
+    }
+    assert_eq!(ran.scalar("truth_trials", "agreement").value, 1.0);
+    let truth = ran.lobes("truth_sld", "speed_dependent");
+    for i in (0..speed.len()).filter(|&i| speed[i] <= 4000.0) {
+        let chatter = depth[i] >= limit_at(&truth, speed[i]);
+        assert_eq!(simulated[i], f64::from(u8::from(chatter)), "trial {i}: the noise-free ZOA limit disagrees");
+    }
+    let (dynamic, fixed) = (ran.lobes("sld", "speed_dependent"), ran.lobes("sld", "stationary"));
+    let v = ran.table("trials_stationary", "verdicts");
+    let (speed, depth, outcome, right) =
+        (column(&v, "speed"), column(&v, "depth"), column(&v, "outcome"), column(&v, "right"));
+    let missed: Vec<usize> = (0..speed.len()).filter(|&i| right[i] == 0.0).collect();
+    assert_eq!(missed.len(), 3, "{missed:?}");
+    for &i in &missed {
+        let (b_sd, b_st) = (limit_at(&dynamic, speed[i]), limit_at(&fixed, speed[i]));
+        assert!(outcome[i] == 0.0 && depth[i] > b_st && depth[i] < b_sd, "trial {i}");
+    }
+    assert!(missed.iter().filter(|&&i| speed[i] == 3800.0).count() >= 2, "{missed:?}");
+    let (right_sd, right_st) = (ran.scalar("trials", "score").value, ran.scalar("trials_stationary", "score").value);
+    assert!((right_sd - 1.0).abs() < 1e-12 && (right_st - 11.0 / 14.0).abs() < 1e-12, "{right_sd} {right_st}");
+    let i = ran.compiled.graph.by_step["trials"][0];
+    let warnings = ran.report.result.outcomes[i].warnings().join("\n");
+    assert!(warnings.contains("1 trial(s) outside the diagram's 1000–4000 rpm, not scored: 4200 rpm"), "{warnings}");
+}
+
+/// Regression test of the example recipe's limits, not validation (its rig is built to stiffen with speed, so
+/// the factor between the diagrams follows from the recipe): the limits at 3800 rpm in bands around this
+/// version's values, and the measured chain (noise, runout, gauge lag corrected) within 5 % of the noise-free
+/// one.
+#[test]
+fn regression_speed_dependent_sld_recipe_limits_at_3800_rpm() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let ran = run(&root.join("scripts/speed-dependent-sld.yaml"));
     let (dynamic, fixed) = (ran.lobes("sld", "speed_dependent"), ran.lobes("sld", "stationary"));
     let (b_sd, b_st) = (limit_at(&dynamic, 3800.0), limit_at(&fixed, 3800.0));
-    assert!(b_sd > 1.5 * b_st, "speed-dependent {b_sd} m vs stationary {b_st} m at 3800 rpm");
     assert!((1.3e-3..1.7e-3).contains(&b_st) && (2.3e-3..2.8e-3).contains(&b_sd), "{b_st} {b_sd}");
-
-    // The measured chain (noise, runout, gauge lag corrected) lands on the noise-free one.
-    let truth = ran.lobes("truth_sld", "speed_dependent");
-    let b_truth = limit_at(&truth, 3800.0);
+    let b_truth = limit_at(&ran.lobes("truth_sld", "speed_dependent"), 3800.0);
     assert!((b_sd / b_truth - 1.0).abs() < 0.05, "measured {b_sd} m vs noise-free {b_truth} m at 3800 rpm");
-    let v = ran.table("trials", "verdicts");
-    let (speed, depth, outcome, predicted) =
-        (column(&v, "speed"), column(&v, "depth"), column(&v, "outcome"), column(&v, "predicted"));
-    let mut stable_above_stationary = 0;
-    for i in 0..speed.len() {
-        if speed[i] > 4000.0 {
-            assert_eq!(predicted[i], -1.0, "the 4200 rpm trial is outside");
-            continue;
-        }
-        let chatter = depth[i] >= limit_at(&truth, speed[i]);
-        assert_eq!(outcome[i], f64::from(u8::from(chatter)), "trial {i} disagrees with the noise-free limit");
-        if speed[i] == 3800.0 && depth[i] > b_st && depth[i] < b_sd && outcome[i] == 0.0 {
-            assert_eq!(predicted[i], 0.0);
-            stable_above_stationary += 1;
-        }
-    }
-    assert!(stable_above_stationary >= 2, "{stable_above_stationary}");
-    let (right_sd, right_st) = (ran.scalar("trials", "score").value, ran.scalar("trials_stationary", "score").value);
-    assert!((right_sd - 14.0 / 14.0).abs() < 1e-12 && (right_st - 11.0 / 14.0).abs() < 1e-12, "{right_sd} {right_st}");
-    let i = ran.compiled.graph.by_step["trials"][0];
-    let warnings = ran.report.result.outcomes[i].warnings().join("\n");
-    assert!(warnings.contains("1 trial(s) outside the diagram's 1000–4000 rpm, not scored: 4200 rpm"), "{warnings}");
 }
 
 // ------------------------------------------------------------------ bad input

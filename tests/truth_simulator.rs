@@ -114,7 +114,7 @@ fn same_gap(case: &str, what: &str, ours: f64, truth: f64, failures: &mut Vec<St
 /// The README's "at the noise floor" band, or the truth's own ratio after where that is above it.
 fn at_floor(case: &str, file: &str, ratio: f64, truth_ratio_after: f64, failures: &mut Vec<String>) {
     let hi = 1.15f64.max(truth_ratio_after * 1.03);
-    if !(ratio <= hi) {
+    if ratio.is_nan() || ratio > hi {
         failures.push(format!("{case} {file}: gap ratio {ratio:.3} with the true effect, above {hi:.3}"));
     }
 }

@@ -58,6 +58,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::StabilityLobes::new()));
     registry.register(Arc::new(nodes::StabilitySd::new()));
     registry.register(Arc::new(nodes::MillingSimulate::new()));
+    registry.register(Arc::new(nodes::TrialsSimulate::new()));
     registry.register(Arc::new(nodes::StabilitySpeedDependent::new()));
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));

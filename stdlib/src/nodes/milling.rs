@@ -1,8 +1,8 @@
 //! `milling.simulate`: the time-domain milling simulation ([`crate::milling`]) as a node.
 
-use super::stability::{cutting_param, milling, modal};
+use super::stability::{COEFFICIENT_ROW, coefficient_table, cutting_param, milling, modal, pairs, read_trials};
 use crate::milling::{MillingSimulation, simulate};
-use crate::stability;
+use crate::stability::{self, SpeedFrf, Trial};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
@@ -174,4 +174,208 @@ fn feed_per_tooth(ctx: &NodeContext) -> Result<f64, NodeError> {
             format!("give `feed_per_tooth`, here or in the cutting setup `{name}` (e.g. `feed_per_tooth: 0.05 mm`)"),
         )
     })
+}
+
+// ------------------------------------------------------------------ trials.simulate
+
+/// `trials.simulate`: each cutting trial of a file simulated in the time domain on tool-point
+/// dynamics interpolated at its speed, as the independent check of a speed-dependent diagram
+/// (§6.4): the FRFs and coefficients are the same splines in speed as `stability.speed_dependent`
+/// uses, the modes in x and y are fitted to the FRFs at the trial's speed (§5.2), and
+/// `milling.simulate` gives the verdict.
+pub struct TrialsSimulate {
+    spec: NodeSpec,
+}
+
+impl Default for TrialsSimulate {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl TrialsSimulate {
+    pub fn new() -> Self {
+        TrialsSimulate {
+            spec: NodeSpec {
+                kind: "trials.simulate",
+                version: 1,
+                description: "Cutting trials (CSV rpm,depth_mm,outcome) simulated in the time domain: tool-point FRFs and \
+                              cutting coefficients spline-interpolated at each trial's speed as stability.speed_dependent \
+                              does, modes fitted in x and y (§5.2), then milling.simulate at the trial's depth; the \
+                              simulated verdict next to the recorded one.",
+                inputs: vec![
+                    PortSpec::new(
+                        "frfs",
+                        PortType::Frf,
+                        "tool-point receptances (m/N) at several speeds, x and y, as their direction and speed_rpm say",
+                    )
+                    .collecting(),
+                ],
+                outputs: vec![
+                    PortSpec::new(
+                        "verdicts",
+                        PortType::Table,
+                        "per trial: speed (rpm), depth (m), outcome (recorded) and simulated (0 stable, 1 chatter; \
+                         −1 outside the FRFs' speeds), agrees (0/1, −1 outside), chatter_metric, chatter_frequency (Hz, 0 when stable), modes_x and modes_y \
+                         (modes fitted)",
+                    ),
+                    PortSpec::new(
+                        "agreement",
+                        PortType::Scalar,
+                        "fraction of the simulated trials whose recorded outcome the simulation gives",
+                    ),
+                ],
+                params: vec![
+                    cutting_param(),
+                    Field::req("file", T::File, "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`"),
+                    Field::opt(
+                        "coefficients",
+                        T::ObjectList(COEFFICIENT_ROW),
+                        "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
+                         (default: the cutting setup's)",
+                    ),
+                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "100 Hz", "lower end of the modal fit"),
+                    Field::opt(
+                        "max_frequency",
+                        T::Quantity(D::FREQUENCY),
+                        "upper end of the modal fit (default: the FRFs' last line)",
+                    ),
+                    Field::opt(
+                        "feed_per_tooth",
+                        T::Quantity(D::LENGTH),
+                        "feed per tooth (default: the cutting setup's `feed_per_tooth`)",
+                    ),
+                    Field::def(
+                        "revolutions",
+                        T::Integer { min: 2, max: 100_000 },
+                        "100",
+                        "length of each simulated cut",
+                    ),
+                    Field::def(
+                        "extrapolate",
+                        T::Bool,
+                        "false",
+                        "extend the end cubics beyond the measured speeds instead of refusing",
+                    ),
+                ],
+            },
+        }
+    }
+}
+
+/// One trial's simulation.
+struct Simulated {
+    stable: bool,
+    metric: f64,
+    chatter_hz: f64,
+    modes: [usize; 2],
+}
+
+impl Node for TrialsSimulate {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        use crate::modal_fit::{self, FitOptions};
+        use rayon::prelude::*;
+        let p = ctx.params;
+        let mill = milling(ctx)?;
+        let frfs: Vec<SpeedFrf> = pairs(ctx)?.into_iter().map(|(speed_rpm, frf)| SpeedFrf { speed_rpm, frf }).collect();
+        let trials = read_trials(ctx)?;
+        let span = (frfs[0].speed_rpm, frfs[frfs.len() - 1].speed_rpm);
+        let (lo, hi) = trials.iter().fold(span, |(a, b), t| (a.min(t.speed_rpm), b.max(t.speed_rpm)));
+        let law = p.text("cutting").and_then(|n| ctx.recipe.cutting.get(n));
+        let coeffs = coefficient_table(p, &mill, law, (lo, hi))?;
+        let feed = feed_per_tooth(ctx)?;
+        let allow = p.bool("extrapolate").unwrap_or(false);
+        let fit = FitOptions {
+            min_frequency_hz: p.f64("min_frequency").unwrap_or(100.0),
+            max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
+            beam_refit: false,
+            ..FitOptions::default()
+        };
+        let revolutions = p.int("revolutions").unwrap_or(100) as usize;
+        let one = |t: &Trial| -> Result<Option<Simulated>, NodeError> {
+            if !allow && (t.speed_rpm < span.0 || t.speed_rpm > span.1) {
+                return Ok(None);
+            }
+            let at = format!("the trial at {} rpm, {} mm", t.speed_rpm, t.depth_m * 1e3);
+            let (frf, c) = stability::conditions_at(&frfs, &coeffs, t.speed_rpm, allow)
+                .map_err(|e| NodeError::input("frfs", format!("{at}: {e} (`extrapolate: true` extends the cubics)")))?;
+            let modes = |h: &[num_complex::Complex64], d: &str| {
+                modal_fit::fit(&frf.freqs_hz, h, &fit)
+                    .map(|f| f.modes)
+                    .map_err(|e| NodeError::input("frfs", format!("{at}: fitting the {d} modes: {e}")))
+            };
+            let (mx, my) = (modes(&frf.xx, "x")?, modes(&frf.yy, "y")?);
+            let counts = [mx.len(), my.len()];
+            let sim = MillingSimulation {
+                cut: stability::Milling { coefficients: c, ..mill },
+                depth: t.depth_m,
+                feed_per_tooth: feed,
+                speed_rpm: t.speed_rpm,
+                modes: stability::ModalModel::new(mx, my)
+                    .map_err(|e| NodeError::input("frfs", format!("{at}: {e}")))?,
+                runout: vec![],
+                revolutions,
+                steps_per_tooth: None,
+            };
+            let r = simulate(&sim).map_err(|e| NodeError::Failed(format!("{at}: {e}")))?;
+            Ok(Some(Simulated {
+                stable: r.stable,
+                metric: r.chatter_metric,
+                chatter_hz: r.chatter_frequency_hz.unwrap_or(0.0),
+                modes: counts,
+            }))
+        };
+        let sims: Vec<Option<Simulated>> = trials.par_iter().map(one).collect::<Result<_, _>>()?;
+        let outside: Vec<String> = trials
+            .iter()
+            .zip(&sims)
+            .filter(|(_, s)| s.is_none())
+            .map(|(t, _)| format!("{} rpm", t.speed_rpm))
+            .collect();
+        if outside.len() == trials.len() {
+            return Err(NodeError::param(
+                "file",
+                format!("no trial lies within the FRFs' {:.0}–{:.0} rpm; nothing to simulate", span.0, span.1),
+            ));
+        }
+        if !outside.is_empty() {
+            ctx.warn(format!(
+                "{} trial(s) outside the FRFs' {:.0}–{:.0} rpm, not simulated: {}",
+                outside.len(),
+                span.0,
+                span.1,
+                outside.join(", ")
+            ));
+        }
+        let code = |chatter: bool| if chatter { 1.0 } else { 0.0 };
+        let recorded: Vec<f64> = trials.iter().map(|t| code(t.outcome == stability::Outcome::Chatter)).collect();
+        let simulated: Vec<f64> = sims.iter().map(|s| s.as_ref().map_or(-1.0, |s| code(!s.stable))).collect();
+        let agrees: Vec<f64> =
+            recorded.iter().zip(&simulated).map(|(a, b)| if *b < 0.0 { -1.0 } else { code(a == b) }).collect();
+        let scored = agrees.iter().filter(|a| **a >= 0.0).count();
+        let agreement = agrees.iter().filter(|a| **a > 0.0).count() as f64 / scored as f64;
+        let col =
+            |f: &dyn Fn(&Simulated) -> f64| sims.iter().map(|s| s.as_ref().map_or(f64::NAN, f)).collect::<Vec<_>>();
+        let verdicts = Table {
+            columns: vec![
+                Column::new("speed", "rpm", trials.iter().map(|t| t.speed_rpm).collect()),
+                Column::new("depth", "m", trials.iter().map(|t| t.depth_m).collect()),
+                Column::new("outcome", "", recorded),
+                Column::new("simulated", "", simulated),
+                Column::new("agrees", "", agrees),
+                Column::new("chatter_metric", "", col(&|s| (s.metric * 1e3).round() / 1e3)),
+                Column::new("chatter_frequency", "Hz", col(&|s| s.chatter_hz)),
+                Column::new("modes_x", "", col(&|s| s.modes[0] as f64)),
+                Column::new("modes_y", "", col(&|s| s.modes[1] as f64)),
+            ],
+        };
+        let mut out = Outputs::new();
+        out.insert("verdicts".into(), Value::Table(verdicts));
+        out.insert("agreement".into(), Value::Scalar(Scalar { value: agreement, unit: UnitLabel::new("") }));
+        Ok(out)
+    }
 }

@@ -24,7 +24,7 @@ pub use expr::RhaiEval;
 pub use frf::FrfEstimate;
 pub use gap::FrfGap;
 pub use impact::ImpactSimulate;
-pub use milling::MillingSimulate;
+pub use milling::{MillingSimulate, TrialsSimulate};
 pub use modal_fit::ModalFitNode;
 pub use phase::{PhaseCorrect, PhaseMeasure};
 pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};

@@ -21,7 +21,7 @@ use std::f64::consts::TAU;
 const RPM: f64 = 60.0 / TAU;
 
 /// A speed parameter (rad/s) in rpm, rounded to 1e-6 rpm so that `1500 rpm` reads back as 1500.
-fn to_rpm(w: f64) -> f64 {
+pub(super) fn to_rpm(w: f64) -> f64 {
     (w * RPM * 1e6).round() / 1e6
 }
 
@@ -470,7 +470,7 @@ impl Default for StabilitySpeedDependent {
     }
 }
 
-const COEFFICIENT_ROW: &[Field] = &[
+pub(super) const COEFFICIENT_ROW: &[Field] = &[
     Field::req("speed", T::Quantity(D::ROTATIONAL_SPEED), "spindle speed of the measurement"),
     Field::opt("Ks", T::Quantity(D::PRESSURE), "specific cutting force (with beta)"),
     Field::opt("beta", T::Quantity(D::ANGLE), "force angle: Kt = Ks sin β, Kn = Ks cos β"),
@@ -561,7 +561,7 @@ fn grid(p: &Params) -> Result<Option<(f64, f64, f64)>, NodeError> {
     Ok(Some((lo, hi, step)))
 }
 
-fn coefficient_table(
+pub(super) fn coefficient_table(
     p: &Params,
     mill: &Milling,
     law: Option<&spindlelab_engine::model::Cutting>,
@@ -630,7 +630,7 @@ fn coefficient_table(
 }
 
 /// Groups the collected FRFs by speed into x/y pairs, ascending in speed.
-fn pairs(ctx: &NodeContext) -> Result<Vec<(f64, ToolPointFrf)>, NodeError> {
+pub(super) fn pairs(ctx: &NodeContext) -> Result<Vec<(f64, ToolPointFrf)>, NodeError> {
     let items = ctx.inputs_of("frfs");
     if items.is_empty() {
         return Err(NodeError::input("frfs", "no FRFs arrived; feed tool-point FRFs at several speeds"));
@@ -975,6 +975,16 @@ impl TrialsScore {
     }
 }
 
+/// The trials of the node's `file` parameter.
+pub(super) fn read_trials(ctx: &NodeContext) -> Result<Vec<Trial>, NodeError> {
+    let path = ctx.params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
+    let bytes = spindlelab_engine::formats::read_capped(path, spindlelab_engine::formats::MAX_DATA_BYTES)
+        .map_err(|e| NodeError::param("file", format!("cannot read {}: {e}", path.display())))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| NodeError::param("file", format!("{} is not UTF-8 text", path.display())))?;
+    parse_trials(&text, &path.display().to_string())
+}
+
 /// Parses the trials CSV: a header row naming the columns, then one trial per row; `#` lines are comments.
 pub fn parse_trials(text: &str, path: &str) -> Result<Vec<Trial>, NodeError> {
     let bad = |line: usize, what: String| NodeError::param("file", format!("{path}:{line}: {what}"));
@@ -1033,12 +1043,7 @@ impl Node for TrialsScore {
         let Value::Lobes(lobes) = ctx.input("lobes")? else {
             return Err(NodeError::input("lobes", "expected stability lobes"));
         };
-        let path = ctx.params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
-        let bytes = spindlelab_engine::formats::read_capped(path, spindlelab_engine::formats::MAX_DATA_BYTES)
-            .map_err(|e| NodeError::param("file", format!("cannot read {}: {e}", path.display())))?;
-        let text = String::from_utf8(bytes)
-            .map_err(|_| NodeError::param("file", format!("{} is not UTF-8 text", path.display())))?;
-        let trials = parse_trials(&text, &path.display().to_string())?;
+        let trials = read_trials(ctx)?;
         let score = stability::score_trials(&lobes.speed_rpm, &lobes.depth_limit, &trials).map_err(|e| match e {
             StabilityError::InvalidDiagram { .. } => NodeError::input("lobes", e.to_string()),
             other => NodeError::param("file", other.to_string()),

@@ -28,7 +28,9 @@ pub use sdm::{
     AUTO_STEPS_PER_NATURAL_PERIOD, Bifurcation, DepthLimit, ModalModel, Mode, SdOptions, SdPoint, StabilityMap,
     StepCount, sd_depth_limit, sd_depth_limits, sd_spectral_radius, sd_stability_map, sd_steps,
 };
-pub use speed::{CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, speed_dependent_lobes};
+pub use speed::{
+    CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, conditions_at, speed_dependent_lobes,
+};
 pub use trials::{Outcome, Trial, TrialScore, Verdict, score_trials};
 pub use zoa::{Lobe, LobePoint, LobeSet, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions, zoa_lobes};
 

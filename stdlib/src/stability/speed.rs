@@ -271,6 +271,31 @@ fn coefficients_at(table: &CoefficientTable, s: f64, allow: bool) -> Result<Cutt
     }
 }
 
+/// The tool-point FRF pair and the cutting coefficients at `speed_rpm`, from the same cubic
+/// splines in speed as [`speed_dependent_lobes`] (§6.3): what a time-domain simulation of a cut
+/// at that speed needs to check the diagram there. Direct terms only.
+pub fn conditions_at(
+    frfs: &[SpeedFrf],
+    coefficients: &CoefficientTable,
+    speed_rpm: f64,
+    allow_extrapolation: bool,
+) -> Result<(ToolPointFrf, CuttingCoefficients), StabilityError> {
+    let knots: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
+    check_knots("FRF speeds", &knots)?;
+    let grid = &frfs[0].frf.freqs_hz;
+    if let Some(f) = frfs.iter().find(|f| f.frf.freqs_hz != *grid) {
+        return Err(StabilityError::GridMismatch {
+            what: "speed-dependent FRFs",
+            detail: format!("the FRF at {} rpm is not on the grid of the FRF at {} rpm", f.speed_rpm, knots[0]),
+        });
+    }
+    check_range("FRF speeds", &knots, speed_rpm, allow_extrapolation)?;
+    let coeffs = coefficients_at(coefficients, speed_rpm, allow_extrapolation)?;
+    let mut scratch = SpeedScratch::default();
+    SplineFrf::new(&knots, frfs, false).at(speed_rpm, grid.len(), &mut scratch);
+    Ok((ToolPointFrf::new(grid.clone(), scratch.xx, scratch.yy)?, coeffs))
+}
+
 /// Speed-dependent and stationary ZOA limits on the fine speed grid. `frfs` are the FRF pairs at increasing
 /// speeds, all on one frequency grid (cross terms used only if every pair has them); `stationary` is the FRF of
 /// the stationary limit (e.g. measured at rest), on any grid.
