@@ -62,7 +62,6 @@ fn zoa_node_matches_closed_form_and_kernel() {
     let lobes = ran.lobes("lobes", "lobes");
     let (i, &b_min) = lobes.depth_limit.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).expect("speeds");
     let closed = 4.0 * k * 0.011 * 1.011 / 2e8;
-    assert!((closed - 2.9805e-4).abs() < 1e-7, "{closed}");
     assert!(b_min >= closed * (1.0 - 1e-9) && b_min < closed * 1.001, "{b_min} vs {closed}");
     assert!((lobes.chatter_hz[i] - 922.0 * 1.022f64.sqrt()).abs() < 0.5, "{}", lobes.chatter_hz[i]);
     // The same numbers as the kernel on the same FRFs and cut.

@@ -173,10 +173,14 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
 
     let (st, ex) = sim.cut.engagement();
     let (kt, kn) = (sim.cut.coefficients.kt, sim.cut.coefficients.kn);
-    // Per angle bin: sin φ, cos φ, engaged; and the surface left there.
+    // Per angle bin: sin φ, cos φ, engaged, at the middle of the bin's step; and the surface
+    // left there. The force of a step is the chip at its midpoint, the motion there predicted
+    // from the velocity: held over the step it then lags the motion by O(dt²), not dt/2 (a
+    // half-step lag is a phase lag of πf dt in the regenerative loop and pulled the limit of
+    // a 922 Hz slotting benchmark more than 5 % low at 100 steps per tooth).
     let bins: Vec<(f64, f64, bool)> = (0..per_rev)
         .map(|k| {
-            let phi = TAU * k as f64 / per_rev as f64;
+            let phi = TAU * (k as f64 + 0.5) / per_rev as f64;
             let (s, c) = phi.sin_cos();
             (s, c, phi >= st - 1e-12 && phi <= ex + 1e-12)
         })
@@ -200,7 +204,10 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         surface_location_error: 0.0,
     };
     let (mut x, mut y) = (0.0f64, 0.0f64);
+    let (mut vx, mut vy) = (0.0f64, 0.0f64);
+    let half = 0.5 * dt;
     for step in 0..total {
+        let (xm, ym) = (x + vx * half, y + vy * half);
         let (mut fx, mut fy) = (0.0, 0.0);
         for j in 0..n_teeth {
             let bin = (step + j * spt) % per_rev;
@@ -208,7 +215,7 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
             if !engaged {
                 continue;
             }
-            let n = x * s + y * c + runout(j);
+            let n = xm * s + ym * c + runout(j);
             let h = sim.feed_per_tooth * s + surface[bin] - n;
             if h > 0.0 {
                 let f = sim.depth * h;
@@ -228,6 +235,8 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         }
         x = state_x.iter().map(|s| s[0]).sum();
         y = state_y.iter().map(|s| s[0]).sum();
+        vx = state_x.iter().map(|s| s[1]).sum();
+        vy = state_y.iter().map(|s| s[1]).sum();
         out.force_x.push(fx);
         out.force_y.push(fy);
         out.disp_x.push(x);

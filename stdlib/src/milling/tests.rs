@@ -63,8 +63,8 @@ fn a_stable_cut_settles_to_the_nominal_chip_force() {
     let mut worst = 0.0f64;
     let mut scale = 0.0f64;
     for i in total - per_rev..total {
-        // Force of step i acts over [t_i, t_i + dt) with the teeth at their angles at t_i.
-        let theta = TAU * (i % per_rev) as f64 / per_rev as f64;
+        // Force of step i acts over [t_i, t_i + dt) with the teeth at their angles mid-step.
+        let theta = TAU * ((i % per_rev) as f64 + 0.5) / per_rev as f64;
         let f = static_chip_force(&c, 2e-4, 5e-5, theta);
         worst = worst.max((r.force_x[i] - f[0]).abs()).max((r.force_y[i] - f[1]).abs());
         scale = scale.max(f[0].abs()).max(f[1].abs());
@@ -164,7 +164,8 @@ fn bad_input_is_an_error_not_a_panic() {
 
 /// A speed × depth map: the simulation's verdict against the semi-discretization's limit at
 /// every point. Reports the agreement and requires every disagreement to lie next to the
-/// boundary (within 10 % of the limit depth), where a finite simulation cannot decide.
+/// boundary (within 3 % of the limit depth), where a finite simulation cannot decide. Today:
+/// 191 of 192, the one left 1.2 % below the limit.
 #[test]
 fn a_speed_depth_map_agrees_with_the_semi_discretization_away_from_the_boundary() {
     let c = cut(4, 0.5, MillingDirection::Up);
@@ -197,7 +198,7 @@ fn a_speed_depth_map_agrees_with_the_semi_discretization_away_from_the_boundary(
         );
     }
     for (n, b, limit, _) in &misclassified {
-        assert!((b / limit - 1.0).abs() < 0.10, "{n} rpm, {b} m: {:.0} % from the limit", 100.0 * (b / limit - 1.0));
+        assert!((b / limit - 1.0).abs() < 0.03, "{n} rpm, {b} m: {:.0} % from the limit", 100.0 * (b / limit - 1.0));
     }
-    assert!(agree as f64 >= 0.95 * total as f64, "{agree}/{total}");
+    assert!(agree as f64 >= 0.98 * total as f64, "{agree}/{total}");
 }
