@@ -97,7 +97,8 @@ fn phase_lag_measured_on_the_shaker_restores_the_phase_within_1_degree() {
     assert!((slope / truth - 1.0).abs() < 0.005, "slope {} deg/kHz", slope.to_degrees() * 1000.0);
     let before = r.scalar("before", "phase_error").to_degrees();
     let after = r.scalar("after", "phase_error").to_degrees();
-    assert!(before > 10.0, "the lag should show before correction: {before}°");
+    // The gauge lags 13.84°/kHz: at the rig's 2.4 kHz mode (judged: coherence above 0.9) that is 33.2°.
+    assert!(before > 0.97 * 13.84 * 2.4, "the lag should show before correction: {before}°");
     assert!(after < 1.0, "after correction: {after}°");
 }
 

@@ -79,6 +79,36 @@ fn zoa_node_matches_closed_form_and_kernel() {
     assert!(column(&table, "lobe").iter().all(|&k| (0.0..10.0).contains(&k)));
 }
 
+/// A speed no lobe of the band reaches (a lobe `k` at speed `n` needs `f · 60/(N n) ≤ k`) has no limit: the
+/// ZOA gives +∞ there and the run says which speeds and what to raise (docs/stability.md). With the 922 Hz
+/// benchmark mode, 2 teeth and 3 lobes, speeds below 922 · 60/(2 · 3) = 9220 rpm are open, those above limited.
+#[test]
+fn zoa_speeds_no_lobe_reaches_are_unlimited_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let freqs: Vec<f64> = (1..=4000).map(|i| 0.5 * i as f64).collect();
+    let k = 0.03993 * (TAU * 922.0f64).powi(2);
+    std::fs::write(dir.path().join("x.csv"), csv::write_frf(&frf(&freqs, sdof(922.0, 0.011, k, &freqs), "x", None)))
+        .unwrap();
+    let zero = vec![Complex64::new(0.0, 0.0); freqs.len()];
+    std::fs::write(dir.path().join("y.csv"), csv::write_frf(&frf(&freqs, zero, "y", None))).unwrap();
+    let recipe = format!(
+        "spindlelab: 1\n{CUTTING}steps:\n  x: {{ kind: read.frf, params: {{ file: x.csv }} }}\n  \
+         y: {{ kind: read.frf, params: {{ file: y.csv }} }}\n  \
+         lobes:\n    kind: stability.lobes\n    params: {{ cutting: slot, speeds: 8000..10000 step 500 rpm, lobes: 3 }}\n    \
+         inputs: {{ frf_x: \"@x.frf\", frf_y: \"@y.frf\" }}\n"
+    );
+    let path = dir.path().join("open.yaml");
+    std::fs::write(&path, recipe).unwrap();
+    let ran = run(&path);
+    let lobes = ran.lobes("lobes", "lobes");
+    assert_eq!(lobes.speed_rpm, vec![8000.0, 8500.0, 9000.0, 9500.0, 10_000.0]);
+    for (s, d) in lobes.speed_rpm.iter().zip(&lobes.depth_limit) {
+        assert_eq!(d.is_infinite(), *s < 9220.0, "{s} rpm: {d}");
+    }
+    let warnings = ran.report.result.outcomes[ran.compiled.graph.by_step["lobes"][0]].warnings().join("\n");
+    assert!(warnings.contains("at 3 of 5 speeds (8000–9000 rpm)") && warnings.contains("raise `lobes`"), "{warnings}");
+}
+
 /// FRFs that are the same at 1000, 2000 and 3000 rpm (read from one UFF file, direction and speed in each
 /// dataset) give speed-dependent lobes equal to the stationary lobes of the 1000 rpm pair, speed by speed; the
 /// limits are finite and positive (the modes lie in the band).

@@ -344,3 +344,23 @@ fn w02_rigid_coupling_peak_matches_the_numpy_peer() {
     assert!((freqs[k] - 805.0).abs() <= 1.5, "peak at {} Hz", freqs[k]);
     assert!((peak / 9.965e-7 - 1.0).abs() < 5e-3, "peak {peak:e} m/N");
 }
+
+/// `beam.receptance` meshes an assembly as one continuous beam: a compliant `tool_joint` is not
+/// in that model, and the run says so (docs/structure.md) while a rigid joint says nothing.
+#[test]
+fn beam_receptance_warns_that_a_compliant_tool_joint_is_not_modelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(data_dir().join("tool-holder.yaml")).unwrap();
+    let steps = text.find("steps:").unwrap();
+    let recipe = format!(
+        "{}steps:\n  soft:\n    kind: beam.receptance\n    params: {{ assembly: soft_joint, max_frequency: 2 kHz }}\n  \
+         rigid:\n    kind: beam.receptance\n    params: {{ assembly: tool_holder, max_frequency: 2 kHz }}\n",
+        &text[..steps]
+    );
+    let path = dir.path().join("joint.yaml");
+    std::fs::write(&path, recipe).unwrap();
+    let ran = run_at(&path, &dir.path().join("out"));
+    let warnings = |step: &str| ran.report.result.outcomes[ran.compiled.graph.by_step[step][0]].warnings().join("\n");
+    assert!(warnings("soft").contains("`tool_joint` is not modelled here"), "{}", warnings("soft"));
+    assert!(warnings("rigid").is_empty(), "{}", warnings("rigid"));
+}
