@@ -479,6 +479,10 @@ fn milling_simulation_failures_say_what_and_what_to_do() {
             "runout is given for 3 teeth, the cut has 2",
             "node `endless` failed",
             "more than 20000000",
+            "node `trials_outside` failed",
+            "no trial lies within the FRFs' 1000–3000 rpm; nothing to simulate",
+            "node `trials_feedless` failed",
+            "give `feed_per_tooth`, here or in the cutting setup `no_feed`",
         ],
     );
 }
