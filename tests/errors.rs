@@ -540,7 +540,7 @@ fn output_files_must_stay_inside_be_supported_and_distinct() {
     assert_at(&e, f, 14, 33);
     assert_has(&e, &["output file `/tmp/absolute.csv` must stay inside the output directory"]);
     assert_at(&e, f, 15, 33);
-    assert_has(&e, &["unsupported output format `txt`", "name the file `.csv`, `.json` or `.uff`"]);
+    assert_has(&e, &["unsupported output format `txt`", "name the file `.csv`, `.json`, `.uff`, or `.svg` / `.png`"]);
     assert_at(&e, f, 16, 33);
     assert_has(&e, &["two outputs write `force.csv`"]);
     assert_at(&e, f, 18, 40);
@@ -548,6 +548,23 @@ fn output_files_must_stay_inside_be_supported_and_distinct() {
     // Nothing escaped either: `reject` found the folder that holds the output folder (where
     // `../escape.csv` would land) empty.
     insta::assert_snapshot!("outputs", e);
+}
+
+#[test]
+fn plot_outputs_that_cannot_be_drawn_are_refused_at_their_place() {
+    let e = reject("plots.yaml");
+    let f = "plots.yaml";
+    assert_has(&e, &["a time series has no view `real-imag`", "its views: default"]);
+    assert_at(&e, f, 27, 33);
+    assert_has(&e, &["a substructure has no plot", "name the file `.json` to write it"]);
+    assert_at(&e, f, 28, 36);
+    assert_has(&e, &["`with` is for plots; `force.csv` is not one"]);
+    assert_at(&e, f, 29, 33);
+    assert_has(&e, &["dangling reference `@hti.displacement`: there is no step `hti`"]);
+    assert_at(&e, f, 30, 34);
+    assert_has(&e, &["a time series cannot be drawn over a plot of a time series"]);
+    assert_at(&e, f, 31, 33);
+    assert_eq!(error_count(&e), 5, "{e}");
 }
 
 #[test]

@@ -21,6 +21,10 @@ fn every_recipe_in_scripts() {
             Err(e) => panic!("{} failed: {e}", path.display()),
         };
         let mut summary = spindlelab::summary::summarize(&compiled, &report.result);
+        for file in report.written.iter().filter(|f| f.ends_with(".svg")) {
+            let svg = std::fs::read_to_string(out.path().join(file)).expect("plot written");
+            summary.push_str(&svg_outline(file, &svg));
+        }
         summary.push_str(&format!(
             "written: {}\n(numbers to {} significant digits)\n",
             report.written.join(", "),
@@ -28,4 +32,21 @@ fn every_recipe_in_scripts() {
         ));
         insta::assert_snapshot!(summary);
     });
+}
+
+/// A plot in a normalised form: how many of each drawing element, and every text it shows
+/// (title, axis labels, ticks, legend), so a snapshot shows what changed without the geometry.
+fn svg_outline(file: &str, svg: &str) -> String {
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{file} is not an SVG document");
+    let mut counts = std::collections::BTreeMap::new();
+    for tag in ["polyline", "circle", "line", "polygon", "rect", "text"] {
+        counts.insert(tag, svg.matches(&format!("<{tag} ")).count() + svg.matches(&format!("<{tag}>")).count());
+    }
+    let texts: Vec<&str> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| t.split_once('>').and_then(|(_, rest)| rest.split_once("</text>")).map(|(text, _)| text.trim()))
+        .collect();
+    let counts: Vec<String> = counts.iter().map(|(t, n)| format!("{n} {t}")).collect();
+    format!("plot {file}: {}\n  texts: {}\n", counts.join(", "), texts.join(" | "))
 }

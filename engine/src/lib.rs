@@ -10,6 +10,7 @@ pub mod formats;
 pub mod graph;
 pub mod model;
 pub mod node;
+pub mod plot;
 pub mod schema;
 pub mod spec;
 pub mod syntax;
@@ -142,6 +143,7 @@ pub fn run(
     let complete = failures.is_empty() && result.outcomes.iter().all(|o| !matches!(o, Outcome::Skipped));
     let mut staged = dir.stage().map_err(RunError::Output)?;
     let mut written = Vec::new();
+    let mut plot_notes = Vec::new();
     for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
@@ -156,8 +158,17 @@ pub fn run(
         if rows.len() != ids.len() {
             continue;
         }
-        let text = exec::write::render(out.format, &axes, &rows);
-        staged.write(&out.file, text.as_bytes()).map_err(RunError::Output)?;
+        let bytes = match out.format {
+            model::OutputFormat::Plot(format) => match plot_output(compiled, &result, out, format, &rows) {
+                Ok(bytes) => bytes,
+                Err(message) => {
+                    plot_notes.push(format!("{}: not drawn: {message}", out.file));
+                    continue;
+                }
+            },
+            format => exec::write::render(format, &axes, &rows).into_bytes(),
+        };
+        staged.write(&out.file, &bytes).map_err(RunError::Output)?;
         written.push(out.file.clone());
     }
     for (rel, text) in &opts.extra_files {
@@ -170,12 +181,48 @@ pub fn run(
         &result,
         written.clone(),
     );
+    manifest.notes.extend(plot_notes);
     manifest.files = staged.files().iter().cloned().collect();
     let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     staged.write(exec::manifest::MANIFEST_FILE, json.as_bytes()).map_err(RunError::Output)?;
     staged.commit().map_err(RunError::Output)?;
     let report = RunReport { result, manifest, written };
     if failures.is_empty() { Ok(report) } else { Err(RunError::NodesFailed { failures, report: Box::new(report) }) }
+}
+
+/// An output's plot: the rows of its own port, each `with` reference's values over them.
+fn plot_output(
+    compiled: &Compiled,
+    result: &RunResult,
+    out: &model::Output,
+    format: plot::PlotFormat,
+    rows: &[exec::write::Row],
+) -> Result<Vec<u8>, String> {
+    let swept = rows.len() > 1;
+    let name = |r: &model::PortRef, label: &str| {
+        if label.is_empty() { format!("{}.{}", r.step, r.port) } else { format!("{}.{} [{label}]", r.step, r.port) }
+    };
+    let main: Vec<plot::Layer> = rows
+        .iter()
+        .map(|r| plot::Layer {
+            name: if swept { r.label.to_string() } else { name(&out.from, "") },
+            value: r.value,
+            coord: exec::write::first_coordinate(r.label),
+        })
+        .collect();
+    let mut with = Vec::new();
+    for w in &out.with {
+        for &i in &compiled.graph.by_step[&w.step] {
+            let inst = &compiled.graph.instances[i];
+            let value = result.outcomes[i]
+                .outputs()
+                .and_then(|o| o.get(&w.port))
+                .ok_or_else(|| format!("`{}` did not run", inst.id))?;
+            with.push(plot::Layer { name: name(w, &inst.label), value, coord: None });
+        }
+    }
+    let title = format!("{}: {}.{}", compiled.recipe.name, out.from.step, out.from.port);
+    plot::render(format, &title, out.plot.as_deref(), &main, &with).map_err(|e| e.to_string())
 }
 
 /// Rounds to `digits` significant digits: snapshots and summaries state their precision.

@@ -146,7 +146,11 @@ pub fn recipe_schema(registry: &Registry) -> Value {
     props.insert(
         "outputs".into(),
         json!({"type": "array", "items": {"type": "object", "required": ["from", "file"], "additionalProperties": false,
-            "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json|uff)$"}}}}),
+            "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json|uff|svg|png)$"},
+                "with": {"oneOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}],
+                    "description": "values drawn over a plot (`@step.port`)"},
+                "plot": {"type": "string", "enum": ["bode", "real-imag", "blocks", "default"],
+                    "description": "the plot's view when its type has several"}}}}),
     );
     json!({
         "$schema": "http://json-schema.org/draft-07/schema#",

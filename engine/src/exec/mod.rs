@@ -191,8 +191,8 @@ pub fn execute(
     let mut done_count = 0usize;
     // Instances whose outputs must stay: read by output files, or never cached.
     let mut keep = vec![false; n];
-    for out in &recipe.outputs {
-        for &i in graph.by_step.get(&out.from.step).into_iter().flatten() {
+    for step in recipe.outputs.iter().flat_map(|o| o.steps()) {
+        for &i in graph.by_step.get(step).into_iter().flatten() {
             keep[i] = true;
         }
     }
@@ -261,7 +261,7 @@ pub fn needed_for(recipe: &Recipe, graph: &Graph, cached: &[bool], targets: Opti
     }
     let roots: Vec<&str> = match targets {
         Some(t) => t.iter().map(String::as_str).collect(),
-        None => recipe.outputs.iter().map(|o| o.from.step.as_str()).collect(),
+        None => recipe.outputs.iter().flat_map(|o| o.steps()).collect(),
     };
     for step in roots {
         for &i in graph.by_step.get(step).into_iter().flatten() {

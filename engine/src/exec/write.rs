@@ -24,6 +24,8 @@ pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> 
         OutputFormat::Json => render_json(axes, rows),
         OutputFormat::Csv => render_csv(axes, rows),
         OutputFormat::Uff => render_uff(rows),
+        // Drawn by `crate::plot` from the values, not rendered as text.
+        OutputFormat::Plot(_) => String::new(),
     }
 }
 
@@ -134,6 +136,18 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
         let cells: Vec<String> = t.columns.iter().map(|c| num(c.values[i])).collect();
         let _ = writeln!(out, "{p}{}", cells.join(","));
     }
+}
+
+/// The first numeric sweep coordinate of a label as written (`speed=1500 rpm, direction=x` →
+/// `("speed [rpm]", 1500)`), for a plot's x axis.
+pub fn first_coordinate(label: &str) -> Option<(String, f64)> {
+    label.split(", ").find_map(|part| {
+        let (name, value) = part.split_once('=')?;
+        let mut words = value.split_whitespace();
+        let number: f64 = words.next()?.parse().ok()?;
+        let unit: Vec<&str> = words.collect();
+        Some((if unit.is_empty() { name.to_string() } else { format!("{name} [{}]", unit.join(" ")) }, number))
+    })
 }
 
 /// The numeric sweep assignments of an instance as (name, SI unit) pairs, for column headers.

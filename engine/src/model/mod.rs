@@ -109,6 +109,8 @@ pub enum OutputFormat {
     Json,
     /// Universal File Format dataset 58 (ASCII): FRFs and time series only.
     Uff,
+    /// A plot of the value (`crate::plot`), as SVG or PNG.
+    Plot(crate::plot::PlotFormat),
 }
 
 /// A step output written to a file in the output directory.
@@ -118,7 +120,19 @@ pub struct Output {
     /// File name relative to the output directory.
     pub file: String,
     pub format: OutputFormat,
+    /// A plot's other values, drawn over `from` (the stationary lobes and the trials over the
+    /// speed-dependent lobes, a measured FRF over a fitted one).
+    pub with: Vec<PortRef>,
+    /// A plot's view when its type has several (`real-imag` for an FRF).
+    pub plot: Option<String>,
     pub span: Span,
+}
+
+impl Output {
+    /// The steps whose values the file holds.
+    pub fn steps(&self) -> impl Iterator<Item = &str> {
+        std::iter::once(self.from.step.as_str()).chain(self.with.iter().map(|r| r.step.as_str()))
+    }
 }
 
 /// Reports a node's rejection of a step's parameter values at the parameter's place.

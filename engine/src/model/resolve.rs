@@ -6,6 +6,7 @@ use super::entities::{
 use super::{Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis};
 use crate::diag::{Diagnostics, Span};
 use crate::node::Registry;
+use crate::plot::PlotFormat;
 use crate::spec::{self, Ctx, EntityKind, EntityNames, Field, FieldType, ParamValue, Params, suggest};
 use crate::syntax::{Raw, RawKind};
 use crate::value::PortType;
@@ -29,7 +30,7 @@ const TOP_KEYS: &[&str] = &[
     "measurements",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
-const OUTPUT_KEYS: &[&str] = &["from", "file"];
+const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];
 
 /// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
 const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml"];
@@ -836,14 +837,50 @@ fn resolve_outputs(
             Some("csv") => OutputFormat::Csv,
             Some("json") => OutputFormat::Json,
             Some("uff") => OutputFormat::Uff,
+            Some("svg") => OutputFormat::Plot(PlotFormat::Svg),
+            Some("png") => OutputFormat::Plot(PlotFormat::Png),
             other => {
                 diags.error_help(
                     Some(&file.span),
                     format!("unsupported output format `{}`", other.unwrap_or("")),
-                    "name the file `.csv`, `.json` or `.uff`",
+                    "name the file `.csv`, `.json`, `.uff`, or `.svg` / `.png` for a plot",
                 );
                 continue;
             }
+        };
+        let is_plot = matches!(format, OutputFormat::Plot(_));
+        for key in ["with", "plot"] {
+            if let (Some(v), false) = (item.get(key), is_plot) {
+                diags.error_help(
+                    Some(&v.span),
+                    format!("`{key}` is for plots; `{fname}` is not one"),
+                    format!("name the file `.svg` or `.png` to plot it, or leave `{key}` out"),
+                );
+            }
+        }
+        // References drawn over the plot: one `@step.port` or a list of them.
+        let mut with: Vec<(PortRef, Span)> = Vec::new();
+        if let Some(w) = item.get("with").filter(|_| is_plot) {
+            let items: Vec<&Raw> = match &w.kind {
+                RawKind::Seq(items) => items.iter().collect(),
+                _ => vec![w],
+            };
+            for it in items {
+                match it.as_str().and_then(parse_port_ref) {
+                    Some(r) => with.push((r, it.span.clone())),
+                    None => diags.error_help(Some(&it.span), "`with` takes references", "write `@step.port`"),
+                }
+            }
+        }
+        let plot = match item.get("plot").filter(|_| is_plot) {
+            Some(v) => match v.as_str() {
+                Some(t) => Some((t.to_string(), v.span.clone())),
+                None => {
+                    diags.error_help(Some(&v.span), "`plot` takes the name of a view", "e.g. `plot: real-imag`");
+                    continue;
+                }
+            },
+            None => None,
         };
         match steps.iter().find(|s| s.id == r.step) {
             Some(step) => {
@@ -866,6 +903,27 @@ fn resolve_outputs(
                         "name the file `.csv` or `.json`",
                     );
                     continue;
+                }
+                if is_plot {
+                    let views = crate::plot::variants(&port.ty);
+                    if views.is_empty() {
+                        diags.error_help(
+                            Some(&file.span),
+                            format!("a {} has no plot", port.ty),
+                            "name the file `.json` to write it",
+                        );
+                        continue;
+                    }
+                    if let Some((v, span)) = &plot
+                        && !views.contains(&v.as_str())
+                    {
+                        diags.error_help(
+                            Some(span),
+                            format!("a {} has no view `{v}`", port.ty),
+                            format!("its views: {}", views.join(", ")),
+                        );
+                        continue;
+                    }
                 }
             }
             // The step exists but has errors of its own, already reported.
@@ -893,7 +951,58 @@ fn resolve_outputs(
             );
             continue;
         }
-        outputs.push(Output { from: r, file: fname.to_string(), format, span: item.span.clone() });
+        // Every value drawn over the plot must exist and have a plot of its own kind.
+        let mut with_ok = true;
+        for (w, span) in &with {
+            let Some(step) = steps.iter().find(|s| s.id == w.step) else {
+                if !step_names.contains(&w.step) {
+                    let msg = format!("dangling reference `{w}`: there is no step `{}`", w.step);
+                    match suggest(&w.step, step_names.iter().map(String::as_str)) {
+                        Some(s) => diags.error_help(Some(span), msg, format!("did you mean `@{s}.{}`?", w.port)),
+                        None => diags.error_help(Some(span), msg, format!("steps: {}", step_names.join(", "))),
+                    }
+                }
+                with_ok = false;
+                continue;
+            };
+            let spec = registry.get(&step.kind).expect("checked kind").spec();
+            let Some(port) = spec.output(&w.port) else {
+                let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
+                diags.error_help(
+                    Some(span),
+                    format!("step `{}` has no output `{}`", w.step, w.port),
+                    format!("its outputs: {}", known.join(", ")),
+                );
+                with_ok = false;
+                continue;
+            };
+            let main_ty = steps
+                .iter()
+                .find(|s| s.id == r.step)
+                .and_then(|s| registry.get(&s.kind))
+                .and_then(|n| n.spec().output(&r.port).map(|p| p.ty));
+            if let Some(main_ty) = main_ty
+                && !crate::plot::accepts(&main_ty, &port.ty)
+            {
+                diags.error_help(
+                    Some(span),
+                    format!("a {} cannot be drawn over a plot of a {main_ty}", port.ty),
+                    "FRFs take FRFs and modal models, lobes take lobes and trial tables, tables take tables",
+                );
+                with_ok = false;
+            }
+        }
+        if !with_ok {
+            continue;
+        }
+        outputs.push(Output {
+            from: r,
+            file: fname.to_string(),
+            format,
+            with: with.into_iter().map(|(r, _)| r).collect(),
+            plot: plot.map(|(v, _)| v),
+            span: item.span.clone(),
+        });
     }
     outputs
 }
