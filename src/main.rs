@@ -51,6 +51,18 @@ enum Command {
         /// Run the recipe as written, without its `fit:` block.
         #[arg(long)]
         no_fit: bool,
+        /// Also write `report.html`: the recipe, its graph, every plot, the small tables,
+        /// warnings and the manifest in one self-contained file.
+        #[arg(long)]
+        report: bool,
+    },
+    /// Write the HTML report of a finished run from its output folder.
+    Report {
+        /// The run's output folder (it holds `manifest.json`).
+        run_dir: PathBuf,
+        /// Where to write the report (default: `<folder>.report.html` beside the folder).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
     },
     /// Check a recipe: report every problem, run nothing.
     Check {
@@ -345,7 +357,8 @@ fn main() -> ExitCode {
             );
             ExitCode::SUCCESS
         }
-        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, set, no_fit } => {
+        Command::Report { run_dir, out } => report_command(&run_dir, out),
+        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, set, no_fit, report } => {
             let threads = clamp_threads(threads);
             let mut c = match compile_with(&recipe, &set, &registry) {
                 Ok(c) => c,
@@ -380,6 +393,7 @@ fn main() -> ExitCode {
                 threads,
                 release_consumed: true,
                 extra_files: fitted.as_ref().map(|r| spindlelab::fit::fit_files(&c, r)).unwrap_or_default(),
+                report,
                 ..RunOptions::new(out.clone())
             };
             let bar = if std::io::stderr().is_terminal() && !quiet {
@@ -396,8 +410,8 @@ fn main() -> ExitCode {
             let outcome = engine::run(&c, &registry, &opts, &progress);
             bar.finish_and_clear();
             let notes = match &outcome {
-                Ok(r) => &r.result.notes[..],
-                Err(RunError::NodesFailed { report, .. }) => &report.result.notes[..],
+                Ok(r) => &r.manifest.notes[..],
+                Err(RunError::NodesFailed { report, .. }) => &report.manifest.notes[..],
                 Err(_) => &[],
             };
             for n in notes {
@@ -459,6 +473,52 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// `spindlelab report RUN_DIR`: the HTML report of a finished run, from its manifest and the
+/// files the manifest lists (each read through the data-file cap).
+fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
+    let Some(manifest) = engine::exec::Manifest::read(run_dir) else {
+        eprintln!(
+            "error: {} holds no readable manifest.json; give the output folder of a run (`spindlelab run` writes it)",
+            run_dir.display()
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    };
+    let mut files = Vec::new();
+    for name in manifest.files.keys() {
+        if name == engine::report::REPORT_FILE || name.starts_with('.') || name.contains("..") {
+            continue;
+        }
+        match engine::formats::read_capped(&run_dir.join(name), engine::formats::MAX_DATA_BYTES) {
+            Ok(bytes) => files.push((name.clone(), bytes)),
+            Err(e) => {
+                eprintln!(
+                    "error: {}: {e}; the folder no longer matches its manifest (rerun the recipe)",
+                    run_dir.join(name).display()
+                );
+                return ExitCode::from(EXIT_BAD_INPUT);
+            }
+        }
+    }
+    let text = (!manifest.recipe_text.is_empty()).then_some(manifest.recipe_text.as_str());
+    let html = engine::report::html(&manifest, text, &files);
+    let target = out.unwrap_or_else(|| {
+        let name = run_dir
+            .canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "run".into());
+        run_dir.join("..").join(format!("{name}.report.html"))
+    });
+    let tmp = target.with_extension("html.tmp");
+    if let Err(e) = std::fs::write(&tmp, html).and_then(|_| std::fs::rename(&tmp, &target)) {
+        let _ = std::fs::remove_file(&tmp);
+        eprintln!("error: cannot write {}: {e}", target.display());
+        return ExitCode::from(EXIT_FAILURE);
+    }
+    println!("wrote {}", target.display());
+    ExitCode::SUCCESS
 }
 
 /// The output folders a `cache` command acts on: those named, or every folder under `out/`

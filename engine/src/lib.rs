@@ -11,6 +11,7 @@ pub mod graph;
 pub mod model;
 pub mod node;
 pub mod plot;
+pub mod report;
 pub mod schema;
 pub mod spec;
 pub mod syntax;
@@ -144,6 +145,7 @@ pub fn run(
     let mut staged = dir.stage().map_err(RunError::Output)?;
     let mut written = Vec::new();
     let mut plot_notes = Vec::new();
+    let mut contents: Vec<(String, Vec<u8>)> = Vec::new();
     for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
@@ -170,6 +172,9 @@ pub fn run(
         };
         staged.write(&out.file, &bytes).map_err(RunError::Output)?;
         written.push(out.file.clone());
+        if opts.report {
+            contents.push((out.file.clone(), bytes));
+        }
     }
     for (rel, text) in &opts.extra_files {
         staged.write(rel, text.as_bytes()).map_err(RunError::Output)?;
@@ -182,7 +187,14 @@ pub fn run(
         written.clone(),
     );
     manifest.notes.extend(plot_notes);
+    manifest.recipe_text = compiled.sources.first().map(|s| s.text.to_string()).unwrap_or_default();
     manifest.files = staged.files().iter().cloned().collect();
+    if opts.report {
+        let html = report::html(&manifest, Some(&manifest.recipe_text), &contents);
+        staged.write(report::REPORT_FILE, html.as_bytes()).map_err(RunError::Output)?;
+        written.push(report::REPORT_FILE.to_string());
+        manifest.files = staged.files().iter().cloned().collect();
+    }
     let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     staged.write(exec::manifest::MANIFEST_FILE, json.as_bytes()).map_err(RunError::Output)?;
     staged.commit().map_err(RunError::Output)?;

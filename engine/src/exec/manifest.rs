@@ -39,6 +39,9 @@ pub struct Manifest {
     pub recipe_name: String,
     pub recipe_hash: String,
     pub recipe_path: String,
+    /// The recipe as run (the script, for a Rhai recipe), so the folder explains itself.
+    #[serde(default)]
+    pub recipe_text: String,
     pub seconds: f64,
     pub cache_hits: usize,
     pub computed: usize,
@@ -105,6 +108,7 @@ impl Manifest {
             recipe_name: recipe.name.clone(),
             recipe_hash: recipe.hash.clone(),
             recipe_path: recipe_path.to_string(),
+            recipe_text: String::new(),
             seconds: result.seconds,
             cache_hits: nodes.iter().filter(|n| n.status == "cached").count(),
             computed: nodes.iter().filter(|n| n.status == "computed").count(),

@@ -43,6 +43,8 @@ pub struct RunOptions {
     /// Further files of the run (relative path, text), committed with its outputs: a fit's
     /// report and fitted recipe.
     pub extra_files: Vec<(String, String)>,
+    /// Write the HTML run report (`report.html`) with the outputs.
+    pub report: bool,
 }
 
 /// Outputs and warnings of computed instances, by cache key, kept in memory.
@@ -59,6 +61,7 @@ impl RunOptions {
             memo: None,
             targets: None,
             extra_files: Vec::new(),
+            report: false,
         }
     }
 

@@ -33,7 +33,7 @@ const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"]
 const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];
 
 /// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
-const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml"];
+const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml", "report.html"];
 
 fn valid_name(s: &str) -> bool {
     let mut chars = s.chars();

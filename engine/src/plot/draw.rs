@@ -56,7 +56,8 @@ fn rgb(c: Shade) -> RGBColor {
     }
 }
 
-fn font() -> Result<(), PlotError> {
+/// Makes the bundled font the plots' `sans-serif` (once per process).
+pub fn register_font() -> Result<(), PlotError> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if ok { Ok(()) } else { Err(PlotError::Draw("the bundled font could not be loaded".into())) }
@@ -73,7 +74,7 @@ pub fn height(fig: &Figure) -> u32 {
 
 /// The figure as SVG text.
 pub fn svg(fig: &Figure) -> Result<String, PlotError> {
-    font()?;
+    register_font()?;
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, (WIDTH, height(fig))).into_drawing_area();
@@ -85,7 +86,7 @@ pub fn svg(fig: &Figure) -> Result<String, PlotError> {
 
 /// The figure as PNG bytes.
 pub fn png(fig: &Figure) -> Result<Vec<u8>, PlotError> {
-    font()?;
+    register_font()?;
     let (w, h) = (WIDTH, height(fig));
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {

@@ -1,0 +1,122 @@
+//! The HTML run report: `run --report` and `spindlelab report RUN_DIR` give one self-contained
+//! file with every plot, the graph, the recipe, the warnings and the manifest; it loads in a
+//! headless Chromium without a console error when the machine has one.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn spindlelab(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_spindlelab")).args(args).output().expect("binary runs")
+}
+
+fn recipe() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/speed-dependent-sld.yaml")
+}
+
+/// Runs the example recipe with `--report` into a fresh folder.
+fn reported() -> (tempfile::TempDir, PathBuf, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = spindlelab(&[
+        "run".as_ref(),
+        recipe().as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        "-q".as_ref(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).expect("report written");
+    (dir, out, html)
+}
+
+#[test]
+fn the_report_holds_every_plot_the_graph_the_recipe_and_the_manifest_and_nothing_from_elsewhere() {
+    let (_dir, out, html) = reported();
+    assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    // Every plot the run wrote, inline, and the graph.
+    let plots: Vec<&str> = manifest["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|f| f.as_str())
+        .filter(|f| f.ends_with(".svg"))
+        .collect();
+    assert_eq!(plots, ["lobes.svg", "tool-tip.svg"]);
+    for p in &plots {
+        let svg = std::fs::read_to_string(out.join(p)).unwrap();
+        assert!(html.contains(svg.trim()), "{p} is not inline in the report");
+        assert!(html.contains(&format!("<figcaption>{p}</figcaption>")), "{p}");
+    }
+    assert_eq!(html.matches("<svg").count(), plots.len() + 1, "the plots and the graph");
+    // The graph names every step; the recipe and the manifest are there.
+    for step in ["rig", "records", "holder_tool", "tool_tip", "sld", "truth_trials"] {
+        assert!(html.contains(&format!("\n{step}\n</text>")), "step `{step}` not in the graph");
+    }
+    assert!(html.contains("name: speed-dependent-sld"), "the recipe text");
+    assert!(html.contains("<td>sld</td><td>stability.speed_dependent</td>"), "the manifest's nodes");
+    assert!(html.contains("trial-score.csv</td><td><code>"), "the manifest's files with their hashes");
+    // The warnings of the run, and the small tables read back.
+    assert!(html.contains("not scored: 4200 rpm"), "warnings");
+    assert!(html.contains("<h3>trial-score.csv</h3>"), "small tables");
+    // Self-contained: nothing loads from elsewhere.
+    for outside in ["<script", "<link", "@import", "url(", "src=\"http", "href=\"http", "src=\"//", "xlink:href=\"http"]
+    {
+        assert!(!html.contains(outside), "the report refers outside itself: {outside}");
+    }
+}
+
+#[test]
+fn report_of_a_run_folder_writes_the_same_sections_and_refuses_a_folder_without_a_run() {
+    let (dir, out, from_run) = reported();
+    let target = dir.path().join("again.html");
+    let o = spindlelab(&["report".as_ref(), out.as_os_str(), "-o".as_ref(), target.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let again = std::fs::read_to_string(&target).unwrap();
+    // The same report, but for the file list: the folder now holds report.html too.
+    let head = |s: &str| s.split("<h2 id=\"manifest\">").next().unwrap().to_string();
+    assert_eq!(head(&again), head(&from_run));
+    assert!(again.contains("<td>report.html</td>"));
+    // The default place is beside the folder.
+    let o = spindlelab(&["report".as_ref(), out.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("out.report.html").is_file());
+    // A folder without a run.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let o = spindlelab(&["report".as_ref(), empty.as_os_str()]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("holds no readable manifest.json") && e.contains("give the output folder of a run"), "{e}");
+}
+
+/// Loads the report in headless Chromium when the machine has it (Debian's `chromium`), and
+/// fails on any console error; says so and passes when there is no browser.
+#[test]
+fn the_report_loads_in_a_headless_browser_without_console_errors() {
+    let Some(browser) = ["chromium", "chromium-browser", "google-chrome"]
+        .iter()
+        .find(|b| Command::new(b).arg("--version").output().is_ok_and(|o| o.status.success()))
+    else {
+        eprintln!("no Chromium on this machine: the browser check is skipped");
+        return;
+    };
+    let (dir, out, _) = reported();
+    let url = format!("file://{}", out.join("report.html").canonicalize().unwrap().display());
+    let o = Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0"])
+        .arg(format!("--user-data-dir={}", dir.path().join("profile").display()))
+        .args(["--dump-dom", &url])
+        .output()
+        .expect("browser runs");
+    let dom = String::from_utf8_lossy(&o.stdout);
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(dom.contains("<h1>speed-dependent-sld</h1>"), "the page did not load:\n{log}");
+    let console: Vec<&str> = log
+        .lines()
+        .filter(|l| l.contains("CONSOLE") || l.contains("Uncaught") || l.contains("ERR_FILE_NOT_FOUND"))
+        .collect();
+    assert!(console.is_empty(), "console errors:\n{}", console.join("\n"));
+}
