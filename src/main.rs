@@ -45,6 +45,9 @@ enum Command {
         /// Print nothing but errors.
         #[arg(long, short)]
         quiet: bool,
+        /// Print every output of every node instance, not just the short summary.
+        #[arg(long, short, conflicts_with = "quiet")]
+        verbose: bool,
         /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
         set: Vec<(String, String)>,
@@ -358,7 +361,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Command::Report { run_dir, out } => report_command(&run_dir, out),
-        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, set, no_fit, report } => {
+        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report } => {
             let threads = clamp_threads(threads);
             let mut c = match compile_with(&recipe, &set, &registry) {
                 Ok(c) => c,
@@ -425,8 +428,12 @@ fn main() -> ExitCode {
             }
             match outcome {
                 Ok(report) => {
-                    if !quiet {
+                    if verbose {
                         print!("{}", spindlelab::summary::summarize(&c, &report.result));
+                    } else if !quiet {
+                        print!("{}", spindlelab::summary::short(&c, &report.result));
+                    }
+                    if !quiet {
                         println!(
                             "{} computed, {} from cache in {:.3} s; wrote {} file(s) and manifest.json to {}",
                             report.manifest.computed,

@@ -133,3 +133,154 @@ pub fn fit_summary(r: &crate::fit::FitReport) -> String {
     }
     out
 }
+
+/// A number in engineering notation with an SI prefix on its unit, 4 significant digits:
+/// `4.854e-8 m` → `48.54 nm`, `2.6e-6 m/N` → `2.6 µm/N`; units that take no prefix (rpm,
+/// deg, none) keep the number as it is.
+pub fn eng(v: f64, unit: &str) -> String {
+    if !v.is_finite() {
+        return if v.is_nan() {
+            "—".into()
+        } else if v > 0.0 {
+            format!("∞ {unit}").trim().into()
+        } else {
+            format!("−∞ {unit}").trim().into()
+        };
+    }
+    let plain = |v: f64| format!("{} {unit}", round_sig(v, SIGNIFICANT_DIGITS)).trim().to_string();
+    if v == 0.0 || unit.is_empty() || ["rpm", "deg", "rad", "%", "dB"].contains(&unit) {
+        return plain(v);
+    }
+    const PREFIXES: [(i32, &str); 7] = [(-9, "n"), (-6, "µ"), (-3, "m"), (0, ""), (3, "k"), (6, "M"), (9, "G")];
+    let exp = (v.abs().log10() / 3.0).floor() as i32 * 3;
+    let Some((e, p)) = PREFIXES.iter().find(|(e, _)| *e == exp.clamp(-9, 9)) else { return plain(v) };
+    // A prefix on a unit that already has one reads badly (`kkg`): mass stays in kg or g.
+    if unit == "kg" {
+        return if v.abs() < 1.0 { format!("{} g", round_sig(v * 1e3, SIGNIFICANT_DIGITS)) } else { plain(v) };
+    }
+    format!("{} {p}{unit}", round_sig(v / 10f64.powi(*e), SIGNIFICANT_DIGITS))
+}
+
+/// What a port's values come to, in a few words (all sweep points of the step together).
+fn headline(values: &[&Value]) -> String {
+    let Some(first) = values.first() else { return String::new() };
+    let count = values.len();
+    let range = |xs: Vec<f64>, unit: &str| -> String {
+        let xs: Vec<f64> = xs.into_iter().filter(|x| x.is_finite()).collect();
+        let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+        if xs.is_empty() {
+            "no finite value".into()
+        } else if round_sig(lo, SIGNIFICANT_DIGITS) == round_sig(hi, SIGNIFICANT_DIGITS) {
+            eng(lo, unit)
+        } else {
+            format!("{} … {}", eng(lo, unit), eng(hi, unit))
+        }
+    };
+    match first {
+        Value::Scalar(s) => range(
+            values.iter().filter_map(|v| if let Value::Scalar(s) = v { Some(s.value) } else { None }).collect(),
+            &s.unit.symbol,
+        ),
+        Value::Frf(f) => {
+            let peaks: Vec<(f64, f64)> = values
+                .iter()
+                .filter_map(|v| if let Value::Frf(f) = v { Some(f) } else { None })
+                .map(|f| {
+                    f.values
+                        .iter()
+                        .zip(&f.freq_hz)
+                        .map(|(v, fr)| (v.norm(), *fr))
+                        .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a })
+                })
+                .collect();
+            let top = peaks.iter().fold((0.0, 0.0), |a, b| if b.0 > a.0 { *b } else { a });
+            let what = if count > 1 { format!("{count} FRFs, ") } else { String::new() };
+            format!("{what}peak |H| {} at {}", eng(top.0, &f.unit.symbol), eng(top.1, "Hz"))
+        }
+        Value::Lobes(_) => {
+            let mins: Vec<(f64, f64)> = values
+                .iter()
+                .filter_map(|v| if let Value::Lobes(l) = v { Some(l) } else { None })
+                .flat_map(|l| l.depth_limit.iter().zip(&l.speed_rpm).map(|(d, s)| (*d, *s)))
+                .collect();
+            let low = mins.iter().fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { *b } else { a });
+            let n = mins.len();
+            format!(
+                "{n} speeds, lowest limit {} mm at {}",
+                round_sig(low.0 * 1e3, SIGNIFICANT_DIGITS),
+                eng(low.1, "rpm")
+            )
+        }
+        Value::Table(t) if t.rows() == 1 && count == 1 => t
+            .columns
+            .iter()
+            .take(6)
+            .map(|c| format!("{} {}", c.name, eng(c.values[0], &c.unit.symbol)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        Value::Table(_) => {
+            let rows: usize = values.iter().map(|v| if let Value::Table(t) = v { t.rows() } else { 0 }).sum();
+            format!("table, {rows} rows")
+        }
+        Value::TimeSeries(ts) => {
+            let secs = ts.len() as f64 / ts.sample_rate;
+            let what = if count > 1 { format!("{count} records of ") } else { String::new() };
+            format!("{what}{} channel(s), {} at {}", ts.channels.len(), eng(secs, "s"), eng(ts.sample_rate, "Hz"))
+        }
+        Value::ModalModel(m) if count == 1 => {
+            let f: Vec<String> = m.modes.iter().take(6).map(|m| eng(m.freq_hz, "Hz")).collect();
+            format!("{} mode(s): {}", m.modes.len(), f.join(", "))
+        }
+        Value::ModalModel(_) => format!("{count} modal models"),
+        other => describe(other),
+    }
+}
+
+/// The short summary the command line prints by default: per step, the few numbers that
+/// matter in engineering notation (`→` marks a step whose values go to a file), and its
+/// warnings once each; `-v` prints [`summarize`].
+pub fn short(compiled: &Compiled, result: &RunResult) -> String {
+    let graph = &compiled.graph;
+    let written: Vec<&str> = compiled.recipe.outputs.iter().flat_map(|o| o.steps()).collect();
+    let mut out = String::new();
+    for (step, ids) in &graph.by_step {
+        let kind = &graph.instances[ids[0]].kind;
+        let times = if ids.len() > 1 { format!(" ×{}", ids.len()) } else { String::new() };
+        let failed = ids.iter().filter(|&&i| matches!(result.outcomes[i], Outcome::Failed(_))).count();
+        let mut parts = Vec::new();
+        if failed > 0 {
+            parts.push(format!("{failed} failed"));
+        }
+        let outputs: Vec<&spindlelab_engine::exec::Produced> =
+            ids.iter().filter_map(|&i| result.outcomes[i].outputs().map(|o| o.as_ref())).collect();
+        if let Some(first) = outputs.first() {
+            // Ports written to files first, then the rest, three at most.
+            let mut ports: Vec<&String> = first.keys().collect();
+            let out_ports: Vec<&str> =
+                compiled.recipe.outputs.iter().filter(|o| o.from.step == *step).map(|o| o.from.port.as_str()).collect();
+            ports.sort_by_key(|p| !out_ports.contains(&p.as_str()));
+            for p in ports.into_iter().take(3) {
+                let vals: Vec<&Value> = outputs.iter().filter_map(|o| o.get(p.as_str()).map(|v| v.as_ref())).collect();
+                parts.push(format!("{p}: {}", headline(&vals)));
+            }
+        } else if failed == 0 {
+            continue;
+        }
+        let file = if written.contains(&step.as_str()) { " →" } else { "" };
+        let _ = writeln!(out, "{step} ({kind}{times}){file} {}", parts.join("; "));
+        let mut warnings: Vec<(String, usize)> = Vec::new();
+        for &i in ids {
+            for w in result.outcomes[i].warnings() {
+                match warnings.iter_mut().find(|(x, _)| x == w) {
+                    Some((_, n)) => *n += 1,
+                    None => warnings.push((w.clone(), 1)),
+                }
+            }
+        }
+        for (w, n) in warnings {
+            let times = if n > 1 { format!(" (×{n})") } else { String::new() };
+            let _ = writeln!(out, "  warning{times}: {w}");
+        }
+    }
+    out
+}

@@ -195,7 +195,7 @@ fn the_command_writes_a_diagnosed_recipe_that_runs_at_the_floor() {
     let placed = dir.path().join("diagnosed.yaml");
     std::fs::write(&placed, &diagnosed).unwrap();
     let run_out = dir.path().join("run");
-    let o = spindlelab(&["run".as_ref(), placed.as_os_str(), "-o".as_ref(), run_out.as_os_str()]);
+    let o = spindlelab(&["run".as_ref(), placed.as_os_str(), "-o".as_ref(), run_out.as_os_str(), "-v".as_ref()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     let ratios: Vec<f64> =

@@ -626,3 +626,21 @@ fn bad_measurement_data_is_named_per_channel_record_and_value() {
     assert_eq!(error_count(&e), 6, "{e}");
     assert!(!o.stderr.contains("NaN"), "{e}");
 }
+
+/// The YAML reader's own wording (`set DuplicateKeyPolicy in Options`, `budget breached:
+/// Depth { depth: 65 }`) is translated into the recipe's terms, and a loss factor below zero
+/// is refused at load with the material's name, not as a dump of a kernel struct at run time.
+#[test]
+fn library_messages_are_said_in_the_recipes_terms() {
+    let e = reject("duplicate-key.yaml");
+    assert_has(&e, &["the key `name` appears twice in one mapping", "keep one of them"]);
+    assert_at(&e, "duplicate-key.yaml", 4, 1);
+    assert!(!e.contains("DuplicateKeyPolicy") && !e.contains("quote values"), "{e}");
+    let e = reject("deep.yaml");
+    assert_has(&e, &["the YAML nests 65 levels deep, more than a recipe may"]);
+    assert!(!e.contains("budget breached") && !e.contains("Depth {"), "{e}");
+    let e = reject("negative-eta.yaml");
+    assert_has(&e, &["material `steel`: loss factor `eta` = -0.01 is negative", "a loss factor is 0 or more"]);
+    assert_at(&e, "negative-eta.yaml", 5, 57);
+    assert!(!e.contains("BeamMaterial"), "{e}");
+}

@@ -164,7 +164,8 @@ fn a_uff_output_takes_only_frfs_and_time_series() {
         "{messages:?}"
     );
     assert!(
-        messages[1].contains("unsupported output format `mat`") && messages[1].contains("`.csv`, `.json` or `.uff`"),
+        messages[1].contains("unsupported output format `mat`")
+            && messages[1].contains("`.csv`, `.json`, `.uff`, or `.svg` / `.png`"),
         "{messages:?}"
     );
 }

@@ -31,6 +31,8 @@ fn every_recipe_in_scripts() {
             spindlelab::summary::SIGNIFICANT_DIGITS
         ));
         insta::assert_snapshot!(summary);
+        // What `spindlelab run` prints by default.
+        insta::assert_snapshot!("short", spindlelab::summary::short(&compiled, &report.result));
     });
 }
 

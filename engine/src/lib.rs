@@ -149,13 +149,11 @@ pub fn run(
     for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
-        // Sweep columns: every numeric assignment behind the instances, upstream ones included.
-        let axes = ids.first().map(|&i| exec::write::axes_of(&compiled.graph.instances[i])).unwrap_or_default();
         for &i in ids {
             let Some(outputs) = result.outcomes[i].outputs() else { break };
             let inst = &compiled.graph.instances[i];
             let Some(value) = outputs.get(&out.from.port) else { break };
-            rows.push(exec::write::Row { coords: exec::write::coords_of(inst), label: &inst.label, value });
+            rows.push(exec::write::Row { label: &inst.label, value });
         }
         if rows.len() != ids.len() {
             continue;
@@ -168,7 +166,7 @@ pub fn run(
                     continue;
                 }
             },
-            format => exec::write::render(format, &axes, &rows).into_bytes(),
+            format => exec::write::render(format, &rows).into_bytes(),
         };
         staged.write(&out.file, &bytes).map_err(RunError::Output)?;
         written.push(out.file.clone());

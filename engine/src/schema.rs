@@ -7,16 +7,61 @@ use crate::spec::{EntityKind, Field, FieldType};
 use serde_json::{Map, Value, json};
 use spindlelab_grammar::Dimension;
 
+/// The units an editor offers for a dimension: the ones recipes and the dissertation write.
+/// `spindlelab check` accepts any unit of the right dimension; a schema can only list some.
+pub fn units_of(d: Dimension) -> Option<&'static [&'static str]> {
+    const TABLE: &[(Dimension, &[&str])] = &[
+        (Dimension::LENGTH, &["m", "mm", "um", "µm", "nm", "cm", "in"]),
+        (Dimension::MASS, &["kg", "g", "mg"]),
+        (Dimension::TIME, &["s", "ms", "us", "µs", "min"]),
+        (Dimension::FREQUENCY, &["Hz", "kHz", "MHz"]),
+        (Dimension::ROTATIONAL_SPEED, &["rpm", "rad/s"]),
+        (Dimension::PRESSURE, &["Pa", "kPa", "MPa", "GPa", "N/m^2", "N/mm^2"]),
+        (Dimension::DENSITY, &["kg/m^3", "g/cm^3"]),
+        (Dimension::STIFFNESS, &["N/m", "N/mm", "N/um", "N/µm", "kN/mm"]),
+        (Dimension::DAMPING, &["N*s/m", "N·s/m", "kg/s"]),
+        (Dimension::ROTATIONAL_STIFFNESS, &["N*m/rad", "N·m/rad"]),
+        (Dimension::ROTATIONAL_DAMPING, &["N*m*s/rad", "N·m·s/rad"]),
+        (Dimension::ANGLE, &["deg", "rad"]),
+        (Dimension::PHASE_SLOPE, &["deg/kHz", "deg/Hz", "rad/Hz", "rad/kHz"]),
+        (Dimension::FORCE, &["N", "kN"]),
+        (Dimension::VELOCITY, &["m/s", "mm/s", "um/s"]),
+        (Dimension::ACCELERATION, &["m/s^2", "mm/s^2"]),
+    ];
+    TABLE.iter().find(|(dim, _)| *dim == d).map(|(_, u)| *u)
+}
+
+/// A number (or `$parameter`) followed by one of `units`.
+fn quantity_pattern(units: &[&str]) -> String {
+    let alternatives: Vec<String> = units
+        .iter()
+        .map(|u| {
+            u.chars().map(|c| if "^*.$/()[]{}+?|\\".contains(c) { format!("\\{c}") } else { c.to_string() }).collect()
+        })
+        .collect();
+    format!(
+        "^\\s*(\\$[A-Za-z_][A-Za-z0-9_]*|[-+]?([0-9]+\\.?[0-9]*|\\.[0-9]+)([eE][-+]?[0-9]+)?\\s*({}))\\s*$",
+        alternatives.join("|")
+    )
+}
+
 fn field_schema(ty: &FieldType) -> Value {
     match ty {
         FieldType::Quantity(d) if *d == Dimension::DIMENSIONLESS => json!({
             "anyOf": [{"type": "number"}, {"type": "string", "pattern": "^\\s*([-+]?[0-9.]|\\$[A-Za-z_])"}],
         }),
-        FieldType::Quantity(d) => json!({
-            "type": "string",
-            "pattern": "^\\s*([-+]?[0-9.]|\\$[A-Za-z_])",
-            "description": format!("{} with a unit, SI {}", d.name().unwrap_or("quantity"), d.si_unit()),
-        }),
+        FieldType::Quantity(d) => match units_of(*d) {
+            Some(units) => json!({
+                "type": "string",
+                "pattern": quantity_pattern(units),
+                "description": format!("{} with a unit: {}", d.name().unwrap_or("quantity"), units.join(", ")),
+            }),
+            None => json!({
+                "type": "string",
+                "pattern": "^\\s*([-+]?[0-9.]|\\$[A-Za-z_])",
+                "description": format!("{} with a unit, SI {}", d.name().unwrap_or("quantity"), d.si_unit()),
+            }),
+        },
         FieldType::QuantityList(d) => json!({
             "anyOf": [
                 {"type": "string", "description": format!("`a..b step s UNIT`, `[a, b] UNIT` or one value; {}", d.si_unit())},
@@ -161,4 +206,49 @@ pub fn recipe_schema(registry: &Registry) -> Value {
         "properties": props,
         "additionalProperties": false
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every unit the schema offers parses to its dimension, and the pattern takes a value in
+    /// one of them (or a `$parameter`) and refuses a value in another dimension's unit.
+    #[test]
+    fn unit_patterns_take_their_dimension_and_refuse_others() {
+        for d in [
+            Dimension::LENGTH,
+            Dimension::MASS,
+            Dimension::TIME,
+            Dimension::FREQUENCY,
+            Dimension::ROTATIONAL_SPEED,
+            Dimension::PRESSURE,
+            Dimension::DENSITY,
+            Dimension::STIFFNESS,
+            Dimension::DAMPING,
+            Dimension::ROTATIONAL_STIFFNESS,
+            Dimension::ROTATIONAL_DAMPING,
+            Dimension::ANGLE,
+            Dimension::PHASE_SLOPE,
+            Dimension::FORCE,
+            Dimension::VELOCITY,
+            Dimension::ACCELERATION,
+        ] {
+            let units = units_of(d).unwrap();
+            let re = regex::Regex::new(&quantity_pattern(units)).unwrap();
+            for u in units {
+                let unit = spindlelab_grammar::parse_unit(u).unwrap_or_else(|e| panic!("`{u}`: {e}"));
+                assert_eq!(unit.dim, d, "`{u}`");
+                for v in ["12.7", "-3", "1e9", ".5", "2.0E-3"] {
+                    let text = format!("{v} {u}");
+                    assert!(re.is_match(&text), "`{text}` refused for {}", d.si_unit());
+                    assert!(spindlelab_grammar::parse_quantity(&text).is_ok(), "`{text}`");
+                }
+            }
+            assert!(re.is_match("$tip_mass"));
+            assert!(!re.is_match("12.7"), "a bare number for {}", d.si_unit());
+        }
+        let mass = regex::Regex::new(&quantity_pattern(units_of(Dimension::MASS).unwrap())).unwrap();
+        assert!(!mass.is_match("0.01 m") && mass.is_match("0.01 kg") && mass.is_match("30 g"));
+    }
 }

@@ -215,8 +215,11 @@ pub struct SubstructurePart {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Lobes {
     pub speed_rpm: Vec<f64>,
+    /// Limiting depth (m); `+∞` where no lobe limits the cut at that speed.
+    #[serde(with = "nonfinite::seq")]
     pub depth_limit: Vec<f64>,
     /// Chatter frequency (Hz) of the lobe that sets the limit at each speed.
+    #[serde(with = "nonfinite::seq")]
     pub chatter_hz: Vec<f64>,
 }
 
@@ -231,6 +234,7 @@ pub struct Table {
 pub struct Column {
     pub name: String,
     pub unit: UnitLabel,
+    #[serde(with = "nonfinite::seq")]
     pub values: Vec<f64>,
 }
 
@@ -249,6 +253,7 @@ impl Table {
 /// A single number with its unit (SI).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scalar {
+    #[serde(with = "nonfinite")]
     pub value: f64,
     pub unit: UnitLabel,
 }
@@ -285,6 +290,116 @@ impl Value {
             Value::Lobes(_) => PortType::Lobes,
             Value::Table(_) => PortType::Table,
             Value::Scalar(_) => PortType::Scalar,
+        }
+    }
+}
+
+/// Numbers that may be infinite or NaN (a lobe that limits nothing, a trial outside a diagram).
+/// JSON has no such numbers and would write `null`, which says nothing and does not read back:
+/// text formats get the strings `"inf"`, `"-inf"` and `"NaN"` and read them (and `null`, as
+/// NaN) back; binary formats (the cache) keep the `f64`.
+pub mod nonfinite {
+    use serde::de::{self, Deserializer, SeqAccess, Visitor};
+    use serde::ser::{SerializeSeq, Serializer};
+    use std::fmt;
+
+    fn text(v: f64) -> Option<&'static str> {
+        if v.is_nan() {
+            Some("NaN")
+        } else if v == f64::INFINITY {
+            Some("inf")
+        } else if v == f64::NEG_INFINITY {
+            Some("-inf")
+        } else {
+            None
+        }
+    }
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        match text(*v) {
+            Some(t) if s.is_human_readable() => s.serialize_str(t),
+            _ => s.serialize_f64(*v),
+        }
+    }
+
+    struct Number;
+
+    impl<'de> Visitor<'de> for Number {
+        type Value = f64;
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            f.write_str("a number, or \"inf\", \"-inf\" or \"NaN\"")
+        }
+        fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
+            Ok(v)
+        }
+        fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+        fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+        fn visit_unit<E: de::Error>(self) -> Result<f64, E> {
+            Ok(f64::NAN)
+        }
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<f64, E> {
+            match v {
+                "inf" | "+inf" | "Infinity" => Ok(f64::INFINITY),
+                "-inf" | "-Infinity" => Ok(f64::NEG_INFINITY),
+                "NaN" | "nan" => Ok(f64::NAN),
+                other => Err(E::invalid_value(de::Unexpected::Str(other), &self)),
+            }
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        if d.is_human_readable() { d.deserialize_any(Number) } else { d.deserialize_f64(Number) }
+    }
+
+    /// The same for a list of numbers.
+    pub mod seq {
+        use super::*;
+
+        struct One(f64);
+
+        impl serde::Serialize for One {
+            fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                super::serialize(&self.0, s)
+            }
+        }
+
+        impl<'de> serde::Deserialize<'de> for One {
+            fn deserialize<D: Deserializer<'de>>(d: D) -> Result<One, D::Error> {
+                super::deserialize(d).map(One)
+            }
+        }
+
+        pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+            let mut seq = s.serialize_seq(Some(v.len()))?;
+            for x in v {
+                seq.serialize_element(&One(*x))?;
+            }
+            seq.end()
+        }
+
+        struct Many;
+
+        impl<'de> Visitor<'de> for Many {
+            type Value = Vec<f64>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a list of numbers")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut a: A) -> Result<Vec<f64>, A::Error> {
+                // Never reserve from a length the input states.
+                let mut out = Vec::new();
+                while let Some(One(v)) = a.next_element()? {
+                    out.push(v);
+                }
+                Ok(out)
+            }
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+            d.deserialize_seq(Many)
         }
     }
 }

@@ -3,26 +3,22 @@
 //! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
 use crate::formats::{csv, uff};
-use crate::graph::Instance;
 use crate::model::OutputFormat;
-use crate::spec::ParamValue;
 use crate::value::{Table, Value};
-use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
 
-/// One value to write, with the sweep assignments of the instance that made it.
+/// One value to write, with the sweep label of the instance that made it (`speed=1500 rpm,
+/// direction=x`: the sweep coordinates as the recipe wrote them).
 pub struct Row<'a> {
-    /// Numeric sweep coordinates (SI) in axis order.
-    pub coords: Vec<f64>,
     pub label: &'a str,
     pub value: &'a Value,
 }
 
 /// Renders the values of one output (several when its step is swept) in the given format.
-pub fn render(format: OutputFormat, axes: &[(String, String)], rows: &[Row]) -> String {
+pub fn render(format: OutputFormat, rows: &[Row]) -> String {
     match format {
-        OutputFormat::Json => render_json(axes, rows),
-        OutputFormat::Csv => render_csv(axes, rows),
+        OutputFormat::Json => render_json(rows),
+        OutputFormat::Csv => render_csv(rows),
         OutputFormat::Uff => render_uff(rows),
         // Drawn by `crate::plot` from the values, not rendered as text.
         OutputFormat::Plot(_) => String::new(),
@@ -35,6 +31,16 @@ fn render_uff(rows: &[Row]) -> String {
     let mut out = String::new();
     for r in rows {
         match r.value {
+            Value::Frf(f) if f.direction.is_none() || f.speed_rpm.is_none() => {
+                // The sweep says what the value does not: an FRF estimated from a record made
+                // at `direction=x` is in x, so its dataset reads back with `direction: x`.
+                let cols = label_columns(r.label);
+                let of = |k: &str| cols.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone());
+                let mut f = f.clone();
+                f.direction = f.direction.or_else(|| of("direction").filter(|d| ["x", "y", "z"].contains(&d.as_str())));
+                f.speed_rpm = f.speed_rpm.or_else(|| of("speed_rpm").and_then(|v| v.parse().ok()));
+                uff::write_frf(&mut out, &f, r.label)
+            }
             Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
             Value::TimeSeries(ts) => uff::write_time_series(&mut out, ts, r.label),
             Value::ReceptanceSet(rs) => uff::write_receptance(&mut out, rs, r.label),
@@ -44,8 +50,8 @@ fn render_uff(rows: &[Row]) -> String {
     out
 }
 
-fn render_json(axes: &[(String, String)], rows: &[Row]) -> String {
-    if rows.len() == 1 && axes.is_empty() {
+fn render_json(rows: &[Row]) -> String {
+    if rows.len() == 1 && rows[0].label.is_empty() {
         return serde_json::to_string_pretty(rows[0].value).unwrap_or_default() + "\n";
     }
     let items: Vec<serde_json::Value> = rows
@@ -53,8 +59,10 @@ fn render_json(axes: &[(String, String)], rows: &[Row]) -> String {
         .map(|r| {
             let mut m = serde_json::Map::new();
             m.insert("label".into(), r.label.into());
-            for ((name, _), c) in axes.iter().zip(&r.coords) {
-                m.insert(name.clone(), (*c).into());
+            for (name, cell) in label_columns(r.label) {
+                let v =
+                    cell.parse::<f64>().map_or_else(|_| serde_json::Value::from(cell.clone()), serde_json::Value::from);
+                m.insert(name, v);
             }
             m.insert("value".into(), serde_json::to_value(r.value).unwrap_or_default());
             serde_json::Value::Object(m)
@@ -68,17 +76,40 @@ fn num(v: f64) -> String {
     format!("{v:e}")
 }
 
-fn render_csv(axes: &[(String, String)], rows: &[Row]) -> String {
+/// The sweep coordinates of a label as file columns, numbers in the unit the recipe wrote:
+/// `speed=1500 rpm, direction=x` → `[("speed_rpm", "1500"), ("direction", "x")]`.
+pub fn label_columns(label: &str) -> Vec<(String, String)> {
+    label
+        .split(", ")
+        .filter_map(|part| part.split_once('='))
+        .map(|(name, value)| {
+            let mut words = value.split_whitespace();
+            let first = words.next().unwrap_or("");
+            let unit: Vec<&str> = words.collect();
+            match first.parse::<f64>() {
+                Ok(_) if unit.is_empty() => (name.to_string(), first.to_string()),
+                Ok(_) => (format!("{name}_{}", unit_tag(&unit.join(""))), first.to_string()),
+                // Text as one cell: no separators or quotes inside it.
+                Err(_) => (name.to_string(), value.replace([',', '"'], ";")),
+            }
+        })
+        .collect()
+}
+
+fn render_csv(rows: &[Row]) -> String {
     let mut out = String::new();
-    let swept = !axes.is_empty() || rows.len() > 1;
-    let prefix_header: String =
-        axes.iter().map(|(n, u)| if u.is_empty() { format!("{n},") } else { format!("{n}_{u},") }).collect();
-    let prefix_header = if swept && axes.is_empty() { "label,".to_string() } else { prefix_header };
+    let swept = rows.len() > 1 || rows.first().is_some_and(|r| !r.label.is_empty());
+    let named = rows.first().map(|r| label_columns(r.label)).unwrap_or_default();
+    let prefix_header: String = if swept && named.is_empty() {
+        "label,".to_string()
+    } else {
+        named.iter().map(|(n, _)| format!("{n},")).collect()
+    };
     let prefix = |r: &Row| -> String {
-        if swept && axes.is_empty() {
+        if swept && named.is_empty() {
             format!("\"{}\",", r.label.replace('"', "'"))
         } else {
-            r.coords.iter().map(|c| format!("{},", num(*c))).collect()
+            label_columns(r.label).into_iter().map(|(_, v)| format!("{v},")).collect()
         }
     };
     let mut header_done = false;
@@ -150,31 +181,6 @@ pub fn first_coordinate(label: &str) -> Option<(String, f64)> {
     })
 }
 
-/// The numeric sweep assignments of an instance as (name, SI unit) pairs, for column headers.
-pub fn axes_of(inst: &Instance) -> Vec<(String, String)> {
-    inst.assignments
-        .iter()
-        .filter_map(|(name, v)| match v {
-            ParamValue::Quantity { dim, .. } if *dim == Dimension::DIMENSIONLESS => Some((name.clone(), String::new())),
-            ParamValue::Quantity { dim, .. } => Some((name.clone(), unit_tag(&dim.si_unit()))),
-            ParamValue::Int(_) => Some((name.clone(), String::new())),
-            _ => None,
-        })
-        .collect()
-}
-
-/// The numeric sweep values (SI) of an instance, in the order of [`axes_of`].
-pub fn coords_of(inst: &Instance) -> Vec<f64> {
-    inst.assignments
-        .iter()
-        .filter_map(|(_, v)| match v {
-            ParamValue::Quantity { value, .. } => Some(*value),
-            ParamValue::Int(i) => Some(*i as f64),
-            _ => None,
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -216,12 +222,12 @@ mod tests {
     #[test]
     fn an_unswept_csv_output_reads_back_exactly() {
         let v = series(1.0 / 3.0);
-        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &v }]);
+        let text = render(OutputFormat::Csv, &[Row { label: "", value: &v }]);
         let Value::TimeSeries(ts) = &v else { unreachable!() };
         assert_eq!(text, formats::csv::write_time_series(ts));
         assert_eq!(&formats::csv::read_time_series(text.as_bytes(), "o.csv").unwrap(), ts);
         let f = frf(3.0);
-        let text = render(OutputFormat::Csv, &[], &[Row { coords: vec![], label: "", value: &f }]);
+        let text = render(OutputFormat::Csv, &[Row { label: "", value: &f }]);
         assert_eq!(Value::Frf(formats::csv::read_frf(text.as_bytes(), "o.csv").unwrap()), f);
     }
 
@@ -229,16 +235,16 @@ mod tests {
     fn a_receptance_set_output_reads_back_from_csv_exactly_and_from_uff() {
         let rs = crate::formats::csv::tests::receptance_set();
         let v = Value::ReceptanceSet(rs.clone());
-        let rows = [Row { coords: vec![], label: "", value: &v }];
-        let text = render(OutputFormat::Csv, &[], &rows);
+        let rows = [Row { label: "", value: &v }];
+        let text = render(OutputFormat::Csv, &rows);
         assert_eq!(formats::csv::read_receptance(text.as_bytes(), "r.csv").unwrap(), rs);
-        let text = render(OutputFormat::Uff, &[], &rows);
+        let text = render(OutputFormat::Uff, &rows);
         let file = formats::uff::parse(text.as_bytes(), "r.uff").unwrap();
         let (back, _) = formats::uff::to_receptance(&file, "r.uff", None).unwrap();
         for (a, b) in back.p.iter().zip(&rs.p) {
             assert!((a - b).norm() <= 1e-12 * b.norm(), "{a} vs {b}");
         }
-        let json = render(OutputFormat::Json, &[], &rows);
+        let json = render(OutputFormat::Json, &rows);
         assert_eq!(serde_json::from_str::<Value>(&json).unwrap(), v);
     }
 
@@ -247,14 +253,8 @@ mod tests {
         let ks = [1.0, 2.0, 3.0];
         let values: Vec<Value> = ks.iter().map(|k| frf(*k)).collect();
         let labels: Vec<String> = ks.iter().map(|k| format!("k={k}")).collect();
-        let rows: Vec<Row> = values
-            .iter()
-            .zip(&labels)
-            .zip(ks)
-            .map(|((value, label), k)| Row { coords: vec![k], label, value })
-            .collect();
-        let axes = [("k".to_string(), String::new())];
-        let text = render(OutputFormat::Uff, &axes, &rows);
+        let rows: Vec<Row> = values.iter().zip(&labels).map(|(value, label)| Row { label, value }).collect();
+        let text = render(OutputFormat::Uff, &rows);
         let file = formats::uff::parse(text.as_bytes(), "s.uff").unwrap();
         assert_eq!(file.datasets.len(), 3);
         for ((d, label), v) in file.datasets.iter().zip(&labels).zip(&values) {
@@ -267,9 +267,8 @@ mod tests {
         }
 
         let ts = [series(1.0), series(2.0)];
-        let rows: Vec<Row> =
-            ts.iter().zip(["a=1", "a=2"]).map(|(value, label)| Row { coords: vec![], label, value }).collect();
-        let text = render(OutputFormat::Uff, &[], &rows);
+        let rows: Vec<Row> = ts.iter().zip(["a=1", "a=2"]).map(|(value, label)| Row { label, value }).collect();
+        let text = render(OutputFormat::Uff, &rows);
         let file = formats::uff::parse(text.as_bytes(), "t.uff").unwrap();
         let ids: Vec<(&str, &str)> = file.datasets.iter().map(|d| (d.id[0].as_str(), d.id[1].as_str())).collect();
         assert_eq!(ids, [("force", "a=1"), ("response", "a=1"), ("force", "a=2"), ("response", "a=2")]);
@@ -277,5 +276,65 @@ mod tests {
         let mut expect = String::new();
         formats::uff::write_dataset(&mut expect, &Dataset58::from_channel(second, &second.channels[1], "a=2"));
         assert!(text.ends_with(&expect));
+    }
+
+    #[test]
+    fn a_swept_frf_csv_reads_back_per_sweep_point_with_its_coordinates_as_written() {
+        let values: Vec<Value> = [1.0, 2.0, 3.0, 4.0].iter().map(|k| frf(*k)).collect();
+        let labels = [
+            "speed=0 rpm, direction=x",
+            "speed=0 rpm, direction=y",
+            "speed=1500 rpm, direction=x",
+            "speed=1500 rpm, direction=y",
+        ];
+        let rows: Vec<Row> = values.iter().zip(labels).map(|(value, label)| Row { label, value }).collect();
+        let text = render(OutputFormat::Csv, &rows);
+        assert!(text.contains("\nspeed_rpm,direction,freq_hz,real,imag\n"), "{}", &text[..200]);
+        let blocks = formats::csv::read_frf_blocks(text.as_bytes(), "s.csv").unwrap();
+        assert_eq!(blocks.len(), 4);
+        for ((b, v), label) in blocks.iter().zip(&values).zip(labels) {
+            let Value::Frf(want) = v else { unreachable!() };
+            assert_eq!(b.frf.values, want.values, "{label}");
+            assert_eq!(b.frf.freq_hz, want.freq_hz);
+            assert_eq!(
+                formats::csv::block_names(std::slice::from_ref(b))[0],
+                label.replace("speed=", "speed_rpm=").replace(" rpm", "")
+            );
+        }
+        assert_eq!((blocks[3].frf.direction.as_deref(), blocks[3].frf.speed_rpm), (Some("y"), Some(1500.0)));
+        // One FRF of several is not read as if it were the only one.
+        let e = formats::csv::read_frf(text.as_bytes(), "s.csv").unwrap_err().to_string();
+        assert!(e.contains("holds 4 sweep points") && e.contains("`dataset: K`"), "{e}");
+    }
+
+    #[test]
+    fn a_swept_frf_uff_carries_the_sweep_direction_and_speed_when_the_frf_does_not() {
+        let mut f = frf(2.0);
+        if let Value::Frf(x) = &mut f {
+            x.direction = None;
+        }
+        let rows = [Row { label: "speed=1500 rpm, direction=y", value: &f }];
+        let text = render(OutputFormat::Uff, &rows);
+        let file = formats::uff::parse(text.as_bytes(), "d.uff").unwrap();
+        let back = file.datasets[0].to_frf("d.uff").unwrap();
+        assert_eq!((back.direction.as_deref(), back.speed_rpm), (Some("y"), Some(1500.0)));
+    }
+
+    #[test]
+    fn infinite_and_missing_numbers_read_back_from_json_and_say_what_they_are() {
+        let lobes = Value::Lobes(crate::value::Lobes {
+            speed_rpm: vec![1000.0, 2000.0],
+            depth_limit: vec![f64::INFINITY, 1e-3],
+            chatter_hz: vec![f64::NAN, 900.0],
+        });
+        let json = render(OutputFormat::Json, &[Row { label: "", value: &lobes }]);
+        assert!(json.contains("\"inf\"") && json.contains("\"NaN\"") && !json.contains("null"), "{json}");
+        let Value::Lobes(back) = serde_json::from_str::<Value>(&json).unwrap() else { panic!("not lobes") };
+        assert_eq!(back.depth_limit, [f64::INFINITY, 1e-3]);
+        assert!(back.chatter_hz[0].is_nan() && back.chatter_hz[1] == 900.0);
+        // The cache's binary form keeps the numbers themselves.
+        let bytes = postcard::to_stdvec(&lobes).unwrap();
+        let Value::Lobes(b) = postcard::from_bytes::<Value>(&bytes).unwrap() else { panic!() };
+        assert_eq!(b.depth_limit[0], f64::INFINITY);
     }
 }

@@ -291,8 +291,22 @@ fn fixed_row(
     line: usize,
     raw: &str,
 ) -> Result<(), FormatError> {
+    fixed_row_after(row, names, columns, path, line, raw, 0)
+}
+
+/// [`fixed_row`] after `skip` leading cells (a swept file's sweep coordinates), which are
+/// not numbers of the row; columns in messages still count from the start of the line.
+fn fixed_row_after(
+    row: &mut [f64],
+    names: &[&str],
+    columns: &str,
+    path: &str,
+    line: usize,
+    raw: &str,
+    skip: usize,
+) -> Result<(), FormatError> {
     let mut k = 0;
-    for (at, cell) in cells(raw) {
+    for (at, cell) in cells(raw).skip(skip) {
         if k < names.len() {
             row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
         }
@@ -498,38 +512,30 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
     Ok(TimeSeries { sample_rate, t0, channels })
 }
 
-/// Reads an FRF written as [`write_frf`] writes it: header `freq_hz,real,imag` with an
-/// optional `coherence` column; `# units`, `# direction`, `# speed_rpm` and `# sensor`
-/// header lines are optional and may come in any order.
-pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
+/// One sweep point of a swept FRF file (as a swept output writes it): the sweep coordinates
+/// as written (`("speed_rpm", "1500")`, `("direction", "x")`) and its FRF.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrfBlock {
+    pub coords: Vec<(String, String)>,
+    pub frf: Frf,
+}
+
+/// Reads an FRF file: `freq_hz,real,imag[,coherence]`, led by sweep-coordinate columns when a
+/// swept output wrote it. Each run of rows with the same coordinates is one block; a
+/// `direction` or `speed_rpm` coordinate gives the block's direction or speed.
+pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, FormatError> {
     let spreadsheet = from_spreadsheet(bytes, true);
     let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
     let mut unit = String::new();
     let mut direction = None;
-    let mut speed_rpm = None;
+    let mut speed = None;
     let mut sensor = None;
     for m in &sheet.meta {
         match m.key {
             "units" => unit = m.value.to_string(),
             "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
             "sensor" if !m.value.is_empty() => sensor = Some(m.value.to_string()),
-            "speed_rpm" => {
-                let text = m.value.strip_suffix("rpm").unwrap_or(m.value).trim();
-                let at = Loc::new(path, m.line, m.column);
-                speed_rpm = Some(match text.parse::<f64>() {
-                    Ok(v) if v.is_finite() => v,
-                    Ok(_) => {
-                        return Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() });
-                    }
-                    Err(_) => {
-                        return Err(FormatError::Expected {
-                            at,
-                            expected: "a speed in rpm after `# speed_rpm:`".into(),
-                            found: format!("`{}`", m.value),
-                        });
-                    }
-                });
-            }
+            "speed_rpm" => speed = Some(speed_rpm(m, path)?),
             _ => {}
         }
     }
@@ -541,13 +547,14 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
         });
     };
     let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
-    let with_coherence = match header.as_slice() {
+    let lead = header.iter().position(|h| *h == "freq_hz").unwrap_or(0);
+    let with_coherence = match &header[lead..] {
         ["freq_hz", "real", "imag"] => false,
         ["freq_hz", "real", "imag", "coherence"] => true,
         _ => {
             return Err(FormatError::Expected {
                 at: Loc::new(path, hline, 1),
-                expected: "the header row `freq_hz,real,imag` or `freq_hz,real,imag,coherence`".into(),
+                expected: "the header row `freq_hz,real,imag` or `freq_hz,real,imag,coherence` (after sweep columns in a swept file)".into(),
                 found: shown_header(hraw),
             });
         }
@@ -561,25 +568,69 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
     }
     let names: &[&str] =
         if with_coherence { &["freq_hz", "real", "imag", "coherence"] } else { &["freq_hz", "real", "imag"] };
-    let n = sheet.rows.len();
-    let mut freq_hz = Vec::with_capacity(n);
-    let mut values = Vec::with_capacity(n);
-    let mut coherence = with_coherence.then(|| Vec::with_capacity(n));
-    let mut row = [0.0; 4];
     let columns = names.join(",");
+    let (scale, symbol) = unit_to_si(&unit, None);
+    let mut blocks: Vec<FrfBlock> = Vec::new();
+    let mut row = [0.0; 4];
     for &(line, raw) in &sheet.rows {
-        fixed_row(&mut row, names, &columns, path, line, raw)?;
-        freq_hz.push(row[0]);
-        values.push(Complex64::new(row[1], row[2]));
-        if let Some(c) = coherence.as_mut() {
+        let coords: Vec<(String, String)> = header[..lead]
+            .iter()
+            .zip(cells(raw))
+            .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
+            .collect();
+        fixed_row_after(&mut row, names, &columns, path, line, raw, lead)?;
+        if blocks.last().is_none_or(|b| b.coords != coords) {
+            let of = |key: &str| coords.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
+            let block_speed = match of("speed_rpm") {
+                Some(v) => Some(v.parse::<f64>().map_err(|_| FormatError::Expected {
+                    at: Loc::new(path, line, 1),
+                    expected: "a speed in rpm in column `speed_rpm`".into(),
+                    found: format!("`{v}`"),
+                })?),
+                None => speed,
+            };
+            blocks.push(FrfBlock {
+                frf: Frf {
+                    freq_hz: Vec::new(),
+                    values: Vec::new(),
+                    coherence: with_coherence.then(Vec::new),
+                    unit: UnitLabel::new(symbol.clone()),
+                    direction: of("direction").or_else(|| direction.clone()),
+                    speed_rpm: block_speed,
+                    sensor: sensor.clone(),
+                },
+                coords,
+            });
+        }
+        let f = &mut blocks.last_mut().expect("pushed").frf;
+        f.freq_hz.push(row[0]);
+        f.values.push(Complex64::new(row[1], row[2]) * scale);
+        if let Some(c) = f.coherence.as_mut() {
             c.push(row[3]);
         }
     }
-    let (scale, symbol) = unit_to_si(&unit, None);
-    if scale != 1.0 {
-        values.iter_mut().for_each(|v| *v *= scale);
+    Ok(blocks)
+}
+
+/// Reads an FRF file that holds one FRF (see [`read_frf_blocks`] for swept files).
+pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
+    let mut blocks = read_frf_blocks(bytes, path)?;
+    if blocks.len() > 1 {
+        return Err(FormatError::Selection {
+            path: path.to_string(),
+            message: format!(
+                "the file holds {} sweep points ({} …); read one with `dataset: K`, counting from 1",
+                blocks.len(),
+                block_names(&blocks[..blocks.len().min(3)]).join("; ")
+            ),
+        });
     }
-    Ok(Frf { freq_hz, values, coherence, unit: UnitLabel::new(symbol), direction, speed_rpm, sensor })
+    Ok(blocks.pop().expect("at least one row").frf)
+}
+
+/// Each block's coordinates as `name=value, …`.
+pub fn block_names(blocks: &[FrfBlock]) -> Vec<String> {
+    blocks.iter().map(|b| b.coords.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(", ")).collect()
 }
 
 /// A `# speed_rpm:` value.

@@ -259,7 +259,39 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
     let shown = path.display().to_string();
     match format {
         FileFormat::Csv => {
-            let mut frf = csv::read_frf(&bytes, &shown)?;
+            let mut blocks = csv::read_frf_blocks(&bytes, &shown)?;
+            // A swept file: its `direction` column narrows, `dataset` picks a sweep point.
+            if let Some(want) = &select.direction
+                && blocks.len() > 1
+            {
+                blocks.retain(|b| b.frf.direction.as_deref().is_none_or(|d| d == want));
+                if blocks.is_empty() {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!("no sweep point of the file is in direction `{want}`"),
+                    });
+                }
+            }
+            let n = blocks.len();
+            let mut frf = match select.dataset {
+                Some(k) if k >= 1 && k <= n => blocks.swap_remove(k - 1).frf,
+                Some(k) => {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!("`dataset: {k}` asked for, the file holds {n} sweep point(s) there"),
+                    });
+                }
+                None if n == 1 => blocks.swap_remove(0).frf,
+                None => {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!(
+                            "the file holds {n} sweep points ({} …); read one with `dataset: K`, counting from 1",
+                            csv::block_names(&blocks[..3.min(n)]).join("; ")
+                        ),
+                    });
+                }
+            };
             if let Some(want) = &select.direction {
                 match &frf.direction {
                     Some(d) if d != want => {

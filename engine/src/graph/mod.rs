@@ -88,7 +88,7 @@ fn sweep_points(step: &Step) -> Vec<(String, Vec<(String, ParamValue)>)> {
         let mut next = Vec::with_capacity(points.len() * axis.values.len());
         for (label, assigned) in &points {
             for v in &axis.values {
-                let l = format!("{}={}", axis.param, v.display());
+                let l = format!("{}={}", axis.param, axis.show(v));
                 let label = if label.is_empty() { l } else { format!("{label}, {l}") };
                 let mut a = assigned.clone();
                 a.push((axis.param.clone(), v.clone()));

@@ -86,6 +86,34 @@ pub struct Binding {
 pub struct SweepAxis {
     pub param: String,
     pub values: Vec<ParamValue>,
+    /// The unit the recipe wrote the values in and its factor to SI (`rpm`, 2π/60), so labels
+    /// and file columns show them as written; `None` for text and plain numbers.
+    pub unit: Option<(String, f64)>,
+}
+
+impl SweepAxis {
+    /// A value of the axis as the recipe wrote it (`1500 rpm`, `2 mm`, `x`).
+    pub fn show(&self, v: &ParamValue) -> String {
+        match (v, &self.unit) {
+            (ParamValue::Quantity { value, .. }, Some((unit, scale))) => {
+                format!("{} {unit}", crate::round_sig(value / scale, 6))
+            }
+            _ => v.display(),
+        }
+    }
+}
+
+/// The unit a sweep's text ends in (`0..4000 step 500 rpm`, `[1, 4] mm`, `1000 rpm`), when it
+/// measures `dim`: its symbol and factor to SI.
+pub(crate) fn written_unit(text: &str, dim: spindlelab_grammar::Dimension) -> Option<(String, f64)> {
+    let text = text.trim();
+    let end = text.rfind(|c: char| c.is_ascii_digit() || c == ']' || c == '.')?;
+    let symbol = text[end + 1..].trim();
+    if symbol.is_empty() {
+        return None;
+    }
+    let unit = spindlelab_grammar::parse_unit(symbol).ok()?;
+    (unit.dim == dim && unit.scale.is_finite() && unit.scale > 0.0).then(|| (symbol.to_string(), unit.scale))
 }
 
 /// An analysis step: a node kind with parameters, inputs and optional sweeps.

@@ -281,6 +281,16 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
                     diags.error(at.as_ref(), format!("material `{name}`: `{f}` = {v} is outside ({lo}, {hi})"));
                 }
             }
+            // A negative loss factor would make the material give energy back.
+            let eta = p.f64("eta").unwrap_or(0.0);
+            if !(eta.is_finite() && eta >= 0.0) {
+                let at = raw.get("eta").map(|r| r.span.clone());
+                diags.error_help(
+                    at.as_ref(),
+                    format!("material `{name}`: loss factor `eta` = {eta} is negative"),
+                    "a loss factor is 0 or more (steel about 0.001–0.02 with its joints)",
+                );
+            }
         }
         EntityKind::Assembly => {
             for (i, (s, sraw)) in p.objects("sections").unwrap_or(&[]).iter().zip(section_raws(raw)).enumerate() {
@@ -580,6 +590,13 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                             continue;
                         };
                         let what = format!("sweep `{}` of step `{id}`", pk.name);
+                        let unit = match (&field.ty, &pv.kind) {
+                            (FieldType::Quantity(dim), RawKind::Seq(items)) => {
+                                items.first().and_then(|it| it.as_str()).and_then(|t| super::written_unit(t, *dim))
+                            }
+                            (FieldType::Quantity(dim), _) => pv.as_str().and_then(|t| super::written_unit(t, *dim)),
+                            _ => None,
+                        };
                         let values = match field.ty {
                             FieldType::Quantity(dim) => {
                                 match spec::check_value(pv, &FieldType::QuantityList(dim), &what, ctx, diags) {
@@ -608,7 +625,7 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
                             diags.error(Some(&pv.span), format!("{what} has no values"));
                             continue;
                         }
-                        sweep.push(SweepAxis { param: pk.name.clone(), values });
+                        sweep.push(SweepAxis { param: pk.name.clone(), values, unit });
                     }
                 }
                 None => {

@@ -110,6 +110,45 @@ fn convert(file: &Arc<str>, node: Spanned<Node>) -> Raw {
     Raw { span, kind }
 }
 
+/// The parser's message in the recipe's terms, and what to do: the parser's own wording names
+/// its internals (`budget breached: Depth { depth: 65 }`, `set DuplicateKeyPolicy`).
+fn yaml_message(msg: &str) -> (String, String) {
+    if let Some(rest) = msg.strip_prefix("duplicate mapping key: ") {
+        let key = rest.split(", set ").next().unwrap_or(rest).trim();
+        return (
+            format!("the key `{key}` appears twice in one mapping"),
+            "keep one of them: YAML would otherwise take the later one silently".into(),
+        );
+    }
+    if let Some(rest) = msg.strip_prefix("budget breached: ") {
+        let what = rest.split([' ', '{']).next().unwrap_or(rest);
+        let limit = rest.split(|c: char| !c.is_ascii_digit()).find(|t| !t.is_empty());
+        let text = match (what, limit) {
+            ("Depth", Some(n)) => format!("the YAML nests {n} levels deep, more than a recipe may"),
+            ("Aliases" | "AliasExpansion" | "Anchors", _) => {
+                "the YAML's anchors and aliases expand beyond a recipe's size".into()
+            }
+            (w, _) => format!("the YAML exceeds the reader's limit on {}", w.to_lowercase()),
+        };
+        return (text, "a recipe is a few levels of mappings and lists; generated or hostile input is refused".into());
+    }
+    let quoting = [
+        "mapping values",
+        "did not find expected",
+        "unexpected character",
+        "found character",
+        "could not find expected",
+    ]
+    .iter()
+    .any(|p| msg.contains(p));
+    let help = if quoting {
+        "quote values that contain `:` or start with `@`, `[`, `{` or `*`"
+    } else {
+        "a recipe is a YAML mapping of keys to values; check the syntax at the marked place"
+    };
+    (msg.to_string(), help.into())
+}
+
 /// Parses YAML text into the raw tree; a syntax error becomes one diagnostic with its location.
 pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
     let options = serde_saphyr::options! {
@@ -126,11 +165,8 @@ pub fn load_yaml(file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
             let msg = msg.lines().next().unwrap_or("invalid YAML");
             // The location is shown with the quoted line; keep the sentence free of it.
             let msg = msg.split(" at line ").next().unwrap_or(msg).to_string();
-            diags.push(
-                Diagnostic::error(Some(span), format!("invalid YAML: {msg}")).with_help(
-                    "a recipe is a YAML mapping; quote values that contain `:` or start with `@`, `[` or `{`",
-                ),
-            );
+            let (msg, help) = yaml_message(&msg);
+            diags.push(Diagnostic::error(Some(span), format!("invalid YAML: {msg}")).with_help(help));
             None
         }
     }

@@ -29,7 +29,9 @@ fn format_param() -> Field {
 
 fn dataset_param(what: &str) -> Field {
     let doc: &'static str = match what {
-        "frf" => "UFF only: which dataset 58 of the file to read, counting from 1",
+        "frf" => {
+            "which FRF to read, counting from 1: a dataset 58 of a UFF file, or a sweep point of a CSV file a swept output wrote"
+        }
         _ => {
             "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel"
         }
@@ -38,14 +40,15 @@ fn dataset_param(what: &str) -> Field {
 }
 
 /// The file and its layout, as the parameters give them.
-fn source(params: &Params) -> Result<(&Path, FileFormat), NodeError> {
+fn source(params: &Params, frfs: bool) -> Result<(&Path, FileFormat), NodeError> {
     let path = params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
     let format = match params.text("format") {
         Some("csv") => FileFormat::Csv,
         Some("uff") => FileFormat::Uff,
         _ => FileFormat::detect(path).map_err(read_error)?,
     };
-    if format == FileFormat::Csv && params.int("dataset").is_some() {
+    // A CSV file holds one time series or receptance set; a swept FRF file holds sweep points.
+    if format == FileFormat::Csv && params.int("dataset").is_some() && !frfs {
         return Err(NodeError::param("dataset", format!("applies to UFF files; {} is CSV", path.display())));
     }
     Ok((path, format))
@@ -91,7 +94,7 @@ impl Node for ReadTimeSeries {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params)?;
+        let (path, format) = source(ctx.params, false)?;
         let loaded = formats::read_time_series(path, format, dataset(ctx.params)).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);
@@ -163,7 +166,7 @@ impl Node for ReadFrf {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params)?;
+        let (path, format) = source(ctx.params, true)?;
         let select =
             FrfSelect { dataset: dataset(ctx.params), direction: ctx.params.text("direction").map(str::to_string) };
         let loaded = formats::read_frf(path, format, &select).map_err(read_error)?;
@@ -248,7 +251,7 @@ impl Node for ReadReceptance {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params)?;
+        let (path, format) = source(ctx.params, false)?;
         let loaded = formats::read_receptance(path, format, ctx.params.text("direction")).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);
