@@ -194,7 +194,7 @@ pub fn recipe_schema(registry: &Registry) -> Value {
             "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json|uff|svg|png)$"},
                 "with": {"oneOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}],
                     "description": "values drawn over a plot (`@step.port`)"},
-                "plot": {"type": "string", "enum": ["bode", "real-imag", "blocks", "default"],
+                "plot": {"type": "string", "enum": ["bode", "real-imag", "blocks", "spectrum", "default"],
                     "description": "the plot's view when its type has several"}}}}),
     );
     json!({

@@ -23,6 +23,7 @@ pub fn figure(title: &str, variant: Option<&str>, main: &[Layer], with: &[Layer]
     let panels = match first.value {
         Value::Frf(_) | Value::ReceptanceSet(_) if variant == Some("blocks") => receptance_blocks(main, with)?,
         Value::Frf(_) | Value::ReceptanceSet(_) => frf(main, with, variant == Some("real-imag"))?,
+        Value::TimeSeries(_) if variant == Some("spectrum") => spectrum(main)?,
         Value::TimeSeries(_) => time_series(main)?,
         Value::Lobes(_) => lobes(main, with)?,
         Value::Table(_) => table(main, with)?,
@@ -39,7 +40,8 @@ pub fn variants(ty: &crate::value::PortType) -> &'static [&'static str] {
     match ty {
         P::Frf => &["bode", "real-imag"],
         P::ReceptanceSet => &["bode", "real-imag", "blocks"],
-        P::TimeSeries | P::Lobes | P::Table | P::Scalar | P::ModalModel => &["default"],
+        P::TimeSeries => &["default", "spectrum"],
+        P::Lobes | P::Table | P::Scalar | P::ModalModel => &["default"],
         _ => &[],
     }
 }
@@ -215,6 +217,51 @@ fn time_series(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                 }
             }
             pts.dedup();
+            let name = if main.len() > 1 && sweep_labelled(i, main.len()) { l.name.clone() } else { String::new() };
+            panels[k].1.series.push(Series::new(name, pts, Style::Line, sweep_color(i, main.len())));
+        }
+    }
+    Ok(panels.into_iter().map(|(_, p)| p).collect())
+}
+
+/// The amplitude spectrum of each channel (one-sided, `2|X|/N`, log), one panel per channel:
+/// how wide a band an impact excites, where a signal's energy sits.
+fn spectrum(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
+    let mut panels: Vec<(String, Panel)> = Vec::new();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    for (i, l) in main.iter().enumerate() {
+        let Value::TimeSeries(ts) = l.value else {
+            return Err(PlotError::Mixed(format!("`{}` is not a time series", l.name)));
+        };
+        for c in &ts.channels {
+            let n = c.samples.len();
+            if n < 4 {
+                continue;
+            }
+            let (scale, unit) = signal_unit(&c.unit.symbol);
+            let fft = planner.plan_fft_forward(n);
+            let mut buf: Vec<Complex64> = c.samples.iter().map(|x| Complex64::new(*x, 0.0)).collect();
+            fft.process(&mut buf);
+            let df = ts.sample_rate / n as f64;
+            // At most 5,000 points: the largest line of each stretch, so peaks stay.
+            let lines = n / 2;
+            let stride = lines.div_ceil(5000).max(1);
+            let pts: Vec<(f64, f64)> = (1..lines)
+                .collect::<Vec<_>>()
+                .chunks(stride)
+                .map(|k| {
+                    let best = *k.iter().max_by(|a, b| buf[**a].norm().total_cmp(&buf[**b].norm())).expect("non-empty");
+                    (best as f64 * df, 2.0 * buf[best].norm() / n as f64 * scale)
+                })
+                .collect();
+            let k = match panels.iter().position(|(name, _)| *name == c.name) {
+                Some(k) => k,
+                None => {
+                    let y = if unit.is_empty() { format!("|{}|", c.name) } else { format!("|{}| [{unit}]", c.name) };
+                    panels.push((c.name.clone(), Panel::new(Axis::linear("frequency [Hz]"), Axis::log(y))));
+                    panels.len() - 1
+                }
+            };
             let name = if main.len() > 1 && sweep_labelled(i, main.len()) { l.name.clone() } else { String::new() };
             panels[k].1.series.push(Series::new(name, pts, Style::Line, sweep_color(i, main.len())));
         }
@@ -476,4 +523,71 @@ fn modal(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
     let markers: Vec<Layer> =
         main.iter().map(|l| Layer { name: l.name.clone(), value: l.value, coord: None }).collect();
     frf(&layers, &markers, false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::value::{Channel, Column, PortType, Table, UnitLabel};
+
+    fn layer(v: &Value) -> Layer<'_> {
+        Layer { name: "t".into(), value: v, coord: None }
+    }
+
+    /// A sine of 1 mm at 250 Hz: its spectrum peaks at 250 Hz at 1000 µm, the unit shown.
+    #[test]
+    fn a_spectrum_puts_a_sine_at_its_frequency_and_amplitude() {
+        let fs = 10_000.0;
+        let ts = Value::TimeSeries(TimeSeries {
+            sample_rate: fs,
+            t0: 0.0,
+            channels: vec![Channel {
+                name: "x".into(),
+                unit: UnitLabel::new("m"),
+                samples: (0..10_000).map(|i| 1e-3 * (std::f64::consts::TAU * 250.0 * i as f64 / fs).sin()).collect(),
+            }],
+        });
+        let fig = figure("s", Some("spectrum"), &[layer(&ts)], &[]).unwrap();
+        let pts = &fig.panels[0].series[0].points;
+        let peak = pts.iter().fold((0.0, 0.0), |a, p| if p.1 > a.1 { *p } else { a });
+        assert_eq!(fig.panels[0].y.label, "|x| [µm]");
+        assert!((peak.0 - 250.0).abs() < 1e-9 && (peak.1 - 1000.0).abs() < 1e-6, "{peak:?}");
+    }
+
+    /// A Campbell table: a forward and a backward whirl line per rank and the 1× line, in rpm and Hz.
+    #[test]
+    fn a_campbell_table_draws_forward_and_backward_whirl_by_rank() {
+        let speeds = [0.0, 0.0, 10_000.0, 10_000.0, 20_000.0, 20_000.0];
+        let t = Value::Table(Table {
+            columns: vec![
+                Column::new("speed", "rpm", speeds.to_vec()),
+                Column::new("frequency", "Hz", vec![500.0, 500.0, 520.0, 480.0, 540.0, 460.0]),
+                Column::new("whirl", "", vec![1.0, -1.0, 1.0, -1.0, 1.0, -1.0]),
+            ],
+        });
+        let fig = figure("c", None, &[layer(&t)], &[]).unwrap();
+        let names: Vec<&str> = fig.panels[0].series.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["forward", "backward", "1× rotation"]);
+        assert_eq!(fig.panels[0].series[0].points, [(0.0, 500.0), (10_000.0, 520.0), (20_000.0, 540.0)]);
+        assert_eq!(fig.panels[0].x.label, "spindle speed [rpm]");
+        assert!(variants(&PortType::Table).contains(&"default"));
+    }
+
+    /// The same figure gives the same bytes (SVG and PNG), and the PNG decodes to the size drawn.
+    #[test]
+    fn plots_are_the_same_bytes_every_time_and_the_png_decodes() {
+        let l = Value::Lobes(crate::value::Lobes {
+            speed_rpm: vec![1000.0, 2000.0, 3000.0],
+            depth_limit: vec![1e-3, f64::INFINITY, 2e-3],
+            chatter_hz: vec![900.0, f64::NAN, 950.0],
+        });
+        let fig = figure("lobes", None, &[layer(&l)], &[]).unwrap();
+        assert_eq!(super::super::draw::svg(&fig).unwrap(), super::super::draw::svg(&fig).unwrap());
+        let png = super::super::draw::png(&fig).unwrap();
+        assert_eq!(png, super::super::draw::png(&fig).unwrap());
+        let decoder = png::Decoder::new(std::io::Cursor::new(&png));
+        let reader = decoder.read_info().unwrap();
+        let info = reader.info();
+        assert_eq!((info.width, info.height), (super::super::draw::WIDTH, super::super::draw::height(&fig)));
+    }
 }
