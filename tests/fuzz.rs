@@ -204,15 +204,28 @@ fn mutated_quantities_parse_or_fail_without_panicking() {
 
 #[test]
 fn mutated_csv_and_uff_files_read_or_fail_without_panicking() {
-    let csv_seeds: Vec<Vec<u8>> = ["tests/bad/stability/x.csv", "tests/bad/measured/frf_x_0rpm.csv"]
+    let mut csv_seeds: Vec<Vec<u8>> = ["tests/bad/stability/x.csv", "tests/bad/measured/frf_x_0rpm.csv"]
         .iter()
         .map(|p| std::fs::read(root().join(p)).unwrap())
         .map(|b| b[..b.len().min(6000)].to_vec())
         .collect();
+    // Swept outputs as the writers make them: sweep columns, a units line, non-finite cells.
+    csv_seeds.push(
+        b"# units: m/N\nspeed_rpm,direction,freq_hz,real,imag\n0,x,0e0,1e-7,0e0\n0,x,1e1,1e-7,-1e-8\n500,y,0e0,2e-7,0e0\n"
+            .to_vec(),
+    );
+    csv_seeds.push(
+        b"# units: speed=rpm, depth=m, outcome=\ndirection,speed_rpm,depth_m,outcome\nx,2e3,5e-4,0e0\ny,3e3,NaN,inf\n"
+            .to_vec(),
+    );
     let result = campaign("csv", &csv_seeds, 3000, 0x5eed_0004, |bytes| {
         let _ = formats::csv::read_frf(bytes, "m.csv");
+        let _ = formats::csv::read_frf_blocks(bytes, "m.csv");
         let _ = formats::csv::read_time_series(bytes, "m.csv");
         let _ = formats::csv::read_receptance(bytes, "m.csv");
+        let _ = formats::csv::read_tables(bytes, "m.csv");
+        let _ = formats::csv::read_lobes(bytes, "m.csv");
+        let _ = formats::csv::read_scalars(bytes, "m.csv");
     });
     assert_no_panic("csv", result);
     let uff_seeds: Vec<Vec<u8>> = ["frf_x_ascii.uff", "frf_xy_binary.uff", "force_time_ascii.uff", "skip_then_frf.uff"]

@@ -205,18 +205,42 @@ pub fn execute(
             done_count += 1;
         }
     }
+    // Depth of each instance (longest chain of inputs above it), for the memory-bounded order.
+    let mut depth = vec![0usize; n];
+    for i in 0..n {
+        depth[i] = graph.instances[i].deps().map(|d| depth[d] + 1).max().unwrap_or(0);
+    }
+    let width = pool.current_num_threads().max(1);
+    let mut failed_steps: std::collections::HashSet<String> = std::collections::HashSet::new();
     while outcomes.iter().any(Option::is_none) {
         // The next wave: every instance whose inputs are all settled.
-        let wave: Vec<usize> = (0..n)
+        let mut wave: Vec<usize> = (0..n)
             .filter(|&i| outcomes[i].is_none() && graph.instances[i].deps().all(|d| outcomes[d].is_some()))
             .collect();
+        if opts.release_consumed {
+            // Producers of large uncached intermediates (raw records) start at most one per
+            // thread, deepest first, so a sweep's recordings are consumed and released chain by
+            // chain instead of all being alive at once; everything else runs as soon as it is
+            // ready. The order changes when an instance runs, never what it computes.
+            wave.sort_by_key(|&i| (std::cmp::Reverse(depth[i]), i));
+            let mut heavy = 0;
+            wave.retain(|&i| {
+                let cacheable = registry.get(&graph.instances[i].kind).is_none_or(|node| node.cacheable());
+                heavy += usize::from(!cacheable);
+                cacheable || heavy <= width
+            });
+            wave.sort_unstable();
+        }
         assert!(!wave.is_empty(), "graph has no ready instance; compile guarantees a DAG");
         let results: Vec<(usize, Outcome)> = pool.install(|| {
             wave.par_iter()
                 .map(|&i| {
                     let inst = &graph.instances[i];
+                    // After a failure the run stops, but the failed step's other instances still
+                    // run, so every failing sweep point is reported at once.
+                    let stopped = stop && !failed_steps.contains(&inst.step);
                     let blocked =
-                        stop || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
+                        stopped || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
                     let outcome = if blocked {
                         Outcome::Skipped
                     } else {
@@ -230,6 +254,7 @@ pub fn execute(
         for (i, o) in results {
             if matches!(o, Outcome::Failed(_)) && !opts.keep_going {
                 stop = true;
+                failed_steps.insert(graph.instances[i].step.clone());
             }
             done_count += 1;
             outcomes[i] = Some(o);

@@ -117,7 +117,9 @@ fn render_csv(rows: &[Row]) -> String {
         match r.value {
             Value::Scalar(s) => {
                 if !header_done {
-                    let _ = writeln!(out, "{prefix_header}value_{}", unit_tag(&s.unit.symbol));
+                    let tag = unit_tag(&s.unit.symbol);
+                    let _ = writeln!(out, "# units: value_{tag}={}", s.unit.symbol);
+                    let _ = writeln!(out, "{prefix_header}value_{tag}");
                     header_done = true;
                 }
                 let _ = writeln!(out, "{}{}", prefix(r), num(s.value));
@@ -149,6 +151,9 @@ fn unit_tag(symbol: &str) -> String {
 
 fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut bool) {
     if !*header_done {
+        // The units exactly as the values hold them, for the reader (a header tag is lossy).
+        let units: Vec<String> = t.columns.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
+        let _ = writeln!(out, "# units: {}", units.join(", "));
         let cols: Vec<String> = t
             .columns
             .iter()
@@ -336,5 +341,53 @@ mod tests {
         let bytes = postcard::to_stdvec(&lobes).unwrap();
         let Value::Lobes(b) = postcard::from_bytes::<Value>(&bytes).unwrap() else { panic!() };
         assert_eq!(b.depth_limit[0], f64::INFINITY);
+    }
+
+    #[test]
+    fn tables_lobes_and_scalars_read_back_swept_with_their_units_and_non_finite_values() {
+        use crate::value::{Column, Lobes, Scalar, Table};
+        let t = |k: f64| {
+            Value::Table(Table {
+                columns: vec![
+                    Column::new("speed", "rpm", vec![1000.0 * k, 2000.0]),
+                    Column::new("depth", "m", vec![1e-3, f64::NAN]),
+                    Column::new("stiffness", "N/m", vec![f64::INFINITY, 2e7 * k]),
+                ],
+            })
+        };
+        let (a, b) = (t(1.0), t(2.0));
+        let rows = [Row { label: "direction=x", value: &a }, Row { label: "direction=y", value: &b }];
+        let text = render(OutputFormat::Csv, &rows);
+        let back = formats::csv::read_tables(text.as_bytes(), "t.csv").unwrap();
+        assert_eq!(back.len(), 2);
+        for (blk, want) in back.iter().zip([&a, &b]) {
+            let Value::Table(want) = want else { unreachable!() };
+            for (c, w) in blk.table.columns.iter().zip(&want.columns) {
+                assert_eq!((&c.name, &c.unit), (&w.name, &w.unit));
+                let same = c.values.iter().zip(&w.values).all(|(x, y)| x == y || (x.is_nan() && y.is_nan()));
+                assert!(same, "{}: {:?} vs {:?}", c.name, c.values, w.values);
+            }
+        }
+        assert_eq!(back[1].coords, [("direction".to_string(), "y".to_string())]);
+
+        let l = Value::Lobes(Lobes {
+            speed_rpm: vec![1000.0, 2000.0],
+            depth_limit: vec![f64::INFINITY, 2e-3],
+            chatter_hz: vec![f64::NAN, 950.0],
+        });
+        let text = render(OutputFormat::Csv, &[Row { label: "immersion=25 %", value: &l }]);
+        let back = formats::csv::read_lobes(text.as_bytes(), "l.csv").unwrap();
+        assert_eq!(back[0].0, [("immersion_%".to_string(), "25".to_string())]);
+        assert_eq!(back[0].1.depth_limit, [f64::INFINITY, 2e-3]);
+        assert!(back[0].1.chatter_hz[0].is_nan() && back[0].1.speed_rpm == [1000.0, 2000.0]);
+
+        let (s1, s2) = (Value::Scalar(Scalar::new(0.25e-3, "s")), Value::Scalar(Scalar::new(f64::INFINITY, "s")));
+        let rows = [Row { label: "hammer_mass=0.03 kg", value: &s1 }, Row { label: "hammer_mass=0.04 kg", value: &s2 }];
+        let text = render(OutputFormat::Csv, &rows);
+        let back = formats::csv::read_scalars(text.as_bytes(), "s.csv").unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!((back[0].1, back[0].2.as_str()), (0.25e-3, "s"));
+        assert_eq!(back[1].1, f64::INFINITY);
+        assert_eq!(back[1].0, [("hammer_mass_kg".to_string(), "0.04".to_string())]);
     }
 }

@@ -8,7 +8,7 @@
 //! round trip is exact.
 
 use super::{FormatError, Loc, unit_to_si};
-use crate::value::{Channel, Frf, Lobes, ReceptanceSet, TimeSeries, UnitLabel};
+use crate::value::{Channel, Frf, Lobes, ReceptanceSet, Table, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::fmt::Write as _;
@@ -118,6 +118,7 @@ pub const LOBES_HEADER: &str = "speed_rpm,depth_limit_m,chatter_hz";
 /// Rows `speed_rpm,depth_limit_m,chatter_hz` of a stability diagram; a speed no lobe limits has depth `inf`.
 pub(crate) fn lobes_rows(out: &mut String, l: &Lobes, prefix_header: &str, prefix: &str, header_done: &mut bool) {
     if !*header_done {
+        let _ = writeln!(out, "# units: speed_rpm=rpm, depth_limit_m=m, chatter_hz=Hz");
         let _ = writeln!(out, "{prefix_header}{LOBES_HEADER}");
         *header_done = true;
     }
@@ -626,6 +627,134 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
         });
     }
     Ok(blocks.pop().expect("at least one row").frf)
+}
+
+/// Sweep coordinates as written: `(column, value)` pairs.
+pub type Coords = Vec<(String, String)>;
+
+/// One sweep point of a numeric table file: the sweep coordinates as written, then the
+/// table's own columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableBlock {
+    pub coords: Vec<(String, String)>,
+    pub table: Table,
+}
+
+/// Reads a table as a table output writes it: `# units: name=unit, …`, a header whose last
+/// columns are the table's (led by sweep columns in a swept file), numeric rows (`NaN`,
+/// `inf` allowed: a trial outside a diagram, a lobe that limits nothing). Without a units
+/// line every column is the table's, with no unit.
+pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatError> {
+    let sheet = split_sheet(bytes, path)?;
+    let mut units: Vec<(String, String)> = Vec::new();
+    for m in sheet.meta.iter().filter(|m| m.key == "units") {
+        for pair in m.value.split(", ").filter(|p| !p.is_empty()) {
+            let Some((name, unit)) = pair.split_once('=') else {
+                return Err(FormatError::Expected {
+                    at: Loc::new(path, m.line, m.column),
+                    expected: "`name=unit` pairs after `# units:`".into(),
+                    found: format!("`{pair}`"),
+                });
+            };
+            units.push((name.trim().to_string(), unit.trim().to_string()));
+        }
+    }
+    let Some((hline, hraw)) = sheet.header else {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, sheet.last_line, 0),
+            expected: "a header row of column names".into(),
+            found: "only `#` lines".into(),
+        });
+    };
+    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
+    if units.is_empty() {
+        units = header.iter().map(|h| (h.to_string(), String::new())).collect();
+    }
+    let Some(lead) = header.len().checked_sub(units.len()) else {
+        return Err(FormatError::Expected {
+            at: Loc::new(path, hline, 1),
+            expected: format!("at least the {} columns the `# units:` line names", units.len()),
+            found: shown_header(hraw),
+        });
+    };
+    let names: Vec<&str> = units.iter().map(|(n, _)| n.as_str()).collect();
+    let columns = header[lead..].join(",");
+    let mut blocks: Vec<TableBlock> = Vec::new();
+    let mut row = vec![0.0; names.len()];
+    for &(line, raw) in &sheet.rows {
+        let coords: Vec<(String, String)> = header[..lead]
+            .iter()
+            .zip(cells(raw))
+            .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
+            .collect();
+        // Cells of the table itself; non-finite numbers are values here.
+        let mut k = 0;
+        for (_, cell) in cells(raw).skip(lead) {
+            if k < names.len() {
+                row[k] = cell.parse::<f64>().map_err(|_| FormatError::Expected {
+                    at: Loc::new(path, line, 0),
+                    expected: format!("a number in column `{}`", names[k]),
+                    found: if cell.is_empty() { "an empty cell".into() } else { format!("`{cell}`") },
+                })?;
+            }
+            k += 1;
+        }
+        if k != names.len() {
+            return Err(FormatError::Ragged { at: Loc::new(path, line, 0), found: k, expected: names.len(), columns });
+        }
+        if blocks.last().is_none_or(|b| b.coords != coords) {
+            let table =
+                Table { columns: units.iter().map(|(n, u)| crate::value::Column::new(n, u, Vec::new())).collect() };
+            blocks.push(TableBlock { coords, table });
+        }
+        let t = &mut blocks.last_mut().expect("pushed").table;
+        for (c, v) in t.columns.iter_mut().zip(&row) {
+            c.values.push(*v);
+        }
+    }
+    Ok(blocks)
+}
+
+/// Reads lobes as a lobes output writes them (`speed_rpm,depth_limit_m,chatter_hz`, led by
+/// sweep columns in a swept file), one per sweep point.
+pub fn read_lobes(bytes: &[u8], path: &str) -> Result<Vec<(Coords, Lobes)>, FormatError> {
+    let blocks = read_tables(bytes, path)?;
+    blocks
+        .into_iter()
+        .map(|b| {
+            let names: Vec<&str> = b.table.columns.iter().map(|c| c.name.as_str()).collect();
+            let n = names.len();
+            if n < 3 || names[n - 3..] != ["speed_rpm", "depth_limit_m", "chatter_hz"] {
+                return Err(FormatError::Expected {
+                    at: Loc::new(path, 0, 0),
+                    expected: format!("the header `{LOBES_HEADER}`"),
+                    found: format!("`{}`", names.join(",")),
+                });
+            }
+            let col = |i: usize| b.table.columns[n - 3 + i].values.clone();
+            // Columns before the lobes' own are sweep coordinates of an older layout.
+            Ok((b.coords, Lobes { speed_rpm: col(0), depth_limit: col(1), chatter_hz: col(2) }))
+        })
+        .collect()
+}
+
+/// Reads scalars as a scalar output writes them (`value_UNIT`, one row per sweep point):
+/// each with its sweep coordinates and its unit.
+pub fn read_scalars(bytes: &[u8], path: &str) -> Result<Vec<(Coords, f64, String)>, FormatError> {
+    let mut out = Vec::new();
+    for b in read_tables(bytes, path)? {
+        let [c] = b.table.columns.as_slice() else {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, 0, 0),
+                expected: "one `value_UNIT` column".into(),
+                found: format!("{} columns", b.table.columns.len()),
+            });
+        };
+        for v in &c.values {
+            out.push((b.coords.clone(), *v, c.unit.symbol.clone()));
+        }
+    }
+    Ok(out)
 }
 
 /// Each block's coordinates as `name=value, …`.
