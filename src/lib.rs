@@ -6,6 +6,7 @@
 pub mod diagnose;
 pub mod fit;
 pub mod import;
+pub mod plugins;
 pub mod summary;
 
 pub use spindlelab_engine as engine;

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use spindlelab::engine::exec::{RunOptions, plan};
 use spindlelab::engine::{self, CompileError, Compiled, RunError};
+use spindlelab::plugins::Plugins;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -22,6 +23,11 @@ const EXIT_FAILURE: u8 = 1;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// A plugin to load (its `.plugin.json` manifest), or a folder to search for the
+    /// plugins a recipe names (repeatable). `$SPINDLELAB_PLUGIN_PATH` and the user plugin
+    /// folder are searched after these.
+    #[arg(long = "plugin", global = true, value_name = "FILE|DIR")]
+    plugin: Vec<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -109,6 +115,11 @@ enum Command {
         #[command(subcommand)]
         action: CacheAction,
     },
+    /// Make, build and check WebAssembly plugins (third-party node kinds).
+    Plugin {
+        #[command(subcommand)]
+        action: PluginAction,
+    },
     /// Write the recipe of a baseline case file (`case.json`): entities, the measured files
     /// as a measurement set, the measured and the cutting configuration.
     Import {
@@ -152,6 +163,35 @@ enum CacheAction {
     },
 }
 
+#[derive(Subcommand)]
+enum PluginAction {
+    /// Check a plugin without running a recipe: manifest, hash, imports, interface version,
+    /// its description of its node kinds; lists the kinds.
+    Check {
+        /// The plugin's manifest (`NAME.plugin.json`).
+        manifest: PathBuf,
+    },
+    /// Create a plugin crate from the template: one node kind, ready to build.
+    New {
+        /// Plugin id (letters, digits, `-`); the crate's name.
+        name: String,
+        /// Where to create the crate (default: `./NAME`).
+        #[arg(short, long)]
+        dir: Option<PathBuf>,
+    },
+    /// Build a plugin crate for wasm32-unknown-unknown and pack it: the component and its
+    /// manifest with the SHA-256.
+    Build {
+        /// The plugin crate's folder (it holds `Cargo.toml`).
+        crate_dir: PathBuf,
+        /// Where to put the plugin (default: the user plugin folder, so recipes find it by id).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+    },
+    /// List the plugins on the search path and their node kinds.
+    List,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum GraphFormat {
     Dot,
@@ -172,16 +212,18 @@ fn parse_set(text: &str) -> Result<(String, String), String> {
     }
 }
 
-fn compile(path: &Path, registry: &engine::node::Registry) -> Result<Compiled, ExitCode> {
-    compile_with(path, &[], registry)
+fn compile(path: &Path, registry: &mut engine::node::Registry, plugins: &mut Plugins) -> Result<Compiled, ExitCode> {
+    compile_with(path, &[], registry, plugins)
 }
 
+/// Compiles a recipe, loading the plugins it names into `registry` first.
 fn compile_with(
     path: &Path,
     set: &[(String, String)],
-    registry: &engine::node::Registry,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
 ) -> Result<Compiled, ExitCode> {
-    match engine::compile_file_with(path, set, registry) {
+    match spindlelab::plugins::compile_file(path, set, registry, plugins) {
         Ok(c) => {
             if !c.warnings.is_empty() {
                 eprint!("{}", c.warnings.render(&c.sources, color()));
@@ -222,9 +264,10 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
-    let registry = spindlelab::registry();
+    let mut registry = spindlelab::registry();
+    let mut plugins = Plugins::new(&cli.plugin);
     match cli.command {
-        Command::Check { recipe, set } => match compile_with(&recipe, &set, &registry) {
+        Command::Check { recipe, set } => match compile_with(&recipe, &set, &mut registry, &mut plugins) {
             Ok(c) => {
                 println!(
                     "{}: ok — {} steps, {} node instances, {} outputs",
@@ -237,7 +280,7 @@ fn main() -> ExitCode {
             }
             Err(code) => code,
         },
-        Command::Graph { recipe, format } => match compile(&recipe, &registry) {
+        Command::Graph { recipe, format } => match compile(&recipe, &mut registry, &mut plugins) {
             Ok(c) => {
                 let text = match format {
                     GraphFormat::Dot => engine::graph::to_dot(&c.graph),
@@ -248,28 +291,37 @@ fn main() -> ExitCode {
             }
             Err(code) => code,
         },
-        Command::Plan { recipe, out, no_cache, set } => match compile_with(&recipe, &set, &registry) {
-            Ok(c) => {
-                let out = out.unwrap_or_else(|| default_out(&c));
-                let opts = RunOptions::new(&out);
-                let cache = (!no_cache).then(|| opts.cache());
-                let entries = plan(&c.recipe, &c.graph, &registry, &out, cache.as_ref());
-                let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
-                for e in &entries {
-                    println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);
+        Command::Plan { recipe, out, no_cache, set } => {
+            match compile_with(&recipe, &set, &mut registry, &mut plugins) {
+                Ok(c) => {
+                    let out = out.unwrap_or_else(|| default_out(&c));
+                    let opts = RunOptions::new(&out);
+                    let cache = (!no_cache).then(|| opts.cache());
+                    let entries = plan(&c.recipe, &c.graph, &registry, &out, cache.as_ref());
+                    let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
+                    for e in &entries {
+                        println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);
+                    }
+                    let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
+                    println!(
+                        "{} to run, {} from cache (output directory {})",
+                        entries.len() - cached,
+                        cached,
+                        out.display()
+                    );
+                    ExitCode::SUCCESS
                 }
-                let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
-                println!(
-                    "{} to run, {} from cache (output directory {})",
-                    entries.len() - cached,
-                    cached,
-                    out.display()
-                );
-                ExitCode::SUCCESS
+                Err(code) => code,
             }
-            Err(code) => code,
-        },
+        }
         Command::Nodes { kind } => {
+            if let Err(e) = plugins.load_always(&mut registry) {
+                eprintln!("error: {e}");
+                return ExitCode::from(EXIT_BAD_INPUT);
+            }
+            for (manifest, e) in plugins.load_search_path(&mut registry).1 {
+                eprintln!("warning: {}: {e}", manifest.display());
+            }
             let mut any = false;
             for node in registry.kinds() {
                 let spec = node.spec();
@@ -290,6 +342,10 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Command::Diagnose { recipe, out, quiet } => {
+            // Loads the plugins the recipe names, so the diagnosis compiles it with them.
+            if let Err(code) = compile(&recipe, &mut registry, &mut plugins) {
+                return code;
+            }
             let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
                 Ok(d) => d,
                 Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
@@ -353,6 +409,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Command::Cache { action } => cache_command(action),
+        Command::Plugin { action } => plugin_command(action, &mut plugins),
         Command::Schema => {
             println!(
                 "{}",
@@ -363,7 +420,7 @@ fn main() -> ExitCode {
         Command::Report { run_dir, out } => report_command(&run_dir, out),
         Command::Run { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report } => {
             let threads = clamp_threads(threads);
-            let mut c = match compile_with(&recipe, &set, &registry) {
+            let mut c = match compile_with(&recipe, &set, &mut registry, &mut plugins) {
                 Ok(c) => c,
                 Err(code) => return code,
             };
@@ -384,7 +441,7 @@ fn main() -> ExitCode {
                 let mut with_fit: Vec<(String, String)> =
                     set.iter().filter(|(n, _)| !report.params.iter().any(|p| &p.name == n)).cloned().collect();
                 with_fit.extend(report.overrides());
-                c = match compile_with(&recipe, &with_fit, &registry) {
+                c = match compile_with(&recipe, &with_fit, &mut registry, &mut plugins) {
                     Ok(c) => c,
                     Err(code) => return code,
                 };
@@ -629,4 +686,107 @@ fn describe_node(spec: &engine::node::NodeSpec) -> String {
     }
     s.push('\n');
     s
+}
+
+fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
+    use spindlelab::engine::node::Registry;
+    let describe_plugin = |p: &spindlelab_plugin_host::Plugin| {
+        println!(
+            "{} {} — {} (interface {}, sha256 {})",
+            p.manifest.id,
+            p.manifest.version,
+            p.manifest_path.display(),
+            p.manifest.interface,
+            &p.manifest.sha256[..16]
+        );
+        println!(
+            "  limits: {} MiB memory, {:.1e} fuel, {} numbers out per call",
+            p.limits.memory >> 20,
+            p.limits.fuel as f64,
+            p.limits.output_values
+        );
+        for n in &p.nodes {
+            let spec = engine::node::Node::spec(n.as_ref());
+            println!("  {} v{}: {}", spec.kind, spec.version, spec.description);
+        }
+    };
+    match action {
+        PluginAction::Check { manifest } => {
+            // A registry of its own: a plugin that names a built-in kind is a problem to report.
+            let mut registry = spindlelab::registry();
+            match plugins.load(&manifest, &Default::default(), &mut registry) {
+                Ok(Some(p)) => {
+                    describe_plugin(&p);
+                    println!("{}: ok", manifest.display());
+                    ExitCode::SUCCESS
+                }
+                Ok(None) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(EXIT_BAD_INPUT)
+                }
+            }
+        }
+        PluginAction::New { name, dir } => {
+            let dir = dir.unwrap_or_else(|| PathBuf::from(&name));
+            match spindlelab::plugins::new_plugin(&name, &dir) {
+                Ok(files) => {
+                    for f in files {
+                        println!("wrote {}", f.display());
+                    }
+                    println!(
+                        "next: `rustup target add wasm32-unknown-unknown` once, then `spindlelab plugin build {}`",
+                        dir.display()
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(EXIT_BAD_INPUT)
+                }
+            }
+        }
+        PluginAction::Build { crate_dir, out } => {
+            let Some(out) = out.or_else(spindlelab::plugins::user_plugin_dir) else {
+                eprintln!("error: no user plugin folder (HOME is not set); give one with --out");
+                return ExitCode::from(EXIT_BAD_INPUT);
+            };
+            let cargo = std::env::var_os("CARGO").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("cargo"));
+            let target = crate_dir.join("target");
+            match spindlelab_plugin_pack::build(&cargo, &crate_dir, &target, &out, false) {
+                Ok(packed) => {
+                    let mut registry = Registry::new();
+                    match plugins.load(&packed.manifest_path, &Default::default(), &mut registry) {
+                        Ok(Some(p)) => describe_plugin(&p),
+                        Ok(None) => {}
+                        Err(e) => {
+                            eprintln!("error: the plugin was built but does not load: {e}");
+                            return ExitCode::from(EXIT_BAD_INPUT);
+                        }
+                    }
+                    println!("wrote {}", packed.manifest_path.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(EXIT_BAD_INPUT)
+                }
+            }
+        }
+        PluginAction::List => {
+            let mut registry = spindlelab::registry();
+            let (ok, failed) = plugins.load_search_path(&mut registry);
+            for p in &ok {
+                describe_plugin(p);
+            }
+            for (m, e) in &failed {
+                eprintln!("warning: {}: {e}", m.display());
+            }
+            if ok.is_empty() && failed.is_empty() {
+                let dirs: Vec<String> = plugins.search.iter().map(|d| d.display().to_string()).collect();
+                println!("no plugins in {}", dirs.join(", "));
+            }
+            ExitCode::SUCCESS
+        }
+    }
 }

@@ -181,6 +181,12 @@ pub trait Node: Send + Sync {
     fn cacheable(&self) -> bool {
         true
     }
+
+    /// A digest of the code that runs the kind when it is not built into this program (a
+    /// plugin's SHA-256): part of the cache key, so a rebuilt plugin reruns its nodes.
+    fn code_digest(&self) -> Option<&str> {
+        None
+    }
 }
 
 /// Every node kind the engine can compile, by kind name.
@@ -192,6 +198,17 @@ pub struct Registry {
 impl Registry {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Adds a node kind from outside the program (a plugin); a kind already registered is
+    /// refused with the name, so a plugin cannot replace a built-in kind.
+    pub fn try_register(&mut self, node: Arc<dyn Node>) -> Result<(), String> {
+        let kind = node.spec().kind;
+        if self.kinds.contains_key(kind) {
+            return Err(format!("node kind `{kind}` is already registered"));
+        }
+        self.kinds.insert(kind, node);
+        Ok(())
     }
 
     /// Adds a node kind; a second registration of the same kind name is a programming error.

@@ -173,6 +173,14 @@ pub fn recipe_schema(registry: &Registry) -> Value {
                     "units": {"type": "string"},
                     "description": {"type": "string"}}}]}}),
     );
+    props.insert(
+        "plugins".into(),
+        json!({"type": "array", "description": "WebAssembly plugins whose node kinds the steps use",
+            "items": {"anyOf": [{"type": "string", "description": "plugin id, found on the plugin search path"},
+                {"type": "object", "additionalProperties": false, "properties": {
+                    "id": {"type": "string"}, "path": {"type": "string", "description": "a `.plugin.json` manifest, relative to the recipe"},
+                    "version": {"type": "string"}, "sha256": {"type": "string", "pattern": "^[0-9a-fA-F]{64}$"}}}]}}),
+    );
     let bound = json!({"anyOf": [{"type": "number"}, {"type": "string"}]});
     props.insert(
         "fit".into(),

@@ -206,6 +206,9 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                     })
                     .collect();
                 let mut key_text = format!("{}@{}\n", step.kind, spec.version);
+                if let Some(code) = node.code_digest() {
+                    key_text.push_str(&format!("code {code}\n"));
+                }
                 for (k, d) in &param_digests {
                     key_text.push_str(&format!("p {k}={d}\n"));
                 }

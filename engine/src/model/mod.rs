@@ -7,6 +7,7 @@ mod entities;
 mod fit;
 mod measurements;
 mod params;
+mod plugins;
 mod resolve;
 
 pub use entities::{
@@ -15,6 +16,7 @@ pub use entities::{
 };
 pub use fit::{FitMethod, FitScale, FitSpec, FreeParam};
 pub use params::{ParamQuantity, Parameter, command_line_span};
+pub use plugins::{PluginRef, plugin_refs};
 pub use resolve::resolve;
 
 use crate::diag::Span;

@@ -28,6 +28,7 @@ const TOP_KEYS: &[&str] = &[
     "params",
     "fit",
     "measurements",
+    "plugins",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];

@@ -1,0 +1,366 @@
+//! A plugin's node kinds as engine nodes: described once at load, each call in a fresh,
+//! bounded store.
+
+use crate::v0_1_0::{self as v1, Input, NamedParam, ParamType, ParamValue, PluginPre};
+use crate::{Limits, LoadError, Manifest};
+use spindlelab_engine::grammar::{self, Dimension};
+use spindlelab_engine::model::Recipe;
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
+use std::sync::Arc;
+use wasmtime::component::ResourceTable;
+use wasmtime::{Engine, ResourceLimiter, Store, Trap};
+
+/// What one plugin's calls share: the engine, the pre-instantiated component, its limits.
+pub(crate) struct Runtime {
+    pub engine: Engine,
+    pub pre: PluginPre<State>,
+    pub limits: Limits,
+    pub id: String,
+    pub version: String,
+    pub sha256: String,
+}
+
+/// The store's data of one call: the memory limiter and what it refused.
+pub(crate) struct State {
+    memory_cap: usize,
+    refused: Option<usize>,
+    _table: ResourceTable,
+}
+
+impl ResourceLimiter for State {
+    fn memory_growing(&mut self, _current: usize, desired: usize, _maximum: Option<usize>) -> wasmtime::Result<bool> {
+        if desired > self.memory_cap {
+            self.refused = Some(desired);
+            return Err(wasmtime::format_err!("memory limit"));
+        }
+        Ok(true)
+    }
+    fn table_growing(&mut self, _current: usize, desired: usize, _maximum: Option<usize>) -> wasmtime::Result<bool> {
+        Ok(desired <= 1 << 20)
+    }
+    fn instances(&self) -> usize {
+        16
+    }
+    fn memories(&self) -> usize {
+        4
+    }
+    fn tables(&self) -> usize {
+        16
+    }
+}
+
+/// Why a call failed, for the node's error.
+enum CallError {
+    OutOfFuel,
+    Memory(usize),
+    Trap(String),
+    Plugin(String),
+}
+
+impl Runtime {
+    /// A fresh store with this plugin's limits.
+    fn store(&self) -> Store<State> {
+        let mut store = Store::new(
+            &self.engine,
+            State { memory_cap: self.limits.memory as usize, refused: None, _table: ResourceTable::new() },
+        );
+        store.limiter(|s| s as &mut dyn ResourceLimiter);
+        store.set_fuel(self.limits.fuel).expect("fuel is enabled");
+        store
+    }
+
+    fn classify(&self, store: &Store<State>, e: wasmtime::Error) -> CallError {
+        if let Some(bytes) = store.data().refused {
+            return CallError::Memory(bytes);
+        }
+        match e.downcast_ref::<Trap>() {
+            Some(Trap::OutOfFuel) => CallError::OutOfFuel,
+            Some(Trap::UnreachableCodeReached) => {
+                CallError::Trap("it trapped (a panic in the plugin, or an `unreachable` instruction)".into())
+            }
+            Some(t) => CallError::Trap(format!("it trapped: {t}")),
+            None => CallError::Trap(format!("{e:#}")),
+        }
+    }
+
+    fn describe(&self) -> Result<v1::PluginInfo, CallError> {
+        let mut store = self.store();
+        let plugin = match self.pre.instantiate(&mut store) {
+            Ok(p) => p,
+            Err(e) => return Err(self.classify(&store, e)),
+        };
+        plugin.spindlelab_plugin_node().call_describe(&mut store).map_err(|e| self.classify(&store, e))
+    }
+
+    fn run(&self, kind: &str, params: &[NamedParam], inputs: &[Input]) -> Result<v1::Outcome, CallError> {
+        let mut store = self.store();
+        let plugin = match self.pre.instantiate(&mut store) {
+            Ok(p) => p,
+            Err(e) => return Err(self.classify(&store, e)),
+        };
+        match plugin.spindlelab_plugin_node().call_run(&mut store, kind, params, inputs) {
+            Ok(Ok(outcome)) => Ok(outcome),
+            Ok(Err(message)) => Err(CallError::Plugin(message)),
+            Err(e) => Err(self.classify(&store, e)),
+        }
+    }
+
+    fn explain(&self, e: CallError) -> String {
+        match e {
+            CallError::OutOfFuel => format!(
+                "it ran out of its work bound ({} fuel units, about as many instructions) and was stopped; if the \
+                 input is that large, ask for more fuel in its manifest's `limits`",
+                self.limits.fuel
+            ),
+            CallError::Memory(bytes) => format!(
+                "it asked for {} MiB of memory, beyond its cap of {} MiB, and was stopped",
+                bytes >> 20,
+                self.limits.memory >> 20
+            ),
+            CallError::Trap(m) | CallError::Plugin(m) => m,
+        }
+    }
+}
+
+/// Leaks a plugin's text for the engine's `'static` node descriptions: a plugin is
+/// described once per process, so this is bounded by the plugins loaded.
+fn leak(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
+}
+
+const MAX_KINDS: usize = 256;
+const MAX_PORTS: usize = 64;
+const MAX_PARAMS: usize = 128;
+const MAX_TEXT: usize = 4096;
+
+/// Asks the plugin to describe itself and checks what it says.
+pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc<PluginNode>>, LoadError> {
+    let id = manifest.id.clone();
+    let bad = |message: String| LoadError::BadDescription { id: id.clone(), message };
+    let info = rt.describe().map_err(|e| LoadError::Describe { id: id.clone(), message: rt.explain(e) })?;
+    if info.name != manifest.id || info.version != manifest.version {
+        return Err(bad(format!(
+            "it calls itself `{}` {} but its manifest says `{}` {}; rebuild it with `spindlelab plugin build`",
+            info.name, info.version, manifest.id, manifest.version
+        )));
+    }
+    if info.nodes.is_empty() || info.nodes.len() > MAX_KINDS {
+        return Err(bad(format!("it describes {} node kinds; a plugin provides 1 to {MAX_KINDS}", info.nodes.len())));
+    }
+    let mut seen = std::collections::HashSet::new();
+    let mut nodes = Vec::new();
+    for k in info.nodes {
+        let kind = k.kind.clone();
+        let bad_kind = |m: String| bad(format!("node kind `{kind}`: {m}"));
+        let dotted = kind.split('.').count() >= 2
+            && kind
+                .split('.')
+                .all(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_'));
+        if !dotted || kind.len() > 64 {
+            return Err(bad_kind("a kind is dotted lowercase words, e.g. `chatter.indicator`".into()));
+        }
+        if !seen.insert(kind.clone()) {
+            return Err(bad_kind("described twice".into()));
+        }
+        if k.inputs.len() > MAX_PORTS || k.outputs.len() > MAX_PORTS || k.params.len() > MAX_PARAMS {
+            return Err(bad_kind(format!("at most {MAX_PORTS} ports each way and {MAX_PARAMS} parameters")));
+        }
+        if k.outputs.is_empty() {
+            return Err(bad_kind("it has no outputs".into()));
+        }
+        let texts = std::iter::once(&k.description)
+            .chain(k.inputs.iter().chain(&k.outputs).flat_map(|p| [&p.name, &p.doc]))
+            .chain(k.params.iter().flat_map(|p| [&p.name, &p.doc]));
+        if texts.clone().any(|t| t.len() > MAX_TEXT) {
+            return Err(bad_kind(format!("a name or description is longer than {MAX_TEXT} bytes")));
+        }
+        let ident =
+            |n: &str| !n.is_empty() && n.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+        let mut names = std::collections::HashSet::new();
+        for n in k.inputs.iter().map(|p| &p.name).chain(k.params.iter().map(|p| &p.name)) {
+            if !ident(n) || !names.insert(n.clone()) {
+                return Err(bad_kind(format!("`{n}` is not a unique lowercase name (letters, digits, `_`)")));
+            }
+        }
+        let mut outs = std::collections::HashSet::new();
+        for n in k.outputs.iter().map(|p| &p.name) {
+            if !ident(n) || !outs.insert(n.clone()) {
+                return Err(bad_kind(format!("output `{n}` is not a unique lowercase name")));
+            }
+        }
+        let port = |p: &v1::Port| {
+            let mut s = PortSpec::new(leak(p.name.clone()), v1::port_type(p.ty), leak(p.doc.clone()));
+            s.optional = p.optional;
+            s
+        };
+        let mut params = Vec::new();
+        for p in &k.params {
+            let ty = match &p.ty {
+                ParamType::Quantity(u) => FieldType::Quantity(si_dimension(u).map_err(&bad_kind)?),
+                ParamType::QuantityList(u) => FieldType::QuantityList(si_dimension(u).map_err(&bad_kind)?),
+                ParamType::Integer((min, max)) if min <= max => FieldType::Integer { min: *min, max: *max },
+                ParamType::Integer(_) => return Err(bad_kind(format!("parameter `{}`: empty integer range", p.name))),
+                ParamType::Boolean => FieldType::Bool,
+                ParamType::Text => FieldType::Text,
+                ParamType::Choice(words) if !words.is_empty() => FieldType::Choice(Box::leak(
+                    words.iter().map(|w| leak(w.clone())).collect::<Vec<_>>().into_boxed_slice(),
+                )),
+                ParamType::Choice(_) => return Err(bad_kind(format!("parameter `{}`: a choice of no words", p.name))),
+                ParamType::Material => FieldType::Entity(EntityKind::Material),
+                ParamType::Sensor => FieldType::Entity(EntityKind::Sensor),
+            };
+            params.push(Field {
+                name: leak(p.name.clone()),
+                ty,
+                required: p.required && p.default.is_none(),
+                default: p.default.clone().map(leak),
+                doc: leak(p.doc.clone()),
+            });
+        }
+        spindlelab_engine::spec::check_defaults(&params).map_err(&bad_kind)?;
+        let spec = NodeSpec {
+            kind: leak(kind.clone()),
+            version: k.version,
+            description: leak(k.description.clone()),
+            inputs: k.inputs.iter().map(port).collect(),
+            outputs: k.outputs.iter().map(port).collect(),
+            params,
+        };
+        nodes.push(Arc::new(PluginNode { spec, rt: rt.clone() }));
+    }
+    Ok(nodes)
+}
+
+/// The dimension of an SI unit symbol a plugin declares (`kg`, `N/m`, `rad/s`; empty: none).
+fn si_dimension(unit: &str) -> Result<Dimension, String> {
+    if unit.trim().is_empty() {
+        return Ok(Dimension::DIMENSIONLESS);
+    }
+    let u = grammar::parse_unit(unit).map_err(|e| format!("unit `{unit}`: {}", e.message))?;
+    if (u.scale - 1.0).abs() > 1e-12 {
+        return Err(format!(
+            "unit `{unit}` is not SI (1 {unit} = {} {}); plugins receive SI, declare `{}`",
+            u.scale,
+            u.dim.si_unit(),
+            u.dim.si_unit()
+        ));
+    }
+    Ok(u.dim)
+}
+
+/// One node kind of a plugin.
+pub struct PluginNode {
+    spec: NodeSpec,
+    rt: Arc<Runtime>,
+}
+
+impl PluginNode {
+    /// The plugin that provides it: id, version, SHA-256.
+    pub fn plugin(&self) -> (&str, &str, &str) {
+        (&self.rt.id, &self.rt.version, &self.rt.sha256)
+    }
+
+    fn fail(&self, cause: impl std::fmt::Display) -> NodeError {
+        NodeError::Failed(format!("plugin `{}` {}, node `{}`: {cause}", self.rt.id, self.rt.version, self.spec.kind))
+    }
+}
+
+fn param_value(v: &P, recipe: &Recipe) -> Option<ParamValue> {
+    Some(match v {
+        P::Entity { kind: EntityKind::Material, name } => {
+            let m = recipe.materials.get(name)?;
+            ParamValue::Material(v1::Material {
+                name: name.clone(),
+                youngs_modulus: m.youngs_modulus,
+                density: m.density,
+                poisson: m.poisson,
+                loss_factor: m.loss_factor,
+            })
+        }
+        P::Entity { kind: EntityKind::Sensor, name } => {
+            let s = recipe.sensors.get(name)?;
+            ParamValue::Sensor(v1::Sensor {
+                name: name.clone(),
+                kind: s.kind.clone(),
+                phase_slope: s.phase_slope,
+                mass: s.mass,
+                location: s.location.clone(),
+            })
+        }
+        P::Quantity { value, .. } => ParamValue::Number(*value),
+        P::List { values, .. } => ParamValue::Numbers(values.clone()),
+        P::Int(i) => ParamValue::Integer(*i),
+        P::Bool(b) => ParamValue::Boolean(*b),
+        P::Text(t) => ParamValue::Text(t.clone()),
+        _ => return None,
+    })
+}
+
+/// The parameters as the interface passes them (SI), in the kind's order; a material or
+/// sensor by its properties, the only entity data a plugin sees.
+fn params_of(spec: &NodeSpec, params: &Params, recipe: &Recipe) -> Vec<NamedParam> {
+    spec.params
+        .iter()
+        .filter_map(|f| {
+            let value = param_value(params.get(f.name)?, recipe)?;
+            Some(NamedParam { name: f.name.to_string(), value })
+        })
+        .collect()
+}
+
+impl Node for PluginNode {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+
+    fn code_digest(&self) -> Option<&str> {
+        Some(&self.rt.sha256)
+    }
+
+    fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let params = params_of(&self.spec, ctx.params, ctx.recipe);
+        let mut inputs = Vec::new();
+        for port in &self.spec.inputs {
+            for l in ctx.inputs_of(port.name) {
+                let value = v1::to_wit(&l.value).ok_or_else(|| {
+                    NodeError::input(port.name, format!("a {} cannot cross to a plugin", l.value.port_type()))
+                })?;
+                inputs.push(Input { port: port.name.to_string(), label: l.label.clone(), value });
+            }
+        }
+        let outcome = self.rt.run(self.spec.kind, &params, &inputs).map_err(|e| self.fail(self.rt.explain(e)))?;
+        let total: u64 = outcome.outputs.iter().map(|o| v1::numbers_in(&o.value)).sum();
+        if total > self.rt.limits.output_values {
+            return Err(self.fail(format!(
+                "it returned {total} numbers, beyond its bound of {}; ask for more in its manifest's `limits`",
+                self.rt.limits.output_values
+            )));
+        }
+        for w in outcome.warnings.into_iter().take(100) {
+            ctx.warn(w.chars().take(MAX_TEXT).collect::<String>());
+        }
+        let mut out = Outputs::new();
+        for o in outcome.outputs {
+            let Some(port) = self.spec.output(&o.port) else {
+                return Err(self.fail(format!("it returned an output `{}` it does not declare", o.port)));
+            };
+            let value = v1::from_wit(o.value).map_err(|m| self.fail(format!("output `{}`: {m}", o.port)))?;
+            if value.port_type() != port.ty {
+                return Err(self.fail(format!(
+                    "output `{}` is declared a {} but it returned a {}",
+                    o.port,
+                    port.ty,
+                    value.port_type()
+                )));
+            }
+            if out.insert(o.port.clone(), value).is_some() {
+                return Err(self.fail(format!("it returned output `{}` twice", o.port)));
+            }
+        }
+        if let Some(missing) = self.spec.outputs.iter().find(|p| !out.contains_key(p.name)) {
+            return Err(self.fail(format!("it returned no `{}`", missing.name)));
+        }
+        Ok(out)
+    }
+}

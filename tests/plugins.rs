@@ -1,0 +1,415 @@
+//! WebAssembly plugins end to end: the example plugins against analytic results, the
+//! faulty and hostile fixtures against the sandbox, load-time checks, the compiled-component
+//! cache and the command line. The plugins are built once, by `spindlelab-plugin-examples`.
+
+use num_complex::Complex64;
+use spindlelab::engine::exec::{Outcome, RunOptions};
+use spindlelab::engine::value::{Channel, Frf, TimeSeries, UnitLabel, Value};
+use spindlelab::engine::{self, Compiled, RunError, formats::csv};
+use spindlelab::plugins::{self, Plugins};
+use spindlelab_plugin_host::{Expect, Host, LoadError, Policy};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn examples() -> PathBuf {
+    spindlelab_plugin_examples::dir().to_path_buf()
+}
+
+/// Plugins from the example folder only, compiled components cached in `cache`.
+fn plugins_in(cache: &Path) -> Plugins {
+    Plugins::with(vec![examples()], Policy::default(), Some(cache.to_path_buf()))
+}
+
+fn compile(path: &Path, plugins: &mut Plugins) -> (Compiled, engine::node::Registry) {
+    let mut registry = spindlelab::registry();
+    match plugins::compile_file(path, &[], &mut registry, plugins) {
+        Ok(c) => (c, registry),
+        Err(e) => panic!("{} does not compile:\n{}", path.display(), e.render(false)),
+    }
+}
+
+/// Runs a recipe without the cache; every instance's outcome by id.
+fn run(path: &Path, plugins: &mut Plugins) -> Vec<(String, Outcome)> {
+    let (c, registry) = compile(path, plugins);
+    let out = tempfile::tempdir().unwrap();
+    let mut opts = RunOptions::new(out.path());
+    opts.use_cache = false;
+    opts.keep_going = true;
+    let result = match engine::run(&c, &registry, &opts, &|_, _| {}) {
+        Ok(r) => r.result,
+        Err(RunError::NodesFailed { report, .. }) => report.result,
+        Err(e) => panic!("{e}"),
+    };
+    c.graph.instances.iter().map(|i| i.id.clone()).zip(result.outcomes).collect()
+}
+
+fn value<'a>(outcomes: &'a [(String, Outcome)], id: &str, port: &str) -> &'a Value {
+    let (_, o) = outcomes.iter().find(|(i, _)| i == id).unwrap_or_else(|| panic!("no instance {id}"));
+    match o.outputs() {
+        Some(out) => out.get(port).unwrap_or_else(|| panic!("{id} has no {port}")),
+        None => panic!("{id} did not run: {o:?}"),
+    }
+}
+
+fn failure<'a>(outcomes: &'a [(String, Outcome)], id: &str) -> String {
+    match &outcomes.iter().find(|(i, _)| i == id).expect("instance").1 {
+        Outcome::Failed(e) => e.to_string(),
+        o => panic!("{id} should have failed: {o:?}"),
+    }
+}
+
+/// Receptance of a single degree of freedom, m/N.
+fn sdof(m: f64, k: f64, c: f64, f: f64) -> Complex64 {
+    let w = std::f64::consts::TAU * f;
+    Complex64::new(1.0, 0.0) / Complex64::new(k - w * w * m, w * c)
+}
+
+#[test]
+fn tip_mass_gives_the_receptance_of_the_structure_with_the_added_mass() {
+    // Validation: H of m, k, c with the plugin's 20 g added (the recipe's accelerometer, the
+    // entity passed to the plugin by value) is H of m + 20 g, k, c (closed form).
+    let dir = tempfile::tempdir().unwrap();
+    let (m, k, c, added) = (0.1, 1e7, 12.0, 0.02);
+    let freq_hz: Vec<f64> = (0..=800).map(|i| 5.0 * i as f64).collect();
+    let frf = Frf {
+        values: freq_hz.iter().map(|&f| sdof(m, k, c, f)).collect(),
+        freq_hz: freq_hz.clone(),
+        coherence: None,
+        unit: UnitLabel::new("m/N"),
+        direction: Some("x".into()),
+        speed_rpm: None,
+        sensor: None,
+    };
+    std::fs::write(dir.path().join("sdof.csv"), csv::write_frf(&frf)).unwrap();
+    let recipe = dir.path().join("tip-mass.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nname: tip-mass-check\nplugins: [tip-mass]\n\
+         sensors:\n  accel: { kind: accelerometer, mass: 20 g, location: tip }\nsteps:\n  \
+         measured: { kind: read.frf, params: { file: sdof.csv } }\n  \
+         loaded: { kind: effect.tip_mass, params: { sensor: accel }, inputs: { frf: \"@measured.frf\" } }\n  \
+         removed: { kind: effect.tip_mass, params: { mass: -20 g }, inputs: { frf: \"@loaded.frf\" } }\n",
+    )
+    .unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let outcomes = run(&recipe, &mut plugins_in(cache.path()));
+    let Value::Frf(loaded) = value(&outcomes, "loaded", "frf") else { panic!("not an FRF") };
+    let mut worst: f64 = 0.0;
+    for (f, h) in loaded.freq_hz.iter().zip(&loaded.values) {
+        let want = sdof(m + added, k, c, *f);
+        worst = worst.max((h - want).norm() / want.norm());
+    }
+    assert!(worst < 1e-6, "largest relative difference from the closed form {worst:e}");
+    assert_eq!(loaded.direction.as_deref(), Some("x"), "the FRF keeps its direction");
+    // Removing the mass again gives the structure back; the plugin warns that it removes mass.
+    let Value::Frf(back) = value(&outcomes, "removed", "frf") else { panic!("not an FRF") };
+    for (h, f) in back.values.iter().zip(&freq_hz) {
+        let want = sdof(m, k, c, *f);
+        assert!((h - want).norm() / want.norm() < 1e-6);
+    }
+    let removed = &outcomes.iter().find(|(i, _)| i == "removed").unwrap().1;
+    assert!(removed.warnings().iter().any(|w| w.contains("negative mass (-20 g)")), "{:?}", removed.warnings());
+}
+
+#[test]
+fn chatter_energy_ratio_is_the_share_of_non_synchronous_energy_of_a_known_signal() {
+    // Validation: rotation harmonics of amplitudes 3, 2, 1 at 100, 200, 400 Hz (6000 rpm) and a
+    // chatter tone of amplitude 1.5 at 537 Hz, each on a spectral line: the Hann window
+    // spreads each tone alike, so the share is 1.5²/(3² + 2² + 1² + 1.5²) exactly.
+    let dir = tempfile::tempdir().unwrap();
+    let (fs, n) = (8192.0, 8192usize);
+    let tones = [(100.0, 3.0), (200.0, 2.0), (400.0, 1.0), (537.0, 1.5)];
+    let samples: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = i as f64 / fs;
+            0.25 + tones.iter().map(|(f, a)| a * (std::f64::consts::TAU * f * t + 0.3 * f / 100.0).sin()).sum::<f64>()
+        })
+        .collect();
+    let series = TimeSeries {
+        sample_rate: fs,
+        t0: 0.0,
+        channels: vec![Channel { name: "ax".into(), unit: UnitLabel::new("m/s^2"), samples }],
+    };
+    std::fs::write(dir.path().join("cut.csv"), csv::write_time_series(&series)).unwrap();
+    let recipe = dir.path().join("chatter.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nname: chatter-check\nplugins: [chatter-indicator]\nsteps:\n  \
+         cut: { kind: read.time_series, params: { file: cut.csv } }\n  \
+         ratio: { kind: chatter.energy_ratio, params: { spindle_speed: 6000 rpm }, inputs: { signal: \"@cut.series\" } }\n  \
+         spectrum: { kind: spectrum.amplitude, inputs: { signal: \"@cut.series\" } }\n",
+    )
+    .unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let outcomes = run(&recipe, &mut plugins_in(cache.path()));
+    let Value::Scalar(ratio) = value(&outcomes, "ratio", "ratio") else { panic!() };
+    let want = 1.5f64.powi(2) / (9.0 + 4.0 + 1.0 + 2.25);
+    assert!((ratio.value - want).abs() < 1e-9, "ratio {} against {want}", ratio.value);
+    let Value::Scalar(f) = value(&outcomes, "ratio", "chatter_frequency") else { panic!() };
+    assert_eq!(f.value, 537.0);
+    assert_eq!(f.unit.symbol, "Hz");
+    // The spectrum reads each tone's amplitude on its line, in the channel's unit.
+    let Value::Table(t) = value(&outcomes, "spectrum", "spectrum") else { panic!() };
+    assert_eq!(t.columns[1].unit.symbol, "m/s^2");
+    for (fr, a) in tones {
+        let line = fr as usize; // 1 Hz lines
+        assert_eq!(t.columns[0].values[line], fr);
+        assert!((t.columns[1].values[line] - a).abs() < 1e-9, "{fr} Hz reads {}", t.columns[1].values[line]);
+    }
+    assert!((t.columns[1].values[0] - 0.0).abs() < 1e-9, "the mean is removed");
+}
+
+#[test]
+fn the_example_recipe_s_chatter_indicator_agrees_with_the_simulation_s_verdicts() {
+    // The plugin's spectral share against milling.simulate's own once-per-period verdict
+    // (another criterion, other code): low where the cut is stable, high where it chatters.
+    let cache = tempfile::tempdir().unwrap();
+    let outcomes = run(Path::new("scripts/plugin-nodes.yaml"), &mut plugins_in(cache.path()));
+    for depth in ["1 mm", "4 mm"] {
+        let Value::Table(summary) = value(&outcomes, &format!("cut[depth={depth}]"), "summary") else { panic!() };
+        let stable = summary.columns.iter().find(|c| c.name == "stable").unwrap().values[0] == 1.0;
+        let Value::Scalar(r) = value(&outcomes, &format!("indicator[depth={depth}]"), "ratio") else { panic!() };
+        if stable {
+            assert!(r.value < 0.05, "{depth}: stable but {} of the energy is not synchronous", r.value);
+        } else {
+            assert!(r.value > 0.5, "{depth}: chatter but only {} of the energy is not synchronous", r.value);
+        }
+    }
+    // The 20 g sensor lowers the target's resonance from sqrt(k/m) to sqrt(k/(m + 20 g)).
+    let peak = |v: &Value| {
+        let Value::Frf(f) = v else { panic!() };
+        let i = (0..f.values.len()).max_by(|&a, &b| f.values[a].norm().total_cmp(&f.values[b].norm())).unwrap();
+        f.freq_hz[i]
+    };
+    let (bare, loaded) = (peak(value(&outcomes, "frf", "frf")), peak(value(&outcomes, "with_sensor", "frf")));
+    let fk = |m: f64| (1e7f64 / m).sqrt() / std::f64::consts::TAU;
+    assert!((bare - fk(0.1)).abs() < 25.0, "bare peak {bare} Hz");
+    assert!((loaded - fk(0.12)).abs() < 25.0, "loaded peak {loaded} Hz");
+}
+
+#[test]
+fn hostile_plugins_fail_alone_with_clear_errors_within_their_bounds() {
+    let cache = tempfile::tempdir().unwrap();
+    // Tight bounds so the spinning and growing nodes stop quickly.
+    let policy =
+        Policy { fuel_default: 300_000_000, memory_default: 160 << 20, output_default: 4 << 20, ..Policy::default() };
+    let mut plugins = Plugins::with(vec![examples()], policy, Some(cache.path().to_path_buf()));
+    let outcomes = run(Path::new("tests/data/plugins/hostile.yaml"), &mut plugins);
+    let Value::Scalar(y) = value(&outcomes, "after", "y") else { panic!() };
+    assert_eq!(y.value, 1.5, "a working plugin node after the failures still runs");
+    let expect = [
+        ("spin", "ran out of its work bound (300000000 fuel units"),
+        ("grow", "beyond its cap of 160 MiB"),
+        ("huge", "returned 12000000 numbers, beyond its bound of 4194304"),
+        ("wrong_type", "output `y` is declared a table but it returned a scalar"),
+        ("undeclared", "returned an output `z` it does not declare"),
+        ("trap", "it trapped (a panic in the plugin, or an `unreachable` instruction)"),
+        ("panic", "it trapped (a panic in the plugin"),
+        ("open_file", "could not open /etc/passwd: operation not supported"),
+    ];
+    for (id, text) in expect {
+        let e = failure(&outcomes, id);
+        assert!(e.contains(text), "{id}: {e}");
+        assert!(e.contains(&format!("plugin `hostile` 0.1.0, node `fixture.{id}`")), "{id} names plugin and node: {e}");
+    }
+}
+
+/// Writes `component` and a manifest with its true hash into `dir` as plugin `id`.
+fn write_plugin(dir: &Path, id: &str, component: &[u8], interface: &str) -> PathBuf {
+    std::fs::write(dir.join(format!("{id}.wasm")), component).unwrap();
+    let m = spindlelab_plugin_host::Manifest {
+        id: id.into(),
+        version: "0.1.0".into(),
+        interface: interface.into(),
+        wasm: format!("{id}.wasm"),
+        sha256: spindlelab_plugin_host::pack::sha256_hex(component),
+        limits: Default::default(),
+    };
+    let path = dir.join(format!("{id}.plugin.json"));
+    m.write(&path).unwrap();
+    path
+}
+
+fn load(manifest: &Path, expect: Expect) -> Result<spindlelab_plugin_host::Plugin, LoadError> {
+    Host::new(Policy::default(), None).unwrap().load(manifest, &expect)
+}
+
+#[test]
+fn faulty_plugin_files_are_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let wat = |name: &str| wat::parse_file(Path::new("tests/data/plugins").join(name)).unwrap();
+    let err = |r: Result<spindlelab_plugin_host::Plugin, LoadError>| match r {
+        Ok(_) => panic!("loaded"),
+        Err(e) => e.to_string(),
+    };
+
+    let e = err(load(&write_plugin(d, "wasi", &wat("wasi-import.wat"), "0.1.0"), Expect::default()));
+    assert!(e.contains("imports `wasi:filesystem/types@0.2.0`; a plugin may import nothing"), "{e}");
+    let e = err(load(&write_plugin(d, "later", &wat("interface-0.2.0.wat"), "0.1.0"), Expect::default()));
+    assert!(e.contains("built for interface spindlelab:plugin@0.2.0; this host runs 0.1.0"), "{e}");
+    let e = err(load(&write_plugin(d, "claims", &wat("interface-0.2.0.wat"), "0.2.0"), Expect::default()));
+    assert!(e.contains("built for interface spindlelab:plugin@0.2.0"), "{e}");
+    let e = err(load(&write_plugin(d, "corrupt", b"\0asm\x0d\0\x01\0garbage", "0.1.0"), Expect::default()));
+    assert!(e.contains("not a valid WebAssembly component"), "{e}");
+
+    // A component changed after packing: its hash no longer matches the manifest's.
+    let good = spindlelab_plugin_examples::manifest("tip-mass");
+    let mut bytes = std::fs::read(good.with_file_name("tip-mass.wasm")).unwrap();
+    let manifest = write_plugin(d, "tip-mass", &bytes, "0.1.0");
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(d.join("tip-mass.wasm"), &bytes).unwrap();
+    let e = err(load(&manifest, Expect::default()));
+    assert!(e.contains("SHA-256 is") && e.contains("but the manifest says"), "{e}");
+
+    // Pins the recipe sets.
+    let e = err(load(&good, Expect { version: Some("0.2.0".into()), sha256: None }));
+    assert!(e.contains("version 0.2.0 was asked for, but its version is 0.1.0"), "{e}");
+    let e = err(load(&good, Expect { version: None, sha256: Some("0".repeat(64)) }));
+    assert!(e.contains("SHA-256 0000"), "{e}");
+
+    // Manifests that point outside their folder or are not manifests.
+    let outside = d.join("outside.plugin.json");
+    std::fs::write(&outside, r#"{"id":"x","version":"1","interface":"0.1.0","wasm":"../x.wasm","sha256":"00"}"#)
+        .unwrap();
+    assert!(err(load(&outside, Expect::default())).contains("give the component's file name in the manifest's folder"));
+    let big = d.join("big.plugin.json");
+    std::fs::write(&big, vec![b' '; 100_000]).unwrap();
+    assert!(err(load(&big, Expect::default())).contains("a manifest is at most 65536 bytes"));
+}
+
+#[test]
+fn a_compiled_plugin_is_cached_and_a_damaged_cache_entry_is_compiled_again() {
+    let cache = tempfile::tempdir().unwrap();
+    let host = Host::new(Policy::default(), Some(cache.path().to_path_buf())).unwrap();
+    let manifest = spindlelab_plugin_examples::manifest("chatter-indicator");
+    assert!(!host.load(&manifest, &Expect::default()).unwrap().from_cache);
+    assert!(host.load(&manifest, &Expect::default()).unwrap().from_cache);
+    for entry in std::fs::read_dir(cache.path()).unwrap() {
+        let path = entry.unwrap().path();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let mid = bytes.len() / 2;
+        bytes[mid] ^= 0xff;
+        std::fs::write(&path, bytes).unwrap();
+    }
+    let again = host.load(&manifest, &Expect::default()).unwrap();
+    assert!(!again.from_cache, "a damaged entry is never loaded");
+    assert_eq!(again.nodes.len(), 2);
+}
+
+#[test]
+fn plugin_outputs_are_cached_under_the_plugin_s_hash() {
+    let cache = tempfile::tempdir().unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let mut plugins = plugins_in(cache.path());
+    let (c, registry) = compile(Path::new("scripts/plugin-nodes.yaml"), &mut plugins);
+    let node = registry.get("effect.tip_mass").unwrap();
+    let sha = node.code_digest().expect("a plugin node has a code digest");
+    assert_eq!(sha.len(), 64);
+    let opts = RunOptions::new(out.path());
+    engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
+    let second = engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
+    let i = c.graph.instances.iter().position(|i| i.id == "with_sensor").unwrap();
+    assert!(matches!(second.result.outcomes[i], Outcome::Cached { .. } | Outcome::Unneeded { cached: true }));
+}
+
+#[test]
+fn bad_plugin_entries_are_reported_at_their_line_and_column() {
+    let cache = tempfile::tempdir().unwrap();
+    let mut plugins = plugins_in(cache.path());
+    let mut registry = spindlelab::registry();
+    let path = Path::new("tests/data/plugins/bad-refs.yaml");
+    let e = match plugins::compile_file(path, &[], &mut registry, &mut plugins) {
+        Ok(_) => panic!("compiled"),
+        Err(e) => e.render(false),
+    };
+    for needle in [
+        "bad-refs.yaml:5:5",
+        "plugin `no-such-plugin` is not in the plugin folders",
+        "bad-refs.yaml:6:5",
+        "version 9.9.9 was asked for, but its version is 0.1.0",
+        "bad-refs.yaml:7:5",
+        "by `id` or by `path`, not both or neither",
+        "bad-refs.yaml:8:5",
+        "missing.plugin.json",
+        "bad-refs.yaml:9:5",
+        "a plugin entry is an id or a mapping, found an integer",
+        "unknown key `colour` in a plugin entry",
+    ] {
+        assert!(e.contains(needle), "missing `{needle}` in:\n{e}");
+    }
+}
+
+fn spindlelab(args: &[&str], home: &Path) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(args)
+        .env("HOME", home)
+        .env_remove("XDG_DATA_HOME")
+        .env_remove("XDG_CACHE_HOME")
+        .env_remove("SPINDLELAB_PLUGIN_PATH")
+        .env_remove("SPINDLELAB_PLUGIN_CACHE")
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+#[test]
+fn command_line_checks_plugins_lists_their_nodes_and_runs_recipes_with_them() {
+    let home = tempfile::tempdir().unwrap();
+    let manifest = spindlelab_plugin_examples::manifest("tip-mass");
+    let (code, out, err) = spindlelab(&["plugin", "check", manifest.to_str().unwrap()], home.path());
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("tip-mass 0.1.0") && out.contains("effect.tip_mass v1") && out.contains("256 MiB memory"),
+        "{out}"
+    );
+
+    let dir = examples();
+    let (code, out, _) = spindlelab(&["nodes", "effect.tip_mass", "--plugin", dir.to_str().unwrap()], home.path());
+    assert_eq!(code, 0);
+    assert!(out.contains("effect.tip_mass") && out.contains("mass"), "{out}");
+
+    let out_dir = home.path().join("run");
+    let (code, _, err) = spindlelab(
+        &["run", "scripts/plugin-nodes.yaml", "-q", "--plugin", dir.to_str().unwrap(), "-o", out_dir.to_str().unwrap()],
+        home.path(),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out_dir.join("chatter-energy-ratio.csv").is_file());
+
+    // Without the plugin folder the recipe names a plugin that is not there: exit 2, at its line.
+    let (code, _, err) = spindlelab(&["check", "scripts/plugin-nodes.yaml"], home.path());
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("plugin-nodes.yaml:9:5") && err.contains("plugin `tip-mass` is not in the plugin folders"),
+        "{err}"
+    );
+
+    let bad = home.path().join("bad.plugin.json");
+    std::fs::write(&bad, "{}").unwrap();
+    let (code, _, err) = spindlelab(&["plugin", "check", bad.to_str().unwrap()], home.path());
+    assert_eq!(code, 2);
+    assert!(err.contains("not a plugin manifest"), "{err}");
+}
+
+#[test]
+fn a_new_plugin_from_the_template_builds_loads_and_runs() {
+    let home = tempfile::tempdir().unwrap();
+    let crate_dir = home.path().join("my-gain");
+    let (code, out, err) = spindlelab(&["plugin", "new", "my-gain", "--dir", crate_dir.to_str().unwrap()], home.path());
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("plugin build"), "{out}");
+    // Built into the user plugin folder, where a recipe finds it by id.
+    let (code, out, err) = spindlelab(&["plugin", "build", crate_dir.to_str().unwrap()], home.path());
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("my_gain.scale v1"), "{out}");
+    assert!(home.path().join(".local/share/spindlelab/plugins/my-gain.plugin.json").is_file());
+    let (code, out, _) = spindlelab(&["plugin", "list"], home.path());
+    assert_eq!(code, 0);
+    assert!(out.contains("my-gain 0.1.0"), "{out}");
+}
