@@ -187,6 +187,9 @@ enum PluginAction {
         /// Where to put the plugin (default: the user plugin folder, so recipes find it by id).
         #[arg(short, long)]
         out: Option<PathBuf>,
+        /// Cargo's target folder for the build (default: `target` in the crate's folder).
+        #[arg(long)]
+        target_dir: Option<PathBuf>,
     },
     /// List the plugins on the search path and their node kinds.
     List,
@@ -715,12 +718,11 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
             // A registry of its own: a plugin that names a built-in kind is a problem to report.
             let mut registry = spindlelab::registry();
             match plugins.load(&manifest, &Default::default(), &mut registry) {
-                Ok(Some(p)) => {
+                Ok(p) => {
                     describe_plugin(&p);
                     println!("{}: ok", manifest.display());
                     ExitCode::SUCCESS
                 }
-                Ok(None) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("error: {e}");
                     ExitCode::from(EXIT_BAD_INPUT)
@@ -746,19 +748,18 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                 }
             }
         }
-        PluginAction::Build { crate_dir, out } => {
+        PluginAction::Build { crate_dir, out, target_dir } => {
             let Some(out) = out.or_else(spindlelab::plugins::user_plugin_dir) else {
                 eprintln!("error: no user plugin folder (HOME is not set); give one with --out");
                 return ExitCode::from(EXIT_BAD_INPUT);
             };
             let cargo = std::env::var_os("CARGO").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("cargo"));
-            let target = crate_dir.join("target");
+            let target = target_dir.unwrap_or_else(|| crate_dir.join("target"));
             match spindlelab_plugin_pack::build(&cargo, &crate_dir, &target, &out, false) {
                 Ok(packed) => {
                     let mut registry = Registry::new();
                     match plugins.load(&packed.manifest_path, &Default::default(), &mut registry) {
-                        Ok(Some(p)) => describe_plugin(&p),
-                        Ok(None) => {}
+                        Ok(p) => describe_plugin(&p),
                         Err(e) => {
                             eprintln!("error: the plugin was built but does not load: {e}");
                             return ExitCode::from(EXIT_BAD_INPUT);

@@ -19,8 +19,9 @@ pub struct Plugins {
     pub search: Vec<PathBuf>,
     /// Manifests to load whatever the recipe says.
     pub always: Vec<PathBuf>,
-    /// SHA-256 of each plugin loaded, by id.
-    loaded: HashMap<String, String>,
+    /// Each plugin loaded, by its manifest's path: a later recipe of the same command (a
+    /// fit, a test over many recipes) registers it again without loading it again.
+    loaded: HashMap<PathBuf, Arc<Plugin>>,
 }
 
 /// What `spindlelab plugin build` and a missing plugin's message suggest.
@@ -56,29 +57,42 @@ impl Plugins {
         Ok(self.host.as_ref().expect("just made"))
     }
 
-    /// Loads the plugin at `manifest` and registers its kinds; a plugin loaded before (same
-    /// id and hash) is not loaded twice.
-    pub fn load(
-        &mut self,
-        manifest: &Path,
-        expect: &Expect,
-        registry: &mut Registry,
-    ) -> Result<Option<Plugin>, String> {
-        let plugin = self.host()?.load(manifest, expect).map_err(|e| e.to_string())?;
-        let sha = plugin.manifest.sha256.to_ascii_lowercase();
-        match self.loaded.get(&plugin.manifest.id) {
-            Some(s) if *s == sha => return Ok(None),
-            Some(_) => {
-                return Err(format!("two different builds of plugin `{}` are asked for; name one", plugin.manifest.id));
+    /// Loads the plugin at `manifest` (once per command) and registers its kinds in
+    /// `registry`. Another build of a plugin whose kinds are registered already is refused.
+    pub fn load(&mut self, manifest: &Path, expect: &Expect, registry: &mut Registry) -> Result<Arc<Plugin>, String> {
+        let plugin = match self.loaded.get(manifest) {
+            Some(p) => {
+                host::check_pins(&p.manifest, expect).map_err(|e| e.to_string())?;
+                p.clone()
             }
-            None => {}
-        }
+            None => {
+                let p = Arc::new(self.host()?.load(manifest, expect).map_err(|e| e.to_string())?);
+                self.loaded.insert(manifest.to_path_buf(), p.clone());
+                p
+            }
+        };
         for node in &plugin.nodes {
+            let kind = node.spec().kind;
+            if let Some(present) = registry.get(kind) {
+                if present.code_digest() == Some(plugin.manifest.sha256.as_str()) {
+                    continue;
+                }
+                return Err(match present.code_digest() {
+                    Some(_) => format!(
+                        "plugin `{}` ({}): node kind `{kind}` is provided by another plugin build already loaded; name one",
+                        plugin.manifest.id,
+                        manifest.display()
+                    ),
+                    None => format!(
+                        "plugin `{}`: node kind `{kind}` is built in; a plugin cannot replace it",
+                        plugin.manifest.id
+                    ),
+                });
+            }
             let node: Arc<dyn Node> = node.clone();
             registry.try_register(node).map_err(|e| format!("plugin `{}`: {e}", plugin.manifest.id))?;
         }
-        self.loaded.insert(plugin.manifest.id.clone(), sha);
-        Ok(Some(plugin))
+        Ok(plugin)
     }
 
     /// Loads the `--plugin` manifests.
@@ -112,7 +126,7 @@ impl Plugins {
             };
             let expect = Expect { version: r.version.clone(), sha256: r.sha256.clone() };
             match self.load(&manifest, &expect, registry) {
-                Ok(Some(p)) if r.id.as_ref().is_some_and(|id| *id != p.manifest.id) => {
+                Ok(p) if r.id.as_ref().is_some_and(|id| *id != p.manifest.id) => {
                     diags.error(
                         Some(&r.span),
                         format!("{} holds plugin `{}`, not `{}`", manifest.display(), p.manifest.id, r.name()),
@@ -165,13 +179,13 @@ impl Plugins {
 
     /// Loads every plugin on the search path (an id found twice: the first), returning the
     /// plugins loaded and the problems of those that would not load.
-    pub fn load_search_path(&mut self, registry: &mut Registry) -> (Vec<Plugin>, Vec<(PathBuf, String)>) {
+    pub fn load_search_path(&mut self, registry: &mut Registry) -> (Vec<Arc<Plugin>>, Vec<(PathBuf, String)>) {
         let (mut ok, mut failed) = (Vec::new(), Vec::new());
+        let mut ids = std::collections::HashSet::new();
         for m in self.manifests() {
             match self.load(&m, &Expect::default(), registry) {
-                Ok(Some(p)) => ok.push(p),
-                Ok(None) => {}
-                Err(e) if e.contains("two different builds") => {}
+                Ok(p) if ids.insert(p.manifest.id.clone()) => ok.push(p),
+                Ok(_) => {}
                 Err(e) => failed.push((m, e)),
             }
         }

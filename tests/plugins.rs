@@ -20,6 +20,11 @@ fn plugins_in(cache: &Path) -> Plugins {
     Plugins::with(vec![examples()], Policy::default(), Some(cache.to_path_buf()))
 }
 
+/// The compiled-component cache the tests share (each plugin is compiled once per run).
+fn shared_cache() -> PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("plugin-cache")
+}
+
 fn compile(path: &Path, plugins: &mut Plugins) -> (Compiled, engine::node::Registry) {
     let mut registry = spindlelab::registry();
     match plugins::compile_file(path, &[], &mut registry, plugins) {
@@ -91,8 +96,7 @@ fn tip_mass_gives_the_receptance_of_the_structure_with_the_added_mass() {
          removed: { kind: effect.tip_mass, params: { mass: -20 g }, inputs: { frf: \"@loaded.frf\" } }\n",
     )
     .unwrap();
-    let cache = tempfile::tempdir().unwrap();
-    let outcomes = run(&recipe, &mut plugins_in(cache.path()));
+    let outcomes = run(&recipe, &mut plugins_in(&shared_cache()));
     let Value::Frf(loaded) = value(&outcomes, "loaded", "frf") else { panic!("not an FRF") };
     let mut worst: f64 = 0.0;
     for (f, h) in loaded.freq_hz.iter().zip(&loaded.values) {
@@ -140,8 +144,7 @@ fn chatter_energy_ratio_is_the_share_of_non_synchronous_energy_of_a_known_signal
          spectrum: { kind: spectrum.amplitude, inputs: { signal: \"@cut.series\" } }\n",
     )
     .unwrap();
-    let cache = tempfile::tempdir().unwrap();
-    let outcomes = run(&recipe, &mut plugins_in(cache.path()));
+    let outcomes = run(&recipe, &mut plugins_in(&shared_cache()));
     let Value::Scalar(ratio) = value(&outcomes, "ratio", "ratio") else { panic!() };
     let want = 1.5f64.powi(2) / (9.0 + 4.0 + 1.0 + 2.25);
     assert!((ratio.value - want).abs() < 1e-9, "ratio {} against {want}", ratio.value);
@@ -163,8 +166,7 @@ fn chatter_energy_ratio_is_the_share_of_non_synchronous_energy_of_a_known_signal
 fn the_example_recipe_s_chatter_indicator_agrees_with_the_simulation_s_verdicts() {
     // The plugin's spectral share against milling.simulate's own once-per-period verdict
     // (another criterion, other code): low where the cut is stable, high where it chatters.
-    let cache = tempfile::tempdir().unwrap();
-    let outcomes = run(Path::new("scripts/plugin-nodes.yaml"), &mut plugins_in(cache.path()));
+    let outcomes = run(Path::new("scripts/plugin-nodes.yaml"), &mut plugins_in(&shared_cache()));
     for depth in ["1 mm", "4 mm"] {
         let Value::Table(summary) = value(&outcomes, &format!("cut[depth={depth}]"), "summary") else { panic!() };
         let stable = summary.columns.iter().find(|c| c.name == "stable").unwrap().values[0] == 1.0;
@@ -300,9 +302,8 @@ fn a_compiled_plugin_is_cached_and_a_damaged_cache_entry_is_compiled_again() {
 
 #[test]
 fn plugin_outputs_are_cached_under_the_plugin_s_hash() {
-    let cache = tempfile::tempdir().unwrap();
     let out = tempfile::tempdir().unwrap();
-    let mut plugins = plugins_in(cache.path());
+    let mut plugins = plugins_in(&shared_cache());
     let (c, registry) = compile(Path::new("scripts/plugin-nodes.yaml"), &mut plugins);
     let node = registry.get("effect.tip_mass").unwrap();
     let sha = node.code_digest().expect("a plugin node has a code digest");
@@ -316,8 +317,7 @@ fn plugin_outputs_are_cached_under_the_plugin_s_hash() {
 
 #[test]
 fn bad_plugin_entries_are_reported_at_their_line_and_column() {
-    let cache = tempfile::tempdir().unwrap();
-    let mut plugins = plugins_in(cache.path());
+    let mut plugins = plugins_in(&shared_cache());
     let mut registry = spindlelab::registry();
     let path = Path::new("tests/data/plugins/bad-refs.yaml");
     let e = match plugins::compile_file(path, &[], &mut registry, &mut plugins) {
@@ -405,7 +405,12 @@ fn a_new_plugin_from_the_template_builds_loads_and_runs() {
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("plugin build"), "{out}");
     // Built into the user plugin folder, where a recipe finds it by id.
-    let (code, out, err) = spindlelab(&["plugin", "build", crate_dir.to_str().unwrap()], home.path());
+    // The examples' target folder already holds the SDK's dependencies.
+    let target = spindlelab_plugin_examples::target_dir();
+    let (code, out, err) = spindlelab(
+        &["plugin", "build", crate_dir.to_str().unwrap(), "--target-dir", target.to_str().unwrap()],
+        home.path(),
+    );
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("my_gain.scale v1"), "{out}");
     assert!(home.path().join(".local/share/spindlelab/plugins/my-gain.plugin.json").is_file());

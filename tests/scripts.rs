@@ -7,9 +7,15 @@ use spindlelab::engine::{self, exec::RunOptions};
 
 #[test]
 fn every_recipe_in_scripts() {
-    let registry = spindlelab::registry();
+    // The example plugins the recipes name, built once for the tests.
+    let mut plugins = spindlelab::plugins::Plugins::with(
+        vec![spindlelab_plugin_examples::dir().to_path_buf()],
+        Default::default(),
+        Some(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plugin-cache")),
+    );
     insta::glob!("../scripts", "*.{yaml,rhai}", |path| {
-        let compiled = match engine::compile_file(path, &registry) {
+        let mut registry = spindlelab::registry();
+        let compiled = match spindlelab::plugins::compile_file(path, &[], &mut registry, &mut plugins) {
             Ok(c) => c,
             Err(e) => panic!("{} does not compile:\n{}", path.display(), e.render(false)),
         };

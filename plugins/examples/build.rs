@@ -22,4 +22,5 @@ fn main() {
         }
     }
     println!("cargo:rustc-env=SPINDLELAB_EXAMPLE_PLUGINS={}", plugins.display());
+    println!("cargo:rustc-env=SPINDLELAB_EXAMPLE_TARGET={}", target_dir.display());
 }

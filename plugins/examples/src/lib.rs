@@ -12,3 +12,8 @@ pub fn dir() -> &'static Path {
 pub fn manifest(id: &str) -> std::path::PathBuf {
     dir().join(format!("{id}.plugin.json"))
 }
+
+/// The cargo target folder the plugins were built in (their dependencies compiled for wasm32).
+pub fn target_dir() -> &'static Path {
+    Path::new(env!("SPINDLELAB_EXAMPLE_TARGET"))
+}

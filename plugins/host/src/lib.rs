@@ -167,16 +167,7 @@ impl Host {
     /// Loads the plugin whose manifest is at `manifest_path` (checks in the module docs).
     pub fn load(&self, manifest_path: &Path, expect: &Expect) -> Result<Plugin, LoadError> {
         let manifest = Manifest::read(manifest_path)?;
-        if let Some(v) = &expect.version
-            && v != &manifest.version
-        {
-            return Err(LoadError::Pinned {
-                id: manifest.id,
-                what: "version",
-                expected: format!("version {v}"),
-                actual: manifest.version,
-            });
-        }
+        check_pins(&manifest, &Expect { version: expect.version.clone(), sha256: None })?;
         if !SUPPORTED_INTERFACES.contains(&manifest.interface.as_str()) {
             return Err(LoadError::Interface {
                 id: manifest.id,
@@ -191,16 +182,7 @@ impl Host {
         if !actual.eq_ignore_ascii_case(&manifest.sha256) {
             return Err(LoadError::HashMismatch { path: wasm_path, expected: manifest.sha256, actual });
         }
-        if let Some(pin) = &expect.sha256
-            && !pin.eq_ignore_ascii_case(&actual)
-        {
-            return Err(LoadError::Pinned {
-                id: manifest.id,
-                what: "SHA-256",
-                expected: format!("SHA-256 {pin}"),
-                actual,
-            });
-        }
+        check_pins(&manifest, expect)?;
         let (component, from_cache) = self.compile(&bytes, &actual, &wasm_path)?;
         self.check_world(&component, &manifest)?;
         let limits = self.policy.limits(&manifest.limits);
@@ -296,6 +278,32 @@ impl Host {
         }
         Err(LoadError::NoExport { id: manifest.id.clone(), found: String::new() })
     }
+}
+
+/// Whether a manifest (whose hash has been checked against its component) meets the version
+/// and SHA-256 a recipe pins.
+pub fn check_pins(manifest: &Manifest, expect: &Expect) -> Result<(), LoadError> {
+    if let Some(v) = &expect.version
+        && v != &manifest.version
+    {
+        return Err(LoadError::Pinned {
+            id: manifest.id.clone(),
+            what: "version",
+            expected: format!("version {v}"),
+            actual: manifest.version.clone(),
+        });
+    }
+    if let Some(pin) = &expect.sha256
+        && !pin.eq_ignore_ascii_case(&manifest.sha256)
+    {
+        return Err(LoadError::Pinned {
+            id: manifest.id.clone(),
+            what: "SHA-256",
+            expected: format!("SHA-256 {pin}"),
+            actual: manifest.sha256.to_ascii_lowercase(),
+        });
+    }
+    Ok(())
 }
 
 fn read_capped(path: &Path) -> Result<Vec<u8>, LoadError> {
