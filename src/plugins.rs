@@ -243,6 +243,11 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
         ("sdk/src/lib.rs", sdk_lib),
         ("sdk/wit/plugin.wit", template::WIT.into()),
         (".gitignore", "/target\n".into()),
+        (
+            ".cargo/config.toml",
+            "# WebAssembly SIMD, which the spindlelab host supports.\n[target.wasm32-unknown-unknown]\nrustflags = [\"-C\", \"target-feature=+simd128\"]\n"
+                .into(),
+        ),
     ];
     let mut written = Vec::new();
     for (rel, text) in files {

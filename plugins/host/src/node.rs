@@ -11,9 +11,39 @@ use std::sync::Arc;
 use wasmtime::component::ResourceTable;
 use wasmtime::{Engine, ResourceLimiter, Store, Trap};
 
+/// A counting semaphore over the host's instance slots.
+pub(crate) struct Slots {
+    free: std::sync::Mutex<usize>,
+    freed: std::sync::Condvar,
+}
+
+impl Slots {
+    pub fn new(n: usize) -> Slots {
+        Slots { free: std::sync::Mutex::new(n), freed: std::sync::Condvar::new() }
+    }
+    fn take(&self) -> SlotGuard<'_> {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        while *free == 0 {
+            free = self.freed.wait(free).unwrap_or_else(|e| e.into_inner());
+        }
+        *free -= 1;
+        SlotGuard(self)
+    }
+}
+
+struct SlotGuard<'a>(&'a Slots);
+
+impl Drop for SlotGuard<'_> {
+    fn drop(&mut self) {
+        *self.0.free.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+        self.0.freed.notify_one();
+    }
+}
+
 /// What one plugin's calls share: the engine, the pre-instantiated component, its limits.
 pub(crate) struct Runtime {
     pub engine: Engine,
+    pub slots: Arc<Slots>,
     pub pre: PluginPre<State>,
     pub limits: Limits,
     pub id: String,
@@ -85,6 +115,7 @@ impl Runtime {
     }
 
     fn describe(&self) -> Result<v1::PluginInfo, CallError> {
+        let _slot = self.slots.take();
         let mut store = self.store();
         let plugin = match self.pre.instantiate(&mut store) {
             Ok(p) => p,
@@ -94,6 +125,8 @@ impl Runtime {
     }
 
     fn run(&self, kind: &str, params: &[NamedParam], inputs: &[Input]) -> Result<v1::Outcome, CallError> {
+        // The store (and its instance's slot) is dropped before the slot is given back.
+        let _slot = self.slots.take();
         let mut store = self.store();
         let plugin = match self.pre.instantiate(&mut store) {
             Ok(p) => p,

@@ -209,8 +209,12 @@ pub fn build(
     locked: bool,
 ) -> Result<Packed, PackError> {
     let fail = |message: String| PackError::Build { crate_dir: crate_dir.to_path_buf(), message };
+    let crate_dir = &crate_dir.canonicalize().map_err(io(crate_dir))?;
+    let target_dir = &std::path::absolute(target_dir).map_err(io(target_dir))?;
     let (name, version) = package_of(cargo, crate_dir)?;
     let mut cmd = clean_cargo(cargo);
+    // From the crate's folder, so its `.cargo/config.toml` (target features) applies.
+    cmd.current_dir(crate_dir);
     cmd.args(["build", "--release", "--target", "wasm32-unknown-unknown", "--manifest-path"])
         .arg(crate_dir.join("Cargo.toml"));
     if locked {
