@@ -56,7 +56,7 @@ fn value<'a>(outcomes: &'a [(String, Outcome)], id: &str, port: &str) -> &'a Val
     }
 }
 
-fn failure<'a>(outcomes: &'a [(String, Outcome)], id: &str) -> String {
+fn failure(outcomes: &[(String, Outcome)], id: &str) -> String {
     match &outcomes.iter().find(|(i, _)| i == id).expect("instance").1 {
         Outcome::Failed(e) => e.to_string(),
         o => panic!("{id} should have failed: {o:?}"),
