@@ -105,15 +105,16 @@ impl Param {
 /// The code of a node kind: a plain function of the call.
 pub type RunFn = fn(&Call) -> Result<Outputs, String>;
 
-/// A node kind the plugin provides: its description and the function that runs it.
+/// A node kind the plugin provides: its description. [`plugin!`] sends each call of the
+/// kind to the function named in [`NodeKind::new`].
 pub struct NodeKind {
     kind: wit::NodeKind,
-    run: RunFn,
 }
 
 impl NodeKind {
-    /// A kind named `kind` (dotted, e.g. `chatter.indicator`), version 1.
+    /// A kind named `kind` (dotted, e.g. `chatter.indicator`), version 1, run by `run`.
     pub fn new(kind: &str, description: &str, run: RunFn) -> NodeKind {
+        let _ = run;
         NodeKind {
             kind: wit::NodeKind {
                 kind: kind.into(),
@@ -123,7 +124,6 @@ impl NodeKind {
                 outputs: Vec::new(),
                 params: Vec::new(),
             },
-            run,
         }
     }
     /// Bump whenever the node's numbers change for the same inputs (it is part of the cache key).
@@ -315,26 +315,22 @@ pub fn describe(name: &str, version: &str, kinds: &[NodeKind]) -> wit::PluginInf
 }
 
 #[doc(hidden)]
-pub fn run(
-    kinds: &[NodeKind],
-    kind: String,
-    params: Vec<wit::NamedParam>,
-    inputs: Vec<wit::Input>,
-) -> Result<wit::Outcome, String> {
-    let node =
-        kinds.iter().find(|k| k.kind.kind == kind).ok_or_else(|| format!("this plugin has no node kind `{kind}`"))?;
+pub fn run(run: RunFn, params: Vec<wit::NamedParam>, inputs: Vec<wit::Input>) -> Result<wit::Outcome, String> {
     let call = Call { params, inputs, warnings: Default::default() };
-    let outputs = (node.run)(&call)?;
+    let outputs = run(&call)?;
     Ok(wit::Outcome { outputs: outputs.0, warnings: call.warnings.into_inner() })
 }
 
-/// Declares the plugin's node kinds and exports them. The plugin's name and version are
-/// the crate's (`Cargo.toml`); the manifest written by `spindlelab plugin build` repeats them.
+/// Declares the plugin's node kinds and exports them: a list of
+/// `NodeKind::new("kind.name", "description", function)` with its ports and parameters.
+/// The plugin's name and version are the crate's (`Cargo.toml`); the manifest written by
+/// `spindlelab plugin build` repeats them. A call goes straight to its kind's function
+/// (the descriptions are built only when the host asks for them).
 #[macro_export]
 macro_rules! plugin {
-    ($($kind:expr),+ $(,)?) => {
+    ($(NodeKind::new($kind:literal, $desc:expr, $run:expr $(,)?) $(. $method:ident ( $($arg:tt)* ))* ),+ $(,)?) => {
         fn __spindlelab_kinds() -> ::std::vec::Vec<$crate::NodeKind> {
-            ::std::vec![$($kind),+]
+            ::std::vec![$($crate::NodeKind::new($kind, $desc, $run) $(. $method ( $($arg)* ))* ),+]
         }
         struct __SpindlelabPlugin;
         impl $crate::bindings::exports::spindlelab::plugin::node::Guest for __SpindlelabPlugin {
@@ -346,7 +342,11 @@ macro_rules! plugin {
                 params: ::std::vec::Vec<$crate::bindings::spindlelab::plugin::types::NamedParam>,
                 inputs: ::std::vec::Vec<$crate::bindings::spindlelab::plugin::types::Input>,
             ) -> ::std::result::Result<$crate::bindings::spindlelab::plugin::types::Outcome, ::std::string::String> {
-                $crate::run(&__spindlelab_kinds(), kind, params, inputs)
+                let run: $crate::RunFn = match kind.as_str() {
+                    $($kind => $run,)+
+                    _ => return ::std::result::Result::Err(::std::format!("this plugin has no node kind `{kind}`")),
+                };
+                $crate::run(run, params, inputs)
             }
         }
         $crate::bindings::export_plugin!(__SpindlelabPlugin with_types_in $crate::bindings);
