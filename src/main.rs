@@ -332,7 +332,7 @@ fn main() -> ExitCode {
                     continue;
                 }
                 any = true;
-                print!("{}", describe_node(spec));
+                print!("{}", describe_node(spec, node.effect()));
             }
             if !any {
                 let k = kind.unwrap_or_default();
@@ -658,7 +658,7 @@ fn cache_command(action: CacheAction) -> ExitCode {
     code
 }
 
-fn describe_node(spec: &engine::node::NodeSpec) -> String {
+fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::EffectSpec>) -> String {
     let mut s = format!("{} (version {})\n  {}\n", spec.kind, spec.version, spec.description);
     if !spec.inputs.is_empty() {
         s.push_str("  inputs:\n");
@@ -687,6 +687,20 @@ fn describe_node(spec: &engine::node::NodeSpec) -> String {
             s.push_str(&format!("    {:16} {} ({req}) — {}\n", f.name, f.ty.describe(), f.doc));
         }
     }
+    if let Some(e) = effect {
+        s.push_str(&format!("  effect for the diagnosis: {} — {}\n", e.name, e.description));
+        for p in &e.params {
+            let scale = if p.log { ", log scale" } else { "" };
+            s.push_str(&format!(
+                "    {:16} absent at {:e} {u}, fitted within {:e} … {:e} {u}{scale}\n",
+                p.name,
+                p.absent,
+                p.min,
+                p.max,
+                u = p.si_unit
+            ));
+        }
+    }
     s.push('\n');
     s
 }
@@ -711,6 +725,9 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
         for n in &p.nodes {
             let spec = engine::node::Node::spec(n.as_ref());
             println!("  {} v{}: {}", spec.kind, spec.version, spec.description);
+            if let Some(e) = engine::node::Node::effect(n.as_ref()) {
+                println!("    effect for the diagnosis: {}", e.name);
+            }
         }
     };
     match action {

@@ -196,8 +196,10 @@ impl Plugins {
 /// The SDK and the interface, as `spindlelab plugin new` writes them beside a new plugin.
 mod template {
     pub const SDK_LIB: &str = include_str!("../plugins/guest/sdk/src/lib.rs");
-    pub const WIT: &str = include_str!("../plugins/wit/since_v0.1.0/plugin.wit");
-    pub const SDK_WIT_PATH: &str = "../../wit/since_v0.1.0";
+    pub const WIT: &str = include_str!("../plugins/wit/since_v0.2.0/plugin.wit");
+    pub const SDK_WIT_PATH: &str = "../../wit/since_v0.2.0";
+    pub const WIT_0_1_0: &str = include_str!("../plugins/wit/since_v0.1.0/plugin.wit");
+    pub const SDK_WIT_PATH_0_1_0: &str = "../../wit/since_v0.1.0";
 }
 
 /// Creates a plugin crate named `name` in `dir`: one node kind, the SDK and the interface
@@ -210,7 +212,8 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
         return Err(format!("{} exists and is not empty; choose another folder with --dir", dir.display()));
     }
     let module = name.replace('-', "_");
-    let sdk_lib = template::SDK_LIB.replace(template::SDK_WIT_PATH, "wit");
+    let sdk_lib =
+        template::SDK_LIB.replace(template::SDK_WIT_PATH, "wit").replace(template::SDK_WIT_PATH_0_1_0, "wit-0.1.0");
     let files: Vec<(&str, String)> = vec![
         (
             "Cargo.toml",
@@ -237,11 +240,13 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
         (
             "sdk/Cargo.toml",
             "[package]\nname = \"spindlelab-plugin-sdk\"\nversion = \"0.1.0\"\nedition = \"2024\"\npublish = false\n\n[dependencies]\n\
-             wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n"
+             wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n\n\
+             [features]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
                 .into(),
         ),
         ("sdk/src/lib.rs", sdk_lib),
         ("sdk/wit/plugin.wit", template::WIT.into()),
+        ("sdk/wit-0.1.0/plugin.wit", template::WIT_0_1_0.into()),
         (".gitignore", "/target\n".into()),
         (
             ".cargo/config.toml",

@@ -248,10 +248,17 @@ fn faulty_plugin_files_are_refused_before_anything_runs() {
 
     let e = err(load(&write_plugin(d, "wasi", &wat("wasi-import.wat"), "0.1.0"), Expect::default()));
     assert!(e.contains("imports `wasi:filesystem/types@0.2.0`; a plugin may import nothing"), "{e}");
-    let e = err(load(&write_plugin(d, "later", &wat("interface-0.2.0.wat"), "0.1.0"), Expect::default()));
-    assert!(e.contains("built for interface spindlelab:plugin@0.2.0; this host runs 0.1.0"), "{e}");
-    let e = err(load(&write_plugin(d, "claims", &wat("interface-0.2.0.wat"), "0.2.0"), Expect::default()));
-    assert!(e.contains("built for interface spindlelab:plugin@0.2.0"), "{e}");
+    let e = err(load(&write_plugin(d, "later", &wat("interface-0.9.0.wat"), "0.1.0"), Expect::default()));
+    assert!(e.contains("built for interface spindlelab:plugin@0.9.0; this host runs 0.1.0, 0.2.0"), "{e}");
+    let e = err(load(&write_plugin(d, "claims", &wat("interface-0.9.0.wat"), "0.9.0"), Expect::default()));
+    assert!(e.contains("built for interface spindlelab:plugin@0.9.0"), "{e}");
+    // A 0.2.0 component whose manifest says 0.1.0.
+    let tip = std::fs::read(spindlelab_plugin_examples::manifest("tip-mass").with_file_name("tip-mass.wasm")).unwrap();
+    let e = err(load(&write_plugin(d, "older", &tip, "0.1.0"), Expect::default()));
+    assert!(
+        e.contains("does not export `spindlelab:plugin/node@0.1.0`, which its manifest names (it exports `node@0.2.0`"),
+        "{e}"
+    );
     let e = err(load(&write_plugin(d, "corrupt", b"\0asm\x0d\0\x01\0garbage", "0.1.0"), Expect::default()));
     assert!(e.contains("not a valid WebAssembly component"), "{e}");
 
@@ -455,4 +462,68 @@ fn the_fit_driver_finds_the_mass_a_plugin_effect_adds() {
     assert_eq!(added.unit, "g", "the fit reports the unit the recipe writes");
     assert!((added.value - 20.0).abs() < 0.02, "fitted {} g, truth 20 g", added.value);
     assert!(report.objective_after < 1e-6 * report.objective_before, "{report:?}");
+}
+
+#[test]
+fn the_diagnosis_names_a_plugin_effect_and_fits_it() {
+    // The model is the bare structure; the measurement carries 20 g more at the measured point
+    // (closed form). No built-in effect acts on a model read from a file but the sensor's
+    // delay, so the diagnosis must take `tip_mass` from the plugin, fit it within the
+    // plugin's bounds and find the 20 g; the recipe it writes runs the plugin's node.
+    let dir = tempfile::tempdir().unwrap();
+    let (m, k, c) = (0.1, 1e7, 40.0); // ζ = 2 %
+    let freq_hz: Vec<f64> = (40..=600).map(|i| 5.0 * i as f64).collect();
+    let frf = |mass: f64| Frf {
+        values: freq_hz.iter().map(|&f| sdof(mass, k, c, f)).collect(),
+        freq_hz: freq_hz.clone(),
+        coherence: Some(vec![0.999; freq_hz.len()]),
+        unit: UnitLabel::new("m/N"),
+        direction: Some("x".into()),
+        speed_rpm: None,
+        sensor: None,
+    };
+    std::fs::write(dir.path().join("bare.csv"), csv::write_frf(&frf(m))).unwrap();
+    std::fs::write(dir.path().join("measured.csv"), csv::write_frf(&frf(m + 0.02))).unwrap();
+    let recipe = dir.path().join("diagnose.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nname: diagnose-tip-mass\nplugins: [tip-mass]\nsteps:\n  \
+         bare: { kind: read.frf, params: { file: bare.csv } }\n  \
+         measured: { kind: read.frf, params: { file: measured.csv } }\n  \
+         gap: { kind: frf.gap, inputs: { model: \"@bare.frf\", measured: \"@measured.frf\" } }\n",
+    )
+    .unwrap();
+    let (_, registry) = compile(&recipe, &mut plugins_in(&shared_cache()));
+    let d = spindlelab::diagnose::diagnose(&recipe, &registry).expect("the diagnosis runs");
+    let names: Vec<&str> = d.effects.iter().map(|e| e.name).collect();
+    assert_eq!(names, ["tip_mass"], "{}", spindlelab::diagnose::markdown(&d));
+    let mass = d.effects[0].params["mass_kg"].as_f64().unwrap();
+    assert!((mass - 0.02).abs() < 2e-5, "fitted {mass} kg, truth 0.02 kg");
+    assert!(
+        d.candidates.iter().any(|c| c.effects == ["sensor_delay"] && !c.explains),
+        "the delay cannot explain a mass"
+    );
+    assert!(d.diagnosed_recipe.contains("kind: effect.tip_mass"), "{}", d.diagnosed_recipe);
+}
+
+#[test]
+fn a_plugin_built_for_interface_0_1_0_still_runs() {
+    let host = Host::new(Policy::default(), None).unwrap();
+    let p = host.load(&spindlelab_plugin_examples::manifest("legacy"), &Expect::default()).expect("0.1.0 loads");
+    assert_eq!(p.manifest.interface, "0.1.0");
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("legacy.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nname: legacy\nplugins: [legacy]\nsteps:\n  \
+         x: { kind: rhai.eval, params: { expr: \"0.002\", unit: m } }\n  \
+         y: { kind: legacy.scale, inputs: { x: \"@x.value\" } }\n",
+    )
+    .unwrap();
+    let out = run(&recipe, &mut plugins_in(&shared_cache()));
+    match value(&out, "y", "y") {
+        Value::Scalar(s) => assert!((s.value - 6e-3).abs() < 1e-15 && s.unit.symbol == "m", "{s:?}"),
+        v => panic!("{v:?}"),
+    }
+    assert!(p.nodes.iter().all(|n| spindlelab::engine::node::Node::effect(n.as_ref()).is_none()));
 }

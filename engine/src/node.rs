@@ -187,6 +187,35 @@ pub trait Node: Send + Sync {
     fn code_digest(&self) -> Option<&str> {
         None
     }
+
+    /// The kind offered as a physical effect the diagnosis may add to a model, if it is one
+    /// (kinds from plugins; the built-in effects are transforms of the recipe).
+    fn effect(&self) -> Option<&EffectSpec> {
+        None
+    }
+}
+
+/// A node kind offered as a physical effect: it takes the model's FRF at input `frf` and gives
+/// the changed FRF at output `frf`; the diagnosis fits `params` within their bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectSpec {
+    /// The name a diagnosis reports (`tip_mass`).
+    pub name: &'static str,
+    pub description: &'static str,
+    pub params: Vec<EffectParam>,
+}
+
+/// A free parameter of an effect: one of the kind's quantity parameters, in SI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectParam {
+    pub name: &'static str,
+    /// The SI unit symbol of its dimension (`kg`; empty for a plain number).
+    pub si_unit: &'static str,
+    /// Where the effect is absent (the fit's start).
+    pub absent: f64,
+    pub min: f64,
+    pub max: f64,
+    pub log: bool,
 }
 
 /// Every node kind the engine can compile, by kind name.

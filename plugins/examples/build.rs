@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-const CRATES: &[&str] = &["examples/chatter-indicator", "examples/tip-mass", "fixtures/hostile"];
+const CRATES: &[&str] = &["examples/chatter-indicator", "examples/tip-mass", "fixtures/hostile", "fixtures/legacy"];
 
 fn main() {
     let guest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../guest");

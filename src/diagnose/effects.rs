@@ -6,6 +6,7 @@
 use super::edit::{EditError, RecipeText, Seg, path};
 use super::roles::Roles;
 use crate::engine::Compiled;
+use crate::engine::node::{EffectSpec, Registry};
 use serde_json::{Map, Value as Json, json};
 use std::f64::consts::PI;
 
@@ -65,17 +66,40 @@ pub trait Effect: Sync + Send {
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json>;
 }
 
-/// The built-in library, in the order effects are applied when combined (a tip mass acts
-/// on receptances, a delay on the FRF that results).
-pub fn library() -> Vec<Box<dyn Effect>> {
-    vec![
+/// The library: the built-in effects and those the registry's plugin kinds offer, in the
+/// order effects are applied when combined (a tip mass acts on receptances, a plugin's
+/// effect on the model FRF that results, a delay on the measured chain last).
+pub fn library(registry: &Registry) -> Vec<Box<dyn Effect>> {
+    let mut lib: Vec<Box<dyn Effect>> = vec![
         Box::new(InterfaceCompliance),
         Box::new(FluteReducedStiffness),
         Box::new(SpindleSpeedStiffening),
         Box::new(MassLoading),
-        Box::new(SensorDelay),
-        Box::new(SpeedDependentCuttingCoefficients),
-    ]
+    ];
+    let builtin = ["sensor_delay", "speed_dependent_cutting_coefficients"];
+    for node in registry.kinds() {
+        if let Some(spec) = node.effect() {
+            let taken = |n: &str| builtin.contains(&n) || lib.iter().any(|e| e.name() == n);
+            // A plugin's name that a built-in effect (or another plugin) has is reported by
+            // the node kind instead.
+            let name = if taken(spec.name) { kind_name(node.spec().kind) } else { spec.name };
+            if !taken(name) {
+                lib.push(Box::new(PluginEffect { kind: node.spec().kind, name, spec: spec.clone() }));
+            }
+        }
+    }
+    lib.push(Box::new(SensorDelay));
+    lib.push(Box::new(SpeedDependentCuttingCoefficients));
+    lib
+}
+
+/// `effect.tip_mass` → `effect_tip_mass`, leaked once per plugin kind and process.
+fn kind_name(kind: &'static str) -> &'static str {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static NAMES: OnceLock<Mutex<HashMap<&'static str, &'static str>>> = OnceLock::new();
+    let mut names = NAMES.get_or_init(Default::default).lock().unwrap_or_else(|e| e.into_inner());
+    names.entry(kind).or_insert_with(|| Box::leak(kind.replace('.', "_").into_boxed_str()))
 }
 
 fn e(err: EditError) -> NotApplicable {
@@ -125,6 +149,78 @@ fn wrap_gap_models(
 }
 
 // ---------------------------------------------------------------------------------------
+
+/// An effect a plugin offers: its node kind between each model and the measurement it is
+/// compared with, the freed parameters declared at their absent values within the plugin's
+/// bounds (SI).
+pub struct PluginEffect {
+    kind: &'static str,
+    name: &'static str,
+    spec: EffectSpec,
+}
+
+impl PluginEffect {
+    fn param(&self, p: &str) -> String {
+        format!("{}_{p}", self.name)
+    }
+}
+
+impl Effect for PluginEffect {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn scope(&self) -> Scope {
+        Scope::Measurement
+    }
+    fn description(&self) -> &'static str {
+        self.spec.description
+    }
+    fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        if roles.gaps.is_empty() {
+            return Err("no model is compared with a measurement".into());
+        }
+        let free: Vec<Free> = self
+            .spec
+            .params
+            .iter()
+            .map(|p| Free {
+                name: self.param(p.name),
+                unit: p.si_unit,
+                start: p.absent,
+                min: p.min,
+                max: p.max,
+                log: p.log,
+            })
+            .collect();
+        declare(r, &free)?;
+        let params: Vec<String> =
+            self.spec.params.iter().map(|p| format!("{}: ${}", p.name, self.param(p.name))).collect();
+        wrap_gap_models(roles, r, self.name, &|src| {
+            Ok(format!(
+                "# Diagnosed: {} (plugin kind {}), measured configuration only.\n{}:\n  kind: {}\n  params: {{ {} }}\n  inputs: {{ frf: \"{src}\" }}",
+                self.name,
+                self.kind,
+                self.name,
+                self.kind,
+                params.join(", ")
+            ))
+        })?;
+        Ok(free)
+    }
+    /// Nothing is known of a plugin effect's basins: sample its box well.
+    fn starts(&self, free: &[Free]) -> usize {
+        16 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        for p in &self.spec.params {
+            let key = if p.si_unit.is_empty() { p.name.to_string() } else { format!("{}_{}", p.name, p.si_unit) };
+            m.insert(key, json!(value(values, &self.param(p.name))));
+        }
+        m.insert("node_kind".into(), json!(self.kind));
+        m
+    }
+}
 
 /// A sensor's phase lag linear in frequency (§2.3, Eq. 2.11): acts on the measured FRFs only.
 pub struct SensorDelay;

@@ -415,7 +415,7 @@ fn try_candidate(
     };
     let mut all: Vec<&dyn Effect> = on.to_vec();
     all.extend(effects.iter().copied());
-    let lib = effects::library();
+    let lib = effects::library(ctx.registry);
     let order = |e: &&dyn Effect| lib.iter().position(|l| l.name() == e.name()).unwrap_or(usize::MAX);
     all.sort_by_key(order);
     let (mut text, free) = match augmented(ctx, &all, starts_at) {
@@ -555,7 +555,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         baseline: &baseline,
         memo: Arc::new(memo),
     };
-    let lib = effects::library();
+    let lib = effects::library(registry);
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut named: Vec<&dyn Effect> = Vec::new();
     let mut named_values: Vec<(String, f64)> = Vec::new();
@@ -890,7 +890,7 @@ pub fn with_effects(
     let mut roles = Roles::find(&compiled);
     let (baseline, _) = evaluate(&compiled, &roles, registry, None).map_err(err)?;
     roles.measured(&baseline);
-    let lib = effects::library();
+    let lib = effects::library(registry);
     if let Some((n, _)) = effects.iter().find(|(n, _)| !lib.iter().any(|e| e.name() == *n)) {
         return Err(err(format!("no effect `{n}` in the library")));
     }

@@ -15,6 +15,7 @@
 
 mod node;
 mod v0_1_0;
+mod v0_2_0;
 
 pub use node::PluginNode;
 pub use spindlelab_plugin_pack::{self as pack, Manifest, RequestedLimits};
@@ -26,7 +27,7 @@ use wasmtime::component::{Component, Linker, types::ComponentItem};
 use wasmtime::{Config, Engine};
 
 /// The interface versions this host runs.
-pub const SUPPORTED_INTERFACES: &[&str] = &["0.1.0"];
+pub const SUPPORTED_INTERFACES: &[&str] = &["0.1.0", "0.2.0"];
 
 /// Largest component file read, bytes.
 pub const MAX_COMPONENT_BYTES: u64 = 64 << 20;
@@ -110,8 +111,8 @@ pub enum LoadError {
          build it for wasm32-unknown-unknown with the spindlelab SDK"
     )]
     Imports { id: String, import: String },
-    #[error("plugin `{id}` does not export `spindlelab:plugin/node@{}`{found}", SUPPORTED_INTERFACES.join(", "))]
-    NoExport { id: String, found: String },
+    #[error("plugin `{id}` does not export `spindlelab:plugin/node@{interface}`, which its manifest names{found}")]
+    NoExport { id: String, interface: String, found: String },
     #[error("plugin `{id}`: describing itself failed: {message}")]
     Describe { id: String, message: String },
     #[error("plugin `{id}`: {message}")]
@@ -210,7 +211,7 @@ impl Host {
         let pre = linker
             .instantiate_pre(&component)
             .map_err(|e| LoadError::Invalid { path: wasm_path.clone(), message: format!("{e:#}") })?;
-        let pre = v0_1_0::PluginPre::new(pre)
+        let pre = node::Pre::new(pre, &manifest.interface)
             .map_err(|e| LoadError::Invalid { path: wasm_path.clone(), message: format!("{e:#}") })?;
         let runtime = Arc::new(node::Runtime {
             engine: self.engine.clone(),
@@ -280,7 +281,7 @@ impl Host {
         let mut found = false;
         for (name, item) in ty.exports(&self.engine) {
             if let Some(version) = name.strip_prefix("spindlelab:plugin/node@") {
-                if SUPPORTED_INTERFACES.contains(&version) && matches!(item.ty, ComponentItem::ComponentInstance(_)) {
+                if version == manifest.interface && matches!(item.ty, ComponentItem::ComponentInstance(_)) {
                     found = true;
                 } else {
                     others.push(version.to_string());
@@ -290,14 +291,21 @@ impl Host {
         if found {
             return Ok(());
         }
-        if let Some(v) = others.first() {
+        if let Some(v) = others.first().filter(|v| !SUPPORTED_INTERFACES.contains(&v.as_str())) {
             return Err(LoadError::Interface {
                 id: manifest.id.clone(),
                 version: manifest.version.clone(),
                 interface: v.clone(),
             });
         }
-        Err(LoadError::NoExport { id: manifest.id.clone(), found: String::new() })
+        Err(LoadError::NoExport {
+            id: manifest.id.clone(),
+            interface: manifest.interface.clone(),
+            found: others
+                .first()
+                .map(|v| format!(" (it exports `node@{v}`: repack it with `spindlelab plugin build`)"))
+                .unwrap_or_default(),
+        })
     }
 }
 

@@ -1,14 +1,15 @@
 //! A plugin's node kinds as engine nodes: described once at load, each call in a fresh,
 //! bounded store.
 
-use crate::v0_1_0::{self as v1, Input, NamedParam, ParamType, ParamValue, PluginPre};
+use crate::v0_1_0::{self as v1, Input, NamedParam, ParamType, ParamValue};
+use crate::v0_2_0 as v2;
 use crate::{Limits, LoadError, Manifest};
 use spindlelab_engine::grammar::{self, Dimension};
 use spindlelab_engine::model::Recipe;
-use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node::{EffectParam, EffectSpec, Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
 use std::sync::Arc;
-use wasmtime::component::ResourceTable;
+use wasmtime::component::InstancePre;
 use wasmtime::{Engine, ResourceLimiter, Store, Trap};
 
 /// A counting semaphore over the host's instance slots.
@@ -40,11 +41,26 @@ impl Drop for SlotGuard<'_> {
     }
 }
 
+/// The pre-instantiated component, bound by its interface version.
+pub(crate) enum Pre {
+    V0_1_0(v1::PluginPre<State>),
+    V0_2_0(v2::PluginPre<State>),
+}
+
+impl Pre {
+    pub fn new(pre: InstancePre<State>, interface: &str) -> wasmtime::Result<Pre> {
+        Ok(match interface {
+            "0.1.0" => Pre::V0_1_0(v1::PluginPre::new(pre)?),
+            _ => Pre::V0_2_0(v2::PluginPre::new(pre)?),
+        })
+    }
+}
+
 /// What one plugin's calls share: the engine, the pre-instantiated component, its limits.
 pub(crate) struct Runtime {
     pub engine: Engine,
     pub slots: Arc<Slots>,
-    pub pre: PluginPre<State>,
+    pub pre: Pre,
     pub limits: Limits,
     pub id: String,
     pub version: String,
@@ -55,7 +71,6 @@ pub(crate) struct Runtime {
 pub(crate) struct State {
     memory_cap: usize,
     refused: Option<usize>,
-    _table: ResourceTable,
 }
 
 impl ResourceLimiter for State {
@@ -80,6 +95,12 @@ impl ResourceLimiter for State {
     }
 }
 
+/// An instance of the component, by interface version.
+enum Instance {
+    V0_1_0(v1::Plugin),
+    V0_2_0(v2::Plugin),
+}
+
 /// Why a call failed, for the node's error.
 enum CallError {
     OutOfFuel,
@@ -91,10 +112,7 @@ enum CallError {
 impl Runtime {
     /// A fresh store with this plugin's limits.
     fn store(&self) -> Store<State> {
-        let mut store = Store::new(
-            &self.engine,
-            State { memory_cap: self.limits.memory as usize, refused: None, _table: ResourceTable::new() },
-        );
+        let mut store = Store::new(&self.engine, State { memory_cap: self.limits.memory as usize, refused: None });
         store.limiter(|s| s as &mut dyn ResourceLimiter);
         store.set_fuel(self.limits.fuel).expect("fuel is enabled");
         store
@@ -114,29 +132,45 @@ impl Runtime {
         }
     }
 
-    fn describe(&self) -> Result<v1::PluginInfo, CallError> {
+    /// Runs `f` on a fresh instance in a fresh store; the store (and its instance's slot) is
+    /// dropped before the slot is given back.
+    fn call<T>(&self, f: impl FnOnce(&mut Store<State>, Instance) -> wasmtime::Result<T>) -> Result<T, CallError> {
         let _slot = self.slots.take();
         let mut store = self.store();
-        let plugin = match self.pre.instantiate(&mut store) {
-            Ok(p) => p,
-            Err(e) => return Err(self.classify(&store, e)),
+        let instance = match &self.pre {
+            Pre::V0_1_0(pre) => pre.instantiate(&mut store).map(Instance::V0_1_0),
+            Pre::V0_2_0(pre) => pre.instantiate(&mut store).map(Instance::V0_2_0),
         };
-        plugin.spindlelab_plugin_node().call_describe(&mut store).map_err(|e| self.classify(&store, e))
+        match instance.and_then(|i| f(&mut store, i)) {
+            Ok(v) => Ok(v),
+            Err(e) => Err(self.classify(&store, e)),
+        }
+    }
+
+    fn describe(&self) -> Result<v1::PluginInfo, CallError> {
+        self.call(|store, i| match i {
+            Instance::V0_1_0(p) => p.spindlelab_plugin_node().call_describe(store),
+            Instance::V0_2_0(p) => p.spindlelab_plugin_node().call_describe(store),
+        })
+    }
+
+    /// The effects the plugin offers (none before interface 0.2.0).
+    fn effects(&self) -> Result<Vec<v2::Effect>, CallError> {
+        match self.pre {
+            Pre::V0_1_0(_) => Ok(Vec::new()),
+            Pre::V0_2_0(_) => self.call(|store, i| match i {
+                Instance::V0_2_0(p) => p.spindlelab_plugin_effects().call_effects(store),
+                Instance::V0_1_0(_) => Ok(Vec::new()),
+            }),
+        }
     }
 
     fn run(&self, kind: &str, params: &[NamedParam], inputs: &[Input]) -> Result<v1::Outcome, CallError> {
-        // The store (and its instance's slot) is dropped before the slot is given back.
-        let _slot = self.slots.take();
-        let mut store = self.store();
-        let plugin = match self.pre.instantiate(&mut store) {
-            Ok(p) => p,
-            Err(e) => return Err(self.classify(&store, e)),
-        };
-        match plugin.spindlelab_plugin_node().call_run(&mut store, kind, params, inputs) {
-            Ok(Ok(outcome)) => Ok(outcome),
-            Ok(Err(message)) => Err(CallError::Plugin(message)),
-            Err(e) => Err(self.classify(&store, e)),
-        }
+        let result = self.call(|store, i| match i {
+            Instance::V0_1_0(p) => p.spindlelab_plugin_node().call_run(store, kind, params, inputs),
+            Instance::V0_2_0(p) => p.spindlelab_plugin_node().call_run(store, kind, params, inputs),
+        })?;
+        result.map_err(CallError::Plugin)
     }
 
     fn explain(&self, e: CallError) -> String {
@@ -180,6 +214,10 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
     }
     if info.nodes.is_empty() || info.nodes.len() > MAX_KINDS {
         return Err(bad(format!("it describes {} node kinds; a plugin provides 1 to {MAX_KINDS}", info.nodes.len())));
+    }
+    let mut effects = rt.effects().map_err(|e| LoadError::Describe { id: id.clone(), message: rt.explain(e) })?;
+    if effects.len() > MAX_KINDS {
+        return Err(bad(format!("it offers {} effects; at most {MAX_KINDS}", effects.len())));
     }
     let mut seen = std::collections::HashSet::new();
     let mut nodes = Vec::new();
@@ -260,9 +298,80 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
             outputs: k.outputs.iter().map(port).collect(),
             params,
         };
-        nodes.push(Arc::new(PluginNode { spec, rt: rt.clone() }));
+        let effect = match effects.iter().position(|e| e.kind == kind) {
+            Some(i) => {
+                Some(effect_spec(effects.swap_remove(i), &spec).map_err(|m| bad_kind(format!("as an effect: {m}")))?)
+            }
+            None => None,
+        };
+        nodes.push(Arc::new(PluginNode { spec, rt: rt.clone(), effect }));
+    }
+    if let Some(e) = effects.first() {
+        return Err(bad(format!(
+            "it offers `{}` as an effect, but describes no such node kind (or offers it twice)",
+            e.kind
+        )));
     }
     Ok(nodes)
+}
+
+/// Checks an effect a plugin offers against its kind: FRF in and out at `frf`, free
+/// parameters that are quantity parameters of the kind, bounds that hold the absent value.
+fn effect_spec(e: v2::Effect, spec: &NodeSpec) -> Result<EffectSpec, String> {
+    let frf =
+        |ports: &[PortSpec]| ports.iter().any(|p| p.name == "frf" && p.ty == spindlelab_engine::value::PortType::Frf);
+    if !frf(&spec.inputs) || !frf(&spec.outputs) {
+        return Err("an effect takes an FRF at input `frf` and gives one at output `frf`".into());
+    }
+    let required: Vec<&str> = spec.inputs.iter().filter(|p| !p.optional && p.name != "frf").map(|p| p.name).collect();
+    if let Some(p) = required.first() {
+        return Err(format!("an effect's only required input is `frf`, but `{p}` is required too"));
+    }
+    let name_ok = !e.name.is_empty()
+        && e.name.len() <= 64
+        && e.name.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+    if !name_ok {
+        return Err(format!("name `{}` is not lowercase words joined by `_`", e.name));
+    }
+    if e.description.len() > MAX_TEXT {
+        return Err(format!("the description is longer than {MAX_TEXT} bytes"));
+    }
+    if e.params.is_empty() || e.params.len() > 8 {
+        return Err(format!("it frees {} parameters; an effect frees 1 to 8", e.params.len()));
+    }
+    let mut params: Vec<EffectParam> = Vec::new();
+    for p in e.params {
+        let field = spec
+            .params
+            .iter()
+            .find(|f| f.name == p.name)
+            .ok_or_else(|| format!("parameter `{}` is not a parameter of the kind", p.name))?;
+        let FieldType::Quantity(dim) = &field.ty else {
+            return Err(format!("parameter `{}` is not a quantity", p.name));
+        };
+        if params.iter().any(|q| q.name == p.name) {
+            return Err(format!("parameter `{}` is freed twice", p.name));
+        }
+        let finite = p.absent.is_finite() && p.min.is_finite() && p.max.is_finite();
+        if !finite || p.min >= p.max || p.absent < p.min || p.absent > p.max {
+            return Err(format!(
+                "parameter `{}`: bounds [{}, {}] must be finite, increasing and hold the absent value {}",
+                p.name, p.min, p.max, p.absent
+            ));
+        }
+        if p.log && p.min <= 0.0 && p.max >= 0.0 {
+            return Err(format!("parameter `{}`: a logarithmic search needs bounds of one sign, not zero", p.name));
+        }
+        params.push(EffectParam {
+            name: field.name,
+            si_unit: if *dim == Dimension::DIMENSIONLESS { "" } else { leak(dim.si_unit()) },
+            absent: p.absent,
+            min: p.min,
+            max: p.max,
+            log: p.log,
+        });
+    }
+    Ok(EffectSpec { name: leak(e.name), description: leak(e.description), params })
 }
 
 /// The dimension of an SI unit symbol a plugin declares (`kg`, `N/m`, `rad/s`; empty: none).
@@ -286,6 +395,7 @@ fn si_dimension(unit: &str) -> Result<Dimension, String> {
 pub struct PluginNode {
     spec: NodeSpec,
     rt: Arc<Runtime>,
+    effect: Option<EffectSpec>,
 }
 
 impl PluginNode {
@@ -347,6 +457,10 @@ impl Node for PluginNode {
         &self.spec
     }
 
+    fn effect(&self) -> Option<&EffectSpec> {
+        self.effect.as_ref()
+    }
+
     fn code_digest(&self) -> Option<&str> {
         Some(&self.rt.sha256)
     }
@@ -395,5 +509,69 @@ impl Node for PluginNode {
             return Err(self.fail(format!("it returned no `{}`", missing.name)));
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spindlelab_engine::value::PortType;
+
+    fn kind(inputs: &[(&'static str, PortType, bool)]) -> NodeSpec {
+        let kg = grammar::parse_unit("kg").unwrap().dim;
+        NodeSpec {
+            kind: "effect.test",
+            version: 1,
+            description: "",
+            inputs: inputs
+                .iter()
+                .map(|&(n, t, optional)| {
+                    let mut p = PortSpec::new(n, t, "");
+                    p.optional = optional;
+                    p
+                })
+                .collect(),
+            outputs: vec![PortSpec::new("frf", PortType::Frf, "")],
+            params: vec![Field::opt("mass", FieldType::Quantity(kg), ""), Field::opt("label", FieldType::Text, "")],
+        }
+    }
+
+    fn effect(params: Vec<(&str, f64, f64, f64, bool)>) -> v2::Effect {
+        v2::Effect {
+            kind: "effect.test".into(),
+            name: "test_mass".into(),
+            description: "a mass".into(),
+            params: params
+                .into_iter()
+                .map(|(name, absent, min, max, log)| v2::FreeParam { name: name.into(), absent, min, max, log })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn an_effect_declaration_is_checked_against_its_kind() {
+        let frf_in = kind(&[("frf", PortType::Frf, false)]);
+        let ok = effect_spec(effect(vec![("mass", 0.0, -0.05, 0.1, false)]), &frf_in).unwrap();
+        assert_eq!((ok.name, ok.params[0].name, ok.params[0].si_unit), ("test_mass", "mass", "kg"));
+        let refused = |e: v2::Effect, spec: &NodeSpec, says: &str| {
+            let m = effect_spec(e, spec).unwrap_err();
+            assert!(m.contains(says), "`{m}` should say `{says}`");
+        };
+        refused(effect(vec![("mass", 0.0, -0.05, 0.1, false)]), &kind(&[("x", PortType::Frf, false)]), "input `frf`");
+        refused(
+            effect(vec![("mass", 0.0, -0.05, 0.1, false)]),
+            &kind(&[("frf", PortType::Frf, false), ("other", PortType::Scalar, false)]),
+            "`other` is required",
+        );
+        refused(effect(vec![("stiffness", 0.0, 0.0, 1.0, false)]), &frf_in, "not a parameter of the kind");
+        refused(effect(vec![("label", 0.0, 0.0, 1.0, false)]), &frf_in, "not a quantity");
+        refused(effect(vec![("mass", 0.2, -0.05, 0.1, false)]), &frf_in, "hold the absent value");
+        refused(effect(vec![("mass", 0.0, f64::NEG_INFINITY, 0.1, false)]), &frf_in, "finite");
+        refused(effect(vec![("mass", 0.0, -0.05, 0.1, true)]), &frf_in, "logarithmic");
+        refused(effect(vec![("mass", 0.0, -0.05, 0.1, false), ("mass", 0.0, -0.05, 0.1, false)]), &frf_in, "twice");
+        refused(effect(vec![]), &frf_in, "frees 0 parameters");
+        let mut bad_name = effect(vec![("mass", 0.0, -0.05, 0.1, false)]);
+        bad_name.name = "Tip Mass".into();
+        refused(bad_name, &frf_in, "lowercase words");
     }
 }

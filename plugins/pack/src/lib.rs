@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The interface versions this crate knows, newest last.
-pub const INTERFACE_VERSIONS: &[&str] = &["0.1.0"];
+pub const INTERFACE_VERSIONS: &[&str] = &["0.1.0", "0.2.0"];
 
 /// Largest manifest read, bytes.
 pub const MAX_MANIFEST_BYTES: u64 = 64 * 1024;
@@ -126,6 +126,23 @@ pub fn componentize(core: &[u8], name: &Path) -> Result<Vec<u8>, PackError> {
         .map_err(|e| PackError::Componentize(name.to_path_buf(), format!("{e:#}")))
 }
 
+/// The interface version whose `node` the component exports (the newest, if several).
+pub fn interface_of(component: &[u8]) -> Option<String> {
+    let mut found = None;
+    for payload in wasmparser::Parser::new(0).parse_all(component) {
+        let Ok(wasmparser::Payload::ComponentExportSection(exports)) = payload else { continue };
+        for export in exports.into_iter().flatten() {
+            let name = export.name.full_name();
+            if let Some(v) = name.strip_prefix("spindlelab:plugin/node@")
+                && let Some(i) = INTERFACE_VERSIONS.iter().position(|k| *k == v)
+            {
+                found = found.max(Some(i));
+            }
+        }
+    }
+    found.map(|i| INTERFACE_VERSIONS[i].to_string())
+}
+
 /// A plugin written by [`pack`] or [`build`].
 #[derive(Debug, Clone)]
 pub struct Packed {
@@ -145,7 +162,15 @@ pub fn pack(core_wasm: &Path, id: &str, version: &str, out_dir: &Path) -> Result
     let manifest = Manifest {
         id: id.to_string(),
         version: version.to_string(),
-        interface: INTERFACE_VERSIONS[INTERFACE_VERSIONS.len() - 1].to_string(),
+        interface: interface_of(&component).ok_or_else(|| {
+            PackError::Componentize(
+                core_wasm.to_path_buf(),
+                format!(
+                    "it exports no `spindlelab:plugin/node` of a known version ({})",
+                    INTERFACE_VERSIONS.join(", ")
+                ),
+            )
+        })?,
         wasm,
         sha256: sha256_hex(&component),
         limits: RequestedLimits::default(),

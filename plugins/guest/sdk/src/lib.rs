@@ -1,5 +1,6 @@
 //! Write spindlelab node kinds as plain Rust functions over typed values; [`plugin!`]
-//! turns them into a WebAssembly component with the `spindlelab:plugin@0.1.0` interface.
+//! turns them into a WebAssembly component with the `spindlelab:plugin@0.2.0` interface
+//! (feature `interface-0-1-0`: the older 0.1.0, which has no effects).
 //!
 //! ```ignore
 //! use spindlelab_plugin_sdk::*;
@@ -20,6 +21,19 @@
 //! A plugin is a pure function of its parameters and inputs: every call runs in a fresh
 //! instance with no files, network, clock or environment; quantities arrive in SI.
 
+#[cfg(not(feature = "interface-0-1-0"))]
+#[doc(hidden)]
+pub mod bindings {
+    wit_bindgen::generate!({
+        path: "../../wit/since_v0.2.0",
+        world: "plugin",
+        pub_export_macro: true,
+        export_macro_name: "export_plugin",
+        default_bindings_module: "spindlelab_plugin_sdk::bindings",
+    });
+}
+
+#[cfg(feature = "interface-0-1-0")]
 #[doc(hidden)]
 pub mod bindings {
     wit_bindgen::generate!({
@@ -37,7 +51,38 @@ pub use wit::{
 };
 
 /// The interface version this SDK builds against.
+#[cfg(not(feature = "interface-0-1-0"))]
+pub const INTERFACE_VERSION: &str = "0.2.0";
+#[cfg(feature = "interface-0-1-0")]
 pub const INTERFACE_VERSION: &str = "0.1.0";
+
+/// A node kind offered as a physical effect the diagnosis may add to a model that disagrees
+/// with its measurements (interface 0.2.0 and later). The kind takes the model's FRF at
+/// input `frf` and gives the changed FRF at output `frf`; the diagnosis fits the freed
+/// quantity parameters within their bounds, in SI.
+pub struct Effect {
+    name: String,
+    description: String,
+    params: Vec<(String, f64, f64, f64, bool)>,
+}
+
+impl Effect {
+    /// An effect reported as `name` (lowercase words joined by `_`, e.g. `tip_mass`).
+    pub fn new(name: &str, description: &str) -> Effect {
+        Effect { name: name.into(), description: description.into(), params: Vec::new() }
+    }
+    /// Frees quantity parameter `name`: absent at `absent` (where the fit starts), bounded
+    /// by `min` and `max` (SI).
+    pub fn free(mut self, name: &str, absent: f64, min: f64, max: f64) -> Effect {
+        self.params.push((name.into(), absent, min, max, false));
+        self
+    }
+    /// As [`Effect::free`], searched on a logarithmic scale (bounds of one sign).
+    pub fn free_log(mut self, name: &str, absent: f64, min: f64, max: f64) -> Effect {
+        self.params.push((name.into(), absent, min, max, true));
+        self
+    }
+}
 
 /// A port of a node kind.
 pub struct Port(wit::Port);
@@ -109,6 +154,7 @@ pub type RunFn = fn(&Call) -> Result<Outputs, String>;
 /// kind to the function named in [`NodeKind::new`].
 pub struct NodeKind {
     kind: wit::NodeKind,
+    effect: Option<Effect>,
 }
 
 impl NodeKind {
@@ -124,7 +170,13 @@ impl NodeKind {
                 outputs: Vec::new(),
                 params: Vec::new(),
             },
+            effect: None,
         }
+    }
+    /// Offers the kind as a physical effect for the diagnosis (see [`Effect`]).
+    pub fn effect(mut self, effect: Effect) -> NodeKind {
+        self.effect = Some(effect);
+        self
     }
     /// Bump whenever the node's numbers change for the same inputs (it is part of the cache key).
     pub fn version(mut self, version: u32) -> NodeKind {
@@ -315,6 +367,56 @@ pub fn describe(name: &str, version: &str, kinds: &[NodeKind]) -> wit::PluginInf
 }
 
 #[doc(hidden)]
+#[cfg(not(feature = "interface-0-1-0"))]
+pub fn effects(kinds: &[NodeKind]) -> Vec<bindings::exports::spindlelab::plugin::effects::Effect> {
+    use bindings::exports::spindlelab::plugin::effects as e;
+    kinds
+        .iter()
+        .filter_map(|k| {
+            let effect = k.effect.as_ref()?;
+            Some(e::Effect {
+                kind: k.kind.kind.clone(),
+                name: effect.name.clone(),
+                description: effect.description.clone(),
+                params: effect
+                    .params
+                    .iter()
+                    .map(|(name, absent, min, max, log)| e::FreeParam {
+                        name: name.clone(),
+                        absent: *absent,
+                        min: *min,
+                        max: *max,
+                        log: *log,
+                    })
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// Exports the kinds' effects (interface 0.2.0).
+#[doc(hidden)]
+#[cfg(not(feature = "interface-0-1-0"))]
+#[macro_export]
+macro_rules! __spindlelab_effects {
+    ($plugin:ident, $kinds:ident) => {
+        impl $crate::bindings::exports::spindlelab::plugin::effects::Guest for $plugin {
+            fn effects() -> ::std::vec::Vec<$crate::bindings::exports::spindlelab::plugin::effects::Effect> {
+                $crate::effects(&$kinds())
+            }
+        }
+    };
+}
+
+/// Interface 0.1.0 has no effects.
+#[doc(hidden)]
+#[cfg(feature = "interface-0-1-0")]
+#[macro_export]
+macro_rules! __spindlelab_effects {
+    ($plugin:ident, $kinds:ident) => {};
+}
+
+#[doc(hidden)]
 pub fn run(run: RunFn, params: Vec<wit::NamedParam>, inputs: Vec<wit::Input>) -> Result<wit::Outcome, String> {
     let call = Call { params, inputs, warnings: Default::default() };
     let outputs = run(&call)?;
@@ -349,6 +451,7 @@ macro_rules! plugin {
                 $crate::run(run, params, inputs)
             }
         }
+        $crate::__spindlelab_effects!(__SpindlelabPlugin, __spindlelab_kinds);
         $crate::bindings::export_plugin!(__SpindlelabPlugin with_types_in $crate::bindings);
     };
 }

@@ -48,5 +48,11 @@ plugin! {
     .input(Port::new("frf", PortType::Frf, "direct receptance at the point (m/N)"))
     .output(Port::new("frf", PortType::Frf, "the receptance with the mass"))
     .param(Param::quantity("mass", "kg", "mass added at the point (negative removes it)").optional())
-    .param(Param::sensor("sensor", "a sensor of the recipe mounted at the point: its mass is added").optional()),
+    .param(Param::sensor("sensor", "a sensor of the recipe mounted at the point: its mass is added").optional())
+    // For the diagnosis: a mass at the measurement point the model lacks (a sensor heavier
+    // than declared, a nut, a fixture), −50 g (less than modelled) to 100 g.
+    .effect(
+        Effect::new("tip_mass", "a point mass at the measurement point, H' = H/(1 − ω²mH); measured FRFs only")
+            .free("mass", 0.0, -0.05, 0.1),
+    ),
 }

@@ -1,5 +1,5 @@
 ;; A component built for a later interface version than the host runs.
 (component
   (instance $node)
-  (export "spindlelab:plugin/node@0.2.0" (instance $node))
+  (export "spindlelab:plugin/node@0.9.0" (instance $node))
 )
