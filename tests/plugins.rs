@@ -426,13 +426,11 @@ fn a_new_plugin_from_the_template_builds_loads_and_runs() {
     assert!(out.contains("my-gain 0.1.0"), "{out}");
 }
 
-#[test]
-fn the_fit_driver_finds_the_mass_a_plugin_effect_adds() {
-    // A plugin effect is a transform of the model like a built-in one: with the measured FRF
-    // that of m + 20 g (closed form, coherence 0.999) and the model the bare structure through
-    // `effect.tip_mass`, the least-squares fit of the effect's mass finds the 20 g.
+/// A folder with `bare.csv`, the FRF of an SDOF (0.1 kg, 1e7 N/m, damping `c` N·s/m, closed
+/// form, coherence 0.999), and `measured.csv`, the same with 20 g more mass.
+fn bare_and_20_g_heavier(c: f64) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    let (m, k, c) = (0.1, 1e7, 12.0);
+    let (m, k) = (0.1, 1e7);
     let freq_hz: Vec<f64> = (40..=600).map(|i| 5.0 * i as f64).collect();
     let frf = |mass: f64| Frf {
         values: freq_hz.iter().map(|&f| sdof(mass, k, c, f)).collect(),
@@ -445,6 +443,15 @@ fn the_fit_driver_finds_the_mass_a_plugin_effect_adds() {
     };
     std::fs::write(dir.path().join("bare.csv"), csv::write_frf(&frf(m))).unwrap();
     std::fs::write(dir.path().join("measured.csv"), csv::write_frf(&frf(m + 0.02))).unwrap();
+    dir
+}
+
+#[test]
+fn the_fit_driver_finds_the_mass_a_plugin_effect_adds() {
+    // A plugin effect is a transform of the model like a built-in one: with the measured FRF
+    // that of m + 20 g (closed form, coherence 0.999) and the model the bare structure through
+    // `effect.tip_mass`, the least-squares fit of the effect's mass finds the 20 g.
+    let dir = bare_and_20_g_heavier(12.0);
     let recipe = dir.path().join("fit.yaml");
     std::fs::write(
         &recipe,
@@ -470,20 +477,7 @@ fn the_diagnosis_names_a_plugin_effect_and_fits_it() {
     // (closed form). No built-in effect acts on a model read from a file but the sensor's
     // delay, so the diagnosis must take `tip_mass` from the plugin, fit it within the
     // plugin's bounds and find the 20 g; the recipe it writes runs the plugin's node.
-    let dir = tempfile::tempdir().unwrap();
-    let (m, k, c) = (0.1, 1e7, 40.0); // ζ = 2 %
-    let freq_hz: Vec<f64> = (40..=600).map(|i| 5.0 * i as f64).collect();
-    let frf = |mass: f64| Frf {
-        values: freq_hz.iter().map(|&f| sdof(mass, k, c, f)).collect(),
-        freq_hz: freq_hz.clone(),
-        coherence: Some(vec![0.999; freq_hz.len()]),
-        unit: UnitLabel::new("m/N"),
-        direction: Some("x".into()),
-        speed_rpm: None,
-        sensor: None,
-    };
-    std::fs::write(dir.path().join("bare.csv"), csv::write_frf(&frf(m))).unwrap();
-    std::fs::write(dir.path().join("measured.csv"), csv::write_frf(&frf(m + 0.02))).unwrap();
+    let dir = bare_and_20_g_heavier(40.0); // ζ = 2 %
     let recipe = dir.path().join("diagnose.yaml");
     std::fs::write(
         &recipe,

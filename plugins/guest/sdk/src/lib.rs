@@ -60,6 +60,7 @@ pub const INTERFACE_VERSION: &str = "0.1.0";
 /// with its measurements (interface 0.2.0 and later). The kind takes the model's FRF at
 /// input `frf` and gives the changed FRF at output `frf`; the diagnosis fits the freed
 /// quantity parameters within their bounds, in SI.
+#[cfg_attr(feature = "interface-0-1-0", allow(dead_code))]
 pub struct Effect {
     name: String,
     description: String,
