@@ -162,6 +162,12 @@ impl Host {
         config.consume_fuel(true);
         config.cranelift_opt_level(wasmtime::OptLevel::Speed);
         config.wasm_component_model(true);
+        // Explicit bounds checks instead of guard pages and signal handlers: a slot's memory then
+        // keeps its read/write protection between calls (it is still reset), so a call pays no
+        // `mprotect` when the guest's allocator grows memory or the slot is recycled (a no-op
+        // call 21.8 → 18.8 µs; compute-heavy calls a few per cent slower).
+        config.signals_based_traps(false);
+        config.memory_guard_size(0);
         // A pool of instance slots, each with room for the largest memory the policy allows:
         // a fresh instance per call then costs microseconds (its memory slot is reset, not
         // mapped anew). The limiter still caps each call at its own plugin's limit.
