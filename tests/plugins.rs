@@ -521,3 +521,53 @@ fn a_plugin_built_for_interface_0_1_0_still_runs() {
     }
     assert!(p.nodes.iter().all(|n| spindlelab::engine::node::Node::effect(n.as_ref()).is_none()));
 }
+
+#[test]
+fn no_call_sees_anything_of_an_earlier_one() {
+    // Instance slots are recycled and keep touched pages mapped between calls: each call must
+    // still start from the component's initial memory. `fixture.remember` counts its calls
+    // in its data and marks a page it grows; a fresh instance reports 1. Calls of another
+    // kind and another plugin in between recycle the same slots.
+    use spindlelab::engine::node::{Labelled, Node, NodeContext};
+    use spindlelab::engine::value::Scalar;
+    let host = Host::new(Policy::default(), None).unwrap();
+    let load = |id: &str| host.load(&spindlelab_plugin_examples::manifest(id), &Expect::default()).unwrap();
+    let (hostile, tip) = (load("hostile"), load("tip-mass"));
+    let kind =
+        |p: &spindlelab_plugin_host::Plugin, k: &str| p.nodes.iter().find(|n| n.spec().kind == k).unwrap().clone();
+    let (remember, noop, tip_mass) =
+        (kind(&hostile, "fixture.remember"), kind(&hostile, "fixture.noop"), kind(&tip, "effect.tip_mass"));
+    let input = |port: &str, value: Value| -> indexmap::IndexMap<String, Vec<Labelled>> {
+        [(port.to_string(), vec![Labelled { label: String::new(), coords: vec![], value: std::sync::Arc::new(value) }])]
+            .into_iter()
+            .collect()
+    };
+    let x = input("x", Value::Scalar(Scalar::new(1.0, "m")));
+    let frf = input(
+        "frf",
+        Value::Frf(Frf {
+            freq_hz: vec![100.0; 50_000],
+            values: vec![Complex64::new(1e-6, -1e-6); 50_000],
+            coherence: None,
+            unit: UnitLabel::new("m/N"),
+            direction: None,
+            speed_rpm: None,
+            sensor: None,
+        }),
+    );
+    let recipe = spindlelab::engine::model::Recipe::default();
+    let params = spindlelab::engine::spec::Params::default();
+    let mut mass = spindlelab::engine::spec::Params::default();
+    let kg = spindlelab::engine::grammar::parse_unit("kg").unwrap().dim;
+    mass.values.insert("mass".into(), spindlelab::engine::spec::ParamValue::Quantity { value: 0.01, dim: kg });
+    for i in 0..40 {
+        let out = remember.run(&NodeContext::new("remember", &params, &x, &recipe)).expect("runs");
+        let Value::Scalar(y) = &out["y"] else { panic!() };
+        assert_eq!(y.value, 1.0, "call {i} saw an earlier call (1000: its page, > 1: its data)");
+        match i % 3 {
+            0 => drop(noop.run(&NodeContext::new("noop", &params, &x, &recipe)).expect("runs")),
+            1 => drop(tip_mass.run(&NodeContext::new("tip", &mass, &frf, &recipe)).expect("runs")),
+            _ => {}
+        }
+    }
+}
