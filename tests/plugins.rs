@@ -375,6 +375,7 @@ fn command_line_checks_plugins_lists_their_nodes_and_runs_recipes_with_them() {
         out.contains("tip-mass 0.1.0") && out.contains("effect.tip_mass v1") && out.contains("256 MiB memory"),
         "{out}"
     );
+    assert!(out.contains("effect for the diagnosis: tip_mass"), "{out}");
 
     let dir = examples();
     let (code, out, _) = spindlelab(&["nodes", "effect.tip_mass", "--plugin", dir.to_str().unwrap()], home.path());
@@ -402,6 +403,17 @@ fn command_line_checks_plugins_lists_their_nodes_and_runs_recipes_with_them() {
     let (code, _, err) = spindlelab(&["plugin", "check", bad.to_str().unwrap()], home.path());
     assert_eq!(code, 2);
     assert!(err.contains("not a plugin manifest"), "{err}");
+
+    // An effect declaration the host refuses, through the binary: exit 2 with the cause.
+    let bad_effect = spindlelab_plugin_examples::manifest("bad-effect");
+    let (code, _, err) = spindlelab(&["plugin", "check", bad_effect.to_str().unwrap()], home.path());
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("plugin `bad-effect`")
+            && err.contains("fixture.bad_effect")
+            && err.contains("must be finite, increasing and hold the absent value 0.2"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-const CRATES: &[&str] = &["examples/chatter-indicator", "examples/tip-mass", "fixtures/hostile", "fixtures/legacy"];
+const CRATES: &[&str] =
+    &["examples/chatter-indicator", "examples/tip-mass", "fixtures/hostile", "fixtures/legacy", "fixtures/bad-effect"];
 
 fn main() {
     let guest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../guest");

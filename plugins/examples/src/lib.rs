@@ -8,7 +8,7 @@ pub fn dir() -> &'static Path {
     Path::new(env!("SPINDLELAB_EXAMPLE_PLUGINS"))
 }
 
-/// The manifest of plugin `id` (`chatter-indicator`, `tip-mass`, `hostile`).
+/// The manifest of plugin `id` (`chatter-indicator`, `tip-mass`, `hostile`, `legacy`, `bad-effect`).
 pub fn manifest(id: &str) -> std::path::PathBuf {
     dir().join(format!("{id}.plugin.json"))
 }
