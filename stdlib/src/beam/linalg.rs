@@ -188,27 +188,42 @@ pub fn symmetric_eigenvalues(a: &[f64], n: usize) -> Option<Vec<f64>> {
 /// factorization is stable; returns false on a zero or non-finite pivot. faer's Cholesky and
 /// LDLᵀ are Hermitian (they conjugate), so this one is written out.
 pub fn complex_symmetric_cholesky(t: &mut [Complex64], n: usize) -> bool {
+    // Right-looking, by rows, on split real and imaginary parts (so the updates run along
+    // contiguous f64 rows and vectorise): row j of R is final once the rows above have
+    // updated it.
+    let mut re: Vec<f64> = t.iter().map(|z| z.re).collect();
+    let mut im: Vec<f64> = t.iter().map(|z| z.im).collect();
     for j in 0..n {
-        let mut d = t[j * n + j];
-        for k in 0..j {
-            d -= t[k * n + j] * t[k * n + j];
-        }
+        let (done_re, rest_re) = re.split_at_mut((j + 1) * n);
+        let (done_im, rest_im) = im.split_at_mut((j + 1) * n);
+        let (row_re, row_im) = (&mut done_re[j * n..], &mut done_im[j * n..]);
+        let d = Complex64::new(row_re[j], row_im[j]);
         if d.norm() == 0.0 || !d.is_finite() {
             return false;
         }
         let r = d.sqrt();
-        t[j * n + j] = r;
         let inv = 1.0 / r;
-        for c in j + 1..n {
-            let mut s = t[j * n + c];
-            for k in 0..j {
-                s -= t[k * n + j] * t[k * n + c];
+        row_re[j] = r.re;
+        row_im[j] = r.im;
+        for (a, b) in row_re[j + 1..].iter_mut().zip(&mut row_im[j + 1..]) {
+            let v = Complex64::new(*a, *b) * inv;
+            (*a, *b) = (v.re, v.im);
+        }
+        row_re[..j].fill(0.0);
+        row_im[..j].fill(0.0);
+        let (row_re, row_im) = (&row_re[..], &row_im[..]);
+        for i in j + 1..n {
+            let (fr, fi) = (row_re[i], row_im[i]);
+            let span = (i - j - 1) * n + i..(i - j) * n;
+            let (tr, ti) = (&mut rest_re[span.clone()], &mut rest_im[span]);
+            for (((ar, ai), &br), &bi) in tr.iter_mut().zip(ti.iter_mut()).zip(&row_re[i..]).zip(&row_im[i..]) {
+                *ar -= fr * br - fi * bi;
+                *ai -= fr * bi + fi * br;
             }
-            t[j * n + c] = s * inv;
         }
-        for c in 0..j {
-            t[j * n + c] = Complex64::new(0.0, 0.0);
-        }
+    }
+    for (z, (&a, &b)) in t.iter_mut().zip(re.iter().zip(&im)) {
+        *z = Complex64::new(a, b);
     }
     true
 }

@@ -14,6 +14,7 @@
 //! [`equivalent`] the equivalent diameter of a fluted tool (§5.3), and [`table`] the Table 5.1
 //! reference geometries.
 
+mod csym;
 pub mod element;
 pub mod equivalent;
 mod jacobi;

@@ -7,6 +7,7 @@
 //! `i Σ η_e K_e`), plus viscous dampers of node springs (`iωC`).
 
 use super::BeamError;
+use super::csym::ComplexSymmetricEigen;
 use super::element;
 use super::jacobi;
 use super::linalg::{
@@ -336,8 +337,8 @@ pub struct ModalModel {
     pub(super) phi: Vec<f64>,
     /// Complex `ν_r`; the first `rigid` are exactly 1/σ.
     nu: Vec<Complex64>,
-    /// Complex shapes `u_r`, column r (row-major n×n).
-    u: Vec<Complex64>,
+    /// Complex shapes `u_r`.
+    shapes: Shapes,
     /// The physical model, for the per-line solve of [`DampingForm::Viscous`].
     model: Box<BeamModel>,
 }
@@ -437,10 +438,10 @@ impl ModalModel {
         };
         let zero = Complex64::new(0.0, 0.0);
         let mut nu = vec![zero; n];
-        let mut u = vec![zero; n * n];
-        match form {
+        let shapes = match form {
             DampingForm::Proportional => {
                 // Zᵀ(K_σ + iηK − sM)Z = diag(a_r − sμ_r), a_r = 1 + iη(1 − σμ_r).
+                let mut u = vec![zero; n * n];
                 for r in 0..n {
                     let a = if r < rigid {
                         Complex64::new(1.0, 0.0)
@@ -453,26 +454,20 @@ impl ModalModel {
                         u[i * n + r] = z[i * n + r] * scale;
                     }
                 }
+                Shapes::Dense(u)
             }
             DampingForm::Structural => {
                 for r in 0..rigid {
                     nu[r] = Complex64::new(mu[r], 0.0);
-                    for i in 0..n {
-                        u[i * n + r] = Complex64::new(z[i * n + r], 0.0);
-                    }
                 }
-                let (ff, ufl) = structural_modes(model, &z, &mu, rigid).ok_or(BeamError::DefectiveDamping)?;
-                let nf = n - rigid;
-                for (c, v) in ff.into_iter().enumerate() {
-                    nu[rigid + c] = v;
-                    for i in 0..n {
-                        u[i * n + rigid + c] = ufl[i * nf + c];
-                    }
-                }
+                let (flexible, shapes) = structural_modes(model, &z, &mu, sigma, rigid, ComplexSolver::Tridiagonal)
+                    .ok_or(BeamError::DefectiveDamping)?;
+                nu[rigid..].copy_from_slice(&flexible);
+                shapes
             }
-            DampingForm::Viscous => {}
-        }
-        Ok(ModalModel { n, sigma, rigid, form, lambda, phi, nu, u, model: Box::new(model.clone()) })
+            DampingForm::Viscous => Shapes::Dense(Vec::new()),
+        };
+        Ok(ModalModel { n, sigma, rigid, form, lambda, phi, nu, shapes, model: Box::new(model.clone()) })
     }
 
     /// Natural frequencies of the undamped model, Hz, ascending (rigid-body modes first, at 0 Hz).
@@ -502,10 +497,17 @@ impl ModalModel {
         if self.form == DampingForm::Viscous {
             return self.model.receptance_direct(response, excitation, freqs);
         }
+        let rows = self.shape_rows(&[2 * response, 2 * response + 1, 2 * excitation, 2 * excitation + 1]);
+        modal_lines(self.sigma, self.rigid, &self.nu, [&rows[0], &rows[1], &rows[2], &rows[3]], freqs)
+    }
+
+    /// Every mode's shape at each of `dofs` (`u_r[dof]` for each r).
+    fn shape_rows(&self, dofs: &[usize]) -> Vec<Vec<Complex64>> {
         let n = self.n;
-        let row = |dof: usize| &self.u[dof * n..(dof + 1) * n];
-        let rows = [row(2 * response), row(2 * response + 1), row(2 * excitation), row(2 * excitation + 1)];
-        modal_lines(self.sigma, self.rigid, &self.nu, rows, freqs)
+        match &self.shapes {
+            Shapes::Dense(u) => dofs.iter().map(|&dof| u[dof * n..(dof + 1) * n].to_vec()).collect(),
+            Shapes::Factored(f) => f.rows(dofs),
+        }
     }
 
     /// The modes kept only at `nodes` (a substructure's coupling points), for receptances
@@ -518,12 +520,8 @@ impl ModalModel {
         if self.form == DampingForm::Viscous {
             return Err(BeamError::NotReducible);
         }
-        let n = self.n;
-        let shapes = nodes
-            .iter()
-            .flat_map(|&node| [2 * node, 2 * node + 1])
-            .map(|d| self.u[d * n..(d + 1) * n].to_vec())
-            .collect();
+        let dofs: Vec<usize> = nodes.iter().flat_map(|&node| [2 * node, 2 * node + 1]).collect();
+        let shapes = self.shape_rows(&dofs);
         Ok(ReducedModes {
             sigma: self.sigma,
             rigid: self.rigid,
@@ -603,18 +601,126 @@ fn modal_lines(
     Ok(out)
 }
 
+/// Eigen-solver for the complex modes of structural damping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ComplexSolver {
+    /// Complex orthogonal tridiagonalisation and QL ([`ComplexSymmetricEigen`]), checked
+    /// against the direct solve; the general solver when the check fails.
+    Tridiagonal,
+    /// faer's general (unitary Schur) eigen-solver.
+    #[cfg_attr(not(test), allow(dead_code))]
+    General,
+}
+
+/// Mode shapes of a [`ModalModel`]: explicit, or for structural damping kept factored so
+/// that a dof's row costs O(n²) and no n × n complex matrix is formed.
+#[derive(Debug, Clone, PartialEq)]
+enum Shapes {
+    /// `u_r` in column r (row-major n×n).
+    Dense(Vec<Complex64>),
+    /// `U = [Z_rigid, Z_f R⁻¹ Y]` (see [`structural_modes`]).
+    Factored(Box<FactoredShapes>),
+}
+
+/// The factors of structurally damped shapes `U = [Z_rigid, Z_f R⁻¹ Y]`.
+#[derive(Debug, Clone, PartialEq)]
+struct FactoredShapes {
+    n: usize,
+    rigid: usize,
+    /// Shifted undamped modes Z, row-major n×n.
+    z: Vec<f64>,
+    /// `Rᵀ` (lower triangular, row-major nf×nf) of `RᵀR = I + iZ_fᵀK_ηZ_f`.
+    rt: Vec<Complex64>,
+    /// Y of `R⁻ᵀ diag(μ) R⁻¹ = Y diag(ν) Yᵀ`.
+    eigen: ComplexSymmetricEigen,
+}
+
+impl FactoredShapes {
+    /// Rows `dofs` of U: the rigid modes' `z`, then `x Y` with `x R = z_f`.
+    fn rows(&self, dofs: &[usize]) -> Vec<Vec<Complex64>> {
+        let (n, rigid) = (self.n, self.rigid);
+        let nf = n - rigid;
+        let xs: Vec<Vec<Complex64>> = dofs
+            .iter()
+            .map(|&dof| {
+                let z = &self.z[dof * n + rigid..(dof + 1) * n];
+                let mut x = vec![Complex64::new(0.0, 0.0); nf];
+                for j in 0..nf {
+                    let l = &self.rt[j * nf..j * nf + j];
+                    let s: Complex64 = l.iter().zip(&x[..j]).map(|(&a, &b)| a * b).sum();
+                    x[j] = (z[j] - s) / self.rt[j * nf + j];
+                }
+                x
+            })
+            .collect();
+        let refs: Vec<&[Complex64]> = xs.iter().map(Vec::as_slice).collect();
+        let flexible = self.eigen.project(&refs);
+        dofs.iter()
+            .zip(flexible)
+            .map(|(&dof, y)| {
+                let mut row: Vec<Complex64> =
+                    self.z[dof * n..dof * n + rigid].iter().map(|&v| Complex64::new(v, 0.0)).collect();
+                row.extend(y);
+                row
+            })
+            .collect()
+    }
+}
+
+/// Agreement the complex orthogonal solution must reach with the direct solve at the check
+/// lines (relative to the largest entry of each block), else the unitary solver is used.
+const CHECK_TOLERANCE: f64 = 1e-7;
+
+/// Whether the modal form with shapes `shapes` agrees with the banded direct solve between
+/// the last node and node 0, on lines about the first flexible modes: the complex orthogonal
+/// transformations are not unitary, so their result is verified rather than trusted.
+fn agrees_with_direct(
+    model: &BeamModel,
+    sigma: f64,
+    rigid: usize,
+    mu: &[f64],
+    nu: &[Complex64],
+    shapes: &Shapes,
+) -> bool {
+    let n = model.n_dof();
+    let last = model.n_nodes() - 1;
+    let rows = match shapes {
+        Shapes::Dense(u) => [2 * last, 2 * last + 1, 0, 1].iter().map(|&d| u[d * n..(d + 1) * n].to_vec()).collect(),
+        Shapes::Factored(f) => f.rows(&[2 * last, 2 * last + 1, 0, 1]),
+    };
+    let hz = |r: usize| mu.get(r).map_or(1.0, |m| (1.0 / m - sigma).max(0.0).sqrt() / TAU);
+    let freqs = [0.5 * hz(rigid), 1.001 * hz(rigid), hz(rigid + 1), 0.5 * (hz(rigid + 2) + hz(rigid + 3))];
+    if freqs.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
+        return true;
+    }
+    let (Ok(modal), Ok(direct)) = (
+        modal_lines(sigma, rigid, nu, [&rows[0], &rows[1], &rows[2], &rows[3]], &freqs),
+        model.receptance_direct(last, 0, &freqs),
+    ) else {
+        return false;
+    };
+    modal.iter().zip(&direct).all(|(a, b)| {
+        let scale = b.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
+        a.iter().flatten().zip(b.iter().flatten()).all(|(x, y)| (x - y).norm() <= CHECK_TOLERANCE * scale)
+    })
+}
+
 /// Complex modes of the flexible subspace for [`DampingForm::Structural`]: in the shifted
 /// undamped modes Z (`ZᵀK_σZ = I`, `ZᵀMZ = diag μ`), `Zᵀ(K* − ω²M)Z = T − s·diag μ` with
 /// `T = I + iZᵀK_ηZ`. With `T = RᵀR` (complex symmetric Cholesky) and the complex symmetric
 /// `V = R⁻ᵀ diag(μ) R⁻¹ = Y diag(ν) Yᵀ`, `(T − s diag μ)⁻¹ = R⁻¹Y diag(1/(1 − sν)) YᵀR⁻ᵀ`, so
 /// the shapes are `U = Z R⁻¹ Y`. V's largest eigenvalues are the lowest modes, which a
-/// backward-stable solver returns to nearly full relative accuracy. Returns ν and U (n × nf).
+/// backward-stable solver returns to nearly full relative accuracy. Y comes from the complex
+/// orthogonal tridiagonal solver, kept factored, or from faer's general eigen-solver when
+/// that one's transformations grow. Returns the flexible ν and the shapes of every mode.
 fn structural_modes(
     model: &BeamModel,
     z: &[f64],
     mu: &[f64],
+    sigma: f64,
     rigid: usize,
-) -> Option<(Vec<Complex64>, Vec<Complex64>)> {
+    solver: ComplexSolver,
+) -> Option<(Vec<Complex64>, Shapes)> {
     use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
     use faer::{Mat, Par, c64};
     let n = model.n_dof();
@@ -640,22 +746,35 @@ fn structural_modes(
     let mut v = x.transpose().to_owned();
     solve_lower_triangular_in_place(r.transpose(), v.as_mut(), Par::Seq);
     let vs: Vec<Complex64> = (0..nf * nf).map(|k| 0.5 * (v[(k / nf, k % nf)] + v[(k % nf, k / nf)])).collect();
+    let fast = if solver == ComplexSolver::Tridiagonal { ComplexSymmetricEigen::new(&vs, nf) } else { None };
+    if let Some(eigen) = fast.filter(|e| e.values.iter().all(|v| v.is_finite())) {
+        let mut nu: Vec<Complex64> = mu[..rigid].iter().map(|&m| Complex64::new(m, 0.0)).collect();
+        nu.extend(&eigen.values);
+        let rt = (0..nf * nf).map(|k| t[(k % nf) * nf + k / nf]).collect();
+        let shapes = Shapes::Factored(Box::new(FactoredShapes { n, rigid, z: z.to_vec(), rt, eigen }));
+        if agrees_with_direct(model, sigma, rigid, mu, &nu, &shapes) {
+            return Some((nu.split_off(rigid), shapes));
+        }
+    }
     let (nu, y) = complex_symmetric_eigen(&vs, nf)?;
     let mut p = Mat::<c64>::from_fn(nf, nf, |i, j| y[i * nf + j]);
     solve_upper_triangular_in_place(r.as_ref(), p.as_mut(), Par::Seq);
     let pre = Mat::<f64>::from_fn(nf, nf, |i, j| p[(i, j)].re);
     let pim = Mat::<f64>::from_fn(nf, nf, |i, j| p[(i, j)].im);
     let (ure, uim) = (&zf * &pre, &zf * &pim);
-    let mut u = vec![Complex64::new(0.0, 0.0); n * nf];
+    let mut u = vec![Complex64::new(0.0, 0.0); n * n];
     for i in 0..n {
+        for c in 0..rigid {
+            u[i * n + c] = Complex64::new(z[i * n + c], 0.0);
+        }
         for c in 0..nf {
-            u[i * nf + c] = Complex64::new(ure[(i, c)], uim[(i, c)]);
+            u[i * n + rigid + c] = Complex64::new(ure[(i, c)], uim[(i, c)]);
         }
     }
     if nu.iter().chain(&u).any(|v| !v.is_finite()) {
         return None;
     }
-    Some((nu, u))
+    Some((nu, Shapes::Dense(u)))
 }
 
 /// Modes with `|s_max ν| ≤` this go into the power series (their terms shrink at least 20× each).
@@ -889,6 +1008,47 @@ mod tests {
     use super::*;
     use crate::beam::{segments_from_sections, table::tool_holder_sections};
 
+    /// Both complex eigen-solvers of structural damping give the receptances of the banded
+    /// direct solve to 1e-8 (steel–carbide Table 5.1 tool-holder, loss factors 0.012 and
+    /// 0.025, tip and spindle end), and the tridiagonal one passes its own check there (its
+    /// shapes stay factored).
+    #[test]
+    fn both_complex_solvers_equal_the_direct_solve() {
+        let mut sections = tool_holder_sections();
+        for s in &mut sections {
+            s.outer.loss_factor = if s.outer.youngs_modulus > 300e9 { 0.025 } else { 0.012 };
+        }
+        let model = BeamModel::from_segments(&segments_from_sections(&sections), &MeshOptions::default()).unwrap();
+        let n = model.n_dof();
+        let sigma = default_shift(&model.k, &model.m, n);
+        let shifted = shifted_eigen(&model.k, &model.m, n, sigma).unwrap();
+        let rigid = model.rigid_body_modes();
+        let mut mu = shifted.mu.clone();
+        mu[..rigid].fill(1.0 / sigma);
+        let last = model.n_nodes() - 1;
+        let freqs: Vec<f64> = (0..300).map(|k| 50.0 * (400.0f64).powf(k as f64 / 299.0)).collect();
+        let direct = model.receptance_direct(last, 0, &freqs).unwrap();
+        for solver in [ComplexSolver::Tridiagonal, ComplexSolver::General] {
+            let (flexible, shapes) = structural_modes(&model, &shifted.z, &mu, sigma, rigid, solver).unwrap();
+            assert_eq!(matches!(shapes, Shapes::Factored(_)), solver == ComplexSolver::Tridiagonal);
+            let mut nu: Vec<Complex64> = mu[..rigid].iter().map(|&m| Complex64::new(m, 0.0)).collect();
+            nu.extend(flexible);
+            let rows = match &shapes {
+                Shapes::Dense(u) => {
+                    [2 * last, 2 * last + 1, 0, 1].iter().map(|&d| u[d * n..(d + 1) * n].to_vec()).collect()
+                }
+                Shapes::Factored(f) => f.rows(&[2 * last, 2 * last + 1, 0, 1]),
+            };
+            let modal = modal_lines(sigma, rigid, &nu, [&rows[0], &rows[1], &rows[2], &rows[3]], &freqs).unwrap();
+            for (a, b) in modal.iter().zip(&direct) {
+                let scale = b.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
+                for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+                    assert!((x - y).norm() <= 1e-8 * scale, "{solver:?}: {x} vs {y}");
+                }
+            }
+        }
+    }
+
     /// The lane-parallel (and AVX-dispatched) sum equals the scalar one bit for bit, with a
     /// line count that leaves a remainder, on both damping forms.
     #[test]
@@ -902,14 +1062,14 @@ mod tests {
             }
             let model = BeamModel::from_segments(&segments_from_sections(&sections), &MeshOptions::default()).unwrap();
             let modes = model.modes().unwrap();
-            let (n, tip) = (modes.n, model.n_nodes() - 1);
-            let row = |dof: usize| &modes.u[dof * n..(dof + 1) * n];
+            let tip = model.n_nodes() - 1;
+            let rows = modes.shape_rows(&[2 * tip, 2 * tip + 1, 0, 1]);
             let freqs: Vec<f64> = (0..503).map(|k| 3.7 + 41.3 * k as f64).collect();
             let sum = ModalSum::new(
                 modes.sigma,
                 modes.rigid,
                 &modes.nu,
-                [row(2 * tip), row(2 * tip + 1), row(0), row(1)],
+                [&rows[0], &rows[1], &rows[2], &rows[3]],
                 TAU * freqs[502],
             );
             let (mut scalar, mut dispatched) = (Vec::new(), Vec::new());
