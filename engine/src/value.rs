@@ -203,7 +203,8 @@ pub struct SubstructurePart {
     pub shift: f64,
     /// Number of rigid-body modes (the first ones).
     pub rigid_modes: usize,
-    /// Undamped natural frequencies, Hz, ascending.
+    /// Natural frequencies, Hz, ascending: of the undamped modes, or with structural damping
+    /// of the complex modes (`√Re λ*`, `λ* = ω²(1 + iη)`).
     pub natural_hz: Vec<f64>,
     /// Complex `ν_r` of every mode.
     pub nu: Vec<Complex64>,

@@ -156,33 +156,61 @@ impl FixedFreeBeam {
     /// `cosh x` (written with `e^{−x}`, so no overflow at any `λL`); below, power series give the static
     /// limits without cancellation.
     pub fn tip_receptance(&self, omega: f64) -> Receptance {
+        self.tip().at(omega)
+    }
+
+    /// The constants of [`FixedFreeBeam::tip_receptance`], for a sweep over frequency.
+    pub fn tip(&self) -> TipReceptance {
         let ei = self.ei_complex();
-        let len = self.length_m;
-        let lam4 = Complex64::from(omega * omega * self.material.rho_kg_m3 * self.area()) / ei;
-        // Principal fourth root: Re λ > 0, small negative Im λ for η > 0.
-        let lam = lam4.powf(0.25);
+        // Principal fourth root: Re k > 0, small negative Im k for η > 0; λ = √ω k.
+        let k = (Complex64::from(self.material.rho_kg_m3 * self.area()) / ei).powf(0.25);
+        TipReceptance { ei, len: self.length_m, k, inv_k: k.inv() }
+    }
+}
+
+/// A [`FixedFreeBeam`]'s free-end receptance with what does not depend on ω computed once:
+/// `λ = √ω k`, `k = (ρA / EI*)^{1/4}`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TipReceptance {
+    ei: Complex64,
+    len: f64,
+    k: Complex64,
+    inv_k: Complex64,
+}
+
+impl TipReceptance {
+    /// The receptance at angular frequency `omega` (rad/s, ≥ 0); see
+    /// [`FixedFreeBeam::tip_receptance`].
+    pub fn at(&self, omega: f64) -> Receptance {
+        let (ei, len) = (self.ei, self.len);
+        let root = omega.sqrt();
+        let lam = self.k * root;
         let x = lam * len;
         if x.norm() < SERIES_LIMIT {
             let (gh, gl, gp, d) = series(x);
             let inv = Complex64::from(1.0) / (ei * d);
-            Receptance::new(gh * len.powi(3) * inv, gl * len * len * inv, gl * len * len * inv, gp * len * inv)
-        } else {
-            // e = e^{−x}; cosh x = (1 + e²)/(2e); sinh x = (1 − e²)/(2e).
-            let e = (-x).exp();
-            let e2 = e * e;
-            let one = Complex64::from(1.0);
-            let tanh = (one - e2) / (one + e2);
-            let sech = e * 2.0 / (one + e2);
-            let (s, c) = (x.sin(), x.cos());
-            let dn = ei * (sech + c);
-            let lnum = s * tanh;
-            Receptance::new(
-                (s - c * tanh) / (lam * lam * lam * dn),
-                lnum / (lam * lam * dn),
-                lnum / (lam * lam * dn),
-                (s + c * tanh) / (lam * dn),
-            )
+            return Receptance::new(gh * len.powi(3) * inv, gl * len * len * inv, gl * len * len * inv, gp * len * inv);
         }
+        // x = a + ib: sin x = sin a cosh b + i cos a sinh b, cos x = cos a cosh b − i sin a sinh b,
+        // e = e^{−x} = e^{−a}(cos b − i sin b); cosh x = (1 + e²)/(2e), sinh x = (1 − e²)/(2e).
+        let (a, b) = (x.re, x.im);
+        let (sa, ca) = a.sin_cos();
+        let (sb, cb) = b.sin_cos();
+        let (shb, chb) = (b.sinh(), b.cosh());
+        let s = Complex64::new(sa * chb, ca * shb);
+        let c = Complex64::new(ca * chb, -sa * shb);
+        let ea = (-a).exp();
+        let e = Complex64::new(ea * cb, -ea * sb);
+        let e2 = e * e;
+        let one = Complex64::from(1.0);
+        let inv_sum = (one + e2).inv();
+        let tanh = (one - e2) * inv_sum;
+        let sech = e * 2.0 * inv_sum;
+        // 1/(λ D'), D' = EI*(sech x + cos x) = EI* D / cosh x; 1/λ = k⁻¹/√ω.
+        let inv = (lam * ei * (sech + c)).inv();
+        let inv_lam = self.inv_k / root;
+        let l = s * tanh * inv * inv_lam;
+        Receptance::new((s - c * tanh) * inv * inv_lam * inv_lam, l, l, (s + c * tanh) * inv)
     }
 }
 
@@ -290,13 +318,13 @@ pub fn spindle_receptance(
         if !(eta.is_finite() && eta >= 0.0) {
             return Err(EbError::SpeedLaw { mode: i, speed_rpm, what: "loss factor", value: eta });
         }
-        beams.push(FixedFreeBeam::equivalent(f, m.d_m, eta, *material)?);
+        beams.push(FixedFreeBeam::equivalent(f, m.d_m, eta, *material)?.tip());
     }
     let lines = freqs_hz
         .iter()
         .map(|&f| {
             let w = TAU * f;
-            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.tip_receptance(w))
+            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.at(w))
         })
         .collect();
     Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
@@ -308,6 +336,36 @@ mod tests {
 
     fn rel(a: Complex64, b: Complex64) -> f64 {
         (a - b).norm() / b.norm()
+    }
+
+    /// The per-line form equals Eqs. 5.5, 5.10, 5.11 written out with complex sin, cos, sinh
+    /// and cosh (where they do not overflow), from below the series switch to λL ≈ 30.
+    #[test]
+    fn tip_receptance_equals_the_textbook_formulas() {
+        let beam = FixedFreeBeam::new(0.25, 0.06, 0.05, BeamMaterial::STEEL).unwrap();
+        let (ei, len) = (beam.ei_complex(), beam.length_m);
+        let mut checked = 0;
+        for k in 1..400 {
+            let omega = 40.0 * k as f64 * k as f64;
+            let lam = (Complex64::from(omega * omega * beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25);
+            let x = lam * len;
+            if x.norm() < SERIES_LIMIT {
+                continue;
+            }
+            let d = 1.0 + x.cos() * x.cosh();
+            let want = Receptance::new(
+                (x.sin() * x.cosh() - x.cos() * x.sinh()) / (lam.powi(3) * ei * d),
+                x.sin() * x.sinh() / (lam * lam * ei * d),
+                x.sin() * x.sinh() / (lam * lam * ei * d),
+                (x.sin() * x.cosh() + x.cos() * x.sinh()) / (lam * ei * d),
+            );
+            let got = beam.tip_receptance(omega);
+            for (a, b) in [(got.h, want.h), (got.l, want.l), (got.n, want.n), (got.p, want.p)] {
+                assert!(rel(a, b) < 1e-9, "omega {omega}: {a} vs {b}");
+            }
+            checked += 1;
+        }
+        assert!(checked > 300);
     }
 
     #[test]

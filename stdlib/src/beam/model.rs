@@ -11,7 +11,8 @@ use super::csym::ComplexSymmetricEigen;
 use super::element;
 use super::jacobi;
 use super::linalg::{
-    bandwidth, complex_solve_banded, complex_symmetric_cholesky, complex_symmetric_eigen, default_shift, shifted_eigen,
+    BandCholesky, bandwidth, complex_solve_banded, complex_symmetric_cholesky, complex_symmetric_eigen, default_shift,
+    shifted_eigen,
 };
 use super::section::{BeamSegment, SectionProperties, ShearCoefficient};
 use num_complex::Complex64;
@@ -331,10 +332,10 @@ pub struct ModalModel {
     sigma: f64,
     rigid: usize,
     form: DampingForm,
-    /// Undamped eigenvalues `λ_r = ω_r²`, ascending; rigid-body modes first, exactly 0.
+    /// `λ_r = ω_r²`, ascending, rigid-body modes first, exactly 0: the undamped eigenvalues,
+    /// or with structural damping `Re λ*_r` of the complex modes (`λ* = ω²(1 + iη)`; they
+    /// differ from the undamped ones by O(η²) where the damping is not proportional).
     pub(super) lambda: Vec<f64>,
-    /// Mass-normalised undamped mode shapes, column r (row-major n×n).
-    pub(super) phi: Vec<f64>,
     /// Complex `ν_r`; the first `rigid` are exactly 1/σ.
     nu: Vec<Complex64>,
     /// Complex shapes `u_r`.
@@ -392,39 +393,7 @@ impl ModalModel {
     pub fn with_solver(model: &BeamModel, solver: EigenSolver) -> Result<ModalModel, BeamError> {
         let n = model.n_dof();
         let sigma = default_shift(&model.k, &model.m, n);
-        let (mut mu, z) = match solver {
-            EigenSolver::Faer => {
-                let shifted = shifted_eigen(&model.k, &model.m, n, sigma).ok_or(BeamError::MassNotDefinite)?;
-                (shifted.mu, shifted.z)
-            }
-            EigenSolver::Jacobi => {
-                let (lambda, mut phi) =
-                    jacobi::generalized_eigen(&model.k, &model.m, n).ok_or(BeamError::MassNotDefinite)?;
-                // μ = 1/(λ + σ) and z = φ√μ, the shifted form of the same modes.
-                let mu: Vec<f64> = lambda.iter().map(|l| 1.0 / (l.max(0.0) + sigma)).collect();
-                for (c, m) in mu.iter().enumerate() {
-                    let scale = m.sqrt();
-                    for i in 0..n {
-                        phi[i * n + c] *= scale;
-                    }
-                }
-                (mu, phi)
-            }
-        };
         let rigid = model.rigid_body_modes();
-        // Rigid-body modes have λ = 0 exactly, so μ = 1/σ; the solver leaves roundoff.
-        for v in mu.iter_mut().take(rigid) {
-            *v = 1.0 / sigma;
-        }
-        let lambda: Vec<f64> =
-            mu.iter().enumerate().map(|(r, m)| if r < rigid { 0.0 } else { 1.0 / m - sigma }).collect();
-        let mut phi = z.clone();
-        for (c, m) in mu.iter().enumerate() {
-            let scale = 1.0 / m.sqrt();
-            for i in 0..n {
-                phi[i * n + c] *= scale;
-            }
-        }
         let eta0 = model.elements.first().map_or(0.0, |(p, _)| p.eta);
         let form = if model.c.iter().any(|&v| v != 0.0) {
             DampingForm::Viscous
@@ -436,6 +405,20 @@ impl ModalModel {
         } else {
             DampingForm::Structural
         };
+        if form == DampingForm::Structural
+            && solver == EigenSolver::Faer
+            && let Some((nu, shapes)) = banded_structural_modes(model, sigma, rigid)
+        {
+            // λ*_r = 1/ν_r − σ = ω_r²(1 + iη_r): the complex modes' natural frequencies.
+            let mut lambda: Vec<f64> = nu
+                .iter()
+                .enumerate()
+                .map(|(r, v)| if r < rigid { 0.0 } else { (v.inv().re - sigma).max(0.0) })
+                .collect();
+            lambda.sort_by(f64::total_cmp);
+            return Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model: Box::new(model.clone()) });
+        }
+        let UndampedModes { lambda, mu, z, .. } = undamped_modes(model, solver, sigma, rigid)?;
         let zero = Complex64::new(0.0, 0.0);
         let mut nu = vec![zero; n];
         let shapes = match form {
@@ -467,10 +450,11 @@ impl ModalModel {
             }
             DampingForm::Viscous => Shapes::Dense(Vec::new()),
         };
-        Ok(ModalModel { n, sigma, rigid, form, lambda, phi, nu, shapes, model: Box::new(model.clone()) })
+        Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model: Box::new(model.clone()) })
     }
 
-    /// Natural frequencies of the undamped model, Hz, ascending (rigid-body modes first, at 0 Hz).
+    /// Natural frequencies `√λ_r / 2π`, Hz, ascending (rigid-body modes first, at 0 Hz): of the
+    /// undamped modes, or with structural damping of the complex modes (`√Re λ*`).
     pub fn natural_frequencies(&self) -> Vec<f64> {
         self.lambda.iter().map(|l| l.max(0.0).sqrt() / TAU).collect()
     }
@@ -503,11 +487,7 @@ impl ModalModel {
 
     /// Every mode's shape at each of `dofs` (`u_r[dof]` for each r).
     fn shape_rows(&self, dofs: &[usize]) -> Vec<Vec<Complex64>> {
-        let n = self.n;
-        match &self.shapes {
-            Shapes::Dense(u) => dofs.iter().map(|&dof| u[dof * n..(dof + 1) * n].to_vec()).collect(),
-            Shapes::Factored(f) => f.rows(dofs),
-        }
+        self.shapes.rows(self.n, dofs)
     }
 
     /// The modes kept only at `nodes` (a substructure's coupling points), for receptances
@@ -545,7 +525,7 @@ pub struct ReducedModes {
     pub nu: Vec<Complex64>,
     /// Mode shapes at the kept dofs: `shapes[2k]` (y) and `shapes[2k + 1]` (θ) of kept node k.
     pub shapes: Vec<Vec<Complex64>>,
-    /// Undamped natural frequencies, Hz, ascending.
+    /// Natural frequencies, Hz, ascending ([`ModalModel::natural_frequencies`]).
     pub natural_hz: Vec<f64>,
 }
 
@@ -574,6 +554,90 @@ impl ReducedModes {
         ];
         modal_lines(self.sigma, self.rigid, &self.nu, rows, freqs)
     }
+}
+
+/// Undamped modes of a model in plain and shifted form.
+pub(super) struct UndampedModes {
+    /// `λ_r = ω_r²`, ascending; rigid-body modes first, exactly 0.
+    pub lambda: Vec<f64>,
+    /// Mass-normalised shapes, column r (row-major n×n).
+    pub phi: Vec<f64>,
+    /// `μ_r = 1/(λ_r + σ)`, rigid-body modes exactly `1/σ`.
+    pub mu: Vec<f64>,
+    /// `z_r = φ_r √μ_r` (`zᵀK_σz = 1`), column r.
+    pub z: Vec<f64>,
+}
+
+/// The undamped modes of `model` by `solver`, with shift `sigma` and `rigid` rigid-body modes.
+pub(super) fn undamped_modes(
+    model: &BeamModel,
+    solver: EigenSolver,
+    sigma: f64,
+    rigid: usize,
+) -> Result<UndampedModes, BeamError> {
+    let n = model.n_dof();
+    let (mut mu, z) = match solver {
+        EigenSolver::Faer => {
+            let shifted = shifted_eigen(&model.k, &model.m, n, sigma).ok_or(BeamError::MassNotDefinite)?;
+            (shifted.mu, shifted.z)
+        }
+        EigenSolver::Jacobi => {
+            let (lambda, mut phi) =
+                jacobi::generalized_eigen(&model.k, &model.m, n).ok_or(BeamError::MassNotDefinite)?;
+            // μ = 1/(λ + σ) and z = φ√μ, the shifted form of the same modes.
+            let mu: Vec<f64> = lambda.iter().map(|l| 1.0 / (l.max(0.0) + sigma)).collect();
+            for (c, m) in mu.iter().enumerate() {
+                let scale = m.sqrt();
+                for i in 0..n {
+                    phi[i * n + c] *= scale;
+                }
+            }
+            (mu, phi)
+        }
+    };
+    // Rigid-body modes have λ = 0 exactly, so μ = 1/σ; the solver leaves roundoff.
+    for v in mu.iter_mut().take(rigid) {
+        *v = 1.0 / sigma;
+    }
+    let lambda: Vec<f64> = mu.iter().enumerate().map(|(r, m)| if r < rigid { 0.0 } else { 1.0 / m - sigma }).collect();
+    let mut phi = z.clone();
+    for (c, m) in mu.iter().enumerate() {
+        let scale = 1.0 / m.sqrt();
+        for i in 0..n {
+            phi[i * n + c] *= scale;
+        }
+    }
+    Ok(UndampedModes { lambda, phi, mu, z })
+}
+
+/// Complex modes of [`DampingForm::Structural`] from the banded matrices: with
+/// `K_σ* = K + iK_η + σM = CᵀC` (complex symmetric banded Cholesky) and the complex symmetric
+/// `V = C⁻ᵀMC⁻¹ = Y diag(ν) Yᵀ`, `(K* − ω²M)⁻¹ = (K_σ* − sM)⁻¹ = C⁻¹Y diag(1/(1 − sν)) YᵀC⁻ᵀ`,
+/// so `U = C⁻¹Y`. C and M are banded, so V costs O(n²b) and the eigen-solve dominates. The
+/// rigid-body modes are V's `rigid` largest eigenvalues, `1/σ` exactly (K and K_η vanish on
+/// them). The result is checked against the direct solve; `None` sends the caller to the
+/// undamped modes' route ([`structural_modes`]).
+fn banded_structural_modes(model: &BeamModel, sigma: f64, rigid: usize) -> Option<(Vec<Complex64>, Shapes)> {
+    let n = model.n_dof();
+    let band = bandwidth(&[&model.k, &model.m, &model.k_loss], n);
+    let factor = BandCholesky::new(n, band, |i, j| {
+        Complex64::new(model.k[i * n + j] + sigma * model.m[i * n + j], model.k_loss[i * n + j])
+    })?;
+    let v = factor.congruence(&model.m);
+    let eigen = ComplexSymmetricEigen::new(&v, n)?;
+    let mut nu = eigen.values.clone();
+    for v in nu.iter_mut().take(rigid) {
+        if (*v * sigma - 1.0).norm() > 1e-6 {
+            return None;
+        }
+        *v = Complex64::new(1.0 / sigma, 0.0);
+    }
+    if nu.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let shapes = Shapes::Banded(Box::new(BandedShapes { factor, eigen }));
+    let mu: Vec<f64> = nu.iter().map(|v| v.re).collect();
+    agrees_with_direct(model, sigma, rigid, &mu, &nu, &shapes).then_some((nu, shapes))
 }
 
 /// The modal sum `Σ_r u_r u_rᵀ/(1 − sν_r)` between two nodes (rows: response y, θ, excitation
@@ -620,6 +684,43 @@ enum Shapes {
     Dense(Vec<Complex64>),
     /// `U = [Z_rigid, Z_f R⁻¹ Y]` (see [`structural_modes`]).
     Factored(Box<FactoredShapes>),
+    /// `U = C⁻¹Y` (see [`banded_structural_modes`]).
+    Banded(Box<BandedShapes>),
+}
+
+impl Shapes {
+    /// Every mode's shape at each of `dofs` (`u_r[dof]` for each r) of an n-dof model.
+    fn rows(&self, n: usize, dofs: &[usize]) -> Vec<Vec<Complex64>> {
+        match self {
+            Shapes::Dense(u) => dofs.iter().map(|&dof| u[dof * n..(dof + 1) * n].to_vec()).collect(),
+            Shapes::Factored(f) => f.rows(dofs),
+            Shapes::Banded(b) => b.rows(n, dofs),
+        }
+    }
+}
+
+/// The factors of `U = C⁻¹Y`.
+#[derive(Debug, Clone, PartialEq)]
+struct BandedShapes {
+    factor: BandCholesky,
+    eigen: ComplexSymmetricEigen,
+}
+
+impl BandedShapes {
+    /// Rows `dofs` of U: `x Y` with `x C = e_dof`.
+    fn rows(&self, n: usize, dofs: &[usize]) -> Vec<Vec<Complex64>> {
+        let xs: Vec<Vec<Complex64>> = dofs
+            .iter()
+            .map(|&dof| {
+                let mut x = vec![Complex64::new(0.0, 0.0); n];
+                x[dof] = Complex64::new(1.0, 0.0);
+                self.factor.solve_transposed(&mut x);
+                x
+            })
+            .collect();
+        let refs: Vec<&[Complex64]> = xs.iter().map(Vec::as_slice).collect();
+        self.eigen.project(&refs)
+    }
 }
 
 /// The factors of structurally damped shapes `U = [Z_rigid, Z_f R⁻¹ Y]`.
@@ -684,10 +785,7 @@ fn agrees_with_direct(
 ) -> bool {
     let n = model.n_dof();
     let last = model.n_nodes() - 1;
-    let rows = match shapes {
-        Shapes::Dense(u) => [2 * last, 2 * last + 1, 0, 1].iter().map(|&d| u[d * n..(d + 1) * n].to_vec()).collect(),
-        Shapes::Factored(f) => f.rows(&[2 * last, 2 * last + 1, 0, 1]),
-    };
+    let rows = shapes.rows(n, &[2 * last, 2 * last + 1, 0, 1]);
     let hz = |r: usize| mu.get(r).map_or(1.0, |m| (1.0 / m - sigma).max(0.0).sqrt() / TAU);
     let freqs = [0.5 * hz(rigid), 1.001 * hz(rigid), hz(rigid + 1), 0.5 * (hz(rigid + 2) + hz(rigid + 3))];
     if freqs.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
@@ -1008,10 +1106,10 @@ mod tests {
     use super::*;
     use crate::beam::{segments_from_sections, table::tool_holder_sections};
 
-    /// Both complex eigen-solvers of structural damping give the receptances of the banded
-    /// direct solve to 1e-8 (steel–carbide Table 5.1 tool-holder, loss factors 0.012 and
-    /// 0.025, tip and spindle end), and the tridiagonal one passes its own check there (its
-    /// shapes stay factored).
+    /// Every route to the complex modes of structural damping gives the receptances of the
+    /// banded direct solve to 1e-8 (steel–carbide Table 5.1 tool-holder, loss factors 0.012
+    /// and 0.025, tip and spindle end): the default one from the banded matrices (which passes
+    /// its own check there), and through the undamped modes with either eigen-solver.
     #[test]
     fn both_complex_solvers_equal_the_direct_solve() {
         let mut sections = tool_holder_sections();
@@ -1028,24 +1126,31 @@ mod tests {
         let last = model.n_nodes() - 1;
         let freqs: Vec<f64> = (0..300).map(|k| 50.0 * (400.0f64).powf(k as f64 / 299.0)).collect();
         let direct = model.receptance_direct(last, 0, &freqs).unwrap();
+        let close = |modal: &[Receptance], what: &str| {
+            for (a, b) in modal.iter().zip(&direct) {
+                let scale = b.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
+                for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+                    assert!((x - y).norm() <= 1e-8 * scale, "{what}: {x} vs {y}");
+                }
+            }
+        };
+        let banded = model.modes().unwrap();
+        assert!(matches!(banded.shapes, Shapes::Banded(_)));
+        close(&banded.receptance(last, 0, &freqs).unwrap(), "banded");
+        // Natural frequencies of the complex modes: within O(η²) of the undamped ones.
+        let natural = banded.natural_frequencies();
+        let undamped = undamped_modes(&model, EigenSolver::Faer, sigma, rigid).unwrap();
+        for (a, l) in natural.iter().zip(&undamped.lambda).take(20) {
+            assert!((a - l.sqrt() / TAU).abs() <= 1e-3 * a.max(1.0), "{a} Hz vs {} Hz", l.sqrt() / TAU);
+        }
         for solver in [ComplexSolver::Tridiagonal, ComplexSolver::General] {
             let (flexible, shapes) = structural_modes(&model, &shifted.z, &mu, sigma, rigid, solver).unwrap();
             assert_eq!(matches!(shapes, Shapes::Factored(_)), solver == ComplexSolver::Tridiagonal);
             let mut nu: Vec<Complex64> = mu[..rigid].iter().map(|&m| Complex64::new(m, 0.0)).collect();
             nu.extend(flexible);
-            let rows = match &shapes {
-                Shapes::Dense(u) => {
-                    [2 * last, 2 * last + 1, 0, 1].iter().map(|&d| u[d * n..(d + 1) * n].to_vec()).collect()
-                }
-                Shapes::Factored(f) => f.rows(&[2 * last, 2 * last + 1, 0, 1]),
-            };
+            let rows = shapes.rows(n, &[2 * last, 2 * last + 1, 0, 1]);
             let modal = modal_lines(sigma, rigid, &nu, [&rows[0], &rows[1], &rows[2], &rows[3]], &freqs).unwrap();
-            for (a, b) in modal.iter().zip(&direct) {
-                let scale = b.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
-                for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
-                    assert!((x - y).norm() <= 1e-8 * scale, "{solver:?}: {x} vs {y}");
-                }
-            }
+            close(&modal, &format!("{solver:?}"));
         }
     }
 

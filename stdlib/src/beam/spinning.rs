@@ -20,8 +20,8 @@
 
 use super::BeamError;
 use super::element;
-use super::linalg::{complex_solve_banded, symmetric_eigenvalues};
-use super::model::{BeamModel, project};
+use super::linalg::{complex_solve_banded, default_shift, symmetric_eigenvalues};
+use super::model::{BeamModel, EigenSolver, project, undamped_modes};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -194,9 +194,10 @@ impl SpinningModel {
     /// orbits turning from y toward z (forward for Ω > 0) and whose negative roots, with the
     /// sign changed, the orbits turning the other way.
     pub fn campbell(&self, speeds: &[f64]) -> Result<Vec<Whirl>, BeamError> {
-        let modes = self.planar.modes()?;
         let n = self.planar.n_dof();
-        let rigid = modes.rigid_modes();
+        let rigid = self.planar.rigid_body_modes();
+        let sigma = default_shift(self.planar.stiffness(), self.planar.mass(), n);
+        let modes = undamped_modes(&self.planar, EigenSolver::Faer, sigma, rigid)?;
         let rt = project(&self.polar, &modes.phi, n);
         let elastic = n - rigid;
         let size = elastic + n;
