@@ -476,7 +476,10 @@ mod tests {
         let b1 = FixedFreeBeam::equivalent(2500.0, 0.05, 0.03, mat).unwrap();
         for (i, &f) in grid.iter().enumerate() {
             let want = b0.tip_receptance(TAU * f) + b1.tip_receptance(TAU * f);
-            assert!((s.lines[i] - want).max_norm() <= 1e-15 * want.max_norm());
+            // Equal but for rounding: where the sweep's loop is inlined, sin and cos of the same
+            // argument may come from one joint libm call, and near a resonance (D → 0) an ulp
+            // there grows to ~1e-13.
+            assert!((s.lines[i] - want).max_norm() <= 1e-12 * want.max_norm(), "{f} Hz: {:?} vs {want:?}", s.lines[i]);
         }
         m0.kf = 0.02;
         m0.keta = -0.05;
