@@ -196,7 +196,10 @@ impl TipReceptance {
         let (a, b) = (x.re, x.im);
         let (sa, ca) = a.sin_cos();
         let (sb, cb) = b.sin_cos();
-        let (shb, chb) = (b.sinh(), b.cosh());
+        // sinh and cosh from one e^b − 1 (exact for small b, where e^b ± e^−b would cancel).
+        let m = b.exp_m1();
+        let ratio = m / (1.0 + m);
+        let (shb, chb) = (0.5 * (m + ratio), 1.0 + 0.5 * m * ratio);
         let s = Complex64::new(sa * chb, ca * shb);
         let c = Complex64::new(ca * chb, -sa * shb);
         let ea = (-a).exp();

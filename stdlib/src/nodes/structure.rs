@@ -273,8 +273,19 @@ fn two_port(
         model.add_point_mass(tip, tip_mass, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
     }
     let modes = model.modes().map_err(fe)?;
+    // Kept at tip and spindle end, the shapes are found once for the four blocks (viscous
+    // dampers have no modal form: solved per line).
+    let reduced = match modes.reduce(&[tip, 0]) {
+        Ok(reduced) => Some(reduced),
+        Err(beam::BeamError::NotReducible) => None,
+        Err(e) => return Err(fe(e)),
+    };
     let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
-        Ok(modes.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
+        let lines = match &reduced {
+            Some(reduced) => reduced.receptance(usize::from(a == 0), usize::from(b == 0), freqs),
+            None => modes.receptance(a, b, freqs),
+        };
+        Ok(lines.map_err(fe)?.iter().map(block).collect())
     };
     Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(tip, tip)?, r12: r(tip, 0)?, r21: r(0, tip)?, r22: r(0, 0)? })
 }
