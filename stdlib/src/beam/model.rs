@@ -554,6 +554,39 @@ impl ReducedModes {
         ];
         modal_lines(self.sigma, self.rigid, &self.nu, rows, freqs)
     }
+
+    /// The receptance blocks between every two kept nodes at each frequency (Hz):
+    /// `blocks[i · points + j][line]` is `∂(y, θ) at node i / ∂(F, M) at node j`. The matrix is
+    /// symmetric, so its upper triangle is summed, with each line's mode factors computed
+    /// once for all of it.
+    pub fn blocks(&self, freqs: &[f64]) -> Result<Vec<Vec<Receptance>>, BeamError> {
+        let points = self.points();
+        if self.shapes.iter().any(|s| s.len() != self.nu.len()) {
+            return Err(BeamError::NotReducible);
+        }
+        let dofs = 2 * points;
+        let pairs: Vec<(usize, usize)> = (0..dofs).flat_map(|a| (a..dofs).map(move |b| (a, b))).collect();
+        let index = |a: usize, b: usize| {
+            let (a, b) = (a.min(b), a.max(b));
+            a * dofs - a * (a + 1) / 2 + b
+        };
+        let rows: Vec<&[Complex64]> = self.shapes.iter().map(Vec::as_slice).collect();
+        // Where each block entry sits in a line's values.
+        let entries: Vec<[[usize; 2]; 2]> = (0..points * points)
+            .map(|b| {
+                let (i, j) = (b / points, b % points);
+                std::array::from_fn(|r| std::array::from_fn(|c| 2 * index(2 * i + r, 2 * j + c)))
+            })
+            .collect();
+        let mut blocks: Vec<Vec<Receptance>> = (0..points * points).map(|_| Vec::with_capacity(freqs.len())).collect();
+        modal_sums(self.sigma, self.rigid, &self.nu, &rows, &pairs, freqs, |line| {
+            let at = |k: usize| Complex64::new(line[k], line[k + 1]);
+            for (block, e) in blocks.iter_mut().zip(&entries) {
+                block.push([[at(e[0][0]), at(e[0][1])], [at(e[1][0]), at(e[1][1])]]);
+            }
+        })?;
+        Ok(blocks)
+    }
 }
 
 /// Undamped modes of a model in plain and shifted form.
@@ -640,15 +673,17 @@ fn banded_structural_modes(model: &BeamModel, sigma: f64, rigid: usize) -> Optio
     agrees_with_direct(model, sigma, rigid, &mu, &nu, &shapes).then_some((nu, shapes))
 }
 
-/// The modal sum `Σ_r u_r u_rᵀ/(1 − sν_r)` between two nodes (rows: response y, θ, excitation
-/// y, θ) at each frequency (Hz).
-fn modal_lines(
+/// The modal sum `Σ_r u_a u_b/(1 − sν_r)` for each pair (a, b) of `rows` at each frequency
+/// (Hz), handed to `emit` line by line as `[Re, Im]` of every pair.
+fn modal_sums(
     sigma: f64,
     rigid: usize,
     nu: &[Complex64],
-    rows: [&[Complex64]; 4],
+    rows: &[&[Complex64]],
+    pairs: &[(usize, usize)],
     freqs: &[f64],
-) -> Result<Vec<Receptance>, BeamError> {
+    emit: impl FnMut(&[f64]),
+) -> Result<(), BeamError> {
     let mut top = 0.0f64;
     for &f in freqs {
         if !f.is_finite() || f < 0.0 {
@@ -659,9 +694,23 @@ fn modal_lines(
         }
         top = top.max(f);
     }
-    let sum = ModalSum::new(sigma, rigid, nu, rows, TAU * top);
+    ModalSum::new(sigma, rigid, nu, rows, pairs, TAU * top).run(freqs, emit)
+}
+
+/// The receptance block between two nodes (rows: response y, θ, excitation y, θ) at each
+/// frequency (Hz).
+fn modal_lines(
+    sigma: f64,
+    rigid: usize,
+    nu: &[Complex64],
+    rows: [&[Complex64]; 4],
+    freqs: &[f64],
+) -> Result<Vec<Receptance>, BeamError> {
     let mut out = Vec::with_capacity(freqs.len());
-    sum.run(freqs, &mut out)?;
+    modal_sums(sigma, rigid, nu, &rows, &[(0, 2), (0, 3), (1, 2), (1, 3)], freqs, |a| {
+        let c = |k: usize| Complex64::new(a[k], a[k + 1]);
+        out.push([[c(0), c(2)], [c(4), c(6)]]);
+    })?;
     Ok(out)
 }
 
@@ -878,73 +927,103 @@ fn structural_modes(
 /// Modes with `|s_max ν| ≤` this go into the power series (their terms shrink at least 20× each).
 const SERIES_RATIO: f64 = 0.05;
 
-/// Per-line evaluation of a modal sum between two nodes (four dofs): the rigid-body modes'
-/// exact `−σ/ω²` factor, the dynamic modes one by one, and the stiff modes as a power series in
-/// `t = s/s_max ∈ (0, 1]`: `Σ_r R_r/(1 − sν_r) = Σ_k t^k Σ_r R_r (s_max ν_r)^k`, truncated
-/// where the remaining terms fall below 1e-17 of the series' first.
+/// Lines evaluated together by [`ModalSum::lanes`].
+const LANES: usize = 4;
+
+/// Complex residues accumulated together (eight f64 accumulators per lane, which stay in
+/// registers).
+const GROUP: usize = 4;
+
+/// Per-line evaluation of a modal sum `Σ_r u_a u_b/(1 − sν_r)` for a list of dof pairs (a, b):
+/// the rigid-body modes' exact `−σ/ω²` factor, the dynamic modes one by one, and the stiff
+/// modes as a power series in `t = s/s_max ∈ (0, 1]`:
+/// `Σ_r R_r/(1 − sν_r) = Σ_k t^k Σ_r R_r (s_max ν_r)^k`, truncated where the remaining terms
+/// fall below 1e-17 of the series' first. A line's mode factors `1/(1 − sν_r)` are computed
+/// once for every pair, so a whole receptance matrix costs little more than one entry.
 struct ModalSum {
     sigma: f64,
     s_max: f64,
-    /// Residues `[yy, yθ, θy, θθ]` of the rigid-body modes (real shapes).
-    rigid: [f64; 4],
-    /// Dynamic modes: ν (re, im) and the four residues (re, im), structure of arrays.
+    /// Number of pairs (complex residues); the arrays below hold whole groups of [`GROUP`],
+    /// zero-padded.
+    pairs: usize,
+    groups: usize,
+    /// Residues of the rigid-body modes (real shapes), one per (padded) pair.
+    rigid: Vec<f64>,
+    /// Dynamic modes' ν (re, im), structure of arrays.
     nu_re: Vec<f64>,
     nu_im: Vec<f64>,
-    res: [Vec<f64>; 8],
-    /// Power-series coefficients, lowest power first: `[re, im]` of the four residues.
-    series: Vec<[f64; 8]>,
+    /// Dynamic modes' residues, group g and mode m at `g · modes + m`: `[re, im]` of the
+    /// group's pairs.
+    res: Vec<[f64; 2 * GROUP]>,
+    /// Power-series coefficients, group g and power k at `g · terms + k`.
+    series: Vec<[f64; 2 * GROUP]>,
+    terms: usize,
 }
 
 impl ModalSum {
-    fn new(sigma: f64, rigid: usize, nu: &[Complex64], rows: [&[Complex64]; 4], w_max: f64) -> ModalSum {
-        let [ay, at, by, bt] = rows;
+    /// The sum for `pairs` of `rows` (each a dof's shapes over every mode) up to `w_max`, rad/s.
+    fn new(
+        sigma: f64,
+        rigid: usize,
+        nu: &[Complex64],
+        rows: &[&[Complex64]],
+        pairs: &[(usize, usize)],
+        w_max: f64,
+    ) -> ModalSum {
         let s_max = sigma + w_max * w_max;
-        let mut sum = ModalSum {
-            sigma,
-            s_max,
-            rigid: [0.0; 4],
-            nu_re: Vec::new(),
-            nu_im: Vec::new(),
-            res: Default::default(),
-            series: Vec::new(),
-        };
+        let groups = pairs.len().div_ceil(GROUP);
+        let residue =
+            |r: usize, p: usize| pairs.get(p).map_or(Complex64::new(0.0, 0.0), |&(a, b)| rows[a][r] * rows[b][r]);
+        let mut rigid_res = vec![0.0; groups * GROUP];
+        let mut dynamic = Vec::new();
         let mut stiff = Vec::new();
         let mut rho = 0.0f64;
-        for r in 0..nu.len() {
-            let res = [ay[r] * by[r], ay[r] * bt[r], at[r] * by[r], at[r] * bt[r]];
+        for (r, &v) in nu.iter().enumerate() {
             if r < rigid {
-                for (acc, v) in sum.rigid.iter_mut().zip(res) {
-                    *acc += v.re;
+                for (p, acc) in rigid_res.iter_mut().enumerate() {
+                    *acc += residue(r, p).re;
                 }
                 continue;
             }
-            let x = nu[r] * s_max;
+            let x = v * s_max;
             if x.norm() <= SERIES_RATIO {
                 rho = rho.max(x.norm());
-                stiff.push((x, res));
+                stiff.push((r, x));
             } else {
-                sum.nu_re.push(nu[r].re);
-                sum.nu_im.push(nu[r].im);
-                for (k, v) in res.iter().enumerate() {
-                    sum.res[2 * k].push(v.re);
-                    sum.res[2 * k + 1].push(v.im);
-                }
+                dynamic.push(r);
             }
         }
+        let group_of = |r: usize, g: usize| -> [f64; 2 * GROUP] {
+            let mut v = [0.0; 2 * GROUP];
+            for k in 0..GROUP {
+                let c = residue(r, g * GROUP + k);
+                v[2 * k] = c.re;
+                v[2 * k + 1] = c.im;
+            }
+            v
+        };
+        let mut res = Vec::with_capacity(groups * dynamic.len());
+        for g in 0..groups {
+            res.extend(dynamic.iter().map(|&r| group_of(r, g)));
+        }
+        // Terms beyond power K are below ρ^(K+1)/(1 − ρ) of the first.
+        let mut terms = 0;
         if !stiff.is_empty() {
-            // Terms beyond power K are below ρ^(K+1)/(1 − ρ) of the first.
-            let mut terms = 1;
+            terms = 1;
             let mut tail = rho / (1.0 - rho);
             while tail > 1e-17 && terms < 64 {
                 terms += 1;
                 tail *= rho;
             }
-            sum.series = vec![[0.0; 8]; terms];
-            for (x, res) in &stiff {
+        }
+        let mut series = vec![[0.0; 2 * GROUP]; groups * terms];
+        for g in 0..groups {
+            for &(r, x) in &stiff {
+                let v = group_of(r, g);
                 let mut p = Complex64::new(1.0, 0.0);
-                for coef in sum.series.iter_mut() {
-                    for (k, v) in res.iter().enumerate() {
-                        let c = v * p;
+                for coef in &mut series[g * terms..(g + 1) * terms] {
+                    for k in 0..GROUP {
+                        let c = Complex64::new(v[2 * k], v[2 * k + 1]) * p;
                         coef[2 * k] += c.re;
                         coef[2 * k + 1] += c.im;
                     }
@@ -952,153 +1031,179 @@ impl ModalSum {
                 }
             }
         }
-        sum
+        ModalSum {
+            sigma,
+            s_max,
+            pairs: pairs.len(),
+            groups,
+            rigid: rigid_res,
+            nu_re: dynamic.iter().map(|&r| nu[r].re).collect(),
+            nu_im: dynamic.iter().map(|&r| nu[r].im).collect(),
+            res,
+            series,
+            terms,
+        }
     }
 
-    /// Receptance block at ω (rad/s) as `[Re H, Im H, Re L, …]`.
+    /// The sum at ω (rad/s): `out[p] = [Re, Im]` of pair p; `g` holds the mode factors.
     #[inline]
-    fn line(&self, w: f64) -> [f64; 8] {
+    fn line(&self, w: f64, g: &mut [[f64; 2]], out: &mut [f64]) {
         let w2 = w * w;
         let s = self.sigma + w2;
-        let mut acc = [0.0f64; 8];
-        let g = -self.sigma / w2;
-        for k in 0..4 {
-            acc[2 * k] = g * self.rigid[k];
-        }
-        let [r0, r1, r2, r3, r4, r5, r6, r7] = &self.res;
-        for m in 0..self.nu_re.len() {
+        let rigid = -self.sigma / w2;
+        for (m, gm) in g.iter_mut().enumerate() {
             let dr = 1.0 - s * self.nu_re[m];
             let di = -s * self.nu_im[m];
             let inv = 1.0 / (dr * dr + di * di);
-            let (gr, gi) = (dr * inv, -di * inv);
-            acc[0] += gr * r0[m] - gi * r1[m];
-            acc[1] += gr * r1[m] + gi * r0[m];
-            acc[2] += gr * r2[m] - gi * r3[m];
-            acc[3] += gr * r3[m] + gi * r2[m];
-            acc[4] += gr * r4[m] - gi * r5[m];
-            acc[5] += gr * r5[m] + gi * r4[m];
-            acc[6] += gr * r6[m] - gi * r7[m];
-            acc[7] += gr * r7[m] + gi * r6[m];
+            *gm = [dr * inv, -di * inv];
         }
-        if let Some((last, rest)) = self.series.split_last() {
-            let t = s / self.s_max;
-            let mut p = *last;
-            for coef in rest.iter().rev() {
-                for k in 0..8 {
-                    p[k] = p[k] * t + coef[k];
+        let modes = g.len();
+        for grp in 0..self.groups {
+            let mut acc = [0.0f64; 2 * GROUP];
+            for k in 0..GROUP {
+                acc[2 * k] = rigid * self.rigid[grp * GROUP + k];
+            }
+            for (&[gr, gi], r) in g.iter().zip(&self.res[grp * modes..(grp + 1) * modes]) {
+                for k in 0..GROUP {
+                    acc[2 * k] += gr * r[2 * k] - gi * r[2 * k + 1];
+                    acc[2 * k + 1] += gr * r[2 * k + 1] + gi * r[2 * k];
                 }
             }
-            for k in 0..8 {
-                acc[k] += p[k];
+            if let Some((last, rest)) = self.series[grp * self.terms..(grp + 1) * self.terms].split_last() {
+                let t = s / self.s_max;
+                let mut p = *last;
+                for coef in rest.iter().rev() {
+                    for k in 0..2 * GROUP {
+                        p[k] = p[k] * t + coef[k];
+                    }
+                }
+                for k in 0..2 * GROUP {
+                    acc[k] += p[k];
+                }
             }
+            let n = (self.pairs - grp * GROUP).min(GROUP);
+            out[2 * grp * GROUP..2 * (grp * GROUP + n)].copy_from_slice(&acc[..2 * n]);
         }
-        acc
     }
 
     /// [`ModalSum::line`] for [`LANES`] lines at once, one line per lane, operation for
     /// operation the same (no fused multiply-add), so the results are bit-identical while the
-    /// compiler keeps the lanes in vector registers.
+    /// compiler keeps the lanes in vector registers. `out[l]` receives line l.
     #[inline(always)]
-    fn lanes(&self, w: [f64; LANES]) -> [[f64; LANES]; 8] {
+    fn lanes(&self, w: [f64; LANES], g: &mut [[[f64; LANES]; 2]], out: &mut [&mut [f64]; LANES]) {
         let w2: [f64; LANES] = std::array::from_fn(|l| w[l] * w[l]);
         let s: [f64; LANES] = std::array::from_fn(|l| self.sigma + w2[l]);
-        let mut acc = [[0.0f64; LANES]; 8];
-        let g: [f64; LANES] = std::array::from_fn(|l| -self.sigma / w2[l]);
-        for k in 0..4 {
-            for l in 0..LANES {
-                acc[2 * k][l] = g[l] * self.rigid[k];
-            }
-        }
-        let [r0, r1, r2, r3, r4, r5, r6, r7] = &self.res;
-        for m in 0..self.nu_re.len() {
+        let rigid: [f64; LANES] = std::array::from_fn(|l| -self.sigma / w2[l]);
+        for (m, gm) in g.iter_mut().enumerate() {
             let (nr, ni) = (self.nu_re[m], self.nu_im[m]);
-            let r = [r0[m], r1[m], r2[m], r3[m], r4[m], r5[m], r6[m], r7[m]];
             for l in 0..LANES {
                 let dr = 1.0 - s[l] * nr;
                 let di = -s[l] * ni;
                 let inv = 1.0 / (dr * dr + di * di);
-                let (gr, gi) = (dr * inv, -di * inv);
-                acc[0][l] += gr * r[0] - gi * r[1];
-                acc[1][l] += gr * r[1] + gi * r[0];
-                acc[2][l] += gr * r[2] - gi * r[3];
-                acc[3][l] += gr * r[3] + gi * r[2];
-                acc[4][l] += gr * r[4] - gi * r[5];
-                acc[5][l] += gr * r[5] + gi * r[4];
-                acc[6][l] += gr * r[6] - gi * r[7];
-                acc[7][l] += gr * r[7] + gi * r[6];
+                gm[0][l] = dr * inv;
+                gm[1][l] = -di * inv;
             }
         }
-        if let Some((last, rest)) = self.series.split_last() {
-            let t: [f64; LANES] = std::array::from_fn(|l| s[l] / self.s_max);
-            let mut p: [[f64; LANES]; 8] = std::array::from_fn(|k| [last[k]; LANES]);
-            for coef in rest.iter().rev() {
-                for k in 0..8 {
+        let modes = g.len();
+        for grp in 0..self.groups {
+            let mut acc = [[0.0f64; LANES]; 2 * GROUP];
+            for k in 0..GROUP {
+                for l in 0..LANES {
+                    acc[2 * k][l] = rigid[l] * self.rigid[grp * GROUP + k];
+                }
+            }
+            for ([gr, gi], r) in g.iter().zip(&self.res[grp * modes..(grp + 1) * modes]) {
+                for k in 0..GROUP {
                     for l in 0..LANES {
-                        p[k][l] = p[k][l] * t[l] + coef[k];
+                        acc[2 * k][l] += gr[l] * r[2 * k] - gi[l] * r[2 * k + 1];
+                        acc[2 * k + 1][l] += gr[l] * r[2 * k + 1] + gi[l] * r[2 * k];
                     }
                 }
             }
-            for k in 0..8 {
-                for l in 0..LANES {
-                    acc[k][l] += p[k][l];
+            if let Some((last, rest)) = self.series[grp * self.terms..(grp + 1) * self.terms].split_last() {
+                let t: [f64; LANES] = std::array::from_fn(|l| s[l] / self.s_max);
+                let mut p: [[f64; LANES]; 2 * GROUP] = std::array::from_fn(|k| [last[k]; LANES]);
+                for coef in rest.iter().rev() {
+                    for k in 0..2 * GROUP {
+                        for l in 0..LANES {
+                            p[k][l] = p[k][l] * t[l] + coef[k];
+                        }
+                    }
+                }
+                for k in 0..2 * GROUP {
+                    for l in 0..LANES {
+                        acc[k][l] += p[k][l];
+                    }
+                }
+            }
+            let n = (self.pairs - grp * GROUP).min(GROUP);
+            for (l, line) in out.iter_mut().enumerate() {
+                for k in 0..2 * n {
+                    line[2 * grp * GROUP + k] = acc[k][l];
                 }
             }
         }
-        acc
     }
 
+    /// Every line of `freqs` (Hz), handed to `emit` as `[Re, Im]` of each pair.
     #[inline(always)]
-    fn run_generic(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
+    fn run_generic(&self, freqs: &[f64], emit: &mut dyn FnMut(&[f64])) {
+        let width = 2 * self.pairs;
+        let modes = self.nu_re.len();
+        let mut g = vec![[[0.0; LANES]; 2]; modes];
+        let mut buffer = vec![0.0; width * LANES];
         let mut chunks = freqs.chunks_exact(LANES);
         for chunk in &mut chunks {
-            let a = self.lanes(std::array::from_fn(|l| TAU * chunk[l]));
-            for (l, &f) in chunk.iter().enumerate() {
-                push_line(out, f, std::array::from_fn(|k| a[k][l]))?;
+            let mut it = buffer.chunks_exact_mut(width);
+            let mut rows: [&mut [f64]; LANES] = std::array::from_fn(|_| it.next().unwrap_or_default());
+            self.lanes(std::array::from_fn(|l| TAU * chunk[l]), &mut g, &mut rows);
+            for line in buffer.chunks_exact(width) {
+                emit(line);
             }
         }
+        let mut g1 = vec![[0.0; 2]; modes];
         for &f in chunks.remainder() {
-            push_line(out, f, self.line(TAU * f))?;
+            self.line(TAU * f, &mut g1, &mut buffer[..width]);
+            emit(&buffer[..width]);
         }
-        Ok(())
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn run_avx(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
-        self.run_generic(freqs, out)
+    fn run_avx(&self, freqs: &[f64], emit: &mut dyn FnMut(&[f64])) {
+        self.run_generic(freqs, emit)
     }
 
-    fn run(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
+    /// Every line of `freqs` (Hz), handed to `emit` in order as `[Re, Im]` of each pair; an
+    /// error names the first line whose sum is not finite (an undamped pole).
+    fn run(&self, freqs: &[f64], mut emit: impl FnMut(&[f64])) -> Result<(), BeamError> {
+        let mut bad = None;
+        let mut line = 0;
+        let mut sink = |values: &[f64]| {
+            if bad.is_none() && values.iter().any(|v| !v.is_finite()) {
+                bad = Some(freqs[line]);
+            }
+            line += 1;
+            emit(values);
+        };
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             // SAFETY: the CPU supports AVX, checked just above.
-            return unsafe { self.run_avx(freqs, out) };
+            unsafe { self.run_avx(freqs, &mut sink) };
+            return bad.map_or(Ok(()), |f| Err(BeamError::Singular(f)));
         }
-        self.run_generic(freqs, out)
+        self.run_generic(freqs, &mut sink);
+        bad.map_or(Ok(()), |f| Err(BeamError::Singular(f)))
     }
 
     /// Every line by the scalar [`ModalSum::line`], for the bit-identity test.
     #[cfg(test)]
-    fn run_scalar(&self, freqs: &[f64], out: &mut Vec<Receptance>) -> Result<(), BeamError> {
-        for &f in freqs {
-            push_line(out, f, self.line(TAU * f))?;
+    fn run_scalar(&self, freqs: &[f64], out: &mut [f64]) {
+        let mut g = vec![[0.0; 2]; self.nu_re.len()];
+        for (&f, line) in freqs.iter().zip(out.chunks_exact_mut(2 * self.pairs)) {
+            self.line(TAU * f, &mut g, line);
         }
-        Ok(())
     }
-}
-
-/// Lines evaluated together by [`ModalSum::lanes`].
-const LANES: usize = 4;
-
-/// Appends one summed line `[Re H, Im H, Re L, …]` as a receptance block; a non-finite sum
-/// means the frequency sits on an undamped pole.
-fn push_line(out: &mut Vec<Receptance>, f: f64, a: [f64; 8]) -> Result<(), BeamError> {
-    if a.iter().any(|v| !v.is_finite()) {
-        return Err(BeamError::Singular(f));
-    }
-    let c = |k: usize| Complex64::new(a[k], a[k + 1]);
-    out.push([[c(0), c(2)], [c(4), c(6)]]);
-    Ok(())
 }
 
 #[cfg(test)]
@@ -1169,20 +1274,55 @@ mod tests {
             let modes = model.modes().unwrap();
             let tip = model.n_nodes() - 1;
             let rows = modes.shape_rows(&[2 * tip, 2 * tip + 1, 0, 1]);
+            let rows: Vec<&[Complex64]> = rows.iter().map(Vec::as_slice).collect();
             let freqs: Vec<f64> = (0..503).map(|k| 3.7 + 41.3 * k as f64).collect();
-            let sum = ModalSum::new(
-                modes.sigma,
-                modes.rigid,
-                &modes.nu,
-                [&rows[0], &rows[1], &rows[2], &rows[3]],
-                TAU * freqs[502],
-            );
-            let (mut scalar, mut dispatched) = (Vec::new(), Vec::new());
-            sum.run_scalar(&freqs, &mut scalar).unwrap();
-            sum.run(&freqs, &mut dispatched).unwrap();
-            for (a, b) in scalar.iter().zip(&dispatched) {
-                for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
-                    assert_eq!((x.re.to_bits(), x.im.to_bits()), (y.re.to_bits(), y.im.to_bits()));
+            // One group of pairs, and a padded matrix's upper triangle (10 pairs, 3 groups).
+            let block = [(0, 2), (0, 3), (1, 2), (1, 3)];
+            let triangle: Vec<(usize, usize)> = (0..4).flat_map(|a| (a..4).map(move |b| (a, b))).collect();
+            for pairs in [&block[..], &triangle] {
+                let sum = ModalSum::new(modes.sigma, modes.rigid, &modes.nu, &rows, pairs, TAU * freqs[502]);
+                let mut scalar = vec![0.0; 2 * pairs.len() * freqs.len()];
+                sum.run_scalar(&freqs, &mut scalar);
+                let mut dispatched = Vec::new();
+                sum.run(&freqs, |line| dispatched.extend_from_slice(line)).unwrap();
+                assert_eq!(dispatched.len(), scalar.len());
+                for (x, y) in scalar.iter().zip(&dispatched) {
+                    assert_eq!(x.to_bits(), y.to_bits());
+                }
+            }
+        }
+    }
+
+    /// The blocks of a reduced model's whole receptance matrix are its pairwise receptances
+    /// (and the matrix is symmetric), on both damping forms.
+    #[test]
+    fn reduced_blocks_equal_the_pairwise_receptances() {
+        let mut sections = tool_holder_sections();
+        for structural in [false, true] {
+            if structural {
+                for s in &mut sections {
+                    s.outer.loss_factor = if s.outer.youngs_modulus > 300e9 { 0.025 } else { 0.012 };
+                }
+            }
+            let model = BeamModel::from_segments(&segments_from_sections(&sections), &MeshOptions::default()).unwrap();
+            let tip = model.n_nodes() - 1;
+            let reduced = model.modes().unwrap().reduce(&[tip, 7, 0]).unwrap();
+            let freqs: Vec<f64> = (0..101).map(|k| 5.0 + 99.0 * k as f64).collect();
+            let blocks = reduced.blocks(&freqs).unwrap();
+            assert_eq!(blocks.len(), 9);
+            for i in 0..3 {
+                for j in 0..3 {
+                    let pairwise = reduced.receptance(i, j, &freqs).unwrap();
+                    for (line, (a, b)) in blocks[3 * i + j].iter().zip(&pairwise).enumerate() {
+                        let t = &blocks[3 * j + i][line];
+                        for r in 0..2 {
+                            for c in 0..2 {
+                                let scale = b[r][c].norm();
+                                assert!((a[r][c] - b[r][c]).norm() <= 1e-13 * scale, "({i},{j}) line {line}");
+                                assert!((t[c][r] - b[r][c]).norm() <= 1e-13 * scale, "symmetry ({i},{j}) line {line}");
+                            }
+                        }
+                    }
                 }
             }
         }

@@ -280,14 +280,19 @@ fn two_port(
         Err(beam::BeamError::NotReducible) => None,
         Err(e) => return Err(fe(e)),
     };
-    let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
-        let lines = match &reduced {
-            Some(reduced) => reduced.receptance(usize::from(a == 0), usize::from(b == 0), freqs),
-            None => modes.receptance(a, b, freqs),
+    let Some(reduced) = reduced else {
+        let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
+            Ok(modes.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
         };
-        Ok(lines.map_err(fe)?.iter().map(block).collect())
+        return Ok(TwoPort {
+            freqs_hz: freqs.to_vec(),
+            r11: r(tip, tip)?,
+            r12: r(tip, 0)?,
+            r21: r(0, tip)?,
+            r22: r(0, 0)?,
+        });
     };
-    Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(tip, tip)?, r12: r(tip, 0)?, r21: r(0, tip)?, r22: r(0, 0)? })
+    two_port_of(&reduced, freqs).map_err(fe)
 }
 
 /// Named free–free parts of an assembly, and the tool joint `[kt, ct, kr, cr]` between two.
@@ -362,11 +367,14 @@ fn part_two_port(part: &SubstructurePart, freqs: &[f64]) -> Result<TwoPort, Node
         shapes: part.shapes.to_vec(),
         natural_hz: part.natural_hz.clone(),
     };
-    let fe = |e: beam::BeamError| NodeError::input("structure", format!("part `{}`: {e}", part.name));
-    let r = |a: usize, b: usize| -> Result<Vec<Receptance>, NodeError> {
-        Ok(reduced.receptance(a, b, freqs).map_err(fe)?.iter().map(block).collect())
-    };
-    Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: r(0, 0)?, r12: r(0, 1)?, r21: r(1, 0)?, r22: r(1, 1)? })
+    two_port_of(&reduced, freqs).map_err(|e| NodeError::input("structure", format!("part `{}`: {e}", part.name)))
+}
+
+/// The two-port of modes reduced to (tip, spindle end), all four blocks in one modal sum.
+fn two_port_of(reduced: &beam::ReducedModes, freqs: &[f64]) -> Result<TwoPort, beam::BeamError> {
+    let mut blocks = reduced.blocks(freqs)?.into_iter().map(|b| b.iter().map(block).collect());
+    let mut next = || blocks.next().unwrap_or_default();
+    Ok(TwoPort { freqs_hz: freqs.to_vec(), r11: next(), r12: next(), r21: next(), r22: next() })
 }
 
 /// Two-ports already evaluated, by part and grid: a fit or a diagnosis couples the same
