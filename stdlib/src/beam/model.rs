@@ -668,9 +668,16 @@ fn banded_structural_modes(model: &BeamModel, sigma: f64, rigid: usize) -> Optio
     if nu.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let shapes = Shapes::Banded(Box::new(BandedShapes { factor, eigen }));
+    let mut banded = BandedShapes { factor, eigen, known: Vec::new() };
+    let ends = check_dofs(model);
+    let rows = banded.rows(n, &ends);
     let mu: Vec<f64> = nu.iter().map(|v| v.re).collect();
-    agrees_with_direct(model, sigma, rigid, &mu, &nu, &shapes).then_some((nu, shapes))
+    if !agrees_with_direct(model, sigma, rigid, &mu, &nu, &rows) {
+        return None;
+    }
+    // A substructure is kept at these nodes: their rows are found once.
+    banded.known = ends.into_iter().zip(rows).collect();
+    Some((nu, Shapes::Banded(Box::new(banded))))
 }
 
 /// The modal sum `Σ_r u_a u_b/(1 − sν_r)` for each pair (a, b) of `rows` at each frequency
@@ -753,11 +760,24 @@ impl Shapes {
 struct BandedShapes {
     factor: BandCholesky,
     eigen: ComplexSymmetricEigen,
+    /// Rows already found (the model's two ends), by dof.
+    known: Vec<(usize, Vec<Complex64>)>,
 }
 
 impl BandedShapes {
     /// Rows `dofs` of U: `x Y` with `x C = e_dof`.
     fn rows(&self, n: usize, dofs: &[usize]) -> Vec<Vec<Complex64>> {
+        let find = |dof: usize| self.known.iter().find(|(d, _)| *d == dof).map(|(_, row)| row);
+        let missing: Vec<usize> = dofs.iter().copied().filter(|&dof| find(dof).is_none()).collect();
+        let mut found = self.solve_rows(n, &missing).into_iter();
+        dofs.iter().map(|&dof| find(dof).cloned().unwrap_or_else(|| found.next().unwrap_or_default())).collect()
+    }
+
+    /// Rows `dofs` of U, computed.
+    fn solve_rows(&self, n: usize, dofs: &[usize]) -> Vec<Vec<Complex64>> {
+        if dofs.is_empty() {
+            return Vec::new();
+        }
         let xs: Vec<Vec<Complex64>> = dofs
             .iter()
             .map(|&dof| {
@@ -817,6 +837,12 @@ impl FactoredShapes {
     }
 }
 
+/// The dofs [`agrees_with_direct`] checks: y and θ at the last node and at node 0.
+fn check_dofs(model: &BeamModel) -> [usize; 4] {
+    let last = model.n_nodes() - 1;
+    [2 * last, 2 * last + 1, 0, 1]
+}
+
 /// Agreement the complex orthogonal solution must reach with the direct solve at the check
 /// lines (relative to the largest entry of each block), else the unitary solver is used.
 const CHECK_TOLERANCE: f64 = 1e-7;
@@ -830,11 +856,9 @@ fn agrees_with_direct(
     rigid: usize,
     mu: &[f64],
     nu: &[Complex64],
-    shapes: &Shapes,
+    rows: &[Vec<Complex64>],
 ) -> bool {
-    let n = model.n_dof();
     let last = model.n_nodes() - 1;
-    let rows = shapes.rows(n, &[2 * last, 2 * last + 1, 0, 1]);
     let hz = |r: usize| mu.get(r).map_or(1.0, |m| (1.0 / m - sigma).max(0.0).sqrt() / TAU);
     let freqs = [0.5 * hz(rigid), 1.001 * hz(rigid), hz(rigid + 1), 0.5 * (hz(rigid + 2) + hz(rigid + 3))];
     if freqs.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
@@ -899,7 +923,7 @@ fn structural_modes(
         nu.extend(&eigen.values);
         let rt = (0..nf * nf).map(|k| t[(k % nf) * nf + k / nf]).collect();
         let shapes = Shapes::Factored(Box::new(FactoredShapes { n, rigid, z: z.to_vec(), rt, eigen }));
-        if agrees_with_direct(model, sigma, rigid, mu, &nu, &shapes) {
+        if agrees_with_direct(model, sigma, rigid, mu, &nu, &shapes.rows(n, &check_dofs(model))) {
             return Some((nu.split_off(rigid), shapes));
         }
     }
