@@ -73,7 +73,7 @@ fn render_json(rows: &[Row]) -> String {
 
 fn num(v: f64) -> String {
     // Round-trip precision; CSV readers get the exact double.
-    format!("{v:e}")
+    zmij::Buffer::new().format(v).to_string()
 }
 
 /// The sweep coordinates of a label as file columns, numbers in the unit the recipe wrote:

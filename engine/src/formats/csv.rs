@@ -4,14 +4,24 @@
 //! of channel names, then one column per channel. FRF: `# units`, `# direction`,
 //! `# speed_rpm`, `# sensor`, then `freq_hz,real,imag[,coherence]`. 2×2 receptance set:
 //! `# units`, `# direction`, `# speed_rpm`, then `freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im`.
-//! Numbers are written with `{:e}`, the shortest text that reads back as the same double, so a
-//! round trip is exact.
+//! Numbers are written as the shortest text that reads back as the same double (zmij's
+//! Schubfach; `NaN`, `inf` as Rust writes them), so a round trip is exact.
 
 use super::{FormatError, Loc, unit_to_si};
 use crate::value::{Channel, Frf, Lobes, ReceptanceSet, Table, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::fmt::Write as _;
+
+/// Appends `,` (unless `first`) and the shortest round-trip text of each of `values`.
+fn push_nums(out: &mut String, buf: &mut zmij::Buffer, values: &[f64], first: bool) {
+    for (k, &v) in values.iter().enumerate() {
+        if k > 0 || !first {
+            out.push(',');
+        }
+        out.push_str(buf.format(v));
+    }
+}
 
 /// Writes a time series: the `#` header lines and the column header when `*header_done` is
 /// false, then one row per sample. `prefix_header` and `prefix` lead the header and each row
@@ -32,13 +42,11 @@ pub(crate) fn time_series_rows(
         let _ = writeln!(out, "{prefix_header}{}", names.join(","));
         *header_done = true;
     }
+    let mut buf = zmij::Buffer::new();
     for i in 0..ts.len() {
         out.push_str(prefix);
         for (k, c) in ts.channels.iter().enumerate() {
-            if k > 0 {
-                out.push(',');
-            }
-            let _ = write!(out, "{:e}", c.samples[i]);
+            push_nums(out, &mut buf, &[c.samples[i]], k == 0);
         }
         out.push('\n');
     }
@@ -62,10 +70,12 @@ pub(crate) fn frf_rows(out: &mut String, f: &Frf, prefix_header: &str, prefix: &
         let _ = writeln!(out, "{prefix_header}freq_hz,real,imag{coh}");
         *header_done = true;
     }
-    for (i, (fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
-        let _ = write!(out, "{prefix}{fr:e},{:e},{:e}", v.re, v.im);
+    let mut buf = zmij::Buffer::new();
+    for (i, (&fr, v)) in f.freq_hz.iter().zip(&f.values).enumerate() {
+        out.push_str(prefix);
+        push_nums(out, &mut buf, &[fr, v.re, v.im], true);
         if let Some(c) = &f.coherence {
-            let _ = write!(out, ",{:e}", c[i]);
+            push_nums(out, &mut buf, &[c[i]], false);
         }
         out.push('\n');
     }
@@ -103,11 +113,11 @@ pub(crate) fn receptance_rows(
         let _ = writeln!(out, "{prefix_header}{RECEPTANCE_HEADER}");
         *header_done = true;
     }
+    let mut buf = zmij::Buffer::new();
     for i in 0..r.freq_hz.len() {
-        let _ = write!(out, "{prefix}{:e}", r.freq_hz[i]);
-        for v in [r.h[i], r.l[i], r.n[i], r.p[i]] {
-            let _ = write!(out, ",{:e},{:e}", v.re, v.im);
-        }
+        out.push_str(prefix);
+        let (h, l, n, p) = (r.h[i], r.l[i], r.n[i], r.p[i]);
+        push_nums(out, &mut buf, &[r.freq_hz[i], h.re, h.im, l.re, l.im, n.re, n.im, p.re, p.im], true);
         out.push('\n');
     }
 }
@@ -122,8 +132,11 @@ pub(crate) fn lobes_rows(out: &mut String, l: &Lobes, prefix_header: &str, prefi
         let _ = writeln!(out, "{prefix_header}{LOBES_HEADER}");
         *header_done = true;
     }
+    let mut buf = zmij::Buffer::new();
     for i in 0..l.speed_rpm.len() {
-        let _ = writeln!(out, "{prefix}{:e},{:e},{:e}", l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]);
+        out.push_str(prefix);
+        push_nums(out, &mut buf, &[l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]], true);
+        out.push('\n');
     }
 }
 
