@@ -99,6 +99,8 @@ pub struct BandCholesky {
     band: usize,
     /// `C[i][i + t]` at `i·(b + 1) + t`.
     c: Vec<Complex64>,
+    /// `1 / C[i][i]`: substitution multiplies.
+    inv_diag: Vec<Complex64>,
 }
 
 impl BandCholesky {
@@ -110,6 +112,7 @@ impl BandCholesky {
             .map(|k| (k / w, k / w + k % w))
             .map(|(i, j)| if j < n { a(i, j) } else { Complex64::new(0.0, 0.0) })
             .collect();
+        let mut inv_diag = vec![Complex64::new(0.0, 0.0); n];
         for j in 0..n {
             let d = c[j * w];
             if d.norm() == 0.0 || !d.is_finite() {
@@ -118,6 +121,7 @@ impl BandCholesky {
             let r = d.sqrt();
             let inv = 1.0 / r;
             c[j * w] = r;
+            inv_diag[j] = inv;
             for t in 1..w {
                 c[j * w + t] *= inv;
             }
@@ -130,7 +134,7 @@ impl BandCholesky {
                 }
             }
         }
-        Some(BandCholesky { n, band, c })
+        Some(BandCholesky { n, band, c, inv_diag })
     }
 
     /// Solves `Cᵀ y = x` in place (forward substitution; leading zeros of x stay zero).
@@ -141,7 +145,7 @@ impl BandCholesky {
             let lo = i.saturating_sub(self.band).max(first);
             // C[k][i] sits at k·w + i − k = k·(w − 1) + i.
             let s: Complex64 = x[lo..i].iter().zip(lo..).map(|(&xk, k)| self.c[k * (w - 1) + i] * xk).sum();
-            x[i] = (x[i] - s) / self.c[i * w];
+            x[i] = (x[i] - s) * self.inv_diag[i];
         }
     }
 
