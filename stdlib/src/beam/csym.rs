@@ -74,25 +74,29 @@ impl ComplexSymmetricEigen {
     /// `vᵀv = 0`) or the QL iteration does not converge.
     pub fn new(v: &[Complex64], n: usize) -> Option<ComplexSymmetricEigen> {
         assert_eq!(v.len(), n * n, "matrix size");
-        use faer::linalg::matmul::matmul;
-        use faer::{Accum, Mat, Par};
         let zero = Complex64::new(0.0, 0.0);
         // Reversed, so the largest entries (V's are at the top left) come last: Householder
         // reduction from the last row and QL both work best on matrices graded that way.
-        // Column-major, and symmetric: column i holds row i.
-        let mut a = Mat::<Complex64>::from_fn(n, n, |i, j| v[(n - 1 - i) * n + (n - 1 - j)]);
+        // Lower triangle only, column-major (column j holds rows j..n at j·n + i), with real
+        // and imaginary parts apart so the updates run on contiguous f64 and vectorise.
+        let mut lower = Lower { n, re: vec![0.0; n * n], im: vec![0.0; n * n] };
+        for j in 0..n {
+            for i in j..n {
+                let z = v[(n - 1 - i) * n + (n - 1 - j)];
+                lower.re[j * n + i] = z.re;
+                lower.im[j * n + i] = z.im;
+            }
+        }
         let mut growth = 1.0f64;
         let mut reflectors = Vec::new();
         let mut vectors = Vec::new();
         let mut d = vec![zero; n];
         let mut e = vec![zero; n];
-        // [x p] and [p x]ᵀ of the rank-2 update, and p = A x / h.
-        let mut left = Mat::<Complex64>::zeros(n, 2);
-        let mut right = Mat::<Complex64>::zeros(2, n);
-        let mut p = Mat::<Complex64>::zeros(n, 1);
+        let mut work = Work::new(n);
         for i in (1..n).rev() {
             let l = i - 1;
-            let row = &a.col_as_slice(i)[..i];
+            // Row i left of the diagonal: column j's entry at row i.
+            let row: Vec<Complex64> = (0..i).map(|j| lower.at(i, j)).collect();
             let scale: f64 = row.iter().map(|&z| abs1(z)).sum();
             if l == 0 || scale == 0.0 {
                 e[i] = row[l];
@@ -116,43 +120,15 @@ impl ComplexSymmetricEigen {
             growth = growth.max(norm2 / (2.0 * h.norm()));
             e[i] = alpha * scale;
             let inv_h = 1.0 / h;
-            // A ← H A H on the leading m = l + 1 block: p = A v / h, q = p − (vᵀp / 2h) v,
+            // A ← H A H on the leading m = i block: p = A v / h, q = p − (vᵀp / 2h) v,
             // A ← A − v qᵀ − q vᵀ.
-            let m = i;
-            let x = &vectors[offset..offset + m];
-            left.col_as_slice_mut(0)[..m].copy_from_slice(x);
-            matmul(
-                p.as_mut().subrows_mut(0, m),
-                Accum::Replace,
-                a.as_ref().submatrix(0, 0, m, m),
-                left.as_ref().submatrix(0, 0, m, 1),
-                inv_h,
-                Par::Seq,
-            );
-            let pv = &mut p.col_as_slice_mut(0)[..m];
-            let k = x.iter().zip(pv.iter()).map(|(&s, &t)| s * t).sum::<Complex64>() * (0.5 * inv_h);
-            for (pr, &xr) in pv.iter_mut().zip(x) {
-                *pr -= k * xr;
-            }
-            left.col_as_slice_mut(1)[..m].copy_from_slice(pv);
-            for r in 0..m {
-                right[(0, r)] = pv[r];
-                right[(1, r)] = x[r];
-            }
-            matmul(
-                a.as_mut().submatrix_mut(0, 0, m, m),
-                Accum::Add,
-                left.as_ref().submatrix(0, 0, m, 2),
-                right.as_ref().submatrix(0, 0, 2, m),
-                Complex64::new(-1.0, 0.0),
-                Par::Seq,
-            );
-            reflectors.push(Reflector { offset, len: m, inv_h });
+            work.reflect(&mut lower, &vectors[offset..offset + i], inv_h);
+            reflectors.push(Reflector { offset, len: i, inv_h });
         }
         for (i, di) in d.iter_mut().enumerate() {
-            *di = a[(i, i)];
+            *di = lower.at(i, i);
         }
-        drop(a);
+        drop(lower);
         // e[i] couples i − 1 and i; QL below wants e[i] coupling i and i + 1.
         for i in 1..n {
             e[i - 1] = e[i];
@@ -212,6 +188,120 @@ impl ComplexSymmetricEigen {
             }
         }
         (0..k).map(|q| self.order.iter().map(|&c| r[c * k + q]).collect()).collect()
+    }
+}
+
+/// The lower triangle of a complex symmetric matrix, column-major, real and imaginary parts
+/// apart.
+struct Lower {
+    n: usize,
+    re: Vec<f64>,
+    im: Vec<f64>,
+}
+
+impl Lower {
+    /// Entry (i, j), i ≥ j.
+    fn at(&self, i: usize, j: usize) -> Complex64 {
+        Complex64::new(self.re[j * self.n + i], self.im[j * self.n + i])
+    }
+}
+
+/// Buffers of one Householder step: v and p (then q) split.
+struct Work {
+    xr: Vec<f64>,
+    xi: Vec<f64>,
+    pr: Vec<f64>,
+    pi: Vec<f64>,
+}
+
+impl Work {
+    fn new(n: usize) -> Work {
+        Work { xr: vec![0.0; n], xi: vec![0.0; n], pr: vec![0.0; n], pi: vec![0.0; n] }
+    }
+
+    /// `A ← H A H` on the leading `m = v.len()` block of `a`, `H = I − v vᵀ h⁻¹`.
+    fn reflect(&mut self, a: &mut Lower, v: &[Complex64], inv_h: Complex64) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            #[target_feature(enable = "avx2,fma")]
+            fn fast(w: &mut Work, a: &mut Lower, v: &[Complex64], inv_h: Complex64) {
+                w.reflect_generic(a, v, inv_h)
+            }
+            // SAFETY: the CPU supports AVX2 and FMA, checked just above.
+            return unsafe { fast(self, a, v, inv_h) };
+        }
+        self.reflect_generic(a, v, inv_h)
+    }
+
+    #[inline(always)]
+    fn reflect_generic(&mut self, a: &mut Lower, v: &[Complex64], inv_h: Complex64) {
+        let (n, m) = (a.n, v.len());
+        let (xr, xi) = (&mut self.xr[..m], &mut self.xi[..m]);
+        for (k, z) in v.iter().enumerate() {
+            xr[k] = z.re;
+            xi[k] = z.im;
+        }
+        let (pr, pi) = (&mut self.pr[..m], &mut self.pi[..m]);
+        pr.fill(0.0);
+        pi.fill(0.0);
+        // p = A x from the lower triangle: column j adds x_j · A[j+1.., j] below the diagonal
+        // and A[j+1.., j] · x[j+1..] at row j.
+        for j in 0..m {
+            let col = j * n;
+            let (cr, ci) = (&a.re[col + j + 1..col + m], &a.im[col + j + 1..col + m]);
+            let (sr, si) = (xr[j], xi[j]);
+            let (ur, ui) = (&xr[j + 1..], &xi[j + 1..]);
+            let (tr, ti) = (&mut pr[j + 1..], &mut pi[j + 1..]);
+            for (((t_r, t_i), &are), &aim) in tr.iter_mut().zip(ti.iter_mut()).zip(cr).zip(ci) {
+                *t_r += are * sr - aim * si;
+                *t_i += are * si + aim * sr;
+            }
+            // The dot product in four partial sums, so it vectorises.
+            let mut acc = [[0.0f64; 4]; 2];
+            let (c4r, c4i, u4r, u4i) =
+                (cr.chunks_exact(4), ci.chunks_exact(4), ur.chunks_exact(4), ui.chunks_exact(4));
+            let whole = cr.len() - c4r.remainder().len();
+            for (((a4r, a4i), x4r), x4i) in c4r.zip(c4i).zip(u4r).zip(u4i) {
+                for u in 0..4 {
+                    acc[0][u] += a4r[u] * x4r[u] - a4i[u] * x4i[u];
+                    acc[1][u] += a4r[u] * x4i[u] + a4i[u] * x4r[u];
+                }
+            }
+            let mut dr = (acc[0][0] + acc[0][1]) + (acc[0][2] + acc[0][3]);
+            let mut di = (acc[1][0] + acc[1][1]) + (acc[1][2] + acc[1][3]);
+            for t in whole..cr.len() {
+                dr += cr[t] * ur[t] - ci[t] * ui[t];
+                di += cr[t] * ui[t] + ci[t] * ur[t];
+            }
+            let (djr, dji) = (a.re[col + j], a.im[col + j]);
+            pr[j] += djr * sr - dji * si + dr;
+            pi[j] += djr * si + dji * sr + di;
+        }
+        // p ← p / h, then q = p − (xᵀp / 2h) x.
+        let mut dot = Complex64::new(0.0, 0.0);
+        for k in 0..m {
+            let p = Complex64::new(pr[k], pi[k]) * inv_h;
+            pr[k] = p.re;
+            pi[k] = p.im;
+            dot += Complex64::new(xr[k], xi[k]) * p;
+        }
+        let kk = dot * (0.5 * inv_h);
+        for k in 0..m {
+            let q = Complex64::new(pr[k], pi[k]) - kk * Complex64::new(xr[k], xi[k]);
+            pr[k] = q.re;
+            pi[k] = q.im;
+        }
+        // A ← A − x qᵀ − q xᵀ on the lower triangle.
+        for j in 0..m {
+            let col = j * n;
+            let (qjr, qji, xjr, xji) = (pr[j], pi[j], xr[j], xi[j]);
+            let (cr, ci) = (&mut a.re[col + j..col + m], &mut a.im[col + j..col + m]);
+            let (ur, ui, wr, wi) = (&xr[j..], &xi[j..], &pr[j..], &pi[j..]);
+            for t in 0..cr.len() {
+                cr[t] -= (ur[t] * qjr - ui[t] * qji) + (wr[t] * xjr - wi[t] * xji);
+                ci[t] -= (ur[t] * qji + ui[t] * qjr) + (wr[t] * xji + wi[t] * xjr);
+            }
+        }
     }
 }
 
