@@ -233,6 +233,8 @@ impl Work {
         self.reflect_generic(a, v, inv_h)
     }
 
+    /// The loops use `mul_add`: one instruction with FMA, a library call on CPUs without it
+    /// (older than about 2013), where this path is correct but slow.
     #[inline(always)]
     fn reflect_generic(&mut self, a: &mut Lower, v: &[Complex64], inv_h: Complex64) {
         let (n, m) = (a.n, v.len());
@@ -253,18 +255,17 @@ impl Work {
             let (ur, ui) = (&xr[j + 1..], &xi[j + 1..]);
             let (tr, ti) = (&mut pr[j + 1..], &mut pi[j + 1..]);
             for (((t_r, t_i), &are), &aim) in tr.iter_mut().zip(ti.iter_mut()).zip(cr).zip(ci) {
-                *t_r += are * sr - aim * si;
-                *t_i += are * si + aim * sr;
+                *t_r = are.mul_add(sr, (-aim).mul_add(si, *t_r));
+                *t_i = are.mul_add(si, aim.mul_add(sr, *t_i));
             }
             // The dot product in four partial sums, so it vectorises.
             let mut acc = [[0.0f64; 4]; 2];
-            let (c4r, c4i, u4r, u4i) =
-                (cr.chunks_exact(4), ci.chunks_exact(4), ur.chunks_exact(4), ui.chunks_exact(4));
+            let (c4r, c4i, u4r, u4i) = (cr.chunks_exact(4), ci.chunks_exact(4), ur.chunks_exact(4), ui.chunks_exact(4));
             let whole = cr.len() - c4r.remainder().len();
             for (((a4r, a4i), x4r), x4i) in c4r.zip(c4i).zip(u4r).zip(u4i) {
                 for u in 0..4 {
-                    acc[0][u] += a4r[u] * x4r[u] - a4i[u] * x4i[u];
-                    acc[1][u] += a4r[u] * x4i[u] + a4i[u] * x4r[u];
+                    acc[0][u] = a4r[u].mul_add(x4r[u], (-a4i[u]).mul_add(x4i[u], acc[0][u]));
+                    acc[1][u] = a4r[u].mul_add(x4i[u], a4i[u].mul_add(x4r[u], acc[1][u]));
                 }
             }
             let mut dr = (acc[0][0] + acc[0][1]) + (acc[0][2] + acc[0][3]);
@@ -298,8 +299,9 @@ impl Work {
             let (cr, ci) = (&mut a.re[col + j..col + m], &mut a.im[col + j..col + m]);
             let (ur, ui, wr, wi) = (&xr[j..], &xi[j..], &pr[j..], &pi[j..]);
             for t in 0..cr.len() {
-                cr[t] -= (ur[t] * qjr - ui[t] * qji) + (wr[t] * xjr - wi[t] * xji);
-                ci[t] -= (ur[t] * qji + ui[t] * qjr) + (wr[t] * xji + wi[t] * xjr);
+                cr[t] = (-ur[t]).mul_add(qjr, ui[t].mul_add(qji, (-wr[t]).mul_add(xjr, wi[t].mul_add(xji, cr[t]))));
+                ci[t] =
+                    (-ur[t]).mul_add(qji, (-ui[t]).mul_add(qjr, (-wr[t]).mul_add(xji, (-wi[t]).mul_add(xjr, ci[t]))));
             }
         }
     }
