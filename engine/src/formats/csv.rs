@@ -322,7 +322,7 @@ fn fixed_row_after(
     let mut k = 0;
     for (at, cell) in cells(raw).skip(skip) {
         if k < names.len() {
-            row[k] = number(cell, path, line, raw, at, &format!("column `{}`", names[k]))?;
+            row[k] = number(cell, path, line, raw, at, || format!("column `{}`", names[k]))?;
         }
         k += 1;
     }
@@ -337,17 +337,25 @@ fn fixed_row_after(
     Ok(())
 }
 
-fn number(text: &str, path: &str, line: usize, raw: &str, at: usize, what: &str) -> Result<f64, FormatError> {
+/// The number in a cell; `what` names its column for an error (built only then).
+fn number(
+    text: &str,
+    path: &str,
+    line: usize,
+    raw: &str,
+    at: usize,
+    what: impl Fn() -> String,
+) -> Result<f64, FormatError> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
         Ok(_) => Err(FormatError::NonFinite {
             at: Loc::new(path, line, column_of(raw, at)),
             text: text.to_string(),
-            what: what.to_string(),
+            what: what(),
         }),
         Err(_) => Err(FormatError::Expected {
             at: Loc::new(path, line, column_of(raw, at)),
-            expected: format!("a number in {what}"),
+            expected: format!("a number in {}", what()),
             found: if text.is_empty() { "an empty cell".into() } else { format!("`{text}`") },
         }),
     }
@@ -497,8 +505,7 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
         let mut n = 0;
         for (at, cell) in cells(raw) {
             if n < names.len() {
-                let what = format!("channel `{}`", names[n]);
-                samples[n].push(number(cell, path, line, raw, at, &what)?);
+                samples[n].push(number(cell, path, line, raw, at, || format!("channel `{}`", names[n]))?);
             }
             n += 1;
         }

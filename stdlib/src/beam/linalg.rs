@@ -153,24 +153,16 @@ impl BandCholesky {
     /// banded, O(n²b).
     pub fn congruence(&self, m: &[f64]) -> Vec<Complex64> {
         let n = self.n;
-        // Column j of W = C⁻ᵀM, stored as row j.
-        let mut w = vec![Complex64::new(0.0, 0.0); n * n];
-        for j in 0..n {
-            let col = &mut w[j * n..(j + 1) * n];
-            for (i, v) in col.iter_mut().enumerate() {
-                *v = Complex64::new(m[j * n + i], 0.0);
-            }
-            self.solve_transposed(col);
-        }
-        // Column j of C⁻ᵀWᵀ = C⁻ᵀ (row j of W)ᵀ, stored as row j (the result is symmetric).
+        // W = C⁻ᵀM, then C⁻ᵀWᵀ = C⁻ᵀMC⁻¹ (M is symmetric).
+        let mut w: Vec<Complex64> = m.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+        self.solve_transposed_rows(&mut w);
         let mut v = vec![Complex64::new(0.0, 0.0); n * n];
-        for j in 0..n {
-            let col = &mut v[j * n..(j + 1) * n];
-            for (i, x) in col.iter_mut().enumerate() {
-                *x = w[i * n + j];
+        for i in 0..n {
+            for j in 0..n {
+                v[i * n + j] = w[j * n + i];
             }
-            self.solve_transposed(col);
         }
+        self.solve_transposed_rows(&mut v);
         for i in 0..n {
             for j in 0..i {
                 let a = 0.5 * (v[i * n + j] + v[j * n + i]);
@@ -179,6 +171,27 @@ impl BandCholesky {
             }
         }
         v
+    }
+
+    /// Solves `Cᵀ Y = B` in place for the n columns of `b` (row-major n×n) at once: row i of
+    /// Y is row i of B less the rows above it, so each step is an axpy along a whole row.
+    fn solve_transposed_rows(&self, b: &mut [Complex64]) {
+        let (n, w) = (self.n, self.band + 1);
+        for i in 0..n {
+            let (above, rest) = b.split_at_mut(i * n);
+            let row = &mut rest[..n];
+            for k in i.saturating_sub(self.band)..i {
+                // C[k][i] sits at k·w + i − k.
+                let c = self.c[k * (w - 1) + i];
+                for (y, &x) in row.iter_mut().zip(&above[k * n..(k + 1) * n]) {
+                    *y -= c * x;
+                }
+            }
+            let inv = self.inv_diag[i];
+            for y in row.iter_mut() {
+                *y *= inv;
+            }
+        }
     }
 }
 
