@@ -31,6 +31,23 @@ fn sqrt(z: Complex64) -> Complex64 {
     if x >= 0.0 { Complex64::new(t, 0.5 * y / t) } else { Complex64::new(0.5 * y.abs() / t, t.copysign(y)) }
 }
 
+/// [`sqrt`] and its reciprocal together: `|√z|² = |z|`, so `1/√z = conj(√z)/|z|` costs no
+/// complex division (the QL sweep needs both per rotation). The reciprocal of 0 is not finite.
+fn sqrt_inv(z: Complex64) -> (Complex64, Complex64) {
+    let (x, y) = (z.re, z.im);
+    let m = x.abs().max(y.abs());
+    let modulus = if m > 1e-150 && m < 1e150 { (x * x + y * y).sqrt() } else { x.hypot(y) };
+    if modulus == 0.0 {
+        return (Complex64::new(0.0, 0.0), Complex64::new(f64::INFINITY, 0.0));
+    }
+    let t = (0.5 * (x.abs() + modulus)).sqrt();
+    let half_y_over_t = 0.5 * y * t.recip();
+    let root =
+        if x >= 0.0 { Complex64::new(t, half_y_over_t) } else { Complex64::new(half_y_over_t.abs(), t.copysign(y)) };
+    let inv_mod = modulus.recip();
+    (root, Complex64::new(root.re * inv_mod, -root.im * inv_mod))
+}
+
 /// A complex orthogonal reflector `H = I − v vᵀ / h` on the first `len` indices (`vᵀv = 2h`).
 #[derive(Debug, Clone, PartialEq)]
 struct Reflector {
@@ -346,7 +363,8 @@ fn ql(d: &mut [Complex64], e: &mut [Complex64], growth: &mut f64) -> Option<Vec<
                 i -= 1;
                 let f = s * e[i];
                 let b = c * e[i];
-                r = sqrt(f * f + g * g);
+                let (root, inv) = sqrt_inv(f * f + g * g);
+                r = root;
                 e[i + 1] = r;
                 if abs1(r) == 0.0 {
                     // Underflow: the matrix splits here.
@@ -355,7 +373,6 @@ fn ql(d: &mut [Complex64], e: &mut [Complex64], growth: &mut f64) -> Option<Vec<
                     deflated = true;
                     break;
                 }
-                let inv = r.inv();
                 s = f * inv;
                 c = g * inv;
                 *growth = growth.max(s.norm_sqr() + c.norm_sqr());
@@ -453,6 +470,16 @@ mod tests {
             assert!((a - b).norm() <= 1e-15 * b.norm(), "{z}: {a} vs {b}");
         }
         assert_eq!(sqrt(Complex64::new(0.0, 0.0)), Complex64::new(0.0, 0.0));
+        for z in [
+            Complex64::new(3.0, -4.0),
+            Complex64::new(-2.5, 1e-9),
+            Complex64::new(1e-200, 3e-201),
+            Complex64::new(-7.0, 0.0),
+        ] {
+            let (root, inv) = sqrt_inv(z);
+            assert!((root - z.sqrt()).norm() <= 1e-15 * root.norm(), "{z}");
+            assert!((inv * root - 1.0).norm() <= 1e-15, "{z}");
+        }
     }
 
     #[test]
