@@ -27,16 +27,34 @@ fn inputs(port: &str, value: Value) -> IndexMap<String, Vec<Labelled>> {
         .collect()
 }
 
+/// The Hann window `0.5 − 0.5 cos(2πi/n)` of length n, with one cosine per quarter period
+/// (cos(π ∓ x) = −cos x, cos(2π − x) = cos x) when 4 divides n.
+fn hann(n: usize) -> Vec<f64> {
+    let step = std::f64::consts::TAU / n as f64;
+    if !n.is_multiple_of(4) {
+        return (0..n).map(|i| 0.5 - 0.5 * (step * i as f64).cos()).collect();
+    }
+    let q = n / 4;
+    let c: Vec<f64> = (0..=q).map(|i| (step * i as f64).cos()).collect();
+    (0..n)
+        .map(|i| {
+            let cos = match i / q {
+                0 => c[i],
+                1 => -c[2 * q - i],
+                2 => -c[i - 2 * q],
+                _ => c[4 * q - i],
+            };
+            0.5 - 0.5 * cos
+        })
+        .collect()
+}
+
 /// The example plugin's spectrum, natively: mean removed, Hann window, FFT, one-sided amplitude.
 fn native_spectrum(samples: &[f64], planner: &mut FftPlanner<f64>) -> Vec<f64> {
     let n = samples.len();
     let mean = samples.iter().sum::<f64>() / n as f64;
-    let step = std::f64::consts::TAU / n as f64;
-    let mut buf: Vec<Complex<f64>> = samples
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Complex::new((s - mean) * (0.5 - 0.5 * (step * i as f64).cos()), 0.0))
-        .collect();
+    let mut buf: Vec<Complex<f64>> =
+        samples.iter().zip(hann(n)).map(|(s, w)| Complex::new((s - mean) * w, 0.0)).collect();
     planner.plan_fft_forward(n).process(&mut buf);
     let gain = 4.0 / n as f64;
     let mut a: Vec<f64> = buf[..n / 2 + 1].iter().map(|c| gain * c.norm()).collect();

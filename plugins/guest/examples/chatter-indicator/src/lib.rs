@@ -13,17 +13,35 @@ use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 use spindlelab_plugin_sdk::*;
 
+/// The Hann window `0.5 − 0.5 cos(2πi/n)` of length n, with one cosine per quarter period
+/// (cos(π ∓ x) = −cos x, cos(2π − x) = cos x) when 4 divides n.
+fn hann(n: usize) -> Vec<f64> {
+    let step = std::f64::consts::TAU / n as f64;
+    if !n.is_multiple_of(4) {
+        return (0..n).map(|i| 0.5 - 0.5 * (step * i as f64).cos()).collect();
+    }
+    let q = n / 4;
+    let c: Vec<f64> = (0..=q).map(|i| (step * i as f64).cos()).collect();
+    (0..n)
+        .map(|i| {
+            let cos = match i / q {
+                0 => c[i],
+                1 => -c[2 * q - i],
+                2 => -c[i - 2 * q],
+                _ => c[4 * q - i],
+            };
+            0.5 - 0.5 * cos
+        })
+        .collect()
+}
+
 /// Hann-windowed, mean-removed amplitude spectrum, scaled so a sinusoid of amplitude `a` on
 /// a line reads `a`: returns (line spacing Hz, amplitudes of lines 0..=n/2).
 fn amplitude_spectrum(samples: &[f64], sample_rate: f64) -> (f64, Vec<f64>) {
     let n = samples.len();
     let mean = samples.iter().sum::<f64>() / n as f64;
-    let step = std::f64::consts::TAU / n as f64;
-    let mut buf: Vec<Complex<f64>> = samples
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Complex::new((s - mean) * (0.5 - 0.5 * (step * i as f64).cos()), 0.0))
-        .collect();
+    let mut buf: Vec<Complex<f64>> =
+        samples.iter().zip(hann(n)).map(|(s, w)| Complex::new((s - mean) * w, 0.0)).collect();
     FftPlanner::<f64>::new().plan_fft_forward(n).process(&mut buf);
     // The Hann window sums to n/2: gain 2/(n/2) for a one-sided amplitude.
     let gain = 4.0 / n as f64;
