@@ -340,8 +340,8 @@ pub struct ModalModel {
     nu: Vec<Complex64>,
     /// Complex shapes `u_r`.
     shapes: Shapes,
-    /// The physical model, for the per-line solve of [`DampingForm::Viscous`].
-    model: Box<BeamModel>,
+    /// The physical model, kept for [`DampingForm::Viscous`] only (solved per line).
+    model: Option<Box<BeamModel>>,
 }
 
 pub(super) fn project(a: &[f64], phi: &[f64], n: usize) -> Vec<f64> {
@@ -416,7 +416,7 @@ impl ModalModel {
                 .map(|(r, v)| if r < rigid { 0.0 } else { (v.inv().re - sigma).max(0.0) })
                 .collect();
             lambda.sort_by(f64::total_cmp);
-            return Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model: Box::new(model.clone()) });
+            return Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model: None });
         }
         let UndampedModes { lambda, mu, z, .. } = undamped_modes(model, solver, sigma, rigid)?;
         let zero = Complex64::new(0.0, 0.0);
@@ -450,7 +450,8 @@ impl ModalModel {
             }
             DampingForm::Viscous => Shapes::Dense(Vec::new()),
         };
-        Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model: Box::new(model.clone()) })
+        let model = (form == DampingForm::Viscous).then(|| Box::new(model.clone()));
+        Ok(ModalModel { n, sigma, rigid, form, lambda, nu, shapes, model })
     }
 
     /// Natural frequencies `√λ_r / 2π`, Hz, ascending (rigid-body modes first, at 0 Hz): of the
@@ -478,8 +479,8 @@ impl ModalModel {
                 return Err(BeamError::NoSuchNode { node, nodes });
             }
         }
-        if self.form == DampingForm::Viscous {
-            return self.model.receptance_direct(response, excitation, freqs);
+        if let Some(model) = &self.model {
+            return model.receptance_direct(response, excitation, freqs);
         }
         let rows = self.shape_rows(&[2 * response, 2 * response + 1, 2 * excitation, 2 * excitation + 1]);
         modal_lines(self.sigma, self.rigid, &self.nu, [&rows[0], &rows[1], &rows[2], &rows[3]], freqs)
