@@ -510,6 +510,15 @@ impl Compliance {
     }
 }
 
+/// Which loop [`Kernel::run`] runs.
+#[derive(Clone, Copy)]
+enum Direction {
+    /// [`Kernel::couple`].
+    Couple,
+    /// [`Kernel::decouple`].
+    Decouple,
+}
+
 /// The per-line loops of [`couple`] and [`decouple`], [`LANES`] lines at a time where every
 /// inversion in the group passes [`try_invert`]'s test, line by line otherwise (the same
 /// arithmetic either way, so the path taken does not change a bit).
@@ -521,32 +530,26 @@ struct Kernel<'a> {
 }
 
 impl Kernel<'_> {
-    /// [`Kernel::couple`] compiled for AVX when the CPU has it (four-lane vectors).
-    fn run_couple(&mut self, a: &TwoPort, b: &[Receptance], comp: Option<Compliance>) {
+    /// [`Kernel::couple`] (or [`Kernel::decouple`], `lines` then being G11) compiled
+    /// for AVX when the CPU has it (four-lane vectors).
+    fn run(&mut self, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
+        #[inline(always)]
+        fn body(k: &mut Kernel, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
+            match direction {
+                Direction::Couple => k.couple(a, lines, comp),
+                Direction::Decouple => k.decouple(a, lines, comp),
+            }
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             #[target_feature(enable = "avx")]
-            fn avx(k: &mut Kernel, a: &TwoPort, b: &[Receptance], comp: Option<Compliance>) {
-                k.couple(a, b, comp)
+            fn avx(k: &mut Kernel, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
+                body(k, a, lines, comp, direction)
             }
             // SAFETY: the CPU supports AVX, checked just above.
-            return unsafe { avx(self, a, b, comp) };
+            return unsafe { avx(self, a, lines, comp, direction) };
         }
-        self.couple(a, b, comp)
-    }
-
-    /// [`Kernel::decouple`] compiled for AVX when the CPU has it.
-    fn run_decouple(&mut self, a: &TwoPort, g: &[Receptance], comp: Option<Compliance>) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            #[target_feature(enable = "avx")]
-            fn avx(k: &mut Kernel, a: &TwoPort, g: &[Receptance], comp: Option<Compliance>) {
-                k.decouple(a, g, comp)
-            }
-            // SAFETY: the CPU supports AVX, checked just above.
-            return unsafe { avx(self, a, g, comp) };
-        }
-        self.decouple(a, g, comp)
+        body(self, a, lines, comp, direction)
     }
 
     /// `K⁻¹` of lines `i..i + LANES` (zero for a rigid joint).
@@ -649,7 +652,7 @@ pub fn couple(
     let mut lines = Vec::with_capacity(n);
     let comp = Compliance::new(interface);
     let mut kernel = Kernel { lim, kdiag: &mut kdiag, diag: &mut diag, out: &mut lines };
-    kernel.run_couple(a, &base.lines, comp);
+    kernel.run(a, &base.lines, comp, Direction::Couple);
     kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
@@ -674,7 +677,7 @@ pub fn decouple(
     let mut lines = Vec::with_capacity(n);
     let comp = Compliance::new(interface);
     let mut kernel = Kernel { lim, kdiag: &mut kdiag, diag: &mut diag, out: &mut lines };
-    kernel.run_decouple(a, &g11.lines, comp);
+    kernel.run(a, &g11.lines, comp, Direction::Decouple);
     kdiag.finish()?;
     diag.finish()?;
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
