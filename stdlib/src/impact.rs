@@ -801,6 +801,147 @@ fn hermite_max(p0: f64, m0: f64, p1: f64, m1: f64) -> f64 {
     best
 }
 
+/// Bodies stepped side by side: the hammer and the target's modes are stored in groups of
+/// this many lanes (the last group padded with bodies that stay at rest), so a step's
+/// arithmetic runs in vector registers and its sums are taken in one fixed order.
+const LANES: usize = 4;
+type Lane = [f64; LANES];
+
+/// One semi-implicit Euler step of Eq. 2.7 for a linear body `m ẍ + c ẋ + k x = −F`,
+/// written as a map of the previous state:
+/// `v' = (1 − c dt/m) v − (k dt/m) x − (dt/m) F` and
+/// `x' = x + dt v' = (1 − k dt²/m) x + dt (1 − c dt/m) v − (dt²/m) F`.
+/// It is Eq. 2.7 in exact arithmetic; written this way the new position no longer waits
+/// for the new velocity, so each step's dependent chain is one multiply and one add.
+#[derive(Debug, Clone, Copy)]
+struct EulerMap {
+    vv: f64,
+    vx: f64,
+    vf: f64,
+    xx: f64,
+    xv: f64,
+    xf: f64,
+}
+
+impl EulerMap {
+    /// Map of a body of mass `m`, damping `c` and stiffness `k` over the step `dt`.
+    fn new(m: f64, c: f64, k: f64, dt: f64) -> Self {
+        let vv = 1.0 - c * dt / m;
+        let vx = k * dt / m;
+        let vf = -dt / m;
+        EulerMap { vv, vx, vf, xx: 1.0 - vx * dt, xv: dt * vv, xf: vf * dt }
+    }
+
+    /// A padding lane: stays at rest whatever the force.
+    const REST: EulerMap = EulerMap { vv: 1.0, vx: 0.0, vf: 0.0, xx: 1.0, xv: 0.0, xf: 0.0 };
+
+    /// One step from `(x, v)` under force `f`; `CONTACT = false` means `f = 0`.
+    #[inline(always)]
+    fn step<const CONTACT: bool>(&self, x: f64, v: f64, f: f64) -> (f64, f64) {
+        let v1 = self.vv * v - self.vx * x;
+        let x1 = self.xx * x + self.xv * v;
+        if CONTACT { (x1 + self.xf * f, v1 + self.vf * f) } else { (x1, v1) }
+    }
+}
+
+/// The maps of one group of [`LANES`] modes, field by field.
+#[derive(Debug, Clone, Copy)]
+struct GroupMap {
+    vv: Lane,
+    vx: Lane,
+    vf: Lane,
+    xx: Lane,
+    xv: Lane,
+    xf: Lane,
+}
+
+/// Every moving body as lanes: lane 0 is the hammer with its coordinates sign-flipped
+/// (`y = −x_h`), lanes 1… the target's modes. Every lane then obeys `m ÿ + c ẏ + k y = −F`
+/// (Eq. 2.2: the contact force pushes the hammer in +x and the target in −x), and the
+/// penetration is the plain sum `δ = Σ y + X_t0` of Eq. 2.2's gap.
+#[derive(Debug, Clone, Default)]
+struct Bodies {
+    maps: Vec<GroupMap>,
+    /// Displacements and velocities (padding lanes stay zero).
+    q: Vec<Lane>,
+    u: Vec<Lane>,
+    /// Number of real bodies (the hammer and the modes).
+    bodies: usize,
+}
+
+impl Bodies {
+    /// Lanes of the bodies with `maps` (the hammer's first), at rest.
+    fn new(maps: &[EulerMap]) -> Self {
+        let groups = maps.len().div_ceil(LANES).max(1);
+        let group = |g: usize| {
+            let at = |l: usize| maps.get(g * LANES + l).copied().unwrap_or(EulerMap::REST);
+            let field = |get: fn(&EulerMap) -> f64| -> Lane { std::array::from_fn(|l| get(&at(l))) };
+            GroupMap {
+                vv: field(|m| m.vv),
+                vx: field(|m| m.vx),
+                vf: field(|m| m.vf),
+                xx: field(|m| m.xx),
+                xv: field(|m| m.xv),
+                xf: field(|m| m.xf),
+            }
+        };
+        Bodies {
+            maps: (0..groups).map(group).collect(),
+            q: vec![[0.0; LANES]; groups],
+            u: vec![[0.0; LANES]; groups],
+            bodies: maps.len(),
+        }
+    }
+
+    /// `(Σ y, Σ ẏ)` over every body, in the same order as the integrator's own sums.
+    fn sums(&self) -> (f64, f64) {
+        lane_sums(&self.q, &self.u)
+    }
+
+    /// Hammer position `x_h` and velocity.
+    fn hammer(&self) -> (f64, f64) {
+        (-self.q[0][0], -self.u[0][0])
+    }
+
+    /// Target displacement at the impact point, `Σ q` over the modes.
+    fn target(&self) -> f64 {
+        let mut q = self.q.clone();
+        q[0][0] = 0.0;
+        lane_sums(&q, &self.u).0
+    }
+}
+
+/// `(Σ q, Σ u)` over lane groups: lane-wise over the groups, then across the lanes.
+#[inline(always)]
+fn lane_sums(q: &[Lane], u: &[Lane]) -> (f64, f64) {
+    let (mut sq, mut su) = ([0.0; LANES], [0.0; LANES]);
+    for (q, u) in q.iter().zip(u) {
+        for l in 0..LANES {
+            sq[l] += q[l];
+            su[l] += u[l];
+        }
+    }
+    (lane_sum(&sq), lane_sum(&su))
+}
+
+/// One step of every body under force `f` (`CONTACT = false`: no force); the sums of the new
+/// state are [`lane_sums`]'s.
+#[inline(always)]
+fn step_bodies<const CONTACT: bool>(maps: &[GroupMap], q: &mut [Lane], u: &mut [Lane], f: f64) {
+    for ((m, q), u) in maps.iter().zip(q.iter_mut()).zip(u.iter_mut()) {
+        for l in 0..LANES {
+            let map = EulerMap { vv: m.vv[l], vx: m.vx[l], vf: m.vf[l], xx: m.xx[l], xv: m.xv[l], xf: m.xf[l] };
+            (q[l], u[l]) = map.step::<CONTACT>(q[l], u[l], f);
+        }
+    }
+}
+
+/// Pairwise sum of one lane group, `(a₀ + a₁) + (a₂ + a₃)`.
+#[inline(always)]
+fn lane_sum(a: &Lane) -> f64 {
+    (a[0] + a[1]) + (a[2] + a[3])
+}
+
 /// Integrator state and bookkeeping for one run from first contact.
 struct Sim {
     // Constants.
@@ -808,18 +949,9 @@ struct Sim {
     contact_k: f64,
     hysteresis: f64,
     x_t0: f64,
-    h_damp: f64,
-    h_stiff: f64,
-    h_force: f64,
-    m_damp: Vec<f64>,
-    m_stiff: Vec<f64>,
-    m_force: Vec<f64>,
     spectral_stride: u64,
-    // State: hammer position relative to the contact surface at rest, velocity, modes.
-    yh: f64,
-    vh: f64,
-    q: Vec<f64>,
-    u: Vec<f64>,
+    // State: the hammer and the target's modes.
+    bodies: Bodies,
     // Current penetration and rate for the current state.
     delta: f64,
     delta_rate: f64,
@@ -832,11 +964,11 @@ struct Sim {
 }
 
 impl Sim {
+    /// Penetration `δ = (X_t0 + x_t) − x_h` (Eq. 2.2's gap) and its rate from the state.
     fn refresh_gap(&mut self) {
-        let sq: f64 = self.q.iter().sum();
-        let su: f64 = self.u.iter().sum();
-        self.delta = sq - self.yh;
-        self.delta_rate = su - self.vh;
+        let (sq, su) = self.bodies.sums();
+        self.delta = sq + self.x_t0;
+        self.delta_rate = su;
     }
 
     #[inline]
@@ -849,104 +981,157 @@ impl Sim {
         }
     }
 
-    /// `n` semi-implicit Euler steps of Eq. 2.7 with the contact force of Eq. 2.4.
+    /// `n` semi-implicit Euler steps of Eq. 2.7 with the contact force of Eq. 2.4, run as
+    /// alternating contact and free stretches (a free step has no force to evaluate).
     fn fine_steps(&mut self, n: usize) {
+        let mut done = 0;
+        while done < n {
+            done += if self.in_contact { self.stretch::<true>(n - done) } else { self.stretch::<false>(n - done) };
+        }
+        self.fine_steps += n as u64;
+    }
+
+    /// Up to `n` steps in the current contact state (`CONTACT` tells which), stopping after
+    /// the step where it changes; returns the steps taken. Up to three lane groups (the hammer
+    /// and eleven modes) are held in registers for the whole stretch.
+    fn stretch<const CONTACT: bool>(&mut self, n: usize) -> usize {
+        match self.bodies.q.len() {
+            1 => self.stretch_dispatch::<CONTACT, 1>(n),
+            2 => self.stretch_dispatch::<CONTACT, 2>(n),
+            3 => self.stretch_dispatch::<CONTACT, 3>(n),
+            _ => self.stretch_dispatch::<CONTACT, 0>(n),
+        }
+    }
+
+    /// Runs [`Sim::stretch_in`] compiled for AVX2 where the CPU has it.
+    fn stretch_dispatch<const CONTACT: bool, const G: usize>(&mut self, n: usize) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { self.stretch_avx2::<CONTACT, G>(n) };
+        }
+        self.stretch_in::<CONTACT, G>(n)
+    }
+
+    /// [`Sim::stretch_in`] for AVX2: the same operations in the same order, no fused
+    /// multiply-add, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn stretch_avx2<const CONTACT: bool, const G: usize>(&mut self, n: usize) -> usize {
+        self.stretch_in::<CONTACT, G>(n)
+    }
+
+    /// The stretch with the bodies' maps and state moved out of `self`: into local arrays of
+    /// `G` lane groups when `G > 0` (kept in registers), else used in place.
+    #[inline(always)]
+    fn stretch_in<const CONTACT: bool, const G: usize>(&mut self, n: usize) -> usize {
+        let mut modes = std::mem::take(&mut self.bodies);
+        let taken = if G > 0 {
+            let maps: [GroupMap; G] = std::array::from_fn(|g| modes.maps[g]);
+            let mut q: [Lane; G] = std::array::from_fn(|g| modes.q[g]);
+            let mut u: [Lane; G] = std::array::from_fn(|g| modes.u[g]);
+            let taken = self.steps::<CONTACT>(&maps, &mut q, &mut u, n);
+            modes.q.copy_from_slice(&q);
+            modes.u.copy_from_slice(&u);
+            taken
+        } else {
+            self.steps::<CONTACT>(&modes.maps, &mut modes.q, &mut modes.u, n)
+        };
+        self.bodies = modes;
+        taken
+    }
+
+    #[inline(always)]
+    fn steps<const CONTACT: bool>(&mut self, maps: &[GroupMap], q: &mut [Lane], u: &mut [Lane], n: usize) -> usize {
         let dt = self.dt;
-        let (h_damp, h_stiff, h_force, x_t0) = (self.h_damp, self.h_stiff, self.h_force, self.x_t0);
         let k = self.contact_k;
+        let hyst_over_vi = self.hyst_over_vi;
         let stride = self.spectral_stride;
-        let mut yh = self.yh;
-        let mut vh = self.vh;
-        let mut delta = self.delta;
-        let mut rate = self.delta_rate;
-        let mut step = self.step;
-        let mut in_contact = self.in_contact;
-        let mut hyst_over_vi = self.hyst_over_vi;
+        let gap_offset = self.x_t0;
+        let (mut delta, mut rate) = (self.delta, self.delta_rate);
         // Running peak and impulse of the open contact event.
-        let (mut peak, mut impulse) = match (in_contact, self.contacts.last()) {
-            (true, Some(ev)) => (ev.peak_force, ev.impulse),
+        let (mut peak, mut impulse) = match self.contacts.last() {
+            Some(ev) if CONTACT => (ev.peak_force, ev.impulse),
             _ => (0.0, 0.0),
         };
-        // Steps until the next spectral sample (taken when `step` is a multiple of stride).
-        let mut countdown = (stride - step % stride) % stride;
-        let q = &mut self.q[..];
-        let u = &mut self.u[..];
-        let m_damp = &self.m_damp[..q.len()];
-        let m_stiff = &self.m_stiff[..q.len()];
-        let m_force = &self.m_force[..q.len()];
-        for _ in 0..n {
+        // Steps until the next spectral sample (taken when the step is a multiple of stride).
+        let mut countdown = (stride - self.step % stride) % stride;
+        let mut taken = 0;
+        let mut changed = false;
+        while taken < n {
             // Contact force at the current state (Eq. 2.4).
-            let f = if in_contact { (k * delta * delta.sqrt() * (1.0 + hyst_over_vi * rate)).max(0.0) } else { 0.0 };
-            if countdown == 0 {
-                if f > 0.0 {
-                    self.spectral.push((step / stride, f));
-                }
-                countdown = stride;
-            }
-            countdown -= 1;
-            impulse += f * dt;
-            peak = peak.max(f);
-            // Eq. 2.3 accelerations, Eq. 2.7 velocity then position updates.
-            vh = vh * h_damp - (yh + x_t0) * h_stiff + f * h_force;
-            yh += vh * dt;
-            let mut sq = 0.0;
-            let mut su = 0.0;
-            for j in 0..q.len() {
-                let uj = u[j] * m_damp[j] - q[j] * m_stiff[j] - f * m_force[j];
-                let qj = q[j] + uj * dt;
-                u[j] = uj;
-                q[j] = qj;
-                sq += qj;
-                su += uj;
-            }
-            let new_delta = sq - yh;
-            let new_rate = su - vh;
-            step += 1;
-            if (new_delta > 0.0) != in_contact {
-                if new_delta > 0.0 {
-                    // Onset: interpolate the crossing; V_i is the penetration rate now.
-                    let t1 = step as f64 * dt;
-                    let frac = new_delta / (new_delta - delta);
-                    let v_i = new_rate.max(f64::MIN_POSITIVE);
-                    in_contact = true;
-                    hyst_over_vi = self.hysteresis / v_i;
-                    peak = 0.0;
-                    impulse = 0.0;
-                    self.contacts.push(ContactEvent {
-                        start: t1 - frac * dt,
-                        end: f64::NAN,
-                        approach_velocity: v_i,
-                        separation_velocity: f64::NAN,
-                        peak_force: 0.0,
-                        impulse: 0.0,
-                    });
-                } else {
-                    let t0 = (step - 1) as f64 * dt;
-                    let frac = delta / (delta - new_delta);
-                    in_contact = false;
-                    if let Some(ev) = self.contacts.last_mut() {
-                        ev.end = t0 + frac * dt;
-                        ev.separation_velocity = new_rate;
-                        ev.peak_force = peak;
-                        ev.impulse = impulse;
+            let f = if CONTACT { (k * delta * delta.sqrt() * (1.0 + hyst_over_vi * rate)).max(0.0) } else { 0.0 };
+            if CONTACT {
+                if countdown == 0 {
+                    if f > 0.0 {
+                        self.spectral.push(((self.step + taken as u64) / stride, f));
                     }
+                    countdown = stride;
                 }
+                countdown -= 1;
+                impulse += f * dt;
+                peak = peak.max(f);
+            }
+            // Eq. 2.3 accelerations and the Eq. 2.7 update, as maps of the previous state.
+            step_bodies::<CONTACT>(maps, q, u, f);
+            let (sq, su) = lane_sums(q, u);
+            let new_delta = sq + gap_offset;
+            let new_rate = su;
+            taken += 1;
+            if (new_delta > 0.0) != CONTACT {
+                self.mark_change(self.step + taken as u64, delta, new_delta, new_rate, peak, impulse);
+                changed = true;
             }
             delta = new_delta;
             rate = new_rate;
+            if changed {
+                break;
+            }
         }
-        if let (true, Some(ev)) = (in_contact, self.contacts.last_mut()) {
+        if CONTACT
+            && !changed
+            && let Some(ev) = self.contacts.last_mut()
+        {
             ev.peak_force = peak;
             ev.impulse = impulse;
         }
-        self.yh = yh;
-        self.vh = vh;
         self.delta = delta;
         self.delta_rate = rate;
-        self.step = step;
-        self.in_contact = in_contact;
-        self.hyst_over_vi = hyst_over_vi;
-        self.fine_steps += n as u64;
+        self.step += taken as u64;
+        taken
+    }
+
+    /// Records a change of contact state during the step that ends at `step`: an onset
+    /// (`δ` crosses zero upwards; `V_i` is the penetration rate now) or a separation (the
+    /// open event's end by linear interpolation, its peak and impulse).
+    #[cold]
+    fn mark_change(&mut self, step: u64, delta: f64, new_delta: f64, new_rate: f64, peak: f64, impulse: f64) {
+        let dt = self.dt;
+        if new_delta > 0.0 {
+            let t1 = step as f64 * dt;
+            let frac = new_delta / (new_delta - delta);
+            let v_i = new_rate.max(f64::MIN_POSITIVE);
+            self.in_contact = true;
+            self.hyst_over_vi = self.hysteresis / v_i;
+            self.contacts.push(ContactEvent {
+                start: t1 - frac * dt,
+                end: f64::NAN,
+                approach_velocity: v_i,
+                separation_velocity: f64::NAN,
+                peak_force: 0.0,
+                impulse: 0.0,
+            });
+        } else {
+            let t0 = (step - 1) as f64 * dt;
+            let frac = delta / (delta - new_delta);
+            self.in_contact = false;
+            if let Some(ev) = self.contacts.last_mut() {
+                ev.end = t0 + frac * dt;
+                ev.separation_velocity = new_rate;
+                ev.peak_force = peak;
+                ev.impulse = impulse;
+            }
+        }
     }
 }
 
@@ -954,50 +1139,41 @@ impl Sim {
 struct FreeFlight {
     substeps: usize,
     h: f64,
-    hammer_body: Body,
-    hammer: Transition,
-    mode_bodies: Vec<Body>,
-    modes: Vec<Transition>,
+    /// The hammer and the target's modes, in the order of [`Bodies`]' lanes.
+    bodies: Vec<Body>,
+    transitions: Vec<Transition>,
 }
 
 impl FreeFlight {
     /// Advances one output interval exactly unless the gap may close; returns false (state
     /// untouched) when the interval must be integrated with contact.
-    fn try_advance(&self, sim: &mut Sim, save_q: &mut [f64], save_u: &mut [f64]) -> bool {
+    fn try_advance(&self, sim: &mut Sim, save_q: &mut [Lane], save_u: &mut [Lane]) -> bool {
         if sim.in_contact || sim.delta > 0.0 {
             return false;
         }
-        let (yh0, vh0) = (sim.yh, sim.vh);
-        save_q.copy_from_slice(&sim.q);
-        save_u.copy_from_slice(&sim.u);
+        save_q.copy_from_slice(&sim.bodies.q);
+        save_u.copy_from_slice(&sim.bodies.u);
         let h = self.h;
         let h4 = h * h * h * h / 384.0;
         let mut g_a = sim.delta;
         let mut d_a = sim.delta_rate;
+        let n = sim.bodies.bodies;
         for _ in 0..self.substeps {
-            let xh = sim.yh + sim.x_t0;
-            let mut bound = self.hammer_body.fourth_derivative_bound(xh, sim.vh);
-            let (xh, vh) = self.hammer.apply(xh, sim.vh);
-            sim.yh = xh - sim.x_t0;
-            sim.vh = vh;
-            let mut sq = 0.0;
-            let mut su = 0.0;
-            for j in 0..sim.q.len() {
-                bound += self.mode_bodies[j].fourth_derivative_bound(sim.q[j], sim.u[j]);
-                let (qj, uj) = self.modes[j].apply(sim.q[j], sim.u[j]);
-                sim.q[j] = qj;
-                sim.u[j] = uj;
-                sq += qj;
-                su += uj;
+            // A linear map: the hammer's sign-flipped lane moves as the hammer does.
+            let q = &mut sim.bodies.q.as_flattened_mut()[..n];
+            let u = &mut sim.bodies.u.as_flattened_mut()[..n];
+            let mut bound = 0.0;
+            for j in 0..n {
+                bound += self.bodies[j].fourth_derivative_bound(q[j], u[j]);
+                (q[j], u[j]) = self.transitions[j].apply(q[j], u[j]);
             }
-            let g_b = sq - sim.yh;
-            let d_b = su - sim.vh;
+            let (sq, su) = sim.bodies.sums();
+            let g_b = sq + sim.x_t0;
+            let d_b = su;
             let peak = hermite_max(g_a, d_a * h, g_b, d_b * h);
             if peak + 2.0 * h4 * bound >= 0.0 {
-                sim.yh = yh0;
-                sim.vh = vh0;
-                sim.q.copy_from_slice(save_q);
-                sim.u.copy_from_slice(save_u);
+                sim.bodies.q.copy_from_slice(save_q);
+                sim.bodies.u.copy_from_slice(save_u);
                 sim.refresh_gap();
                 return false;
             }
@@ -1032,17 +1208,13 @@ fn run(
         contact_k: setup.contact.stiffness(),
         hysteresis: 0.75 * (1.0 - setup.contact.restitution * setup.contact.restitution),
         x_t0,
-        h_damp: 1.0 - hm.damping * dt / hm.mass,
-        h_stiff: hm.stiffness * dt / hm.mass,
-        h_force: dt / hm.mass,
-        m_damp: modes.iter().map(|m| 1.0 - m.damping * dt / m.mass).collect(),
-        m_stiff: modes.iter().map(|m| m.stiffness * dt / m.mass).collect(),
-        m_force: modes.iter().map(|m| dt / m.mass).collect(),
         spectral_stride,
-        yh: 0.0,
-        vh: -approach_speed,
-        q: vec![0.0; modes.len()],
-        u: vec![0.0; modes.len()],
+        bodies: Bodies::new(
+            &std::iter::once((hm.mass, hm.damping, hm.stiffness))
+                .chain(modes.iter().map(|m| (m.mass, m.damping, m.stiffness)))
+                .map(|(m, c, k)| EulerMap::new(m, c, k, dt))
+                .collect::<Vec<_>>(),
+        ),
         delta: 0.0,
         delta_rate: approach_speed,
         step: 0,
@@ -1058,16 +1230,13 @@ fn run(
     let max_rate = mode_bodies.iter().map(|b| b.rate).fold(hammer_body.rate, f64::max);
     let substeps = ((ts * max_rate / FREE_FLIGHT_MAX_PHASE).ceil() as usize).max(1);
     let h = ts / substeps as f64;
-    let free = FreeFlight {
-        substeps,
-        h,
-        hammer_body,
-        hammer: hammer_body.transition(h),
-        mode_bodies: mode_bodies.clone(),
-        modes: mode_bodies.iter().map(|b| b.transition(h)).collect(),
-    };
-    let mut save_q = vec![0.0; modes.len()];
-    let mut save_u = vec![0.0; modes.len()];
+    let bodies: Vec<Body> = std::iter::once(hammer_body).chain(mode_bodies).collect();
+    let free = FreeFlight { substeps, h, transitions: bodies.iter().map(|b| b.transition(h)).collect(), bodies };
+    // The hammer touches the resting target: `x_h = X_t0`, moving at the approach speed.
+    sim.bodies.q[0][0] = -x_t0;
+    sim.bodies.u[0][0] = approach_speed;
+    let mut save_q = sim.bodies.q.clone();
+    let mut save_u = sim.bodies.u.clone();
 
     let total = n_pre + n_post;
     let mut force = Vec::with_capacity(total);
@@ -1089,8 +1258,8 @@ fn run(
 
     for k in 0..n_post {
         force.push(sim.force_now());
-        target.push(-sim.q.iter().sum::<f64>());
-        hammer.push(sim.yh + x_t0);
+        target.push(-sim.bodies.target());
+        hammer.push(sim.bodies.hammer().0);
         if k + 1 == n_post {
             break;
         }
