@@ -2,6 +2,9 @@
 //! tip receptance block over 10,000 frequency lines by modal expansion, the direct (banded)
 //! solve, and the spinning model's receptance and Campbell table.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::beam::{
     BeamModel, MeshOptions, SpinningModel, segments_from_sections, table::tool_holder_sections,

@@ -1,5 +1,8 @@
 //! Compile time of a generated 200-step recipe: parse, resolve, validate and build the graph.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::fmt::Write as _;
 use std::hint::black_box;

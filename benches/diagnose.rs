@@ -2,6 +2,9 @@
 //! writes: `train_02` (a hidden tool–holder joint; two FRFs, 39 trials) and `train_03`
 //! (spindle stiffening with speed; eight FRFs at four speeds).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::path::Path;
 use std::time::Duration;

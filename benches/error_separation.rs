@@ -2,6 +2,9 @@
 //! 100 kHz (6,000 samples per revolution, 1.2 M samples per probe), three probes, ten
 //! segments; with and without the asynchronous spectrum, and the tachometer decoding.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::error_motion::{DEFAULT_ANGLES_DEG, ProbeRecords, SeparationOptions, separate};
 use spindlelab_stdlib::tach::{Revolutions, TachOptions, decode};

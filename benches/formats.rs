@@ -1,6 +1,9 @@
 //! Timing of the data-file layer: a 65,536-line FRF through UFF dataset 58 (ASCII write and
 //! read) and a two-channel, 65,536-sample time series through CSV.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_engine::formats::{csv, uff};
 use spindlelab_engine::value::{Channel, Frf, TimeSeries, UnitLabel};

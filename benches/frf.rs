@@ -1,6 +1,9 @@
 //! Timing of FRF estimation (§3.1.2–3.1.4): 20 impacts of 65,536 samples with windows,
 //! H1 averaging and coherence.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::frf::{FrfEstimator, FrfOptions, ImpactRecord};
 use spindlelab_stdlib::impact::{Hammer, ImpactSetup, ModalTarget, SensorNoise, simulate};

@@ -1,5 +1,8 @@
 //! Timing of the §2.1 impact simulation from first contact (dt = 1e-8 s over 5 ms).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::impact::{
     Hammer, ImpactSetup, ModalTarget, Table21Target, first_contact, simulate_from_contact, table_2_1_target,

@@ -2,6 +2,9 @@
 //! over 200 tooth periods at 100 steps a period, and a 100 × 50 speed × depth stability map
 //! (each point 50 revolutions at the automatic step).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab::stdlib::milling::{MillingSimulation, simulate, stability_map};
 use spindlelab::stdlib::stability::{CuttingCoefficients, Milling, MillingDirection, ModalModel, Mode};

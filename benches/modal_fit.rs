@@ -2,6 +2,9 @@
 //! simplex procedure and by LSCF, each including the beam mapping (§5.2.5), the joint beam refit (also timed without it) and the G11
 //! synthesis on the grid.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};

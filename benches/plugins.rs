@@ -4,6 +4,9 @@
 //! example plugin against the same steps compiled into this program), and the cold start
 //! of a plugin whose compiled form is cached (manifest, hash, deserialise, checks, describe).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use indexmap::IndexMap;
 use rustfft::FftPlanner;

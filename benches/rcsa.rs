@@ -1,6 +1,9 @@
 //! Timing of receptance coupling (§5.1): inverse RCSA of a spindle from an artifact measurement (Eq. 5.4)
 //! followed by coupling a tool through a flexible joint (Eqs. 5.3, 5.16–5.17), on 10,000 frequency lines.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::eb_modes::{BeamMaterial, EquivalentMode, spindle_receptance};
 use spindlelab_stdlib::rcsa::{Complex64, Interface, RcsaOptions, Receptance, TwoPort, couple, decouple};

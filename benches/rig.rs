@@ -1,6 +1,9 @@
 //! Timing of the virtual rig (dissertation chapters 2–3): one recording of 20 impacts ×
 //! 65,536 samples at 100 kHz with tach, force and three capacitance probes, every source on.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::rig::{RigConfig, simulate};
 use std::hint::black_box;

@@ -1,6 +1,9 @@
 //! Timing of the milling stability kernels (ch. 6): ZOA lobes on 10,000 lines, the speed-dependent diagram
 //! (0–4000 rpm every 5 rpm from nine measured speeds) and a 200 × 100 semi-discretization map of a two-mode tool.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::stability::{
     CoefficientTable, CuttingCoefficients, Milling, MillingDirection, ModalModel, Mode, SdOptions,

@@ -8,6 +8,9 @@
 //!   (measured configuration, cutting configuration over 25 speeds × 2 directions,
 //!   speed-dependent lobes, 39 trials scored).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab::engine::{self, exec::RunOptions};
 use std::path::Path;

@@ -5,6 +5,9 @@
 //! modal sum, as the peer's `numpy_modal_superposition` forms it). Also with the loss factors of
 //! real joints (steel 0.012, carbide 0.025), where the damping is not proportional.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::beam::table::{tool_holder_sections, w01_segments};
 use spindlelab_stdlib::beam::{BeamModel, BeamSegment, MeshOptions};

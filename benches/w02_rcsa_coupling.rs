@@ -6,6 +6,9 @@
 //! (`1 + 0.05i`); our interface takes viscous damping, so the joint here has `c = 0.05 k/ω` at
 //! 1 kHz: the same arithmetic per line, slightly different flexible-joint values.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::beam::table::{tool_holder_sections, w01_segments};
 use spindlelab_stdlib::beam::{BeamModel, MeshOptions};

@@ -5,6 +5,9 @@
 //! Both methods run with the default settings (peak picking included), identify all ten modes and map them
 //! to equivalent beams; the joint beam refit is off (the peers fit modal parameters only).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -3,6 +3,9 @@
 //! region on 10,000 chatter frequencies 10..5000 Hz, 20 lobes, both eigenvalue roots, every lobe point kept and
 //! the envelope on a 1 rpm grid 1000..30000 rpm.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::stability::{
     CuttingCoefficients, Milling, MillingDirection, ModalModel, Mode, ZoaLobes, ZoaOptions, zoa_lobes,

@@ -29,6 +29,9 @@
 //! - the peer also evaluates the wrong-sign transfer function outside its timed region (583 nm form
 //!   error); the kernel has no sign option, so that check is not repeated.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab::stdlib::error_motion::{DEFAULT_ANGLES_DEG, ProbeRecords, Separation, SeparationOptions, separate};
 use spindlelab::stdlib::tach::Revolutions;

@@ -5,6 +5,9 @@
 //! and the peer's 10-mode target (f = 1592…17500 Hz, m = 0.1…2.5 kg, ζ = 0.01). Our step is the
 //! semi-implicit Euler of Eq. 2.7 (velocity first), the peer's the explicit one: the same work per step.
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::impact::{Hammer, ImpactSetup, ModalTarget, Mode, first_contact, simulate_from_contact};
 use std::f64::consts::TAU;

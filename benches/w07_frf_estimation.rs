@@ -25,6 +25,9 @@
 //!   response window into preallocated buffers, the kernel's H1 and coherence, the mean records and the
 //!   time-averaged FRF (the kernel's H1 of the one mean record, X̄/F̄).
 
+#[path = "common/alloc.rs"]
+mod alloc;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab::stdlib::frf::{Averaging, FrfEstimate, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
 use std::f64::consts::{PI, TAU};
