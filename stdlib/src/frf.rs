@@ -197,117 +197,12 @@ pub fn estimate(
     est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1 })
 }
 
-/// Spectral sums per FFT line, as structure of arrays so the accumulation vectorises:
-/// `S_ff`, `S_xx`, `S_xf = Σ X F*` and, for time-synchronous averaging only, `Σ X` and `Σ F`.
-#[derive(Debug, Clone, Default)]
-struct Sums {
-    sff: Vec<f64>,
-    sxx: Vec<f64>,
-    sxf_re: Vec<f64>,
-    sxf_im: Vec<f64>,
-    /// `Σ X` and `Σ F` (real, imaginary parts); empty unless kept.
-    x_re: Vec<f64>,
-    x_im: Vec<f64>,
-    f_re: Vec<f64>,
-    f_im: Vec<f64>,
-}
-
-impl Sums {
-    /// Zeroed sums of `lines` lines, with the linear sums only when `keep_linear`.
-    fn reset(&mut self, lines: usize, keep_linear: bool) {
-        for (v, keep) in [
-            (&mut self.sff, true),
-            (&mut self.sxx, true),
-            (&mut self.sxf_re, true),
-            (&mut self.sxf_im, true),
-            (&mut self.x_re, keep_linear),
-            (&mut self.x_im, keep_linear),
-            (&mut self.f_re, keep_linear),
-            (&mut self.f_im, keep_linear),
-        ] {
-            v.clear();
-            if keep {
-                v.resize(lines, 0.0);
-            }
-        }
-    }
-
-    fn keeps_linear(&self) -> bool {
-        !self.x_re.is_empty()
-    }
-
-    /// Adds `other` line by line.
-    fn add(&mut self, other: &Sums) {
-        for (a, b) in [
-            (&mut self.sff, &other.sff),
-            (&mut self.sxx, &other.sxx),
-            (&mut self.sxf_re, &other.sxf_re),
-            (&mut self.sxf_im, &other.sxf_im),
-            (&mut self.x_re, &other.x_re),
-            (&mut self.x_im, &other.x_im),
-            (&mut self.f_re, &other.f_re),
-            (&mut self.f_im, &other.f_im),
-        ] {
-            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
-        }
-    }
-
-    /// Adds the spectra of one packed frame: with `Z = FFT(f + i x')`,
-    /// `F_k = (Z_k + Z*_{N−k})/2 · f_gain` and `X_k = (Z_k − Z*_{N−k})/(2i) · x_gain`.
-    /// Compiled for AVX2 where the CPU has it (no fused multiply-add: the same bits).
-    fn add_packed(&mut self, z: &[Complex64], f_gain: f64, x_gain: f64) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.add_packed_avx2(z, f_gain, x_gain) };
-        }
-        self.add_packed_generic(z, f_gain, x_gain);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn add_packed_avx2(&mut self, z: &[Complex64], f_gain: f64, x_gain: f64) {
-        self.add_packed_generic(z, f_gain, x_gain);
-    }
-
-    #[inline(always)]
-    fn add_packed_generic(&mut self, z: &[Complex64], f_gain: f64, x_gain: f64) {
-        if self.keeps_linear() {
-            self.unpack::<true>(z, f_gain, x_gain);
-        } else {
-            self.unpack::<false>(z, f_gain, x_gain);
-        }
-    }
-
-    #[inline(always)]
-    fn unpack<const LINEAR: bool>(&mut self, z: &[Complex64], f_gain: f64, x_gain: f64) {
-        let n = z.len();
-        let lines = self.sff.len();
-        let (hf, hx) = (0.5 * f_gain, 0.5 * x_gain);
-        let mut line = |k: usize, a: Complex64, m: Complex64| {
-            // With b = conj(m): F = (a + b)/2, X = (a − b)/(2i) = (d_i − i d_r)/2.
-            let (fr, fi) = ((a.re + m.re) * hf, (a.im - m.im) * hf);
-            let (dr, di) = ((a.re - m.re) * hx, (a.im + m.im) * hx);
-            let (xr, xi) = (di, -dr);
-            self.sff[k] += fr * fr + fi * fi;
-            self.sxx[k] += xr * xr + xi * xi;
-            // X F* = (x_r + i x_i)(f_r − i f_i).
-            self.sxf_re[k] += xr * fr + xi * fi;
-            self.sxf_im[k] += xi * fr - xr * fi;
-            if LINEAR {
-                self.x_re[k] += xr;
-                self.x_im[k] += xi;
-                self.f_re[k] += fr;
-                self.f_im[k] += fi;
-            }
-        };
-        line(0, z[0], z[0]);
-        // Line k pairs with N − k: forwards and backwards through the spectrum.
-        let upper = &z[n - lines + 1..];
-        for (j, (&a, &m)) in z[1..lines].iter().zip(upper.iter().rev()).enumerate() {
-            line(j + 1, a, m);
-        }
-    }
+/// Spectral sums of one FFT line.
+#[derive(Debug, Clone, Copy, Default)]
+struct Line {
+    sff: f64,
+    sxx: f64,
+    sxf: Complex64,
 }
 
 /// Per-thread buffers and spectral accumulators.
@@ -317,7 +212,9 @@ struct Worker {
     /// Spectrum of the packed frame.
     spectrum: Vec<Complex64>,
     scratch: Vec<Complex64>,
-    sums: Sums,
+    lines: Vec<Line>,
+    /// `(Σ X, Σ F)` per line, kept only for time-synchronous averaging.
+    sums: Vec<(Complex64, Complex64)>,
 }
 
 impl Worker {
@@ -326,12 +223,19 @@ impl Worker {
             buf: vec![Complex64::new(0.0, 0.0); n],
             spectrum: vec![Complex64::new(0.0, 0.0); n],
             scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
-            sums: Sums::default(),
+            lines: vec![Line::default(); n / 2 + 1],
+            sums: Vec::new(),
         }
     }
 
     fn reset(&mut self, keep_sums: bool) {
-        self.sums.reset(self.buf.len() / 2 + 1, keep_sums);
+        self.lines.fill(Line::default());
+        if keep_sums {
+            self.sums.clear();
+            self.sums.resize(self.lines.len(), (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0)));
+        } else {
+            self.sums.clear();
+        }
     }
 
     /// Windows, transforms and accumulates one record; false if it holds a non-finite value.
@@ -382,7 +286,28 @@ impl Worker {
         // picking up the other channel's rounding).
         let f_gain = if ef_window > 0.0 { 1.0 } else { 0.0 };
         let x_gain = if ex > 0.0 { unscale } else { 0.0 };
-        self.sums.add_packed(&self.spectrum, f_gain, x_gain);
+        let z = &self.spectrum;
+        let keep_sums = !self.sums.is_empty();
+        let unpack = |k: usize| {
+            let a = z[k];
+            let b = if k == 0 { a.conj() } else { z[n - k].conj() };
+            let fk = (a + b) * (0.5 * f_gain);
+            let d = a - b;
+            (fk, Complex64::new(0.5 * d.im, -0.5 * d.re) * x_gain)
+        };
+        for (k, line) in self.lines.iter_mut().enumerate() {
+            let (fk, xk) = unpack(k);
+            line.sff += fk.norm_sqr();
+            line.sxx += xk.norm_sqr();
+            line.sxf += xk * fk.conj();
+        }
+        if keep_sums {
+            for (k, s) in self.sums.iter_mut().enumerate() {
+                let (fk, xk) = unpack(k);
+                s.0 += xk;
+                s.1 += fk;
+            }
+        }
         true
     }
 }
@@ -617,22 +542,27 @@ impl FrfEstimator {
         let (first, rest) = self.workers[..threads].split_at_mut(1);
         let acc = &mut first[0];
         for w in rest.iter() {
-            acc.sums.add(&w.sums);
+            for (a, b) in acc.lines.iter_mut().zip(&w.lines) {
+                a.sff += b.sff;
+                a.sxx += b.sxx;
+                a.sxf += b.sxf;
+            }
+            for (a, b) in acc.sums.iter_mut().zip(&w.sums) {
+                a.0 += b.0;
+                a.1 += b.1;
+            }
         }
-        let s = &acc.sums;
         let lines = self.len / 2 + 1;
         let df = self.sample_rate / self.len as f64;
         let mut h = Vec::with_capacity(lines);
         let mut coherence = Vec::with_capacity(lines);
         let mut zero_force_lines = 0usize;
-        for k in 0..lines {
-            let (sff, sxx, sxf) = (s.sff[k], s.sxx[k], Complex64::new(s.sxf_re[k], s.sxf_im[k]));
+        for (k, line) in acc.lines.iter().enumerate() {
+            let Line { sff, sxx, sxf } = *line;
             let (num, den) = match options.averaging {
                 Averaging::H1 => (sxf, Complex64::new(sff, 0.0)),
                 Averaging::H2 => (Complex64::new(sxx, 0.0), sxf.conj()),
-                Averaging::TimeSynchronous => {
-                    (Complex64::new(s.x_re[k], s.x_im[k]), Complex64::new(s.f_re[k], s.f_im[k]))
-                }
+                Averaging::TimeSynchronous => acc.sums[k],
             };
             let product = sxx * sff;
             if den.norm_sqr() > 0.0 && product > 0.0 {
