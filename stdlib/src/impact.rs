@@ -903,11 +903,15 @@ impl Bodies {
         (-self.q[0][0], -self.u[0][0])
     }
 
-    /// Target displacement at the impact point, `Σ q` over the modes.
+    /// Target displacement at the impact point, `Σ q` over the modes (lane 0 left out).
     fn target(&self) -> f64 {
-        let mut q = self.q.clone();
-        q[0][0] = 0.0;
-        lane_sums(&q, &self.u).0
+        let mut sq = [0.0; LANES];
+        for (g, q) in self.q.iter().enumerate() {
+            for l in 0..LANES {
+                sq[l] += if g == 0 && l == 0 { 0.0 } else { q[l] };
+            }
+        }
+        lane_sum(&sq)
     }
 }
 
@@ -1025,19 +1029,19 @@ impl Sim {
     /// `G` lane groups when `G > 0` (kept in registers), else used in place.
     #[inline(always)]
     fn stretch_in<const CONTACT: bool, const G: usize>(&mut self, n: usize) -> usize {
-        let mut modes = std::mem::take(&mut self.bodies);
+        let mut bodies = std::mem::take(&mut self.bodies);
         let taken = if G > 0 {
-            let maps: [GroupMap; G] = std::array::from_fn(|g| modes.maps[g]);
-            let mut q: [Lane; G] = std::array::from_fn(|g| modes.q[g]);
-            let mut u: [Lane; G] = std::array::from_fn(|g| modes.u[g]);
+            let maps: [GroupMap; G] = std::array::from_fn(|g| bodies.maps[g]);
+            let mut q: [Lane; G] = std::array::from_fn(|g| bodies.q[g]);
+            let mut u: [Lane; G] = std::array::from_fn(|g| bodies.u[g]);
             let taken = self.steps::<CONTACT>(&maps, &mut q, &mut u, n);
-            modes.q.copy_from_slice(&q);
-            modes.u.copy_from_slice(&u);
+            bodies.q.copy_from_slice(&q);
+            bodies.u.copy_from_slice(&u);
             taken
         } else {
-            self.steps::<CONTACT>(&modes.maps, &mut modes.q, &mut modes.u, n)
+            self.steps::<CONTACT>(&bodies.maps, &mut bodies.q, &mut bodies.u, n)
         };
-        self.bodies = modes;
+        self.bodies = bodies;
         taken
     }
 
