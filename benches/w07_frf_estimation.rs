@@ -13,23 +13,24 @@
 //! The peer's processing: trigger at the first sample above 20 N, both channels rolled circularly to put
 //! it at sample 50; force window rectangular over the first 650 samples; response window
 //! `exp(ln(0.01)·n/(N−1))` from the first sample; full-record spectra, H1 = S_fx/S_ff, coherence, and the
-//! time-averaged FRF FFT(mean x_w)/FFT(mean f_w). The kernel's own trigger (a pre-trigger before the
-//! force *peak*, zero-filled, not circular) and response window (decay starting at the end of the force
-//! window) differ from these, so the alignment and the peer's response window are applied by this
-//! bench, and the kernel runs with `Trigger::RecordStart`, the 6.5 ms force window and no response decay
-//! (its window table is then all ones; it still multiplies by it and still searches the force peak,
-//! so its work per record is unchanged). Timed, per thread count:
-//! - `h1_coherence`: the kernel alone on the aligned, response-windowed records (force window, packed
-//!   FFT per record, spectral sums, H1 and coherence);
-//! - `peer_scope`: everything the peer's timed function does: trigger search, circular alignment and
-//!   response window into preallocated buffers, the kernel's H1 and coherence, the mean records and the
-//!   time-averaged FRF (the kernel's H1 of the one mean record, X̄/F̄).
+//! time-averaged FRF FFT(mean x_w)/FFT(mean f_w). Timed, per thread count:
+//! - `peer_scope`: the kernel on the raw records, as the peer's timed function: level trigger (20 N,
+//!   0.5 ms pre-trigger), the 650-sample force window, a response window decaying from the frame start
+//!   with `τ = (N−1)/(fs ln 100)` (the peer's), H1, coherence and the time-averaged FRF `ΣX/ΣF` from one
+//!   pass over the records. The frame is filled with zeros past the record end where the peer wraps
+//!   the pre-trigger part of the record around (pre-impact noise at 1 % window weight); the results
+//!   agree with the peer's to the digits below;
+//! - `h1_coherence`: the kernel alone on records aligned and windowed by this bench as the peer does
+//!   (circularly), with `Trigger::RecordStart` and no response decay of its own (the window table is
+//!   all ones).
 
 #[path = "common/alloc.rs"]
 mod alloc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use spindlelab::stdlib::frf::{Averaging, FrfEstimate, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
+use spindlelab::stdlib::frf::{
+    Averaging, DecayStart, FrfEstimate, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows,
+};
 use std::f64::consts::{PI, TAU};
 use std::hint::black_box;
 
@@ -43,6 +44,7 @@ const NFW: usize = 650;
 const TRIG: f64 = 20.0;
 const EXP_END: f64 = 0.01;
 const SEED: u32 = 11;
+const PRE_S: f64 = PRE as f64 / FS;
 
 #[path = "common/numpy_rng.rs"]
 mod numpy_rng;
@@ -85,9 +87,8 @@ fn response_window() -> Vec<f64> {
 }
 
 /// The peer's `align` and response window into `fa`, `xa`: trigger (first force sample above 20 N) rolled
-/// circularly to sample 50, the response multiplied by `wx`. With `mean = Some((f̄, x̄))`, the aligned
-/// records are also added to the sums of the mean records in the same pass (the force over its window).
-fn align(f: &[f64], x: &[f64], wx: &[f64], fa: &mut [f64], xa: &mut [f64], mean: Option<(&mut [f64], &mut [f64])>) {
+/// circularly to sample 50, the response multiplied by `wx`.
+fn align(f: &[f64], x: &[f64], wx: &[f64], fa: &mut [f64], xa: &mut [f64]) {
     let trig = f.iter().position(|&v| v > TRIG).unwrap_or(0);
     // fa[k] = f[(k + trig − PRE) mod N].
     let from = (trig + N - PRE) % N;
@@ -95,65 +96,30 @@ fn align(f: &[f64], x: &[f64], wx: &[f64], fa: &mut [f64], xa: &mut [f64], mean:
     fa[..split].copy_from_slice(&f[from..]);
     fa[split..].copy_from_slice(&f[..from]);
     let (head, tail) = xa.split_at_mut(split);
-    match mean {
-        None => {
-            head.iter_mut().zip(&wx[..split]).zip(&x[from..]).for_each(|((o, w), v)| *o = v * w);
-            tail.iter_mut().zip(&wx[split..]).zip(&x[..from]).for_each(|((o, w), v)| *o = v * w);
-        }
-        Some((fbar, xbar)) => {
-            fbar[..NFW].iter_mut().zip(&fa[..NFW]).for_each(|(m, v)| *m += v);
-            let (mh, mt) = xbar.split_at_mut(split);
-            head.iter_mut().zip(mh).zip(&wx[..split]).zip(&x[from..]).for_each(|(((o, m), w), v)| {
-                *o = v * w;
-                *m += *o;
-            });
-            tail.iter_mut().zip(mt).zip(&wx[split..]).zip(&x[..from]).for_each(|(((o, m), w), v)| {
-                *o = v * w;
-                *m += *o;
-            });
-        }
-    }
+    head.iter_mut().zip(&wx[..split]).zip(&x[from..]).for_each(|((o, w), v)| *o = v * w);
+    tail.iter_mut().zip(&wx[split..]).zip(&x[..from]).for_each(|((o, w), v)| *o = v * w);
 }
 
-fn options() -> FrfOptions {
+/// The kernel on records the bench aligned and windowed: record start, force window only.
+fn aligned_options() -> FrfOptions {
     FrfOptions {
-        windows: Windows { force_window: NFW as f64 / FS, response_decay: f64::INFINITY },
+        windows: Windows::new(NFW as f64 / FS, f64::INFINITY),
         trigger: Trigger::RecordStart,
         averaging: Averaging::H1,
+        time_averaged: false,
     }
 }
 
-/// Buffers of the peer-scope run: aligned records and their means.
-struct Work {
-    fa: Vec<Vec<f64>>,
-    xa: Vec<Vec<f64>>,
-    fbar: Vec<f64>,
-    xbar: Vec<f64>,
-}
-
-/// Everything the peer's `numpy_frf` does: align and window, H1 and coherence, time-averaged FRF.
-fn peer_scope(
-    raw: &[(Vec<f64>, Vec<f64>)],
-    wx: &[f64],
-    work: &mut Work,
-    est: &mut FrfEstimator,
-    opts: &FrfOptions,
-) -> (FrfEstimate, FrfEstimate) {
-    // The force window keeps the first 650 samples; the kernel zeroes the rest of the mean.
-    work.fbar[..NFW].fill(0.0);
-    work.xbar.fill(0.0);
-    for ((f, x), (fa, xa)) in raw.iter().zip(work.fa.iter_mut().zip(work.xa.iter_mut())) {
-        align(f, x, wx, fa, xa, Some((&mut work.fbar[..], &mut work.xbar[..])));
+/// The peer's processing as kernel options: level trigger, force window, the response window
+/// `exp(ln(0.01)·n/(N−1))` from the frame start, and the time-averaged FRF beside H1.
+fn peer_options() -> FrfOptions {
+    let tau = (N - 1) as f64 / (FS * (1.0 / EXP_END).ln());
+    FrfOptions {
+        windows: Windows { force_window: NFW as f64 / FS, response_decay: tau, decay_from: DecayStart::FrameStart },
+        trigger: Trigger::level(TRIG, PRE_S),
+        averaging: Averaging::H1,
+        time_averaged: true,
     }
-    let inv = 1.0 / raw.len() as f64;
-    work.fbar[..NFW].iter_mut().for_each(|m| *m *= inv);
-    work.xbar.iter_mut().for_each(|m| *m *= inv);
-    let recs: Vec<ImpactRecord<'_>> =
-        work.fa.iter().zip(&work.xa).map(|(f, x)| ImpactRecord { force: f, response: x }).collect();
-    let h1 = est.estimate(&recs, opts).expect("valid records");
-    let mean = [ImpactRecord { force: &work.fbar, response: &work.xbar }];
-    let hta = est.estimate(&mean, opts).expect("valid mean record");
-    (h1, hta)
 }
 
 /// Peak `(Hz, |H|)` in 200..5000 Hz, mean coherence there, and `|H|` at the line nearest 2300 Hz.
@@ -166,7 +132,7 @@ fn summary(e: &FrfEstimate) -> (f64, f64, f64, f64) {
 }
 
 /// Compares with the peer's `result_summary` (numpy_scipy, same seed).
-fn validate(label: &str, h1: &FrfEstimate, hta: Option<&FrfEstimate>) {
+fn validate(label: &str, h1: &FrfEstimate) {
     let close = |name: &str, got: f64, peer: f64, rel: f64| {
         eprintln!("w07 {label} {name}: {got:.10e} (peer {peer:.10e}, rel. diff {:.1e})", got / peer - 1.0);
         assert!((got / peer - 1.0).abs() < rel, "{label} {name}: {got} vs peer {peer}");
@@ -176,8 +142,9 @@ fn validate(label: &str, h1: &FrfEstimate, hta: Option<&FrfEstimate>) {
     close("H1 peak, m/N", peak, 7.978893392e-07, 1e-6);
     close("mean coherence 200..5000 Hz", coh, 0.9982414086, 1e-6);
     close("|H1| at 2300 Hz, m/N", at2300, 4.879749101e-07, 1e-6);
-    if let Some(hta) = hta {
-        let (f, peak, _, _) = summary(hta);
+    if let Some(hta) = &h1.time_averaged {
+        let hta = FrfEstimate { h: hta.clone(), time_averaged: None, ..h1.clone() };
+        let (f, peak, _, _) = summary(&hta);
         close("time-averaged peak frequency, Hz", f, 817.8710937, 1e-9);
         close("time-averaged peak, m/N", peak, 7.979093487e-07, 1e-6);
     }
@@ -186,30 +153,27 @@ fn validate(label: &str, h1: &FrfEstimate, hta: Option<&FrfEstimate>) {
 fn bench_w07(c: &mut Criterion) {
     let raw = synth();
     let wx = response_window();
-    let opts = options();
-    let mut work =
-        Work { fa: vec![vec![0.0; N]; NIMP], xa: vec![vec![0.0; N]; NIMP], fbar: vec![0.0; N], xbar: vec![0.0; N] };
-    for ((f, x), (fa, xa)) in raw.iter().zip(work.fa.iter_mut().zip(work.xa.iter_mut())) {
-        align(f, x, &wx, fa, xa, None);
+    let (mut fa, mut xa) = (vec![vec![0.0; N]; NIMP], vec![vec![0.0; N]; NIMP]);
+    for ((f, x), (fa, xa)) in raw.iter().zip(fa.iter_mut().zip(xa.iter_mut())) {
+        align(f, x, &wx, fa, xa);
     }
-    // Inputs of `h1_coherence`: aligned and response-windowed outside the timed region.
-    let aligned = (work.fa.clone(), work.xa.clone());
-    let views: Vec<ImpactRecord<'_>> =
-        aligned.0.iter().zip(&aligned.1).map(|(f, x)| ImpactRecord { force: f, response: x }).collect();
+    let aligned: Vec<ImpactRecord<'_>> =
+        fa.iter().zip(&xa).map(|(f, x)| ImpactRecord { force: f, response: x }).collect();
+    let records: Vec<ImpactRecord<'_>> = raw.iter().map(|(f, x)| ImpactRecord { force: f, response: x }).collect();
+    let (peer, kernel) = (peer_options(), aligned_options());
     let mut est = FrfEstimator::new(N, FS).expect("valid length");
     let mut g = c.benchmark_group("w07_frf_estimation");
     for threads in [1, 2] {
         est.set_threads(threads);
-        let h1 = est.estimate(&views, &opts).expect("valid records");
-        validate(&format!("{threads} thread(s) h1_coherence"), &h1, None);
-        let (h1s, hta) = peer_scope(&raw, &wx, &mut work, &mut est, &opts);
-        assert_eq!(h1s.h, h1.h, "peer scope and kernel alone see the same records");
-        validate(&format!("{threads} thread(s) peer_scope"), &h1s, Some(&hta));
+        let h1 = est.estimate(&aligned, &kernel).expect("valid records");
+        validate(&format!("{threads} thread(s) h1_coherence"), &h1);
+        let h1s = est.estimate(&records, &peer).expect("valid records");
+        validate(&format!("{threads} thread(s) peer_scope"), &h1s);
         g.bench_function(format!("h1_coherence/{threads}_thread"), |b| {
-            b.iter(|| est.estimate(black_box(&views), black_box(&opts)).expect("valid records"))
+            b.iter(|| est.estimate(black_box(&aligned), black_box(&kernel)).expect("valid records"))
         });
         g.bench_function(format!("peer_scope/{threads}_thread"), |b| {
-            b.iter(|| peer_scope(black_box(&raw), &wx, &mut work, &mut est, &opts))
+            b.iter(|| est.estimate(black_box(&records), black_box(&peer)).expect("valid records"))
         });
     }
     g.finish();

@@ -21,20 +21,40 @@ use thiserror::Error;
 pub struct Windows {
     /// Length of the rectangular force window from the frame start, s (> 0).
     pub force_window: f64,
-    /// Time constant of the exponential response window, s (> 0); the decay starts at the
-    /// end of the force window.
+    /// Time constant of the exponential response window, s (> 0).
     pub response_decay: f64,
+    /// Where the response window's decay begins.
+    pub decay_from: DecayStart,
+}
+
+/// Where the exponential response window starts to decay. Either way it adds the same
+/// damping to every mode ([`add_window_damping`]); only the response's overall scale in the
+/// force window differs, and the FRF divides it out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DecayStart {
+    /// At the end of the force window (§3.1.2): the response is kept whole while the
+    /// hammer is in contact.
+    #[default]
+    ForceWindowEnd,
+    /// At the frame start, `w[n] = exp(−n/(τ fs))`, as many analysers apply it.
+    FrameStart,
 }
 
 impl Windows {
     /// No windowing: rectangular over the whole frame, no response decay.
-    pub const NONE: Windows = Windows { force_window: f64::INFINITY, response_decay: f64::INFINITY };
+    pub const NONE: Windows =
+        Windows { force_window: f64::INFINITY, response_decay: f64::INFINITY, decay_from: DecayStart::ForceWindowEnd };
+
+    /// A `force_window` and a `response_decay` (s) whose decay starts at the force window's end.
+    pub const fn new(force_window: f64, response_decay: f64) -> Windows {
+        Windows { force_window, response_decay, decay_from: DecayStart::ForceWindowEnd }
+    }
 }
 
 impl Default for Windows {
-    /// The values of §3.1.2: 6.5 ms force window, 0.113 s response decay.
+    /// The values of §3.1.2: 6.5 ms force window, 0.113 s response decay from its end.
     fn default() -> Self {
-        Windows { force_window: 6.5e-3, response_decay: 0.113 }
+        Windows::new(6.5e-3, 0.113)
     }
 }
 
@@ -50,6 +70,23 @@ pub enum Trigger {
         /// Time kept before the force peak, s (≥ 0).
         pre_trigger: f64,
     },
+    /// `pre_trigger` seconds before the first sample where the force exceeds `level`
+    /// (clamped to the record start; samples past the record end are zero). Only the
+    /// samples from there on are read, so a long record costs no scan of its force.
+    Level {
+        /// Trigger level, N (finite).
+        level: f64,
+        /// Time kept before the trigger sample, s (≥ 0).
+        pre_trigger: f64,
+    },
+}
+
+impl Trigger {
+    /// The level trigger of impact-testing front ends: the frame starts `pre_trigger`
+    /// seconds before the first sample where the force exceeds `level` (N).
+    pub const fn level(level: f64, pre_trigger: f64) -> Trigger {
+        Trigger::Level { level, pre_trigger }
+    }
 }
 
 impl Default for Trigger {
@@ -83,6 +120,9 @@ pub struct FrfOptions {
     pub trigger: Trigger,
     /// Record combination.
     pub averaging: Averaging,
+    /// Also return the impact-synchronous average `ΣX / ΣF` (§3.1.3) beside `h`, summed in
+    /// the same pass over each spectrum ([`FrfEstimate::time_averaged`]).
+    pub time_averaged: bool,
 }
 
 /// One impact: force and response sampled together, equal lengths.
@@ -107,6 +147,9 @@ pub struct FrfEstimate {
     pub coherence: Vec<f64>,
     /// Number of records combined.
     pub records: usize,
+    /// The impact-synchronous average `ΣX / ΣF` on the same lines, when
+    /// [`FrfOptions::time_averaged`] asked for it (zero where `ΣF` is).
+    pub time_averaged: Option<Vec<Complex64>>,
 }
 
 impl FrfEstimate {
@@ -117,7 +160,17 @@ impl FrfEstimate {
         let freq: Vec<f64> = keep.iter().map(|&i| self.freq[i]).collect();
         let hv: Vec<Complex64> = keep.iter().map(|&i| self.h[i]).collect();
         let h = velocity_to_receptance(&freq, &hv)?;
-        Ok(FrfEstimate { freq, h, coherence: keep.iter().map(|&i| self.coherence[i]).collect(), records: self.records })
+        let time_averaged = match &self.time_averaged {
+            Some(t) => Some(velocity_to_receptance(&freq, &keep.iter().map(|&i| t[i]).collect::<Vec<_>>())?),
+            None => None,
+        };
+        Ok(FrfEstimate {
+            freq,
+            h,
+            coherence: keep.iter().map(|&i| self.coherence[i]).collect(),
+            records: self.records,
+            time_averaged,
+        })
     }
 }
 
@@ -161,6 +214,18 @@ pub enum FrfError {
         /// Record index.
         record: usize,
     },
+    /// The force of a record never exceeds the trigger level.
+    #[error(
+        "record {record}: the force never exceeds the trigger level {level} N (its largest value is {max} N); lower the level"
+    )]
+    NoTrigger {
+        /// Record index.
+        record: usize,
+        /// The trigger level, N.
+        level: f64,
+        /// The record's largest force sample, N.
+        max: f64,
+    },
     /// A parameter is out of range.
     #[error("invalid {field} = {value}: {requirement}")]
     InvalidParameter {
@@ -194,7 +259,7 @@ pub fn estimate(
 ) -> Result<FrfEstimate, FrfError> {
     let first = records.first().ok_or(FrfError::NoRecords)?;
     let mut est = FrfEstimator::new(first.force.len(), sample_rate)?;
-    est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1 })
+    est.estimate(records, &FrfOptions { windows: *windows, trigger, averaging: Averaging::H1, time_averaged: false })
 }
 
 /// Spectral sums of one FFT line.
@@ -217,6 +282,20 @@ struct Worker {
     sums: Vec<(Complex64, Complex64)>,
 }
 
+/// Where each record's frame starts, in samples.
+#[derive(Clone, Copy)]
+enum FrameStart {
+    Record,
+    Peak { pre: usize },
+    Level { level: f64, pre: usize },
+}
+
+/// Why a record was turned away.
+enum Fault {
+    NonFinite,
+    NoTrigger { max: f64 },
+}
+
 impl Worker {
     fn new(n: usize, scratch_len: usize) -> Self {
         Worker {
@@ -230,90 +309,139 @@ impl Worker {
 
     fn reset(&mut self, keep_sums: bool) {
         self.lines.fill(Line::default());
+        self.sums.clear();
         if keep_sums {
-            self.sums.clear();
             self.sums.resize(self.lines.len(), (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0)));
-        } else {
-            self.sums.clear();
         }
     }
 
-    /// Windows, transforms and accumulates one record; false if it holds a non-finite value.
-    fn process(
-        &mut self,
-        rec: &ImpactRecord<'_>,
-        fft: &dyn Fft<f64>,
-        response_window: &[f64],
-        force_len: usize,
-        pre: Option<usize>,
-    ) -> bool {
+    /// Windows, transforms and accumulates every record of `recs` in order; the index and
+    /// the fault of the first it turns away. The element-wise passes are compiled for AVX2
+    /// when the CPU has it (no fused multiply-add, so the bits are the same either way).
+    fn run(&mut self, recs: &[ImpactRecord<'_>], job: &Job<'_>) -> Option<(usize, Fault)> {
+        #[inline(always)]
+        fn body(w: &mut Worker, recs: &[ImpactRecord<'_>], job: &Job<'_>) -> Option<(usize, Fault)> {
+            // A plain loop: an iterator adapter's fold would be compiled apart, without AVX2.
+            for (i, r) in recs.iter().enumerate() {
+                if let Err(fault) = w.process(r, job) {
+                    return Some((i, fault));
+                }
+            }
+            None
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn avx2(w: &mut Worker, recs: &[ImpactRecord<'_>], job: &Job<'_>) -> Option<(usize, Fault)> {
+                body(w, recs, job)
+            }
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { avx2(self, recs, job) };
+        }
+        body(self, recs, job)
+    }
+
+    /// Windows, transforms and accumulates one record.
+    #[inline(always)]
+    fn process(&mut self, rec: &ImpactRecord<'_>, job: &Job<'_>) -> Result<(), Fault> {
         let n = self.buf.len();
         let (f, x) = (rec.force, rec.response);
-        let (ef, peak) = force_stats(f);
-        if !ef.is_finite() {
-            return false;
-        }
-        let start = pre.map_or(0, |p| peak.saturating_sub(p));
+        let start = match job.frame {
+            FrameStart::Record => 0,
+            FrameStart::Peak { pre } => {
+                let (ef, peak) = force_stats(f);
+                if !ef.is_finite() {
+                    return Err(Fault::NonFinite);
+                }
+                peak.saturating_sub(pre)
+            }
+            FrameStart::Level { level, pre } => match f.iter().position(|&v| v > level) {
+                Some(i) => i.saturating_sub(pre),
+                None => return Err(Fault::NoTrigger { max: f.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v)) }),
+            },
+        };
         let avail = n - start;
-        let nf = force_len.min(avail);
+        let nf = job.force_len.min(avail);
         // Scale the response by a power of two to the force's level (judged over the force
         // window), so the rounding of the packed transform does not leak from the larger
         // channel into the smaller one.
         let ef_window = sum_squares(&f[start..start + nf]);
         let ex_window = sum_squares(&x[start..start + nf]);
-        let scale = if ef_window > 0.0 && ex_window > 0.0 && ex_window.is_finite() {
+        if !(ef_window.is_finite() && ex_window.is_finite()) {
+            return Err(Fault::NonFinite);
+        }
+        let scale = if ef_window > 0.0 && ex_window > 0.0 {
             (0.5 * (ef_window / ex_window).log2()).round().clamp(-1000.0, 1000.0).exp2()
         } else {
             1.0
         };
         let unscale = 1.0 / scale;
-        let mut ex = sum_squares(&x[..start]) + ex_window;
+        let window = job.response_window;
         let (head, tail) = self.buf.split_at_mut(nf);
-        for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(response_window) {
+        for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(window) {
             *z = Complex64::new(fv, xv * (w * scale));
         }
         let (mid, zeros) = tail.split_at_mut(avail - nf);
-        ex += pack_response(mid, &x[start + nf..], &response_window[nf..], scale);
+        let ex = ex_window + pack_response(mid, &x[start + nf..], &window[nf..], scale);
         if !ex.is_finite() {
-            return false;
+            return Err(Fault::NonFinite);
         }
         zeros.fill(Complex64::new(0.0, 0.0));
 
-        fft.process_outofplace_with_scratch(&mut self.buf, &mut self.spectrum, &mut self.scratch);
+        job.fft.process_outofplace_with_scratch(&mut self.buf, &mut self.spectrum, &mut self.scratch);
 
         // Unpack: F_k = (Z_k + conj Z_{N−k})/2, X_k = (Z_k − conj Z_{N−k})/(2i).
         // A channel that is identically zero in the frame stays exactly zero (instead of
         // picking up the other channel's rounding).
-        let f_gain = if ef_window > 0.0 { 1.0 } else { 0.0 };
-        let x_gain = if ex > 0.0 { unscale } else { 0.0 };
+        let f_gain = if ef_window > 0.0 { 0.5 } else { 0.0 };
+        let x_gain = if ex > 0.0 { 0.5 * unscale } else { 0.0 };
         let z = &self.spectrum;
-        let keep_sums = !self.sums.is_empty();
-        let unpack = |k: usize| {
-            let a = z[k];
-            let b = if k == 0 { a.conj() } else { z[n - k].conj() };
-            let fk = (a + b) * (0.5 * f_gain);
+        let unpack = |a: Complex64, b: Complex64| {
+            let b = b.conj();
+            let fk = (a + b) * f_gain;
             let d = a - b;
-            (fk, Complex64::new(0.5 * d.im, -0.5 * d.re) * x_gain)
+            (fk, Complex64::new(d.im * x_gain, -d.re * x_gain))
         };
-        for (k, line) in self.lines.iter_mut().enumerate() {
-            let (fk, xk) = unpack(k);
+        let add = |line: &mut Line, a: Complex64, b: Complex64| {
+            let (fk, xk) = unpack(a, b);
             line.sff += fk.norm_sqr();
             line.sxx += xk.norm_sqr();
             line.sxf += xk * fk.conj();
-        }
-        if keep_sums {
-            for (k, s) in self.sums.iter_mut().enumerate() {
-                let (fk, xk) = unpack(k);
+            (fk, xk)
+        };
+        // Line k pairs Z_k with Z_{N−k} (line 0 with itself): the mirrored half read backwards.
+        let lines = self.lines.len();
+        let pairs = z[1..lines].iter().zip(z[n - (lines - 1)..].iter().rev());
+        let (first, rest) = self.lines.split_at_mut(1);
+        let (f0, x0) = add(&mut first[0], z[0], z[0]);
+        if self.sums.is_empty() {
+            for (line, (&a, &b)) in rest.iter_mut().zip(pairs) {
+                add(line, a, b);
+            }
+        } else {
+            self.sums[0].0 += x0;
+            self.sums[0].1 += f0;
+            for ((line, s), (&a, &b)) in rest.iter_mut().zip(self.sums[1..].iter_mut()).zip(pairs) {
+                let (fk, xk) = add(line, a, b);
                 s.0 += xk;
                 s.1 += fk;
             }
         }
-        true
+        Ok(())
     }
+}
+
+/// What every record of one estimate shares.
+struct Job<'a> {
+    fft: &'a dyn Fft<f64>,
+    response_window: &'a [f64],
+    force_len: usize,
+    frame: FrameStart,
 }
 
 /// Writes `i·x·w·scale` into `out` and returns the sum of squares of `x` (non-finite if
 /// any sample is), in one vectorisable pass.
+#[inline(always)]
 fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64 {
     let len = out.len();
     let (x, w) = (&x[..len], &w[..len]);
@@ -337,6 +465,7 @@ fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64
 
 /// Sum of squares with independent partial sums, so the loop vectorises; NaN or ±∞ in
 /// the input makes the result non-finite.
+#[inline(always)]
 fn sum_squares(v: &[f64]) -> f64 {
     let mut acc = [0.0f64; 8];
     let chunks = v.chunks_exact(8);
@@ -351,6 +480,7 @@ fn sum_squares(v: &[f64]) -> f64 {
 
 /// Sum of squares of the force (non-finite if any sample is) and index of its largest
 /// `|f|`, in one vectorisable pass.
+#[inline(always)]
 fn force_stats(v: &[f64]) -> (f64, usize) {
     const L: usize = 8;
     const BLOCK: usize = 256;
@@ -391,7 +521,7 @@ pub struct FrfEstimator {
     sample_rate: f64,
     fft: Arc<dyn Fft<f64>>,
     workers: Vec<Worker>,
-    window_key: Option<(f64, f64)>,
+    window_key: Option<(f64, f64, DecayStart)>,
     response_window: Vec<f64>,
     force_len: usize,
 }
@@ -454,7 +584,7 @@ impl FrfEstimator {
                 });
             }
         }
-        let key = (w.force_window, w.response_decay);
+        let key = (w.force_window, w.response_decay, w.decay_from);
         if self.window_key == Some(key) {
             return Ok(());
         }
@@ -462,8 +592,12 @@ impl FrfEstimator {
         let nw = (w.force_window * fs).round().min(self.len as f64) as usize;
         self.force_len = nw.max(1);
         let decay = 1.0 / (w.response_decay * fs);
+        let from = match w.decay_from {
+            DecayStart::ForceWindowEnd => self.force_len,
+            DecayStart::FrameStart => 0,
+        };
         for (i, v) in self.response_window.iter_mut().enumerate() {
-            *v = if i < self.force_len { 1.0 } else { (-((i - self.force_len) as f64) * decay).exp() };
+            *v = if i < from { 1.0 } else { (-((i - from) as f64) * decay).exp() };
         }
         self.window_key = Some(key);
         Ok(())
@@ -486,37 +620,42 @@ impl FrfEstimator {
                 return Err(FrfError::RecordLengthMismatch { record: i, expected: self.len, found: r.force.len() });
             }
         }
-        let pre = match options.trigger {
-            Trigger::RecordStart => None,
-            Trigger::ForcePeak { pre_trigger } => {
-                if !(pre_trigger.is_finite() && pre_trigger >= 0.0) {
+        let pre_samples = |pre_trigger: f64| {
+            if pre_trigger.is_finite() && pre_trigger >= 0.0 {
+                Ok((pre_trigger * self.sample_rate).round() as usize)
+            } else {
+                Err(FrfError::InvalidParameter {
+                    field: "pre_trigger",
+                    value: pre_trigger,
+                    requirement: "must be finite and non-negative",
+                })
+            }
+        };
+        let frame = match options.trigger {
+            Trigger::RecordStart => FrameStart::Record,
+            Trigger::ForcePeak { pre_trigger } => FrameStart::Peak { pre: pre_samples(pre_trigger)? },
+            Trigger::Level { level, pre_trigger } => {
+                if !level.is_finite() {
                     return Err(FrfError::InvalidParameter {
-                        field: "pre_trigger",
-                        value: pre_trigger,
-                        requirement: "must be finite and non-negative",
+                        field: "trigger_level",
+                        value: level,
+                        requirement: "must be finite",
                     });
                 }
-                Some((pre_trigger * self.sample_rate).round() as usize)
+                FrameStart::Level { level, pre: pre_samples(pre_trigger)? }
             }
         };
         self.prepare_windows(&options.windows)?;
 
         let threads = self.workers.len().min(records.len());
         let chunk = records.len().div_ceil(threads);
-        let fft: &dyn Fft<f64> = &*self.fft;
-        let window = &self.response_window[..];
-        let force_len = self.force_len;
-        let keep_sums = options.averaging == Averaging::TimeSynchronous;
-        let run = |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| -> Option<usize> {
+        let job = Job { fft: &*self.fft, response_window: &self.response_window, force_len: self.force_len, frame };
+        let keep_sums = options.averaging == Averaging::TimeSynchronous || options.time_averaged;
+        let run = |worker: &mut Worker, offset: usize, recs: &[ImpactRecord<'_>]| {
             worker.reset(keep_sums);
-            for (i, r) in recs.iter().enumerate() {
-                if !worker.process(r, fft, window, force_len, pre) {
-                    return Some(offset + i);
-                }
-            }
-            None
+            worker.run(recs, &job).map(|(i, fault)| (offset + i, fault))
         };
-        let mut bad: Vec<Option<usize>> = vec![None; threads];
+        let mut bad: Vec<Option<(usize, Fault)>> = (0..threads).map(|_| None).collect();
         let (first, rest) = self.workers[..threads].split_at_mut(1);
         std::thread::scope(|s| {
             let handles: Vec<_> = rest
@@ -526,6 +665,7 @@ impl FrfEstimator {
                     let lo = ((t + 1) * chunk).min(records.len());
                     let hi = ((t + 2) * chunk).min(records.len());
                     let recs = &records[lo..hi];
+                    let run = &run;
                     s.spawn(move || run(w, lo, recs))
                 })
                 .collect();
@@ -534,8 +674,18 @@ impl FrfEstimator {
                 bad[t + 1] = h.join().expect("FRF worker thread panicked");
             }
         });
-        if let Some(record) = bad.into_iter().flatten().min() {
-            return Err(FrfError::NonFinite { record });
+        if let Some((record, fault)) = bad.into_iter().flatten().min_by_key(|(i, _)| *i) {
+            return Err(match fault {
+                Fault::NonFinite => FrfError::NonFinite { record },
+                Fault::NoTrigger { max } => FrfError::NoTrigger {
+                    record,
+                    level: match options.trigger {
+                        Trigger::Level { level, .. } => level,
+                        _ => f64::NAN,
+                    },
+                    max,
+                },
+            });
         }
 
         // Merge accumulators into the first worker.
@@ -581,7 +731,18 @@ impl FrfEstimator {
         if zero_force_lines == lines {
             return Err(FrfError::ZeroForceSpectrum);
         }
-        Ok(FrfEstimate { freq: (0..lines).map(|k| k as f64 * df).collect(), h, coherence, records: records.len() })
+        let time_averaged = options.time_averaged.then(|| {
+            let ratio =
+                |&(x, f): &(Complex64, Complex64)| if f.norm_sqr() > 0.0 { x / f } else { Complex64::new(0.0, 0.0) };
+            acc.sums.iter().map(ratio).collect()
+        });
+        Ok(FrfEstimate {
+            freq: (0..lines).map(|k| k as f64 * df).collect(),
+            h,
+            coherence,
+            records: records.len(),
+            time_averaged,
+        })
     }
 }
 
@@ -787,20 +948,27 @@ mod tests {
         let c = damping();
         let f = pulse(0, 10, 500.0);
         let x = response(&f, c);
-        let windows = Windows { force_window: 1.0e-4, response_decay: 0.02 };
-        let est = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart).unwrap();
+        let windows = Windows::new(1.0e-4, 0.02);
         let truth = ModalDamping { natural_frequency: fn_hz(), damping_ratio: 0.02 };
         let apparent = add_window_damping(truth, windows.response_decay).unwrap();
         assert!(apparent.damping_ratio > 0.02);
-        // The windowed FRF is the receptance of the apparent mode, scaled by e^{t_w/τ}.
         let wn = TAU * apparent.natural_frequency;
         let (k_w, c_w) = (M * wn * wn, 2.0 * apparent.damping_ratio * M * wn);
-        let scale = (windows.force_window / windows.response_decay).exp();
-        for (k, &fk) in est.freq.iter().enumerate() {
-            if (fk - fn_hz()).abs() < 0.2 * fn_hz() {
-                let h = sdof_receptance(M, k_w, c_w, fk) * scale;
-                assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{fk} Hz");
-                assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{fk} Hz");
+        // The windowed FRF is the receptance of the apparent mode, scaled by e^{t_w/τ} when the
+        // decay starts at the end of the force window t_w, unscaled when it starts at the frame.
+        for (decay_from, scale) in [
+            (DecayStart::ForceWindowEnd, (windows.force_window / windows.response_decay).exp()),
+            (DecayStart::FrameStart, 1.0),
+        ] {
+            let windows = Windows { decay_from, ..windows };
+            let est =
+                estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart).unwrap();
+            for (k, &fk) in est.freq.iter().enumerate() {
+                if (fk - fn_hz()).abs() < 0.2 * fn_hz() {
+                    let h = sdof_receptance(M, k_w, c_w, fk) * scale;
+                    assert!((est.h[k].norm() / h.norm() - 1.0).abs() < 0.01, "{decay_from:?} {fk} Hz");
+                    assert!((est.h[k].arg() - h.arg()).abs().to_degrees() < 1.0, "{decay_from:?} {fk} Hz");
+                }
             }
         }
         let back = remove_window_damping(apparent, windows.response_decay).unwrap();
@@ -863,7 +1031,12 @@ mod tests {
                 .collect()
         };
         let mut est = FrfEstimator::new(N, FS).unwrap();
-        let opts = |averaging| FrfOptions { windows: Windows::NONE, trigger: Trigger::RecordStart, averaging };
+        let opts = |averaging| FrfOptions {
+            windows: Windows::NONE,
+            trigger: Trigger::RecordStart,
+            averaging,
+            time_averaged: false,
+        };
         for noisy_force in [true, false] {
             let data = records(noisy_force);
             let recs: Vec<ImpactRecord<'_>> =
@@ -915,6 +1088,42 @@ mod tests {
     }
 
     #[test]
+    fn level_trigger_frames_like_the_force_peak_and_time_average_comes_along() {
+        let c = damping();
+        let f0 = pulse(200, 10, 500.0);
+        let x0 = response(&f0, c);
+        let f1 = pulse(3_000, 10, 350.0);
+        let x1 = response(&f1, c);
+        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
+        let mut est = FrfEstimator::new(N, FS).unwrap();
+        est.set_threads(1);
+        // Both pulses rise through 20 N as many samples before their peaks: a level trigger with
+        // that much less pre-trigger cuts the same frames as the peak trigger.
+        let rise = |f: &[f64]| {
+            let peak = (0..N).max_by(|&a, &b| f[a].abs().total_cmp(&f[b].abs())).unwrap();
+            peak - f.iter().position(|&v| v > 20.0).unwrap()
+        };
+        assert_eq!(rise(&f0), rise(&f1));
+        let peak = FrfOptions { trigger: Trigger::ForcePeak { pre_trigger: 50.0 / FS }, ..FrfOptions::default() };
+        let pre = (50 - rise(&f0)) as f64 / FS;
+        let level = FrfOptions { trigger: Trigger::level(20.0, pre), time_averaged: true, ..peak };
+        let by_peak = est.estimate(&recs, &peak).unwrap();
+        let by_level = est.estimate(&recs, &level).unwrap();
+        assert!(by_peak.h == by_level.h, "the level trigger framed the records differently");
+        assert!(by_peak.coherence == by_level.coherence);
+        assert!(by_peak.time_averaged.is_none());
+        // The average summed in the same pass is the time-synchronous estimate, bit for bit.
+        let sync = est.estimate(&recs, &FrfOptions { averaging: Averaging::TimeSynchronous, ..peak }).unwrap();
+        assert!(by_level.time_averaged.as_deref() == Some(&sync.h[..]), "ΣX/ΣF differs from time-synchronous");
+        // A record whose force stays below the level is named.
+        let quiet = vec![5.0; N];
+        let recs = [recs[0], ImpactRecord { force: &quiet, response: &x1 }];
+        assert_eq!(est.estimate(&recs, &level), Err(FrfError::NoTrigger { record: 1, level: 20.0, max: 5.0 }));
+        let bad = FrfOptions { trigger: Trigger::level(f64::NAN, 0.0), ..level };
+        assert!(matches!(est.estimate(&recs, &bad), Err(FrfError::InvalidParameter { field: "trigger_level", .. })));
+    }
+
+    #[test]
     fn late_pulse_odd_length_matches_analytic() {
         // Frame offset by the force-peak trigger, record length not a power of two (nor a
         // multiple of the vector width), pulse far from the record start.
@@ -940,7 +1149,7 @@ mod tests {
         }
         // The force window cut away the pulse (record start trigger, 6.5 ms window): no
         // excitation at all.
-        let windows = Windows { force_window: 6.5e-3, response_decay: f64::INFINITY };
+        let windows = Windows::new(6.5e-3, f64::INFINITY);
         let cut = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::RecordStart);
         assert_eq!(cut, Err(FrfError::ZeroForceSpectrum));
     }
@@ -1032,7 +1241,7 @@ mod tests {
         );
         assert!(matches!(estimate(&[ok], 0.0, &w, t), Err(FrfError::InvalidParameter { .. })));
         assert!(matches!(estimate(&[ok], f64::NAN, &w, t), Err(FrfError::InvalidParameter { .. })));
-        let bad_w = Windows { force_window: -1.0, response_decay: 0.1 };
+        let bad_w = Windows::new(-1.0, 0.1);
         assert!(matches!(estimate(&[ok], FS, &bad_w, t), Err(FrfError::InvalidParameter { .. })));
         let bad_t = Trigger::ForcePeak { pre_trigger: f64::NAN };
         assert!(matches!(estimate(&[ok], FS, &w, bad_t), Err(FrfError::InvalidParameter { .. })));

@@ -16,10 +16,12 @@ use std::ops::{Add, Mul, Neg, Sub};
 use thiserror::Error;
 
 mod lanes;
-use lanes::{LANES, R4};
+use lanes::{C4, Io, LANES, Lane, PortableIo, R4};
 
-/// A 2×2 complex receptance block `[[h, l], [n, p]]`.
+/// A 2×2 complex receptance block `[[h, l], [n, p]]`, laid out as eight f64 in that order
+/// (the coupling kernels read four blocks at a time with vector loads).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct Receptance {
     /// Displacement per force, m/N.
     pub h: Complex64,
@@ -534,34 +536,88 @@ impl Kernel<'_> {
     /// for AVX when the CPU has it (four-lane vectors).
     fn run(&mut self, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
         #[inline(always)]
-        fn body(k: &mut Kernel, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
+        fn body<I: Io>(
+            k: &mut Kernel,
+            io: I,
+            a: &TwoPort,
+            lines: &[Receptance],
+            comp: Option<Compliance>,
+            direction: Direction,
+        ) {
             match direction {
-                Direction::Couple => k.couple(a, lines, comp),
-                Direction::Decouple => k.decouple(a, lines, comp),
+                Direction::Couple => k.couple(io, a, lines, comp),
+                Direction::Decouple => k.decouple(io, a, lines, comp),
             }
         }
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            #[target_feature(enable = "avx")]
-            fn avx(k: &mut Kernel, a: &TwoPort, lines: &[Receptance], comp: Option<Compliance>, direction: Direction) {
-                body(k, a, lines, comp, direction)
+        if let Some(io) = lanes::AvxIo::detect() {
+            // With AVX-512's 32 vector registers the four-line blocks of a product stay in
+            // registers (16 spill to the stack); the vectors stay 256 bits wide.
+            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") {
+                #[target_feature(enable = "avx,avx512f,avx512vl")]
+                fn avx512(
+                    k: &mut Kernel,
+                    io: lanes::AvxIo,
+                    a: &TwoPort,
+                    lines: &[Receptance],
+                    comp: Option<Compliance>,
+                    direction: Direction,
+                ) {
+                    body(k, io, a, lines, comp, direction)
+                }
+                // SAFETY: the CPU supports AVX, AVX-512F and AVX-512VL, checked just above.
+                return unsafe { avx512(self, io, a, lines, comp, direction) };
             }
-            // SAFETY: the CPU supports AVX, checked just above.
-            return unsafe { avx(self, a, lines, comp, direction) };
+            #[target_feature(enable = "avx")]
+            fn avx(
+                k: &mut Kernel,
+                io: lanes::AvxIo,
+                a: &TwoPort,
+                lines: &[Receptance],
+                comp: Option<Compliance>,
+                direction: Direction,
+            ) {
+                body(k, io, a, lines, comp, direction)
+            }
+            // SAFETY: the CPU supports AVX (an `AvxIo` exists).
+            return unsafe { avx(self, io, a, lines, comp, direction) };
         }
-        body(self, a, lines, comp, direction)
+        body(self, PortableIo, a, lines, comp, direction)
     }
 
-    /// `K⁻¹` of lines `i..i + LANES` (zero for a rigid joint).
+    /// `K⁻¹` of lines `i..i + LANES` (zero for a rigid joint): a diagonal joint in lanes
+    /// (the arithmetic of [`Compliance::at`]), line by line when a lane needs its checks.
     #[inline(always)]
-    fn compliance(&mut self, comp: Option<Compliance>, f: &[f64], i: usize) -> [Receptance; LANES] {
+    fn compliance<V: Lane>(&mut self, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
+        match comp {
+            None => R4::zero(),
+            Some(Compliance::Diagonal { kt, ct, kr, cr }) if self.lim > 4.0 => {
+                let w = V::splat(TAU) * V::from_array(std::array::from_fn(|l| f[i + l]));
+                let a = C4 { re: V::splat(kt), im: w * V::splat(ct) };
+                let b = C4 { re: V::splat(kr), im: w * V::splat(cr) };
+                let (aa, bb) = (a.norm_sqr(), b.norm_sqr());
+                let q = (aa * bb).to_array();
+                if q.iter().all(|&q| (q > 1e-300) & (q < 1e300)) {
+                    let zero = C4::zero();
+                    return R4 { h: a.conj().scale(aa.recip()), l: zero, n: zero, p: b.conj().scale(bb.recip()) };
+                }
+                self.compliance_lines(comp, f, i)
+            }
+            Some(_) => self.compliance_lines(comp, f, i),
+        }
+    }
+
+    /// [`Kernel::compliance`] line by line.
+    #[cold]
+    #[inline(never)]
+    fn compliance_lines<V: Lane>(&mut self, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
         let mut k = [Receptance::ZERO; LANES];
         if let Some(c) = comp {
             for (l, k) in k.iter_mut().enumerate() {
                 *k = c.at(f[i + l], self.lim, self.kdiag);
             }
         }
-        k
+        R4::from_blocks(&k)
     }
 
     /// `m⁻¹` by the scalar path, recording a line it turns away.
@@ -572,18 +628,18 @@ impl Kernel<'_> {
 
     /// `G11 = R11 − R12 (R22 [+ K⁻¹] + B)⁻¹ R21` on every line.
     #[inline(always)]
-    fn couple(&mut self, a: &TwoPort, b: &[Receptance], comp: Option<Compliance>) {
+    fn couple<I: Io>(&mut self, io: I, a: &TwoPort, b: &[Receptance], comp: Option<Compliance>) {
         let (f, r11, r12, r21, r22) = (&a.freqs_hz, &a.r11, &a.r12, &a.r21, &a.r22);
         let n = f.len();
         let whole = n - n % LANES;
         for i in (0..whole).step_by(LANES) {
-            let k = self.compliance(comp, f, i);
+            let k: R4<I::V> = self.compliance(comp, f, i);
             let m = match comp {
-                Some(_) => (R4::load(r22, i) + R4::from_blocks(&k)) + R4::load(b, i),
-                None => R4::load(r22, i) + R4::load(b, i),
+                Some(_) => (io.load(r22, i) + k) + io.load(b, i),
+                None => io.load(r22, i) + io.load(b, i),
             };
             if let Some(x) = m.try_invert(self.lim) {
-                (R4::load(r11, i) - (R4::load(r12, i) * x) * R4::load(r21, i)).store(self.out);
+                io.store(&(io.load(r11, i) - (io.load(r12, i) * x) * io.load(r21, i)), self.out);
             } else {
                 for l in 0..LANES {
                     let x = self.invert(m.get(l), f[i + l]);
@@ -603,24 +659,24 @@ impl Kernel<'_> {
 
     /// `B = R21 (R11 − G11)⁻¹ R12 − R22 [− K⁻¹]` on every line.
     #[inline(always)]
-    fn decouple(&mut self, a: &TwoPort, g: &[Receptance], comp: Option<Compliance>) {
+    fn decouple<I: Io>(&mut self, io: I, a: &TwoPort, g: &[Receptance], comp: Option<Compliance>) {
         let (f, r11, r12, r21, r22) = (&a.freqs_hz, &a.r11, &a.r12, &a.r21, &a.r22);
         let n = f.len();
         let whole = n - n % LANES;
         for i in (0..whole).step_by(LANES) {
-            let k = self.compliance(comp, f, i);
-            let m = R4::load(r11, i) - R4::load(g, i);
+            let k: R4<I::V> = self.compliance(comp, f, i);
+            let m = io.load(r11, i) - io.load(g, i);
             if let Some(x) = m.try_invert(self.lim) {
-                let v = (R4::load(r21, i) * x) * R4::load(r12, i) - R4::load(r22, i);
+                let v = (io.load(r21, i) * x) * io.load(r12, i) - io.load(r22, i);
                 match comp {
-                    Some(_) => (v - R4::from_blocks(&k)).store(self.out),
-                    None => v.store(self.out),
+                    Some(_) => io.store(&(v - k), self.out),
+                    None => io.store(&v, self.out),
                 }
             } else {
                 for l in 0..LANES {
                     let x = self.invert(m.get(l), f[i + l]);
                     let v = r21[i + l] * x * r12[i + l] - r22[i + l];
-                    self.out.push(if comp.is_some() { v - k[l] } else { v });
+                    self.out.push(if comp.is_some() { v - k.get(l) } else { v });
                 }
             }
         }
@@ -948,6 +1004,24 @@ mod tests {
                 assert_eq!(bits(&decoupled.lines[i]), bits(&want), "decouple, line {i}");
             }
             assert!(d.freqs.is_empty() && d2.freqs.is_empty());
+            // The portable lanes (what a CPU without AVX runs) give the same bits too.
+            let portable = |direction: Direction, lines: &[Receptance], options: &RcsaOptions| {
+                let mut kd = Diagnostics::new("", options.max_condition);
+                let mut dg = Diagnostics::new("", options.max_condition);
+                let mut out = Vec::with_capacity(n);
+                let lim = half_limit_sq(options.max_condition);
+                let mut k = Kernel { lim, kdiag: &mut kd, diag: &mut dg, out: &mut out };
+                match direction {
+                    Direction::Couple => k.couple(PortableIo, &two, lines, comp),
+                    Direction::Decouple => k.decouple(PortableIo, &two, lines, comp),
+                }
+                out
+            };
+            let all_bits = |v: &[Receptance]| -> Vec<u64> {
+                v.iter().flat_map(|r| [r.h, r.l, r.n, r.p]).flat_map(|z| [z.re.to_bits(), z.im.to_bits()]).collect()
+            };
+            assert_eq!(all_bits(&portable(Direction::Couple, &base.lines, &options)), all_bits(&coupled.lines));
+            assert_eq!(all_bits(&portable(Direction::Decouple, &coupled.lines, &wide)), all_bits(&decoupled.lines));
         }
     }
 

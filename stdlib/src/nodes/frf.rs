@@ -1,6 +1,6 @@
 //! `frf.estimate`: FRF and coherence from impact records (§3.1.2–3.1.5, Eqs. 3.1–3.3).
 
-use crate::frf::{Averaging, FrfError, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
+use crate::frf::{Averaging, DecayStart, FrfError, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
 use spindlelab_engine::value::{Frf, PortType, UnitLabel, Value};
@@ -39,15 +39,31 @@ impl FrfEstimate {
                         "response_decay",
                         T::Quantity(D::TIME),
                         "0.113 s",
-                        "time constant of the exponential response window, starting at the force window's end",
+                        "time constant of the exponential response window",
+                    ),
+                    Field::def(
+                        "decay_from",
+                        T::Choice(&["force-window-end", "frame-start"]),
+                        "force-window-end",
+                        "where the response window starts to decay (§3.1.2: at the force window's end)",
                     ),
                     Field::def(
                         "trigger",
-                        T::Choice(&["force-peak", "record-start"]),
+                        T::Choice(&["force-peak", "record-start", "level"]),
                         "force-peak",
-                        "where each analysis frame starts",
+                        "where each analysis frame starts: before the force peak, at the record start, or before the first sample above `trigger_level`",
                     ),
-                    Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before the force peak"),
+                    Field::opt(
+                        "trigger_level",
+                        T::Quantity(D::FORCE),
+                        "force that triggers the frame (with `trigger: level`)",
+                    ),
+                    Field::def(
+                        "pre_trigger",
+                        T::Quantity(D::TIME),
+                        "0.5 ms",
+                        "time kept before the force peak or the trigger sample",
+                    ),
                     Field::def(
                         "averaging",
                         T::Choice(&["h1", "h2", "time-synchronous"]),
@@ -72,20 +88,26 @@ fn options(p: &Params) -> FrfOptions {
         Windows {
             force_window: p.f64("force_window").unwrap_or(6.5e-3),
             response_decay: p.f64("response_decay").unwrap_or(0.113),
+            decay_from: match p.text("decay_from") {
+                Some("frame-start") => DecayStart::FrameStart,
+                _ => DecayStart::ForceWindowEnd,
+            },
         }
     } else {
         Windows::NONE
     };
+    let pre_trigger = p.f64("pre_trigger").unwrap_or(0.5e-3);
     let trigger = match p.text("trigger") {
         Some("record-start") => Trigger::RecordStart,
-        _ => Trigger::ForcePeak { pre_trigger: p.f64("pre_trigger").unwrap_or(0.5e-3) },
+        Some("level") => Trigger::level(p.f64("trigger_level").unwrap_or(f64::NAN), pre_trigger),
+        _ => Trigger::ForcePeak { pre_trigger },
     };
     let averaging = match p.text("averaging") {
         Some("time-synchronous") => Averaging::TimeSynchronous,
         Some("h2") => Averaging::H2,
         _ => Averaging::H1,
     };
-    FrfOptions { windows, trigger, averaging }
+    FrfOptions { windows, trigger, averaging, time_averaged: false }
 }
 
 fn err(e: FrfError) -> NodeError {
@@ -95,7 +117,7 @@ fn err(e: FrfError) -> NodeError {
         | FrfError::TooShort { .. }
         | FrfError::ChannelLengthMismatch { .. }
         | FrfError::RecordLengthMismatch { .. } => NodeError::input("response", e.to_string()),
-        FrfError::NoRecords => NodeError::input("force", e.to_string()),
+        FrfError::NoRecords | FrfError::NoTrigger { .. } => NodeError::input("force", e.to_string()),
         other => NodeError::Failed(other.to_string()),
     }
 }
@@ -107,7 +129,17 @@ impl Node for FrfEstimate {
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         super::positive(p, &["force_window", "response_decay", "max_frequency"])?;
-        super::non_negative(p, &["pre_trigger"])
+        super::non_negative(p, &["pre_trigger"])?;
+        match (p.text("trigger"), p.f64("trigger_level")) {
+            (Some("level"), None) => {
+                Err(NodeError::param("trigger_level", "`trigger: level` needs a `trigger_level` (a force, e.g. 20 N)"))
+            }
+            (Some("level"), Some(_)) | (_, None) => Ok(()),
+            (_, Some(_)) => Err(NodeError::param(
+                "trigger_level",
+                "a trigger level is used only with `trigger: level`; set that or drop the level",
+            )),
+        }
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
