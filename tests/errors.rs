@@ -639,6 +639,9 @@ fn library_messages_are_said_in_the_recipes_terms() {
     let e = reject("deep.yaml");
     assert_has(&e, &["the YAML nests 65 levels deep, more than a recipe may"]);
     assert!(!e.contains("budget breached") && !e.contains("Depth {"), "{e}");
+    let e = reject("frf-trigger.yaml");
+    assert_has(&e, &["`trigger: level` needs a `trigger_level`", "used only with `trigger: level`"]);
+    assert_eq!(error_count(&e), 2, "{e}");
     let e = reject("negative-eta.yaml");
     assert_has(&e, &["material `steel`: loss factor `eta` = -0.01 is negative", "a loss factor is 0 or more"]);
     assert_at(&e, "negative-eta.yaml", 5, 57);
