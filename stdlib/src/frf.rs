@@ -28,8 +28,9 @@ pub struct Windows {
 }
 
 /// Where the exponential response window starts to decay. Either way it adds the same
-/// damping to every mode ([`add_window_damping`]); only the response's overall scale in the
-/// force window differs, and the FRF divides it out.
+/// damping to every mode ([`add_window_damping`]); decaying from the end of a force window of
+/// length `t_w` keeps the response whole while the hammer is in contact and scales the rest,
+/// and so the FRF, by `e^{t_w/τ}` against a decay from the frame start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DecayStart {
     /// At the end of the force window (§3.1.2): the response is kept whole while the
