@@ -552,7 +552,7 @@ impl Kernel<'_> {
         #[cfg(target_arch = "x86_64")]
         if let Some(io) = lanes::AvxIo::detect() {
             // With AVX-512's 32 vector registers the four-line blocks of a product stay in
-            // registers (16 spill to the stack); the vectors stay 256 bits wide.
+            // registers (AVX's 16 spill them to the stack); the vectors stay 256 bits wide.
             if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") {
                 #[target_feature(enable = "avx,avx512f,avx512vl")]
                 fn avx512(
