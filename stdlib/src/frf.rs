@@ -1060,14 +1060,18 @@ mod tests {
         }
     }
 
+    /// Two impacts of different size and place in their records: `[(force, response); 2]`.
+    fn two_impacts() -> [(Vec<f64>, Vec<f64>); 2] {
+        [pulse(200, 10, 500.0), pulse(3_000, 10, 350.0)].map(|f| {
+            let x = response(&f, damping());
+            (f, x)
+        })
+    }
+
     #[test]
     fn force_peak_trigger_aligns_records() {
-        let c = damping();
-        let f0 = pulse(200, 10, 500.0);
-        let x0 = response(&f0, c);
-        let f1 = pulse(3_000, 10, 350.0);
-        let x1 = response(&f1, c);
-        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
+        let data = two_impacts();
+        let recs = data.each_ref().map(|(f, x)| ImpactRecord { force: f, response: x });
         let options = FrfOptions { averaging: Averaging::TimeSynchronous, ..FrfOptions::default() };
         let mut est = FrfEstimator::new(N, FS).unwrap();
         let sync = est.estimate(&recs, &options).unwrap();
@@ -1090,12 +1094,9 @@ mod tests {
 
     #[test]
     fn level_trigger_frames_like_the_force_peak_and_time_average_comes_along() {
-        let c = damping();
-        let f0 = pulse(200, 10, 500.0);
-        let x0 = response(&f0, c);
-        let f1 = pulse(3_000, 10, 350.0);
-        let x1 = response(&f1, c);
-        let recs = [ImpactRecord { force: &f0, response: &x0 }, ImpactRecord { force: &f1, response: &x1 }];
+        let data = two_impacts();
+        let recs = data.each_ref().map(|(f, x)| ImpactRecord { force: f, response: x });
+        let [(f0, _), (f1, x1)] = &data;
         let mut est = FrfEstimator::new(N, FS).unwrap();
         est.set_threads(1);
         // Both pulses rise through 20 N as many samples before their peaks: a level trigger with
@@ -1104,9 +1105,9 @@ mod tests {
             let peak = (0..N).max_by(|&a, &b| f[a].abs().total_cmp(&f[b].abs())).unwrap();
             peak - f.iter().position(|&v| v > 20.0).unwrap()
         };
-        assert_eq!(rise(&f0), rise(&f1));
+        assert_eq!(rise(f0), rise(f1));
         let peak = FrfOptions { trigger: Trigger::ForcePeak { pre_trigger: 50.0 / FS }, ..FrfOptions::default() };
-        let pre = (50 - rise(&f0)) as f64 / FS;
+        let pre = (50 - rise(f0)) as f64 / FS;
         let level = FrfOptions { trigger: Trigger::level(20.0, pre), time_averaged: true, ..peak };
         let by_peak = est.estimate(&recs, &peak).unwrap();
         let by_level = est.estimate(&recs, &level).unwrap();
@@ -1118,7 +1119,7 @@ mod tests {
         assert!(by_level.time_averaged.as_deref() == Some(&sync.h[..]), "ΣX/ΣF differs from time-synchronous");
         // A record whose force stays below the level is named.
         let quiet = vec![5.0; N];
-        let recs = [recs[0], ImpactRecord { force: &quiet, response: &x1 }];
+        let recs = [recs[0], ImpactRecord { force: &quiet, response: x1 }];
         assert_eq!(est.estimate(&recs, &level), Err(FrfError::NoTrigger { record: 1, level: 20.0, max: 5.0 }));
         let bad = FrfOptions { trigger: Trigger::level(f64::NAN, 0.0), ..level };
         assert!(matches!(est.estimate(&recs, &bad), Err(FrfError::InvalidParameter { field: "trigger_level", .. })));

@@ -549,13 +549,12 @@ impl Kernel<'_> {
                 Direction::Decouple => k.decouple(io, a, lines, comp),
             }
         }
+        // `body` compiled with the given target features, and called.
         #[cfg(target_arch = "x86_64")]
-        if let Some(io) = lanes::AvxIo::detect() {
-            // With AVX-512's 32 vector registers the four-line blocks of a product stay in
-            // registers (AVX's 16 spill them to the stack); the vectors stay 256 bits wide.
-            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") {
-                #[target_feature(enable = "avx,avx512f,avx512vl")]
-                fn avx512(
+        macro_rules! compiled_for {
+            ($features:literal, $k:expr, $io:expr) => {{
+                #[target_feature(enable = $features)]
+                fn compiled(
                     k: &mut Kernel,
                     io: lanes::AvxIo,
                     a: &TwoPort,
@@ -565,22 +564,18 @@ impl Kernel<'_> {
                 ) {
                     body(k, io, a, lines, comp, direction)
                 }
-                // SAFETY: the CPU supports AVX, AVX-512F and AVX-512VL, checked just above.
-                return unsafe { avx512(self, io, a, lines, comp, direction) };
+                // SAFETY: the caller checked that the CPU has these features.
+                unsafe { compiled($k, $io, a, lines, comp, direction) }
+            }};
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(io) = lanes::AvxIo::detect() {
+            // With AVX-512's 32 vector registers the four-line blocks of a product stay in
+            // registers (AVX's 16 spill them to the stack); the vectors stay 256 bits wide.
+            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") {
+                return compiled_for!("avx,avx512f,avx512vl", self, io);
             }
-            #[target_feature(enable = "avx")]
-            fn avx(
-                k: &mut Kernel,
-                io: lanes::AvxIo,
-                a: &TwoPort,
-                lines: &[Receptance],
-                comp: Option<Compliance>,
-                direction: Direction,
-            ) {
-                body(k, io, a, lines, comp, direction)
-            }
-            // SAFETY: the CPU supports AVX (an `AvxIo` exists).
-            return unsafe { avx(self, io, a, lines, comp, direction) };
+            return compiled_for!("avx", self, io);
         }
         body(self, PortableIo, a, lines, comp, direction)
     }
