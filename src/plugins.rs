@@ -200,6 +200,8 @@ mod template {
     pub const SDK_WIT_PATH: &str = "../../wit/since_v0.2.0";
     pub const WIT_0_1_0: &str = include_str!("../plugins/wit/since_v0.1.0/plugin.wit");
     pub const SDK_WIT_PATH_0_1_0: &str = "../../wit/since_v0.1.0";
+    /// The build settings every plugin crate wants: WebAssembly SIMD, 8 MiB of initial memory.
+    pub const CARGO_CONFIG: &str = include_str!("../plugins/guest/.cargo/config.toml");
 }
 
 /// Creates a plugin crate named `name` in `dir`: one node kind, the SDK and the interface
@@ -240,19 +242,17 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
         (
             "sdk/Cargo.toml",
             "[package]\nname = \"spindlelab-plugin-sdk\"\nversion = \"0.1.0\"\nedition = \"2024\"\npublish = false\n\n[dependencies]\n\
-             wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n\n\
-             [features]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
+             wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n\
+             dlmalloc = { version = \"0.2.14\", default-features = false, features = [\"global\"], optional = true }\n\n\
+             [features]\ndefault = [\"allocator\"]\n# The SDK's global allocator (it starts in the initial memory); turn it off to set another.\n\
+             allocator = [\"dep:dlmalloc\"]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
                 .into(),
         ),
         ("sdk/src/lib.rs", sdk_lib),
         ("sdk/wit/plugin.wit", template::WIT.into()),
         ("sdk/wit-0.1.0/plugin.wit", template::WIT_0_1_0.into()),
         (".gitignore", "/target\n".into()),
-        (
-            ".cargo/config.toml",
-            "# WebAssembly SIMD, which the spindlelab host supports.\n[target.wasm32-unknown-unknown]\nrustflags = [\"-C\", \"target-feature=+simd128\"]\n"
-                .into(),
-        ),
+        (".cargo/config.toml", template::CARGO_CONFIG.into()),
     ];
     let mut written = Vec::new();
     for (rel, text) in files {
