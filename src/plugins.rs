@@ -243,7 +243,7 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
             "sdk/Cargo.toml",
             "[package]\nname = \"spindlelab-plugin-sdk\"\nversion = \"0.1.0\"\nedition = \"2024\"\npublish = false\n\n[dependencies]\n\
              wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n\
-             dlmalloc = { version = \"0.2.14\", default-features = false, features = [\"global\"], optional = true }\n\n\
+             dlmalloc = { version = \"0.2.14\", default-features = false, optional = true }\n\n\
              [features]\ndefault = [\"allocator\"]\n# The SDK's global allocator (it starts in the initial memory); turn it off to set another.\n\
              allocator = [\"dep:dlmalloc\"]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
                 .into(),

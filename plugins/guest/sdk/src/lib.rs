@@ -21,14 +21,66 @@
 //! A plugin is a pure function of its parameters and inputs: every call runs in a fresh
 //! instance with no files, network, clock or environment; quantities arrive in SI.
 
-/// The plugin's heap: dlmalloc, as the standard library's, but a version that takes the free
+/// The plugin's heap: dlmalloc, as the standard library's, in a version that takes the free
 /// tail of the initial linear memory (`__heap_base` to `__heap_end`) before it grows the
 /// memory. A plugin linked with room to spare (the template's `--initial-memory`, 8 MiB)
 /// then serves most calls without `memory.grow`, and the host need not change the page
 /// protection of its memory slot on each call: the no-op call costs half as much.
 #[cfg(all(feature = "allocator", target_arch = "wasm32"))]
-#[global_allocator]
-static ALLOCATOR: dlmalloc::GlobalDlmalloc = dlmalloc::GlobalDlmalloc;
+mod heap {
+    use core::alloc::{GlobalAlloc, Layout};
+    use core::ptr::addr_of_mut;
+
+    /// One heap: a plugin instance runs on one thread.
+    static mut HEAP: dlmalloc::Dlmalloc = dlmalloc::Dlmalloc::new();
+
+    /// dlmalloc's natural alignment on wasm32 (two words).
+    const NATURAL: usize = 2 * core::mem::size_of::<usize>();
+
+    pub struct Heap;
+
+    // SAFETY: each method hands its layout to dlmalloc as its contract asks; wasm32 without
+    // the atomics feature has one thread, so the heap is never used concurrently.
+    unsafe impl GlobalAlloc for Heap {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            unsafe { (*addr_of_mut!(HEAP)).malloc(layout.size(), layout.align()) }
+        }
+
+        unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+            unsafe { (*addr_of_mut!(HEAP)).calloc(layout.size(), layout.align()) }
+        }
+
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            unsafe { (*addr_of_mut!(HEAP)).free(ptr, layout.size(), layout.align()) }
+        }
+
+        /// Shrinks an over-aligned block in place (dlmalloc splits the chunk and the address,
+        /// so its alignment, stays); dlmalloc's own `realloc` copies it to a new block. A
+        /// boxed slice of SIMD vectors made from a longer vector is one (rustfft's twiddles).
+        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+            let heap = unsafe { &mut *addr_of_mut!(HEAP) };
+            if layout.align() > NATURAL && new_size <= layout.size() {
+                let shrunk = unsafe { heap.c_realloc(ptr, new_size) };
+                if (shrunk as usize).is_multiple_of(layout.align()) {
+                    return shrunk;
+                }
+                // Moved off its alignment (dlmalloc does not, when shrinking): realign.
+                let aligned = unsafe { heap.malloc(new_size, layout.align()) };
+                if !aligned.is_null() {
+                    unsafe {
+                        core::ptr::copy_nonoverlapping(shrunk, aligned, new_size);
+                        heap.c_free(shrunk);
+                    }
+                }
+                return aligned;
+            }
+            unsafe { heap.realloc(ptr, layout.size(), layout.align(), new_size) }
+        }
+    }
+
+    #[global_allocator]
+    static ALLOCATOR: Heap = Heap;
+}
 
 #[cfg(not(feature = "interface-0-1-0"))]
 #[doc(hidden)]
