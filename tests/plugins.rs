@@ -585,3 +585,40 @@ fn no_call_sees_anything_of_an_earlier_one() {
         }
     }
 }
+
+#[test]
+fn the_spectrum_plugin_names_a_sample_that_is_not_a_number_and_a_sum_that_overflows() {
+    // The mean's pass checks the samples: a NaN or an infinity is named by its position; finite
+    // samples whose sum overflows are named as such (no sample is at fault).
+    use indexmap::IndexMap;
+    use spindlelab::engine::model::Recipe;
+    use spindlelab::engine::node::{Labelled, Node, NodeContext, NodeError};
+    use spindlelab::engine::spec::Params;
+    use std::sync::Arc;
+    let host = Host::new(Policy::default(), Some(shared_cache())).unwrap();
+    let plugin = host.load(&spindlelab_plugin_examples::manifest("chatter-indicator"), &Expect::default()).unwrap();
+    let node = plugin.nodes.iter().find(|n| n.spec().kind == "spectrum.amplitude").unwrap();
+    let message = |samples: Vec<f64>| {
+        let series = TimeSeries {
+            sample_rate: 1000.0,
+            t0: 0.0,
+            channels: vec![Channel { name: "ax".into(), unit: UnitLabel::new("m/s^2"), samples }],
+        };
+        let signal = Labelled { label: String::new(), coords: vec![], value: Arc::new(Value::TimeSeries(series)) };
+        let inputs: IndexMap<String, Vec<Labelled>> = [("signal".to_string(), vec![signal])].into_iter().collect();
+        let (params, recipe) = (Params::default(), Recipe::default());
+        match node.run(&NodeContext::new("spectrum", &params, &inputs, &recipe)) {
+            Err(NodeError::Failed(m)) => m,
+            other => panic!("not refused: {other:?}"),
+        }
+    };
+    let mut samples = vec![1.0; 64];
+    samples[7] = f64::NAN;
+    let m = message(samples.clone());
+    assert!(m.contains("sample 7 of channel `ax` is not a finite number"), "{m}");
+    samples[7] = 1.0;
+    samples[40] = f64::NEG_INFINITY;
+    assert!(message(samples).contains("sample 40 of channel `ax`"));
+    let m = message(vec![1.5e308; 64]);
+    assert!(m.contains("too large to sum"), "{m}");
+}

@@ -12,15 +12,14 @@
 use realfft::RealFftPlanner;
 use spindlelab_plugin_sdk::*;
 
-/// The record less its mean, under the Hann window `0.5 − 0.5 cos(2πi/n)`.
+/// The record less its `mean`, under the Hann window `0.5 − 0.5 cos(2πi/n)`.
 ///
 /// The cosines come from two short tables by angle addition,
 /// cos((kB + j)θ) = cos(kBθ) cos(jθ) − sin(kBθ) sin(jθ) with blocks of B = 256: about 2n/B
 /// sines and cosines instead of n, each value within a few ulp of the direct one.
-fn windowed(samples: &[f64]) -> Vec<f64> {
+fn windowed(samples: &[f64], mean: f64) -> Vec<f64> {
     const B: usize = 256;
     let n = samples.len();
-    let mean = samples.iter().sum::<f64>() / n as f64;
     let theta = std::f64::consts::TAU / n as f64;
     let fine: Vec<(f64, f64)> = (0..B.min(n)).map(|j| (theta * j as f64).sin_cos()).collect();
     let mut buf = Vec::with_capacity(n);
@@ -34,9 +33,9 @@ fn windowed(samples: &[f64]) -> Vec<f64> {
 /// Hann-windowed, mean-removed amplitude spectrum, scaled so a sinusoid of amplitude `a` on
 /// a line reads `a`: returns (line spacing Hz, amplitudes of lines 0..=n/2). A real-input
 /// transform: half the work and half the plan of a complex one.
-fn amplitude_spectrum(samples: &[f64], sample_rate: f64) -> Result<(f64, Vec<f64>), String> {
+fn amplitude_spectrum(samples: &[f64], mean: f64, sample_rate: f64) -> Result<(f64, Vec<f64>), String> {
     let n = samples.len();
-    let mut buf = windowed(samples);
+    let mut buf = windowed(samples, mean);
     let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut buf, &mut spectrum).map_err(|e| format!("the transform failed: {e}"))?;
@@ -52,8 +51,8 @@ fn amplitude_spectrum(samples: &[f64], sample_rate: f64) -> Result<(f64, Vec<f64
     Ok((sample_rate / n as f64, buf))
 }
 
-/// The record's channel the recipe chose (the first when it chose none).
-fn channel<'a>(call: &'a Call, series: &'a TimeSeries) -> Result<&'a Channel, String> {
+/// The record's channel the recipe chose (the first when it chose none) and its mean.
+fn channel<'a>(call: &'a Call, series: &'a TimeSeries) -> Result<(&'a Channel, f64), String> {
     let ch = match call.text_opt("channel") {
         Some(name) => series.channels.iter().find(|c| c.name == name).ok_or_else(|| {
             let names: Vec<&str> = series.channels.iter().map(|c| c.name.as_str()).collect();
@@ -68,15 +67,22 @@ fn channel<'a>(call: &'a Call, series: &'a TimeSeries) -> Result<&'a Channel, St
             ch.samples.len()
         ));
     }
-    // One pass without an early exit (it vectorises); the position only when there is one.
-    if !ch.samples.iter().fold(true, |finite, v| finite & v.is_finite()) {
-        let i = ch.samples.iter().position(|v| !v.is_finite()).unwrap_or_default();
-        return Err(format!("input `signal`: sample {i} of channel `{}` is not a finite number", ch.name));
+    // A sample that is not a finite number makes the sum one too: the pass that takes the
+    // mean checks the samples, and the position is looked for only when it fails.
+    let mean = ch.samples.iter().sum::<f64>() / ch.samples.len() as f64;
+    if !mean.is_finite() {
+        return Err(match ch.samples.iter().position(|v| !v.is_finite()) {
+            Some(i) => format!("input `signal`: sample {i} of channel `{}` is not a finite number", ch.name),
+            None => format!(
+                "input `signal`: the samples of channel `{}` are too large to sum (beyond 1e308); give them in a larger unit",
+                ch.name
+            ),
+        });
     }
     if !(series.sample_rate.is_finite() && series.sample_rate > 0.0) {
         return Err(format!("input `signal`: sample rate {} Hz must be finite and > 0", series.sample_rate));
     }
-    Ok(ch)
+    Ok((ch, mean))
 }
 
 fn spectrum_table(df: f64, amplitude: Vec<f64>, unit: &str) -> Vec<Column> {
@@ -86,14 +92,14 @@ fn spectrum_table(df: f64, amplitude: Vec<f64>, unit: &str) -> Vec<Column> {
 
 fn spectrum(call: &Call) -> Result<Outputs, String> {
     let series = call.time_series("signal")?;
-    let ch = channel(call, series)?;
-    let (df, amplitude) = amplitude_spectrum(&ch.samples, series.sample_rate)?;
+    let (ch, mean) = channel(call, series)?;
+    let (df, amplitude) = amplitude_spectrum(&ch.samples, mean, series.sample_rate)?;
     Ok(Outputs::new().table("spectrum", spectrum_table(df, amplitude, &ch.unit)))
 }
 
 fn energy_ratio(call: &Call) -> Result<Outputs, String> {
     let series = call.time_series("signal")?;
-    let ch = channel(call, series)?;
+    let (ch, mean) = channel(call, series)?;
     let omega = call.number("spindle_speed")?;
     let guard = call.integer("guard")? as f64;
     if !(omega.is_finite() && omega > 0.0) {
@@ -102,7 +108,7 @@ fn energy_ratio(call: &Call) -> Result<Outputs, String> {
             omega * 60.0 / std::f64::consts::TAU
         ));
     }
-    let (df, amplitude) = amplitude_spectrum(&ch.samples, series.sample_rate)?;
+    let (df, amplitude) = amplitude_spectrum(&ch.samples, mean, series.sample_rate)?;
     let rev_hz = omega / std::f64::consts::TAU;
     if rev_hz < (2.0 * guard + 2.0) * df {
         let needed = ((2.0 * guard + 2.0) * series.sample_rate / rev_hz).ceil();
