@@ -26,7 +26,7 @@
 /// memory. A plugin linked with room to spare (the template's `--initial-memory`, 8 MiB)
 /// then serves most calls without `memory.grow`, and the host need not change the page
 /// protection of its memory slot on each call: the no-op call costs half as much.
-#[cfg(all(feature = "allocator", target_arch = "wasm32"))]
+#[cfg(all(feature = "allocator", target_arch = "wasm32", not(target_feature = "atomics")))]
 mod heap {
     use core::alloc::{GlobalAlloc, Layout};
     use core::ptr::addr_of_mut;
@@ -40,7 +40,8 @@ mod heap {
     pub struct Heap;
 
     // SAFETY: each method hands its layout to dlmalloc as its contract asks; wasm32 without
-    // the atomics feature has one thread, so the heap is never used concurrently.
+    // the atomics feature (this module's condition) has one thread, so the heap is never used
+    // concurrently.
     unsafe impl GlobalAlloc for Heap {
         unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
             unsafe { (*addr_of_mut!(HEAP)).malloc(layout.size(), layout.align()) }
