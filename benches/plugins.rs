@@ -7,6 +7,9 @@
 
 #[path = "common/alloc.rs"]
 mod alloc;
+/// The plugin's own window code, compiled natively.
+#[path = "../plugins/guest/examples/chatter-indicator/src/window.rs"]
+mod window;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use indexmap::IndexMap;
@@ -30,29 +33,11 @@ fn inputs(port: &str, value: Value) -> IndexMap<String, Vec<Labelled>> {
         .collect()
 }
 
-/// The record less its `mean`, under the Hann window `0.5 − 0.5 cos(2πi/n)`.
-///
-/// The cosines come from two short tables by angle addition,
-/// cos((kB + j)θ) = cos(kBθ) cos(jθ) − sin(kBθ) sin(jθ) with blocks of B = 256: about 2n/B
-/// sines and cosines instead of n, each value within a few ulp of the direct one.
-fn windowed(samples: &[f64], mean: f64) -> Vec<f64> {
-    const B: usize = 256;
-    let n = samples.len();
-    let theta = std::f64::consts::TAU / n as f64;
-    let fine: Vec<(f64, f64)> = (0..B.min(n)).map(|j| (theta * j as f64).sin_cos()).collect();
-    let mut buf = Vec::with_capacity(n);
-    for (k, block) in samples.chunks(B).enumerate() {
-        let (s, c) = (theta * (k * B) as f64).sin_cos();
-        buf.extend(block.iter().zip(&fine).map(|(x, (sj, cj))| (x - mean) * (0.5 - 0.5 * (c * cj - s * sj))));
-    }
-    buf
-}
-
 /// The example plugin's spectrum, natively: mean removed, Hann window, real-input FFT,
 /// one-sided amplitude in place of the windowed record.
 fn native_spectrum(samples: &[f64], mean: f64, planner: &mut RealFftPlanner<f64>) -> Vec<f64> {
     let n = samples.len();
-    let mut buf = windowed(samples, mean);
+    let mut buf = window::windowed(samples, mean);
     let fft = planner.plan_fft_forward(n);
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut buf, &mut spectrum).expect("lengths match the plan");
