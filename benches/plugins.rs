@@ -7,9 +7,9 @@
 
 #[path = "common/alloc.rs"]
 mod alloc;
-/// The plugin's own window code, compiled natively.
-#[path = "../plugins/guest/examples/chatter-indicator/src/window.rs"]
-mod window;
+/// The plugin's own spectrum code (window, transform, amplitudes), compiled natively.
+#[path = "../plugins/guest/examples/chatter-indicator/src/spectrum.rs"]
+mod spectrum;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use indexmap::IndexMap;
@@ -31,24 +31,6 @@ fn inputs(port: &str, value: Value) -> IndexMap<String, Vec<Labelled>> {
     [(port.to_string(), vec![Labelled { label: String::new(), coords: vec![], value: Arc::new(value) }])]
         .into_iter()
         .collect()
-}
-
-/// The example plugin's spectrum, natively: mean removed, Hann window, real-input FFT,
-/// one-sided amplitude in place of the windowed record.
-fn native_spectrum(samples: &[f64], mean: f64, planner: &mut RealFftPlanner<f64>) -> Vec<f64> {
-    let n = samples.len();
-    let mut buf = window::windowed(samples, mean);
-    let fft = planner.plan_fft_forward(n);
-    let mut spectrum = fft.make_output_vec();
-    fft.process(&mut buf, &mut spectrum).expect("lengths match the plan");
-    let gain = 4.0 / n as f64;
-    buf.truncate(spectrum.len());
-    for (a, c) in buf.iter_mut().zip(&spectrum) {
-        *a = gain * c.norm();
-    }
-    buf[0] *= 0.5;
-    buf.shrink_to_fit();
-    buf
 }
 
 /// The plugin's `spectrum.amplitude` as a built-in node: the same checks of its input, the
@@ -89,7 +71,8 @@ impl Node for BuiltinSpectrum {
         if !(series.sample_rate.is_finite() && series.sample_rate > 0.0) {
             return Err(NodeError::input("signal", "the sample rate must be finite and > 0"));
         }
-        let amplitude = native_spectrum(&ch.samples, mean, &mut RealFftPlanner::new());
+        let amplitude = spectrum::amplitudes(&ch.samples, mean, &mut RealFftPlanner::new())
+            .map_err(|e| NodeError::Failed(format!("the transform failed: {e}")))?;
         let df = series.sample_rate / ch.samples.len() as f64;
         let freq = (0..amplitude.len()).map(|i| i as f64 * df).collect();
         let table = Table {
@@ -121,7 +104,7 @@ fn bench(c: &mut Criterion) {
         t0: 0.0,
         channels: vec![Channel { name: "a".into(), unit: UnitLabel::new("m/s^2"), samples: samples.clone() }],
     });
-    let spectrum = node(&host, "chatter-indicator", "spectrum.amplitude");
+    let plugin = node(&host, "chatter-indicator", "spectrum.amplitude");
     let signal = inputs("signal", series);
     let builtin = BuiltinSpectrum::new();
     let table = |node: &dyn Node| {
@@ -132,7 +115,7 @@ fn bench(c: &mut Criterion) {
         }
     };
     // The two agree before they are timed.
-    let (plugin_table, builtin_table) = (table(spectrum.as_ref()), table(&builtin));
+    let (plugin_table, builtin_table) = (table(plugin.as_ref()), table(&builtin));
     assert_eq!(plugin_table.columns[0], builtin_table.columns[0], "frequencies");
     let worst = (plugin_table.columns[1].values.iter().zip(&builtin_table.columns[1].values))
         .map(|(a, b)| (a - b).abs())
@@ -141,7 +124,7 @@ fn bench(c: &mut Criterion) {
     c.bench_function("plugins/spectrum_65536_plugin", |b| {
         b.iter(|| {
             let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
-            black_box(spectrum.run(&ctx).expect("runs"))
+            black_box(plugin.run(&ctx).expect("runs"))
         })
     });
     // The same node kind built in: the target is the plugin within 2× of this.
@@ -156,7 +139,7 @@ fn bench(c: &mut Criterion) {
     c.bench_function("plugins/spectrum_65536_steps", |b| {
         b.iter(|| {
             let mean = samples.iter().sum::<f64>() / samples.len() as f64;
-            black_box(native_spectrum(black_box(&samples), mean, &mut RealFftPlanner::new()))
+            black_box(spectrum::amplitudes(black_box(&samples), mean, &mut RealFftPlanner::new()))
         })
     });
 

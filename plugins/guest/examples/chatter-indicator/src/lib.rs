@@ -9,31 +9,16 @@
 //! lines within `guard` lines of every rotation harmonic: 0 for a stable cut, towards 1 as
 //! chatter grows; the largest line left is the chatter frequency.
 
-mod window;
+mod spectrum;
 
 use realfft::RealFftPlanner;
 use spindlelab_plugin_sdk::*;
-use window::windowed;
 
-/// Hann-windowed, mean-removed amplitude spectrum, scaled so a sinusoid of amplitude `a` on
-/// a line reads `a`: returns (line spacing Hz, amplitudes of lines 0..=n/2). A real-input
-/// transform: half the work and half the plan of a complex one.
+/// The amplitude spectrum (`spectrum::amplitudes`) with its line spacing, Hz.
 fn amplitude_spectrum(samples: &[f64], mean: f64, sample_rate: f64) -> Result<(f64, Vec<f64>), String> {
-    let n = samples.len();
-    let mut buf = windowed(samples, mean);
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut spectrum = fft.make_output_vec();
-    fft.process(&mut buf, &mut spectrum).map_err(|e| format!("the transform failed: {e}"))?;
-    // The Hann window sums to n/2: gain 2/(n/2) for a one-sided amplitude.
-    let gain = 4.0 / n as f64;
-    // The amplitudes take the place of the windowed record.
-    buf.truncate(spectrum.len());
-    for (a, c) in buf.iter_mut().zip(&spectrum) {
-        *a = gain * c.norm();
-    }
-    buf[0] *= 0.5;
-    buf.shrink_to_fit();
-    Ok((sample_rate / n as f64, buf))
+    let amplitude = spectrum::amplitudes(samples, mean, &mut RealFftPlanner::new())
+        .map_err(|e| format!("the transform failed: {e}"))?;
+    Ok((sample_rate / samples.len() as f64, amplitude))
 }
 
 /// The record's channel the recipe chose (the first when it chose none) and its mean.
