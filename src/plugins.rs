@@ -196,11 +196,13 @@ impl Plugins {
 /// The SDK and the interface, as `spindlelab plugin new` writes them beside a new plugin.
 mod template {
     pub const SDK_LIB: &str = include_str!("../plugins/guest/sdk/src/lib.rs");
+    pub const SDK_TRIG: &str = include_str!("../plugins/guest/sdk/src/trig.rs");
     pub const WIT: &str = include_str!("../plugins/wit/since_v0.2.0/plugin.wit");
     pub const SDK_WIT_PATH: &str = "../../wit/since_v0.2.0";
     pub const WIT_0_1_0: &str = include_str!("../plugins/wit/since_v0.1.0/plugin.wit");
     pub const SDK_WIT_PATH_0_1_0: &str = "../../wit/since_v0.1.0";
-    /// The build settings every plugin crate wants: WebAssembly SIMD, 8 MiB of initial memory.
+    /// The build settings every plugin crate wants: WebAssembly SIMD, 8 MiB of initial memory,
+    /// vectorised loops unrolled for the host's work bound.
     pub const CARGO_CONFIG: &str = include_str!("../plugins/guest/.cargo/config.toml");
 }
 
@@ -243,12 +245,15 @@ pub fn new_plugin(name: &str, dir: &Path) -> Result<Vec<PathBuf>, String> {
             "sdk/Cargo.toml",
             "[package]\nname = \"spindlelab-plugin-sdk\"\nversion = \"0.1.0\"\nedition = \"2024\"\npublish = false\n\n[dependencies]\n\
              wit-bindgen = { version = \"0.61.1\", default-features = false, features = [\"macros\", \"realloc\", \"std\"] }\n\
-             dlmalloc = { version = \"0.2.14\", default-features = false, optional = true }\n\n\
-             [features]\ndefault = [\"allocator\"]\n# The SDK's global allocator (it starts in the initial memory); turn it off to set another.\n\
-             allocator = [\"dep:dlmalloc\"]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
+             dlmalloc = { version = \"0.2.14\", default-features = false, optional = true }\n\
+             libm = { version = \"0.2.16\", optional = true }\n\n\
+             [features]\ndefault = [\"allocator\", \"paired-trig\"]\n# The SDK's global allocator (it starts in the initial memory); turn it off to set another.\n\
+             allocator = [\"dep:dlmalloc\"]\n# `sin` and `cos` that share one argument reduction between an angle's cosine and sine.\n\
+             paired-trig = [\"dep:libm\"]\n# Build against interface 0.1.0 (no effects), for hosts that run nothing newer.\ninterface-0-1-0 = []\n"
                 .into(),
         ),
         ("sdk/src/lib.rs", sdk_lib),
+        ("sdk/src/trig.rs", template::SDK_TRIG.into()),
         ("sdk/wit/plugin.wit", template::WIT.into()),
         ("sdk/wit-0.1.0/plugin.wit", template::WIT_0_1_0.into()),
         (".gitignore", "/target\n".into()),

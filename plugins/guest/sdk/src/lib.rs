@@ -83,6 +83,34 @@ mod heap {
     static ALLOCATOR: Heap = Heap;
 }
 
+#[cfg(feature = "paired-trig")]
+pub mod trig;
+
+/// The plugin's `sin` and `cos`, in place of the standard library's: the same libm values,
+/// with one argument reduction for the cosine and sine of an angle taken one after the
+/// other ([`trig::Pair`]). The twiddle factors of an FFT plan are taken so: a 65,536-sample
+/// real transform takes about 49,000 pairs, and the example spectrum's call is about 5 %
+/// faster. They are exported from the core module, as a symbol that replaces the standard
+/// library's must be; the component does not export them.
+#[cfg(all(feature = "paired-trig", target_arch = "wasm32", not(target_feature = "atomics")))]
+mod trig_symbols {
+    use core::ptr::addr_of_mut;
+
+    static mut PAIR: crate::trig::Pair = crate::trig::Pair::new();
+
+    // SAFETY (both): wasm32 without the atomics feature (this module's condition) has one
+    // thread, and nothing else names PAIR, so no two references to it are ever alive.
+    #[unsafe(no_mangle)]
+    extern "C" fn sin(x: f64) -> f64 {
+        unsafe { (*addr_of_mut!(PAIR)).sin(x) }
+    }
+
+    #[unsafe(no_mangle)]
+    extern "C" fn cos(x: f64) -> f64 {
+        unsafe { (*addr_of_mut!(PAIR)).cos(x) }
+    }
+}
+
 #[cfg(not(feature = "interface-0-1-0"))]
 #[doc(hidden)]
 pub mod bindings {
