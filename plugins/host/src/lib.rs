@@ -173,7 +173,7 @@ impl Host {
         // math functions of its standard library (compiled apart from it, so never inlined by
         // its own compiler) then lose their call overhead and the fuel accounting at each
         // function entry. About 10 % off a call of the example spectrum; compiling takes about
-        // twice as long and five times the memory (the example: 1.9 s, 480 MB peak), once per
+        // twice as long and five times the memory (the example: 1.9 s, 520 MB peak), once per
         // plugin version (the compiled form is cached).
         config.compiler_inlining(wasmtime::Inlining::Yes);
         config.wasm_component_model(true);
