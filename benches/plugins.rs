@@ -2,8 +2,9 @@
 //! instantiation, arguments in and out), the same computation natively and in a plugin
 //! (mean removal, Hann window and FFT of 65,536 samples: `spectrum.amplitude` of the
 //! example plugin against the same node kind built into this program, and its steps
-//! alone), and the cold start
-//! of a plugin whose compiled form is cached (manifest, hash, deserialise, checks, describe).
+//! alone; the ratio of plugin to built-in is also printed from alternating calls), and the
+//! cold start of a plugin whose compiled form is cached (manifest, hash, deserialise,
+//! checks, describe).
 
 #[path = "common/alloc.rs"]
 mod alloc;
@@ -82,6 +83,9 @@ impl Node for BuiltinSpectrum {
     }
 }
 
+/// Alternating calls of the plugin and the built-in node timed for the ratio of the two.
+const PAIRS: usize = 300;
+
 fn bench(c: &mut Criterion) {
     let cache = tempfile::tempdir().expect("temp dir");
     let host = Host::new(Policy::default(), Some(cache.path().to_path_buf())).expect("host");
@@ -121,6 +125,27 @@ fn bench(c: &mut Criterion) {
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
     assert!(worst < 1e-9, "plugin and built-in spectra differ by {worst}");
+    // The target is a ratio, and this machine's speed drifts between criterion's runs of
+    // the two: time them in alternation too, and report the paired ratios.
+    let time = |node: &dyn Node| {
+        let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
+        let start = std::time::Instant::now();
+        black_box(node.run(&ctx).expect("runs"));
+        start.elapsed().as_secs_f64()
+    };
+    for _ in 0..10 {
+        time(plugin.as_ref());
+        time(&builtin);
+    }
+    let mut ratios: Vec<f64> = (0..PAIRS).map(|_| time(plugin.as_ref()) / time(&builtin)).collect();
+    ratios.sort_by(f64::total_cmp);
+    let at = |q: f64| ratios[((PAIRS - 1) as f64 * q).round() as usize];
+    println!(
+        "plugins/spectrum_65536 plugin ÷ built-in, {PAIRS} interleaved pairs: median {:.3} (p10 {:.3}, p90 {:.3})",
+        at(0.5),
+        at(0.1),
+        at(0.9)
+    );
     c.bench_function("plugins/spectrum_65536_plugin", |b| {
         b.iter(|| {
             let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
