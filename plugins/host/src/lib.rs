@@ -13,6 +13,7 @@
 //! the same call stops at the same point on any machine) and a bound on the numbers it
 //! returns; the limits are the manifest's requests clamped to the host's [`Policy`].
 
+mod lend;
 mod node;
 mod v0_1_0;
 mod v0_2_0;

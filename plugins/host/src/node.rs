@@ -1,7 +1,8 @@
 //! A plugin's node kinds as engine nodes: described once at load, each call in a fresh,
 //! bounded store.
 
-use crate::v0_1_0::{self as v1, Input, NamedParam, ParamType, ParamValue};
+use crate::lend;
+use crate::v0_1_0::{self as v1, NamedParam, ParamType, ParamValue};
 use crate::v0_2_0 as v2;
 use crate::{Limits, LoadError, Manifest};
 use spindlelab_engine::grammar::{self, Dimension};
@@ -9,7 +10,8 @@ use spindlelab_engine::model::Recipe;
 use spindlelab_engine::node::{EffectParam, EffectSpec, Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
 use std::sync::Arc;
-use wasmtime::component::InstancePre;
+use wasmtime::component;
+use wasmtime::component::{ComponentExportIndex, InstancePre};
 use wasmtime::{Engine, ResourceLimiter, Store, Trap};
 
 /// A counting semaphore over the host's instance slots.
@@ -41,18 +43,38 @@ impl Drop for SlotGuard<'_> {
     }
 }
 
-/// The pre-instantiated component, bound by its interface version.
-pub(crate) enum Pre {
+/// The pre-instantiated component, bound by its interface version, and where its `run` is.
+pub(crate) struct Pre {
+    bound: Bound,
+    /// `run` of the interface `node`, called with the inputs lent (`lend`), not through the
+    /// bindings.
+    run: ComponentExportIndex,
+}
+
+enum Bound {
     V0_1_0(v1::PluginPre<State>),
     V0_2_0(v2::PluginPre<State>),
 }
 
 impl Pre {
     pub fn new(pre: InstancePre<State>, interface: &str) -> wasmtime::Result<Pre> {
-        Ok(match interface {
-            "0.1.0" => Pre::V0_1_0(v1::PluginPre::new(pre)?),
-            _ => Pre::V0_2_0(v2::PluginPre::new(pre)?),
-        })
+        let node = pre.component().get_export_index(None, format!("spindlelab:plugin/node@{interface}"));
+        let run = pre
+            .component()
+            .get_export_index(node.as_ref(), "run")
+            .ok_or_else(|| wasmtime::format_err!("no function `run` in interface `node`"))?;
+        let bound = match interface {
+            "0.1.0" => Bound::V0_1_0(v1::PluginPre::new(pre)?),
+            _ => Bound::V0_2_0(v2::PluginPre::new(pre)?),
+        };
+        Ok(Pre { bound, run })
+    }
+
+    fn instance_pre(&self) -> &InstancePre<State> {
+        match &self.bound {
+            Bound::V0_1_0(p) => p.instance_pre(),
+            Bound::V0_2_0(p) => p.instance_pre(),
+        }
     }
 }
 
@@ -134,21 +156,34 @@ impl Runtime {
 
     /// Runs `f` on a fresh instance in a fresh store; the store (and its instance's slot) is
     /// dropped before the slot is given back.
-    fn call<T>(&self, f: impl FnOnce(&mut Store<State>, Instance) -> wasmtime::Result<T>) -> Result<T, CallError> {
+    fn call<T>(
+        &self,
+        f: impl FnOnce(&mut Store<State>, component::Instance) -> wasmtime::Result<T>,
+    ) -> Result<T, CallError> {
         let _slot = self.slots.take();
         let mut store = self.store();
-        let instance = match &self.pre {
-            Pre::V0_1_0(pre) => pre.instantiate(&mut store).map(Instance::V0_1_0),
-            Pre::V0_2_0(pre) => pre.instantiate(&mut store).map(Instance::V0_2_0),
-        };
-        match instance.and_then(|i| f(&mut store, i)) {
+        match self.pre.instance_pre().instantiate(&mut store).and_then(|i| f(&mut store, i)) {
             Ok(v) => Ok(v),
             Err(e) => Err(self.classify(&store, e)),
         }
     }
 
+    /// Runs `f` on a fresh instance through the bindings of its interface version.
+    fn call_bound<T>(
+        &self,
+        f: impl FnOnce(&mut Store<State>, Instance) -> wasmtime::Result<T>,
+    ) -> Result<T, CallError> {
+        self.call(|store, i| {
+            let bound = match self.pre.bound {
+                Bound::V0_1_0(_) => Instance::V0_1_0(v1::Plugin::new(&mut *store, &i)?),
+                Bound::V0_2_0(_) => Instance::V0_2_0(v2::Plugin::new(&mut *store, &i)?),
+            };
+            f(store, bound)
+        })
+    }
+
     fn describe(&self) -> Result<v1::PluginInfo, CallError> {
-        self.call(|store, i| match i {
+        self.call_bound(|store, i| match i {
             Instance::V0_1_0(p) => p.spindlelab_plugin_node().call_describe(store),
             Instance::V0_2_0(p) => p.spindlelab_plugin_node().call_describe(store),
         })
@@ -156,19 +191,23 @@ impl Runtime {
 
     /// The effects the plugin offers (none before interface 0.2.0).
     fn effects(&self) -> Result<Vec<v2::Effect>, CallError> {
-        match self.pre {
-            Pre::V0_1_0(_) => Ok(Vec::new()),
-            Pre::V0_2_0(_) => self.call(|store, i| match i {
+        match self.pre.bound {
+            Bound::V0_1_0(_) => Ok(Vec::new()),
+            Bound::V0_2_0(_) => self.call_bound(|store, i| match i {
                 Instance::V0_2_0(p) => p.spindlelab_plugin_effects().call_effects(store),
                 Instance::V0_1_0(_) => Ok(Vec::new()),
             }),
         }
     }
 
-    fn run(&self, kind: &str, params: &[NamedParam], inputs: &[Input]) -> Result<v1::Outcome, CallError> {
-        let result = self.call(|store, i| match i {
-            Instance::V0_1_0(p) => p.spindlelab_plugin_node().call_run(store, kind, params, inputs),
-            Instance::V0_2_0(p) => p.spindlelab_plugin_node().call_run(store, kind, params, inputs),
+    fn run(&self, kind: &str, params: &[NamedParam], inputs: &[lend::Input]) -> Result<v1::Outcome, CallError> {
+        type Run<'a> = (&'a str, &'a [NamedParam], &'a [lend::Input<'a>]);
+        let result = self.call(|store, i| {
+            let run = i
+                .get_func(&mut *store, self.pre.run)
+                .ok_or_else(|| wasmtime::format_err!("no function `run`"))?
+                .typed::<Run, (Result<v1::Outcome, String>,)>(&*store)?;
+            Ok(run.call(store, (kind, params, inputs))?.0)
         })?;
         result.map_err(CallError::Plugin)
     }
@@ -470,10 +509,10 @@ impl Node for PluginNode {
         let mut inputs = Vec::new();
         for port in &self.spec.inputs {
             for l in ctx.inputs_of(port.name) {
-                let value = v1::to_wit(&l.value).ok_or_else(|| {
+                let value = lend::value(&l.value).ok_or_else(|| {
                     NodeError::input(port.name, format!("a {} cannot cross to a plugin", l.value.port_type()))
                 })?;
-                inputs.push(Input { port: port.name.to_string(), label: l.label.clone(), value });
+                inputs.push(lend::Input { port: port.name, label: &l.label, value });
             }
         }
         let outcome = self.rt.run(self.spec.kind, &params, &inputs).map_err(|e| self.fail(self.rt.explain(e)))?;

@@ -9,7 +9,7 @@ wasmtime::component::bindgen!({
 use spindlelab::plugin::types as wit;
 use spindlelab_engine::value::{self as ev, PortType, UnitLabel};
 
-pub use wit::{Input, Material, NamedParam, Outcome, ParamType, ParamValue, PluginInfo, Port, Sensor};
+pub use wit::{Material, NamedParam, Outcome, ParamType, ParamValue, PluginInfo, Port, Sensor};
 
 pub fn port_type(t: wit::PortType) -> PortType {
     match t {
@@ -20,52 +20,6 @@ pub fn port_type(t: wit::PortType) -> PortType {
         wit::PortType::Table => PortType::Table,
         wit::PortType::Scalar => PortType::Scalar,
     }
-}
-
-/// The engine's value as the interface carries it; `None` for types the interface has not.
-pub fn to_wit(v: &ev::Value) -> Option<wit::Value> {
-    Some(match v {
-        ev::Value::TimeSeries(t) => wit::Value::TimeSeries(wit::TimeSeries {
-            sample_rate: t.sample_rate,
-            t0: t.t0,
-            channels: t
-                .channels
-                .iter()
-                .map(|c| wit::Channel { name: c.name.clone(), unit: c.unit.symbol.clone(), samples: c.samples.clone() })
-                .collect(),
-        }),
-        ev::Value::Frf(f) => wit::Value::Frf(wit::Frf {
-            freq_hz: f.freq_hz.clone(),
-            re: f.values.iter().map(|c| c.re).collect(),
-            im: f.values.iter().map(|c| c.im).collect(),
-            coherence: f.coherence.clone(),
-            unit: f.unit.symbol.clone(),
-            direction: f.direction.clone(),
-            speed_rpm: f.speed_rpm,
-            sensor: f.sensor.clone(),
-        }),
-        ev::Value::ModalModel(m) => wit::Value::ModalModel(wit::ModalModel {
-            modes: m
-                .modes
-                .iter()
-                .map(|m| wit::Mode { freq_hz: m.freq_hz, damping_ratio: m.damping_ratio, modal_mass: m.modal_mass })
-                .collect(),
-        }),
-        ev::Value::Lobes(l) => wit::Value::Lobes(wit::Lobes {
-            speed_rpm: l.speed_rpm.clone(),
-            depth_limit: l.depth_limit.clone(),
-            chatter_hz: l.chatter_hz.clone(),
-        }),
-        ev::Value::Table(t) => wit::Value::Table(wit::Table {
-            columns: t
-                .columns
-                .iter()
-                .map(|c| wit::Column { name: c.name.clone(), unit: c.unit.symbol.clone(), values: c.values.clone() })
-                .collect(),
-        }),
-        ev::Value::Scalar(s) => wit::Value::Scalar(wit::Scalar { value: s.value, unit: s.unit.symbol.clone() }),
-        ev::Value::ReceptanceSet(_) | ev::Value::BeamModel(_) | ev::Value::Substructure(_) => return None,
-    })
 }
 
 /// How many numbers a value holds (the output bound counts them).
