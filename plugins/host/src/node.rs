@@ -10,8 +10,7 @@ use spindlelab_engine::model::Recipe;
 use spindlelab_engine::node::{EffectParam, EffectSpec, Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
 use std::sync::Arc;
-use wasmtime::component;
-use wasmtime::component::{ComponentExportIndex, InstancePre};
+use wasmtime::component::{self, ComponentExportIndex, InstancePre};
 use wasmtime::{Engine, ResourceLimiter, Store, Trap};
 
 /// A counting semaphore over the host's instance slots.
