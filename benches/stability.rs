@@ -25,7 +25,12 @@ fn bench_stability(c: &mut Criterion) {
     let mill = Milling::new(4, 0.25, MillingDirection::Up, coeffs).expect("valid");
     let freqs: Vec<f64> = (1..=10_000).map(|i| 0.5 * i as f64).collect();
     let frf = model.receptance(&freqs).expect("valid");
-    let opts = ZoaOptions { lobes: 20, speeds_rpm: (1..=2000).map(|i| 10.0 * i as f64).collect(), keep_lobes: true };
+    let opts = ZoaOptions {
+        lobes: Some(20),
+        speeds_rpm: (1..=2000).map(|i| 10.0 * i as f64).collect(),
+        keep_lobes: true,
+        ..ZoaOptions::default()
+    };
     c.bench_function("stability/zoa/10000 lines 20 lobes", |b| {
         b.iter(|| zoa_lobes(black_box(&frf), &mill, &opts).expect("ok"))
     });

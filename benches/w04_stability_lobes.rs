@@ -27,7 +27,12 @@ fn bench_w04(c: &mut Criterion) {
     let coeffs = CuttingCoefficients::from_ks_beta(2000e6, 70f64.to_radians()).expect("valid");
     let mill = Milling::new(4, 0.25, MillingDirection::Up, coeffs).expect("valid");
     let freqs: Vec<f64> = (0..10_000).map(|i| 10.0 + (5000.0 - 10.0) * i as f64 / 9999.0).collect();
-    let opts = ZoaOptions { lobes: 20, speeds_rpm: (1000..=30_000).map(f64::from).collect(), keep_lobes: true };
+    let opts = ZoaOptions {
+        lobes: Some(20),
+        speeds_rpm: (1000..=30_000).map(f64::from).collect(),
+        keep_lobes: true,
+        ..ZoaOptions::default()
+    };
     let z = w04(&model, &mill, &freqs, &opts);
     eprintln!("b_lim,min {:.4} mm @ {:.0} Hz", z.min_depth_m * 1e3, z.min_depth_chatter_hz);
     c.bench_function("w04_stability_lobes/zoa 10000 lines 20 lobes 1 rpm grid", |b| {

@@ -74,11 +74,21 @@ pub enum FitError {
     Start(String),
 }
 
-/// Maps unit coordinates to parameter numbers and back.
+/// Maps unit coordinates to parameter numbers and back. The number is clamped into
+/// `[min, max]`: `exp(ln min + 1·(ln max − ln min))` rounds to an ulp past the bound
+/// (1e6 → 999999.9999999995, 1e3 → 999.9999999999998), which the recompile would refuse
+/// as outside the bounds, failing every evaluation on that face of the box.
 fn to_number(p: &FreeParam, z: f64) -> f64 {
-    match p.scale {
+    let x = match p.scale {
         FitScale::Linear => p.min + z * (p.max - p.min),
         FitScale::Log => (p.min.ln() + z * (p.max.ln() - p.min.ln())).exp(),
+    };
+    if z <= 0.0 {
+        p.min
+    } else if z >= 1.0 {
+        p.max
+    } else {
+        x.clamp(p.min, p.max)
     }
 }
 

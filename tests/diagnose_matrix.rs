@@ -167,7 +167,11 @@ fn run(case: &Case) -> Outcome_ {
         .unwrap_or_else(|e| panic!("{}: {e}", case.name));
     let named: Vec<&'static str> = d.effects.iter().map(|e| e.name).collect();
     let (kind, right) = if let Some((dir_name, fr, _, _)) = case.resonance {
-        let located = d.unexplained.iter().any(|u| u.direction == dir_name && (u.near_hz - fr).abs() <= 0.1 * fr);
+        let located = d
+            .unexplained
+            .iter()
+            .filter_map(|u| u.frf())
+            .any(|u| u.direction == dir_name && (u.near_hz - fr).abs() <= 0.1 * fr);
         ("out of library", d.verdict == VERDICT_UNEXPLAINED && located)
     } else if case.effects.is_empty() {
         ("control", d.verdict == VERDICT_NONE)

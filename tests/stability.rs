@@ -68,7 +68,8 @@ fn zoa_node_matches_closed_form_and_kernel() {
     let mill =
         Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
     let tool = ToolPointFrf::new(freqs.clone(), x, y).unwrap();
-    let opts = ZoaOptions { lobes: 10, speeds_rpm: lobes.speed_rpm.clone(), keep_lobes: false };
+    let opts =
+        ZoaOptions { lobes: Some(10), speeds_rpm: lobes.speed_rpm.clone(), keep_lobes: false, ..ZoaOptions::default() };
     let z = stability::zoa_lobes(&tool, &mill, &opts).unwrap();
     assert_eq!(lobes.speed_rpm.len(), 8001);
     for (a, b) in lobes.depth_limit.iter().zip(&z.limit.depth_m) {
@@ -378,7 +379,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let zoa = stability::zoa_lobes(
         &h,
         &mill,
-        &ZoaOptions { lobes: 10, speeds_rpm: node.speed_rpm.clone(), keep_lobes: false },
+        &ZoaOptions { lobes: Some(10), speeds_rpm: node.speed_rpm.clone(), keep_lobes: false, ..ZoaOptions::default() },
     )
     .unwrap();
     let sd_min = node.depth_limit.iter().copied().fold(f64::INFINITY, f64::min);

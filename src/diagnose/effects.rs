@@ -249,6 +249,11 @@ impl Effect for SensorDelay {
         })?;
         Ok(free)
     }
+    /// A phase slope wraps the phase at the top of the band several times over its range:
+    /// a scan of the one parameter keeps the search out of a wrapped well.
+    fn starts(&self, _free: &[Free]) -> usize {
+        16
+    }
     fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
         let mut m = Map::new();
         m.insert("phase_slope_deg_per_khz".into(), json!(value(values, "sensor_phase_slope")));
@@ -287,6 +292,11 @@ impl Effect for MassLoading {
             ))
         })?;
         Ok(free)
+    }
+    /// A few grams on a light tool move its mode by several half-power bandwidths, and the
+    /// residual is flat until the peaks overlap: a dense scan of the one parameter finds the well.
+    fn starts(&self, _free: &[Free]) -> usize {
+        32
     }
     fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
         let mut m = Map::new();
@@ -401,8 +411,9 @@ impl Effect for FluteReducedStiffness {
         declare(r, &free)?;
         Ok(free)
     }
+    /// The equivalent diameter moves the tool modes by several bandwidths over its range.
     fn starts(&self, free: &[Free]) -> usize {
-        8 * free.len()
+        24 * free.len()
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let fluted = Self::fluted(roles, c);

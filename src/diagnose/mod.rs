@@ -8,12 +8,13 @@
 //! 2. **Explain.** Every effect of the library ([`effects`]) is added to the recipe as a
 //!    transform with bounded parameters and fitted to the measured FRFs by the fit driver.
 //! 3. **Select.** Each candidate is scored by BIC: the deviance `Σ 2 n_eff ratio²` (a χ²
-//!    with 2 n_eff degrees of freedom per file at the floor), plus `2 ln((1−ε)/ε)` per
-//!    misclassified trial (trials as Bernoulli outcomes with error rate ε), plus
-//!    `k ln n` for k parameters. An effect is named only when it beats the model without it
-//!    by [`BIC_STRONG`] and brings every file to the floor; pairs are tried when no single
-//!    effect does. What nothing explains is reported as an unexplained discrepancy with
-//!    its place, never forced onto a name.
+//!    with 2 n_eff degrees of freedom per file at the floor), plus the trials' deviance
+//!    under the probit likelihood of `trials.score`, plus `k ln n` for k parameters. An
+//!    effect is named when it beats the model without it by [`BIC_STRONG`] and brings every
+//!    file to the floor; pairs are tried when no single effect does; a candidate that leaves
+//!    only narrow bands off the floor is named beside them ([`explains_outside_bands`]).
+//!    What nothing explains is reported with its place — files and trials — never forced
+//!    onto a name.
 //! 4. **Add** and **show.** The named effects are written into the recipe at their fitted
 //!    values (`diagnosed.yaml`), which runs again for the gap after.
 
@@ -43,13 +44,6 @@ pub const Z_DISCREPANT: f64 = 5.0;
 /// "Very strong" evidence on the Kass–Raftery scale: the BIC difference an effect must
 /// win by to be named.
 pub const BIC_STRONG: f64 = 10.0;
-/// Misclassification rate of a right model on trials (a trial near the boundary, a
-/// mislabelled cut); sets what one misclassified trial costs.
-pub const TRIAL_ERROR_RATE: f64 = 0.02;
-/// While a cutting effect is fitted to the trials, trials closer than this (in ln depth)
-/// to the boundary count against it, which centres the boundary between the stable and the
-/// chattering cuts instead of leaving it at the first point that classifies them all.
-pub const TRIAL_MARGIN: f64 = 0.15;
 /// A file whose noise floor exceeds this relative level carries no usable signal.
 pub const MAX_NOISE_FLOOR: f64 = 0.5;
 
@@ -78,6 +72,13 @@ pub struct FileGap {
     pub max_discrepancy_hz: f64,
     /// Where the noise-weighted residual is above half its peak, around the peak (Hz).
     pub band_hz: [f64; 2],
+    /// The noise-weighted residual's energy `|r|²` per measured line, with the line's frequency (Hz); it sums
+    /// to `ratio²`.
+    #[serde(skip)]
+    pub residual: Vec<(f64, f64)>,
+    /// The model and the measured FRF the gap compares, for the pictures.
+    #[serde(skip)]
+    pub frfs: Option<(Arc<Value>, Arc<Value>)>,
 }
 
 impl FileGap {
@@ -88,6 +89,31 @@ impl FileGap {
     pub fn discrepant(&self) -> bool {
         self.z() > Z_DISCREPANT
     }
+    /// Standard deviations of the residual outside `band` (Hz) above the floor: the lines outside carry
+    /// `ratio_out² = Σ_out |r|² · n/n_out`, which at the floor is `1 ± 1/√(n_eff n_out/n)`.
+    pub fn z_outside(&self, band: [f64; 2]) -> f64 {
+        let n = self.residual.len();
+        let out: Vec<f64> = self.residual.iter().filter(|(f, _)| *f < band[0] || *f > band[1]).map(|r| r.1).collect();
+        if n == 0 || out.is_empty() {
+            return 0.0;
+        }
+        let share = out.len() as f64 / n as f64;
+        let ratio2 = out.iter().sum::<f64>() / share;
+        (ratio2 - 1.0) * (self.n_eff * share).sqrt()
+    }
+}
+
+/// A cutting trial the model's lobes classify wrong.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrialMiss {
+    pub speed_rpm: f64,
+    pub depth_mm: f64,
+    /// What the cut did: `stable` or `chatter`.
+    pub outcome: &'static str,
+    /// The diagram's limit at that speed, mm.
+    pub limit_mm: f64,
+    /// `ln(depth/limit)`: how far the trial lies from the lobe, on the wrong side.
+    pub margin: f64,
 }
 
 /// A model evaluated against the measurements.
@@ -99,6 +125,11 @@ pub struct Evaluation {
     /// The trials' speeds (rpm), ascending and distinct.
     #[serde(skip)]
     pub trial_speeds_rpm: Vec<f64>,
+    /// The trials the lobes classify wrong, in the file's order.
+    #[serde(skip)]
+    pub wrong_trials: Vec<TrialMiss>,
+    /// `−2 ln L` of the trials under the probit likelihood, when the recipe scores trials.
+    pub trial_deviance: Option<f64>,
 }
 
 impl Evaluation {
@@ -106,9 +137,10 @@ impl Evaluation {
     pub fn deviance(&self) -> f64 {
         self.files.iter().map(|f| 2.0 * f.n_eff * f.ratio * f.ratio).sum()
     }
+    /// `−2 ln L` of the trials: the probit likelihood of `trials.score` (a cut chatters with
+    /// probability `ε + (1 − 2ε) Φ(ln(depth/limit)/σ)`, σ = 10 %, ε = 2 %).
     fn trial_cost(&self) -> f64 {
-        let per = 2.0 * ((1.0 - TRIAL_ERROR_RATE) / TRIAL_ERROR_RATE).ln();
-        self.trials.map_or(0.0, |(_, m)| per * m as f64)
+        self.trial_deviance.unwrap_or(0.0)
     }
     fn observations(&self) -> f64 {
         let n: f64 = self.files.iter().map(|f| 2.0 * f.n_eff).sum::<f64>() + self.trials.map_or(0.0, |t| t.0 as f64);
@@ -148,14 +180,41 @@ pub struct Candidate {
     values: Vec<(String, f64)>,
 }
 
-/// A discrepancy left without a name.
+/// A measured FRF the model leaves above its noise floor.
 #[derive(Debug, Clone, Serialize)]
-pub struct Unexplained {
+pub struct FrfDiscrepancy {
     pub direction: String,
     pub speed_rpm: f64,
     pub near_hz: f64,
     pub band_hz: [f64; 2],
     pub ratio: f64,
+}
+
+/// A discrepancy left without a name: where it is, never forced onto an effect.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Unexplained {
+    /// A measured FRF off the floor: its direction, speed and the band of the largest discrepancy.
+    Frf(FrfDiscrepancy),
+    /// A cutting trial the diagnosed model still classifies wrong.
+    Trial(TrialMiss),
+}
+
+impl Unexplained {
+    /// The FRF discrepancy, if this is one.
+    pub fn frf(&self) -> Option<&FrfDiscrepancy> {
+        match self {
+            Unexplained::Frf(f) => Some(f),
+            Unexplained::Trial(_) => None,
+        }
+    }
+    /// The trial, if this is one.
+    pub fn trial(&self) -> Option<&TrialMiss> {
+        match self {
+            Unexplained::Trial(t) => Some(t),
+            Unexplained::Frf(_) => None,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -203,11 +262,36 @@ pub struct Diagnosis {
     pub seconds: f64,
     #[serde(skip)]
     pub diagnosed_recipe: String,
+    /// What the pictures beside `diagnosis.md` draw.
+    #[serde(skip)]
+    pub pictures: Pictures,
+}
+
+/// One measured file's picture: its name, the measurement, the model before and (when
+/// effects were added) after.
+#[derive(Debug, Clone)]
+pub struct FilePicture {
+    pub file: String,
+    pub measured: Arc<Value>,
+    pub before: Arc<Value>,
+    pub after: Option<Arc<Value>>,
+}
+
+/// The values behind the diagnosis's pictures.
+#[derive(Debug, Clone, Default)]
+pub struct Pictures {
+    /// Per measured file: the measurement with the model before and after.
+    pub files: Vec<FilePicture>,
+    /// The full stability diagram before and after, with the trials' verdicts of each.
+    pub lobes_before: Option<(Arc<Value>, Arc<Value>)>,
+    pub lobes_after: Option<(Arc<Value>, Arc<Value>)>,
 }
 
 pub const VERDICT_EFFECTS: &str = "effects";
 pub const VERDICT_NONE: &str = "no significant discrepancy";
 pub const VERDICT_UNEXPLAINED: &str = "unexplained discrepancy";
+/// Named effects explain part of the discrepancy; `unexplained` lists the rest.
+pub const VERDICT_PARTIAL: &str = "effects and an unexplained discrepancy";
 
 /// Compiles a recipe text as if it were the file at `path` (data files resolve beside it).
 fn compile_text(
@@ -247,6 +331,33 @@ fn band_around(freq: &[f64], r: &[num_complex::Complex64]) -> [f64; 2] {
     [freq[lo], freq[hi]]
 }
 
+/// Whether `after` leaves only narrow discrepancies that `before` did not already have alone: every file of
+/// `after` is at the floor outside its band of largest discrepancy (widened by its own width, at most a third
+/// of the measured span), and some file of `before` was off the floor outside those bands. The test of a known
+/// effect beside an unknown resonance: the effect must have removed a discrepancy the resonance cannot make.
+fn explains_outside_bands(before: &Evaluation, after: &Evaluation) -> bool {
+    if after.at_floor() || before.files.len() != after.files.len() {
+        return false;
+    }
+    let mut bands = Vec::with_capacity(after.files.len());
+    for f in &after.files {
+        if !f.discrepant() {
+            bands.push([f64::INFINITY, f64::NEG_INFINITY]);
+            continue;
+        }
+        let [lo, hi] = f.band_hz;
+        let (Some(first), Some(last)) = (f.residual.first(), f.residual.last()) else { return false };
+        let widen = (hi - lo).max(0.02 * 0.5 * (lo + hi));
+        let band = [lo - widen, hi + widen];
+        let narrow = band[1] - band[0] <= (last.0 - first.0) / 3.0;
+        if !narrow || f.z_outside(band) > Z_DISCREPANT {
+            return false;
+        }
+        bands.push(band);
+    }
+    before.files.iter().zip(&bands).any(|(f, &band)| f.z_outside(band) > Z_DISCREPANT)
+}
+
 /// Runs the gaps and the trials of a compiled recipe in memory.
 fn evaluate(
     c: &Compiled,
@@ -271,10 +382,18 @@ fn evaluate(
             let Some(Value::Table(t)) = out.get("summary").map(|v| v.as_ref()) else {
                 return Err(format!("`{}` gave no summary", c.graph.instances[i].id));
             };
-            let band = match out.get("residual").map(|v| v.as_ref()) {
-                Some(Value::Frf(r)) => band_around(&r.freq_hz, &r.values),
-                _ => [f64::NAN; 2],
+            let (band, residual) = match out.get("residual").map(|v| v.as_ref()) {
+                Some(Value::Frf(r)) => (
+                    band_around(&r.freq_hz, &r.values),
+                    r.freq_hz.iter().zip(&r.values).map(|(f, v)| (*f, v.norm_sqr())).collect(),
+                ),
+                _ => ([f64::NAN; 2], vec![]),
             };
+            let input = |port: &str| -> Option<Arc<Value>> {
+                let (producer, out_port) = c.graph.instances[i].inputs.get(port)?.first()?;
+                result.outcomes[*producer].outputs()?.get(out_port).cloned()
+            };
+            let frfs = input("model").zip(input("measured"));
             let label = &c.graph.instances[i].label;
             let file = label
                 .split(", ")
@@ -296,25 +415,47 @@ fn evaluate(
                 n_eff: table_value(t, "n_eff"),
                 max_discrepancy_hz: table_value(t, "max_discrepancy_hz"),
                 band_hz: band,
+                residual,
+                frfs,
             });
         }
     }
     let mut trials = None;
     let mut trial_speeds = Vec::new();
+    let mut wrong_trials = Vec::new();
+    let mut trial_deviance = None;
     if let Some(step) = &roles.trials {
         let i = c.graph.by_step[step][0];
         let out = outputs(i)?;
+        if let Some(Value::Scalar(d)) = out.get("deviance").map(|v| v.as_ref()) {
+            trial_deviance = Some(d.value);
+        }
         if let Some(Value::Table(t)) = out.get("verdicts").map(|v| v.as_ref()) {
-            let right = t.columns.iter().find(|c| c.name == "right").map(|c| c.values.clone()).unwrap_or_default();
+            let column =
+                |name: &str| t.columns.iter().find(|c| c.name == name).map(|c| c.values.clone()).unwrap_or_default();
+            let right = column("right");
             let scored = right.iter().filter(|r| **r >= 0.0).count();
-            let wrong = right.iter().filter(|r| **r == 0.0).count();
-            trials = Some((scored, wrong));
-            trial_speeds = t.columns.iter().find(|c| c.name == "speed").map(|c| c.values.clone()).unwrap_or_default();
+            let (speed, depth, outcome, limit) = (column("speed"), column("depth"), column("outcome"), column("limit"));
+            for (k, _) in right.iter().enumerate().filter(|(_, r)| **r == 0.0) {
+                let at = |v: &[f64]| v.get(k).copied().unwrap_or(f64::NAN);
+                wrong_trials.push(TrialMiss {
+                    speed_rpm: at(&speed),
+                    depth_mm: at(&depth) * 1e3,
+                    outcome: if at(&outcome) == 1.0 { "chatter" } else { "stable" },
+                    limit_mm: at(&limit) * 1e3,
+                    margin: (at(&depth) / at(&limit)).ln(),
+                });
+            }
+            trials = Some((scored, wrong_trials.len()));
+            trial_speeds = speed;
             trial_speeds.sort_by(f64::total_cmp);
             trial_speeds.dedup();
         }
     }
-    Ok((Evaluation { files, trials, trial_speeds_rpm: trial_speeds }, result.memo(&c.graph)))
+    Ok((
+        Evaluation { files, trials, trial_speeds_rpm: trial_speeds, wrong_trials, trial_deviance },
+        result.memo(&c.graph),
+    ))
 }
 
 /// The text to evaluate: the stability diagram at the trials' speeds only (each speed's
@@ -344,6 +485,31 @@ fn trial_speeds(c: &Compiled, roles: &Roles) -> Vec<f64> {
     speeds
 }
 
+/// The full stability diagram of a recipe text (its own speeds, not the trials') and the
+/// trials' verdicts on it, for the pictures; `None` when the recipe scores no trials.
+fn diagram(
+    r: &RecipeText,
+    path: &Path,
+    roles: &Roles,
+    registry: &Registry,
+    memo: Arc<Memo>,
+) -> Option<(Arc<Value>, Arc<Value>)> {
+    let trials = roles.trials.as_ref()?;
+    let c = compile_text(r, path, &[], registry).ok()?;
+    let opts = RunOptions {
+        use_cache: false,
+        memo: Some(memo),
+        targets: Some(vec![trials.clone()]),
+        ..RunOptions::new(std::env::temp_dir())
+    };
+    let result = exec::execute(&c.recipe, &c.graph, registry, &opts, &|_, _| {});
+    let i = *c.graph.by_step.get(trials)?.first()?;
+    let verdicts = result.outcomes[i].outputs()?.get("verdicts")?.clone();
+    let (producer, port) = c.graph.instances[i].inputs.get("lobes")?.first()?;
+    let lobes = result.outcomes[*producer].outputs()?.get(port)?.clone();
+    Some((lobes, verdicts))
+}
+
 /// The fit block for `free`, minimising `objective`.
 fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -> String {
     let mut s = String::from("fit:\n  free:\n");
@@ -353,7 +519,9 @@ fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -
     }
     let obj: Vec<String> = objective.iter().map(|o| format!("\"{o}\"")).collect();
     s.push_str(&format!("  objective: [{}]\n  method: {method}\n  starts: {starts}\n", obj.join(", ")));
-    s.push_str(&format!("  max_evaluations: {}\n", (100 * free.len()).max(200)));
+    // The sampled starts come on top of what the local searches may take; those stop on
+    // convergence, the count only bounds a search that never settles.
+    s.push_str(&format!("  max_evaluations: {}\n", starts + (100 * free.len()).max(200)));
     s
 }
 
@@ -434,7 +602,9 @@ fn try_candidate(
     }
     let cutting = effects.iter().all(|e| e.scope() == Scope::Cutting);
     let (objective, method) = match (cutting, &ctx.roles.trials) {
-        (true, Some(t)) => (vec![format!("@{t}.misfit")], "nelder-mead"),
+        // The trials' likelihood, and the hinge distance of the wrong ones, which still
+        // slopes where the probit has saturated (a boundary far from every trial).
+        (true, Some(t)) => (vec![format!("@{t}.deviance"), format!("@{t}.misfit")], "nelder-mead"),
         _ => (ctx.roles.gaps.iter().map(|g| format!("@{}.residual", g.step)).collect(), "least-squares"),
     };
     let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(&mine)).max().unwrap_or(0) } else { 0 };
@@ -446,14 +616,6 @@ fn try_candidate(
         }
     };
     let mut fitting = text.clone();
-    if cutting && let Some(trials) = &ctx.roles.trials {
-        // A margin that centres the boundary between the stable and the chattering cuts.
-        let margin = format!("{} %", TRIAL_MARGIN * 100.0);
-        if let Err(e) = fitting.set_key(&edit::path(&["steps", trials, "params"]), "margin", &margin) {
-            c.skipped = Some(e.to_string());
-            return c;
-        }
-    }
     if let Err(e) = fitting.append(&fit_block(&mine, &objective, method, starts)) {
         c.skipped = Some(e.to_string());
         return c;
@@ -621,6 +783,23 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 chosen = None;
             }
         }
+        if chosen.is_none() {
+            // A known effect beside an unknown one: the best candidate that brings every file to the floor
+            // outside the narrow bands it leaves, where the model without it was off.
+            let partial = |c: &&Candidate| {
+                c.skipped.is_none()
+                    && c.delta_bic > BIC_STRONG
+                    && c.evaluation.as_ref().is_some_and(|after| explains_outside_bands(&baseline, after))
+            };
+            let single = fitted.iter().filter(partial).min_by(|a, b| a.bic.total_cmp(&b.bic));
+            let pair = candidates
+                .iter()
+                .filter(|c| c.effects.len() > 1)
+                .filter(partial)
+                .filter(|c| single.is_none_or(|s| s.bic - c.bic > BIC_STRONG))
+                .min_by(|a, b| a.bic.total_cmp(&b.bic));
+            chosen = pair.or(single).cloned();
+        }
         candidates.splice(0..0, fitted);
         if let Some(ch) = &chosen {
             for name in &ch.effects {
@@ -662,61 +841,56 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
             .map_err(|e| recipe_err(format!("the diagnosed recipe does not run: {e}")))?
     };
 
-    let unexplained: Vec<Unexplained> = after
+    let mut unexplained: Vec<Unexplained> = after
         .files
         .iter()
         .filter(|f| f.discrepant())
-        .map(|f| Unexplained {
-            direction: f.direction.clone(),
-            speed_rpm: f.speed_rpm,
-            near_hz: f.max_discrepancy_hz,
-            band_hz: f.band_hz,
-            ratio: f.ratio,
+        .map(|f| {
+            Unexplained::Frf(FrfDiscrepancy {
+                direction: f.direction.clone(),
+                speed_rpm: f.speed_rpm,
+                near_hz: f.max_discrepancy_hz,
+                band_hz: f.band_hz,
+                ratio: f.ratio,
+            })
         })
         .collect();
-    let trials_unexplained = after.misclassified() >= min_fixed;
-    let verdict = if !unexplained.is_empty() || trials_unexplained {
-        VERDICT_UNEXPLAINED
-    } else if named.is_empty() {
-        VERDICT_NONE
-    } else {
-        VERDICT_EFFECTS
+    // Trials that stay wrong are listed one by one: where the lobes and the cuts disagree.
+    if after.misclassified() >= min_fixed {
+        unexplained.extend(after.wrong_trials.iter().cloned().map(Unexplained::Trial));
+    }
+    let verdict = match (unexplained.is_empty(), named.is_empty()) {
+        (false, true) => VERDICT_UNEXPLAINED,
+        (false, false) => VERDICT_PARTIAL,
+        (true, true) => VERDICT_NONE,
+        (true, false) => VERDICT_EFFECTS,
     };
-    // Effects are named only when they leave nothing unexplained; otherwise they are
-    // evidence among the candidates.
-    let effects: Vec<NamedEffect> = if verdict == VERDICT_EFFECTS {
-        named
-            .iter()
-            .map(|e| {
-                let c = candidates.iter().rev().find(|c| c.effects.contains(&e.name()) && c.skipped.is_none());
-                let uncertainty: Map<String, Json> = c
-                    .map(|c| {
-                        c.fitted
-                            .iter()
-                            .map(|p| {
-                                (
-                                    p.name.clone(),
-                                    serde_json::json!({ "value": p.value, "sigma": p.sigma, "unit": p.unit }),
-                                )
-                            })
-                            .collect()
-                    })
-                    .unwrap_or_default();
-                NamedEffect {
-                    name: e.name(),
-                    params: Json::Object(e.report(&named_values, &roles, &compiled)),
-                    uncertainty: Json::Object(uncertainty),
-                    evidence: serde_json::json!({
-                        "delta_bic": c.map(|c| c.delta_bic),
-                        "scope": e.scope(),
-                        "description": e.description(),
-                    }),
-                }
-            })
-            .collect()
-    } else {
-        vec![]
-    };
+    let effects: Vec<NamedEffect> = named
+        .iter()
+        .map(|e| {
+            let c = candidates.iter().rev().find(|c| c.effects.contains(&e.name()) && c.skipped.is_none());
+            let uncertainty: Map<String, Json> = c
+                .map(|c| {
+                    c.fitted
+                        .iter()
+                        .map(|p| {
+                            (p.name.clone(), serde_json::json!({ "value": p.value, "sigma": p.sigma, "unit": p.unit }))
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            NamedEffect {
+                name: e.name(),
+                params: Json::Object(e.report(&named_values, &roles, &compiled)),
+                uncertainty: Json::Object(uncertainty),
+                evidence: serde_json::json!({
+                    "delta_bic": c.map(|c| c.delta_bic),
+                    "scope": e.scope(),
+                    "description": e.description(),
+                }),
+            }
+        })
+        .collect();
     let files = baseline
         .files
         .iter()
@@ -737,7 +911,24 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         misclassified_before: m,
         misclassified_after: after.misclassified(),
     });
-    let header = diagnosed_header(&named, &named_values, &roles, &compiled, verdict);
+    let mut pictures = Pictures {
+        files: baseline
+            .files
+            .iter()
+            .zip(&after.files)
+            .filter_map(|(b, a)| {
+                let (model, measured) = b.frfs.clone()?;
+                let model_after = if named.is_empty() { None } else { a.frfs.as_ref().map(|f| f.0.clone()) };
+                Some(FilePicture { file: b.file.clone(), measured, before: model, after: model_after })
+            })
+            .collect(),
+        ..Pictures::default()
+    };
+    pictures.lobes_before = diagram(&base, path, &roles, registry, Arc::clone(&ctx.memo));
+    if !named.is_empty() {
+        pictures.lobes_after = diagram(&diagnosed, path, &roles, registry, Arc::clone(&ctx.memo));
+    }
+    let header = diagnosed_header(&named, &named_values, &roles, &compiled, verdict, &effects);
     Ok(Diagnosis {
         verdict,
         effects,
@@ -747,6 +938,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         recipe: shown,
         seconds: t0.elapsed().as_secs_f64(),
         diagnosed_recipe: format!("{header}{}", diagnosed.text),
+        pictures,
     })
 }
 
@@ -756,12 +948,20 @@ fn diagnosed_header(
     roles: &Roles,
     c: &Compiled,
     verdict: &str,
+    effects: &[NamedEffect],
 ) -> String {
     let mut s = format!("# Diagnosed by spindlelab: {verdict}.\n");
     for e in named {
         s.push_str(&format!("#   {}: {}\n", e.name(), e.description()));
         let p = Json::Object(e.report(values, roles, c));
         s.push_str(&format!("#     {}\n", readable(&p)));
+        if let Some(u) = effects.iter().find(|n| n.name == e.name()).and_then(|n| n.uncertainty.as_object()) {
+            for (name, p) in u {
+                let unit = p["unit"].as_str().filter(|u| !u.is_empty()).map_or(String::new(), |u| format!(" {u}"));
+                let v = value_pm(p["value"].as_f64().unwrap_or(f64::NAN), p["sigma"].as_f64());
+                s.push_str(&format!("#     fitted {name} = {v}{unit}\n"));
+            }
+        }
     }
     if named.is_empty() {
         s.push_str("#   Nothing was added: the recipe below is the input.\n");
@@ -785,6 +985,41 @@ fn readable(v: &Json) -> String {
     }
 }
 
+/// `value ± sigma` with sigma to two significant digits and the value rounded to the same
+/// decimal place (`0.012346 ± 0.00056` → `0.01235 ± 0.00056`, `4.0123e8 ± 1.2e7` →
+/// `4.01e8 ± 1.2e7`); the value alone to five significant digits without a usable σ.
+pub fn value_pm(value: f64, sigma: Option<f64>) -> String {
+    let Some(sigma) = sigma.filter(|s| s.is_finite() && *s > 0.0 && value.is_finite()) else {
+        return format!("{value:.5}");
+    };
+    // The decimal place of σ's second significant digit.
+    let place = sigma.log10().floor() as i32 - 1;
+    if (-9..=0).contains(&place) && value.abs() < 1e6 {
+        let decimals = (-place) as usize;
+        return format!("{value:.decimals$} ± {sigma:.decimals$}");
+    }
+    let exponent = if value == 0.0 { place + 1 } else { value.abs().log10().floor() as i32 };
+    let digits = (exponent - place).max(0) as usize;
+    format!("{value:.digits$e} ± {sigma:.1e}")
+}
+
+/// The pictures `write` puts beside `diagnosis.md`, with what each shows.
+fn pictures_listed(d: &Diagnosis) -> Vec<(String, String)> {
+    let mut v: Vec<(String, String)> = d
+        .pictures
+        .files
+        .iter()
+        .map(|p| (picture_name(&p.file), format!("`{}`: measured, model before and after", p.file)))
+        .collect();
+    if d.pictures.lobes_before.is_some() {
+        v.push((
+            "lobes.svg".into(),
+            "stability lobes before and after, with the trials (misclassified ones ringed)".into(),
+        ));
+    }
+    v
+}
+
 /// The readable summary, `diagnosis.md`.
 pub fn markdown(d: &Diagnosis) -> String {
     let mut s = format!("# Diagnosis of `{}`\n\n**Verdict: {}.**\n\n", d.recipe, d.verdict);
@@ -795,15 +1030,46 @@ pub fn markdown(d: &Diagnosis) -> String {
             e.evidence["description"].as_str().unwrap_or(""),
             readable(&e.params)
         ));
+        if let Some(u) = e.uncertainty.as_object()
+            && !u.is_empty()
+        {
+            let fitted: Vec<String> = u
+                .iter()
+                .map(|(name, p)| {
+                    let v = p["value"].as_f64().unwrap_or(f64::NAN);
+                    let unit = p["unit"].as_str().unwrap_or("");
+                    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+                    format!("{name} = {}{unit}", value_pm(v, p["sigma"].as_f64()))
+                })
+                .collect();
+            s.push_str(&format!("  - fitted: {}\n", fitted.join(", ")));
+        }
         if let Some(b) = e.evidence["delta_bic"].as_f64() {
             s.push_str(&format!("  - evidence: BIC {b:.1} better than the model without it\n"));
         }
     }
     for u in &d.unexplained {
-        s.push_str(&format!(
-            "- unexplained in {} at {} rpm near {:.0} Hz (band {:.0}–{:.0} Hz), gap ratio {:.2}\n",
-            u.direction, u.speed_rpm, u.near_hz, u.band_hz[0], u.band_hz[1], u.ratio
-        ));
+        match u {
+            Unexplained::Frf(u) => s.push_str(&format!(
+                "- unexplained in {} at {} rpm near {:.0} Hz (band {:.0}–{:.0} Hz), gap ratio {:.2}\n",
+                u.direction, u.speed_rpm, u.near_hz, u.band_hz[0], u.band_hz[1], u.ratio
+            )),
+            Unexplained::Trial(t) => s.push_str(&format!(
+                "- unexplained trial at {} rpm, {:.3} mm: {} where the lobes give {:.3} mm ({:+.0} % from the limit)\n",
+                t.speed_rpm,
+                t.depth_mm,
+                t.outcome,
+                t.limit_mm,
+                (t.margin.exp() - 1.0) * 100.0
+            )),
+        }
+    }
+    let drawn = pictures_listed(d);
+    if !drawn.is_empty() {
+        s.push_str("\n## Pictures\n\n");
+        for (name, what) in drawn {
+            s.push_str(&format!("- [{what}]({name})\n"));
+        }
     }
     s.push_str("\n## Gap per measurement (ratio = rel. L2 / noise floor; about 1 at the floor)\n\n| file | dir | speed (rpm) | noise floor | ratio before | ratio after |\n|---|---|---|---|---|---|\n");
     for f in &d.gap.files {
@@ -841,6 +1107,50 @@ pub fn markdown(d: &Diagnosis) -> String {
     s
 }
 
+/// The picture of a measured file: `fit_<file stem>.svg`.
+fn picture_name(file: &str) -> String {
+    let stem = Path::new(file).file_stem().and_then(|s| s.to_str()).unwrap_or(file);
+    let safe: String =
+        stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
+    format!("fit_{safe}.svg")
+}
+
+/// The pictures beside `diagnosis.md`: per measured file the measurement with the model
+/// before and after (magnitude and phase), and the lobes before and after with the trials.
+/// A picture that cannot be drawn is left out; the numbers are in `diagnosis.json`.
+pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
+    use crate::engine::plot::{self, Layer, PlotFormat};
+    let mut out = Vec::new();
+    for FilePicture { file, measured, before, after } in &d.pictures.files {
+        fn layer<'a>(name: &str, v: &'a Arc<Value>) -> Layer<'a> {
+            Layer { name: name.to_string(), value: v.as_ref(), coord: None }
+        }
+        let main = [layer("measured", measured)];
+        let mut with = vec![layer("model before", before)];
+        if let Some(a) = after {
+            with.push(layer("model after", a));
+        }
+        if let Ok(bytes) = plot::render(PlotFormat::Svg, &format!("{file}: measured and model"), None, &main, &with) {
+            out.push((picture_name(file), bytes));
+        }
+    }
+    if let Some((lobes, verdicts)) = &d.pictures.lobes_before {
+        let mut main = vec![Layer { name: "model before".into(), value: lobes.as_ref(), coord: None }];
+        let mut with = vec![];
+        if let Some((after, _)) = &d.pictures.lobes_after {
+            main.push(Layer { name: "model after".into(), value: after.as_ref(), coord: None });
+        }
+        let trials = d.pictures.lobes_after.as_ref().map_or(verdicts, |(_, v)| v);
+        with.push(Layer { name: "trials".into(), value: trials.as_ref(), coord: None });
+        if let Ok(bytes) =
+            plot::render(PlotFormat::Svg, "stability lobes before and after, with the trials", None, &main, &with)
+        {
+            out.push(("lobes.svg".to_string(), bytes));
+        }
+    }
+    out
+}
+
 /// Writes `diagnosis.json`, `diagnosis.md` and `diagnosed.yaml` into `out`, each whole or
 /// not at all.
 pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
@@ -852,6 +1162,9 @@ pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
         [("diagnosis.json", json), ("diagnosis.md", markdown(d)), ("diagnosed.yaml", d.diagnosed_recipe.clone())]
     {
         staged.write(name, text.as_bytes()).map_err(DiagnoseError::Output)?;
+    }
+    for (name, bytes) in pictures(d) {
+        staged.write(&name, &bytes).map_err(DiagnoseError::Output)?;
     }
     staged.commit().map_err(DiagnoseError::Output)
 }
@@ -906,4 +1219,22 @@ pub fn with_effects(
         }
     }
     Ok(r.text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::value_pm;
+
+    /// Rounded to σ: σ to two significant digits, the value to the same place.
+    #[test]
+    fn fitted_values_are_written_rounded_to_their_sigma() {
+        assert_eq!(value_pm(0.012346, Some(0.00056)), "0.01235 ± 0.00056");
+        assert_eq!(value_pm(-13.8412, Some(0.231)), "-13.84 ± 0.23");
+        assert_eq!(value_pm(4.0123e8, Some(1.2e7)), "4.01e8 ± 1.2e7");
+        assert_eq!(value_pm(2.5, Some(3.0)), "2.5 ± 3.0");
+        assert_eq!(value_pm(1234.4, Some(56.0)), "1234 ± 56");
+        assert_eq!(value_pm(123456.0, Some(1234.0)), "1.235e5 ± 1.2e3");
+        assert_eq!(value_pm(7.0, None), "7.00000");
+        assert_eq!(value_pm(7.0, Some(f64::NAN)), "7.00000");
+    }
 }

@@ -277,7 +277,7 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
     let mut chatter = Panel::new(Axis::linear("spindle speed [rpm]"), Axis::linear("chatter frequency [Hz]"));
     chatter.weight = 2;
     let mut color = 0;
-    let mut trials: Vec<(String, Vec<[f64; 4]>)> = Vec::new();
+    let mut trials: Vec<(String, Vec<[f64; 5]>)> = Vec::new();
     for (k, l) in main.iter().chain(with).enumerate() {
         match l.value {
             Value::Lobes(lobes) => {
@@ -318,6 +318,11 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         };
         depth.series.push(Series::new(format!("{name}: stable"), pick(false), Style::Circles, 2));
         depth.series.push(Series::new(format!("{name}: chatter"), pick(true), Style::Crosses, 3));
+        // Scored trials the diagram classifies wrong, ringed.
+        let wrong: Vec<(f64, f64)> = rows.iter().filter(|r| r[4] == 0.0).map(|r| (r[0], r[1] * 1e3)).collect();
+        if !wrong.is_empty() {
+            depth.series.push(Series::new(format!("{name}: misclassified"), wrong, Style::Circles, 4));
+        }
         let observed: Vec<(f64, f64)> = rows.iter().filter(|r| r[3] > 0.0).map(|r| (r[0], r[3])).collect();
         if !observed.is_empty() {
             chatter.series.push(Series::new(format!("{name}: observed"), observed, Style::Crosses, 3));
@@ -326,10 +331,10 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
     Ok(vec![depth, chatter])
 }
 
-/// A trial table's rows as `[speed rpm, depth m, chatter 0/1, chatter frequency Hz or 0]`:
-/// the outcome from `outcome`, else from `simulated` or `stable`; rows with no outcome (−1,
-/// outside a diagram) are kept by what was recorded.
-fn trial_rows(t: &Table) -> Option<Vec<[f64; 4]>> {
+/// A trial table's rows as `[speed rpm, depth m, chatter 0/1, chatter frequency Hz or 0,
+/// right 1/0 (−1 where not scored)]`: the outcome from `outcome`, else from `simulated` or
+/// `stable`; rows with no outcome (−1, outside a diagram) are kept by what was recorded.
+fn trial_rows(t: &Table) -> Option<Vec<[f64; 5]>> {
     let (speed, depth) = (col(t, "speed")?, col(t, "depth")?);
     let chatter: Vec<f64> = match (col(t, "outcome"), col(t, "stable")) {
         (Some(o), _) => o.to_vec(),
@@ -337,7 +342,12 @@ fn trial_rows(t: &Table) -> Option<Vec<[f64; 4]>> {
         _ => return None,
     };
     let freq = col(t, "chatter_frequency").or_else(|| col(t, "chatter_freq"));
-    Some((0..speed.len()).map(|i| [speed[i], depth[i], chatter[i], freq.map_or(0.0, |f| f[i])]).collect())
+    let right = col(t, "right");
+    Some(
+        (0..speed.len())
+            .map(|i| [speed[i], depth[i], chatter[i], freq.map_or(0.0, |f| f[i]), right.map_or(-1.0, |r| r[i])])
+            .collect(),
+    )
 }
 
 fn col<'a>(t: &'a Table, name: &str) -> Option<&'a [f64]> {

@@ -8,8 +8,8 @@
 use crate::chatter::{self, ChatterError, ChatterKind, ChatterOptions, Record};
 use crate::stability::{
     self, Bifurcation, CoefficientTable, CuttingCoefficients, Milling, MillingDirection, Outcome, SdOptions,
-    SpeedDependentOptions, SpeedFrf, StabilityError, StabilityLimit, StepCount, ToolPointFrf, Trial, Verdict,
-    ZoaOptions,
+    SpeedDependentOptions, SpeedFrf, StabilityError, StabilityLimit, StepCount, ToolPointFrf, Trial, TrialLikelihood,
+    Verdict, ZoaOptions,
 };
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -30,7 +30,33 @@ pub(super) fn cutting_param() -> Field {
 }
 
 fn lobes_param() -> Field {
-    Field::def("lobes", T::Integer { min: 1, max: 200 }, "20", "number of lobes k = 0 … lobes − 1")
+    Field::opt(
+        "lobes",
+        T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
+        "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
+         response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
+    )
+}
+
+fn resolution_param() -> Field {
+    Field::def(
+        "resolution",
+        T::Quantity(D::FREQUENCY),
+        "1 Hz",
+        "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
+    )
+}
+
+/// Warns when an explicit `lobes` leaves part of the FRF band unreached at the slowest speed.
+fn warn_lobes_short(ctx: &NodeContext, count: usize, needed: usize, band_top_hz: f64, teeth: usize, n_min_rpm: f64) {
+    if count < needed {
+        let reached = count as f64 * teeth as f64 * n_min_rpm / 60.0;
+        ctx.warn(format!(
+            "`lobes: {count}` reaches chatter frequencies up to {reached:.0} Hz at {n_min_rpm} rpm, but the FRFs \
+             respond significantly up to {band_top_hz:.0} Hz, which needs {needed} lobes there: the limit may be \
+             too high at the low speeds (drop `lobes` for the automatic count)"
+        ));
+    }
 }
 
 /// The cutting entity a node names, as the kernels' [`Milling`] (its constant coefficients).
@@ -98,6 +124,7 @@ fn stab_err(e: StabilityError, frf_port: &str) -> NodeError {
         | StabilityError::NonFinite { .. }
         | StabilityError::NoResonance { .. }
         | StabilityError::InvalidMode { .. } => NodeError::input(frf_port, e.to_string()),
+        StabilityError::TooManyLobes { .. } => NodeError::param("lobes", e.to_string()),
         _ => NodeError::Failed(e.to_string()),
     }
 }
@@ -159,6 +186,7 @@ impl StabilityLobes {
                     cutting_param(),
                     Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
                     lobes_param(),
+                    resolution_param(),
                 ],
             },
         }
@@ -171,6 +199,7 @@ impl Node for StabilityLobes {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        super::positive(p, &["resolution"])?;
         speeds_rpm(p).map(|_| ())
     }
 
@@ -180,11 +209,13 @@ impl Node for StabilityLobes {
         let frf = ToolPointFrf::from_pair(&fx.freq_hz, fx.values.clone(), &fy.freq_hz, fy.values.clone())
             .map_err(|e| stab_err(e, "frf_y"))?;
         let opts = ZoaOptions {
-            lobes: ctx.params.int("lobes").unwrap_or(20) as usize,
+            lobes: ctx.params.int("lobes").map(|k| k as usize),
             speeds_rpm: speeds_rpm(ctx.params)?,
             keep_lobes: false,
+            resolution_hz: ctx.params.f64("resolution"),
         };
         let z = stability::zoa_lobes(&frf, &mill, &opts).map_err(|e| stab_err(e, "frf_x"))?;
+        warn_lobes_short(ctx, z.lobe_count, z.lobes_needed, z.band_top_hz, mill.teeth, opts.speeds_rpm[0]);
         warn_unlimited(ctx, "lobes", &z.limit);
         let l = &z.limit;
         let table = Table {
@@ -529,6 +560,7 @@ impl StabilitySpeedDependent {
                         "extend the end cubics beyond the measured speeds instead of refusing",
                     ),
                     lobes_param(),
+                    resolution_param(),
                 ],
             },
         }
@@ -715,6 +747,7 @@ impl Node for StabilitySpeedDependent {
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         super::non_negative(p, &["stationary_speed"])?;
+        super::positive(p, &["resolution"])?;
         grid(p).map(|_| ())
     }
 
@@ -739,9 +772,10 @@ impl Node for StabilitySpeedDependent {
         let options = SpeedDependentOptions {
             range_rpm: range.map(|(lo, hi, _)| (lo, hi)),
             step_rpm: range.map_or(5.0, |r| if r.2.is_nan() { 5.0 } else { r.2 }),
-            lobes: p.int("lobes").unwrap_or(20) as usize,
+            lobes: p.int("lobes").map(|k| k as usize),
             allow_extrapolation: p.bool("extrapolate").unwrap_or(false),
             speeds_rpm: range.filter(|r| r.2.is_nan()).and_then(|_| speed_list(p)),
+            resolution_hz: p.f64("resolution"),
         };
         let law = p.text("cutting").and_then(|n| ctx.recipe.cutting.get(n));
         let coeffs =
@@ -773,6 +807,7 @@ impl Node for StabilitySpeedDependent {
         if sd.speed_rpm.is_empty() {
             return Err(NodeError::param("speeds", "the grid holds no speed above 0 rpm"));
         }
+        warn_lobes_short(ctx, limits.lobe_count, limits.lobes_needed, limits.band_top_hz, mill.teeth, sd.speed_rpm[0]);
         warn_unlimited(ctx, "speed-dependent", sd);
         warn_unlimited(ctx, "stationary", st);
         let table = Table {
@@ -950,6 +985,13 @@ impl TrialsScore {
                         "number of trials inside the diagram predicted wrong",
                     ),
                     PortSpec::new(
+                        "deviance",
+                        PortType::Scalar,
+                        "−2 ln L of the trials under the probit likelihood: a cut chatters with probability \
+                         ε + (1 − 2ε) Φ(ln(depth/limit)/σ); continuous in the diagram, and no trial costs more than \
+                         −2 ln ε",
+                    ),
+                    PortSpec::new(
                         "misfit",
                         PortType::Scalar,
                         "√Σ max(0, margin ∓ ln(depth/limit))² over the trials (− for chatter, + for stable): 0 when \
@@ -968,6 +1010,18 @@ impl TrialsScore {
                         T::Quantity(D::DIMENSIONLESS),
                         "0 %",
                         "`misfit` also counts right trials closer than this (in ln depth) to the boundary, so a fit centres the boundary between the stable and the chattering cuts",
+                    ),
+                    Field::def(
+                        "sigma",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "10 %",
+                        "standard deviation of ln(depth/limit) at the boundary in the trials' likelihood: how sharply the diagram's limit is known",
+                    ),
+                    Field::def(
+                        "lapse",
+                        T::Quantity(D::DIMENSIONLESS),
+                        "2 %",
+                        "chance that a trial's outcome is not the diagram's (a mislabelled or disturbed cut): bounds what one trial costs in the likelihood",
                     ),
                 ],
             },
@@ -1039,6 +1093,23 @@ impl Node for TrialsScore {
         &self.spec
     }
 
+    fn validate(&self, p: &Params) -> Result<(), NodeError> {
+        if let Some(sigma) = p.f64("sigma")
+            && !(sigma.is_finite() && sigma > 0.0)
+        {
+            return Err(NodeError::param("sigma", format!("{} %: give a positive spread, e.g. `10 %`", sigma * 100.0)));
+        }
+        if let Some(lapse) = p.f64("lapse")
+            && !(0.0..0.5).contains(&lapse)
+        {
+            return Err(NodeError::param(
+                "lapse",
+                format!("{} %: give a rate in [0, 50) %, e.g. `2 %`", lapse * 100.0),
+            ));
+        }
+        Ok(())
+    }
+
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let Value::Lobes(lobes) = ctx.input("lobes")? else {
             return Err(NodeError::input("lobes", "expected stability lobes"));
@@ -1093,6 +1164,11 @@ impl Node for TrialsScore {
             })
             .sum::<f64>()
             .sqrt();
+        let likelihood = TrialLikelihood {
+            sigma: ctx.params.f64("sigma").unwrap_or(0.1),
+            lapse: ctx.params.f64("lapse").unwrap_or(0.02),
+        };
+        let deviance = likelihood.total_deviance(&trials, &score.verdicts);
         let verdicts = Table {
             columns: vec![
                 Column::new("speed", "rpm", speed),
@@ -1109,6 +1185,7 @@ impl Node for TrialsScore {
             ("score", Value::Scalar(Scalar::new(fraction, ""))),
             ("misclassified", Value::Scalar(Scalar::new(misclassified as f64, ""))),
             ("misfit", Value::Scalar(Scalar::new(misfit, ""))),
+            ("deviance", Value::Scalar(Scalar::new(deviance, ""))),
         ]))
     }
 }

@@ -31,8 +31,11 @@ pub use sdm::{
 pub use speed::{
     CoefficientTable, SpeedDependentLimit, SpeedDependentOptions, SpeedFrf, conditions_at, speed_dependent_lobes,
 };
-pub use trials::{Outcome, Trial, TrialScore, Verdict, score_trials};
-pub use zoa::{Lobe, LobePoint, LobeSet, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions, zoa_lobes};
+pub use trials::{Outcome, Trial, TrialLikelihood, TrialScore, Verdict, normal_cdf, score_trials};
+pub use zoa::{
+    Lobe, LobePoint, LobeSet, MAX_LOBES, SIGNIFICANT_RESPONSE, StabilityLimit, ToolPointFrf, ZoaLobes, ZoaOptions,
+    band_top_hz, lobes_needed, refine, zoa_lobes,
+};
 
 use thiserror::Error;
 
@@ -108,6 +111,22 @@ pub enum StabilityError {
         lo_rpm: f64,
         /// Highest measured speed, rpm.
         hi_rpm: f64,
+    },
+    /// The lobe count exceeds [`zoa::MAX_LOBES`].
+    #[error(
+        "{lobes} lobes are needed for the band's response up to {f_max_hz:.0} Hz to reach {n_min_rpm} rpm with \
+         {teeth} teeth, more than the {max} a diagram may take; start the speeds higher or give `lobes` explicitly",
+        max = zoa::MAX_LOBES
+    )]
+    TooManyLobes {
+        /// The count asked for or needed.
+        lobes: usize,
+        /// Highest frequency of significant response, Hz.
+        f_max_hz: f64,
+        /// Slowest speed, rpm.
+        n_min_rpm: f64,
+        /// Number of teeth.
+        teeth: usize,
     },
     /// A stability diagram given for scoring trials is malformed.
     #[error("stability diagram: {detail}; give ascending speeds with one limiting depth (> 0 m or +∞) each")]

@@ -5,7 +5,10 @@
 
 use super::StabilityError;
 use super::cutting::{CuttingCoefficients, Milling, MillingDirection};
-use super::zoa::{FrfSlices, LineRoot, StabilityLimit, ToolPointFrf, limit_at_speed, line_roots};
+use super::zoa::{
+    FrfSlices, LineRoot, StabilityLimit, ToolPointFrf, band_top_hz, limit_at_speed, line_roots, lobe_count,
+    lobes_needed, refine,
+};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -34,13 +37,17 @@ pub struct SpeedDependentOptions {
     pub range_rpm: Option<(f64, f64)>,
     /// Grid step, rpm.
     pub step_rpm: f64,
-    /// Number of lobes.
-    pub lobes: usize,
+    /// Number of lobes; `None` takes as many as the FRFs' band needs down to the lowest speed
+    /// ([`super::lobes_needed`]).
+    pub lobes: Option<usize>,
     /// Extend the end cubics beyond the measured speeds instead of refusing.
     pub allow_extrapolation: bool,
     /// Explicit ascending speeds (rpm) instead of the range and step: the limit at each
     /// speed is computed on its own, so a diagram at the trials' speeds scores them exactly.
     pub speeds_rpm: Option<Vec<f64>>,
+    /// The coarsest line spacing the lobes are resolved at, Hz ([`super::zoa::refine`]); `None` takes the grid
+    /// as it is.
+    pub resolution_hz: Option<f64>,
 }
 
 impl Default for SpeedDependentOptions {
@@ -48,9 +55,10 @@ impl Default for SpeedDependentOptions {
         SpeedDependentOptions {
             range_rpm: None,
             step_rpm: 5.0,
-            lobes: 20,
+            lobes: None,
             allow_extrapolation: false,
             speeds_rpm: None,
+            resolution_hz: Some(super::zoa::DEFAULT_RESOLUTION_HZ),
         }
     }
 }
@@ -62,6 +70,12 @@ pub struct SpeedDependentLimit {
     pub speed_dependent: StabilityLimit,
     /// With the stationary FRF and the coefficients interpolated at each speed.
     pub stationary: StabilityLimit,
+    /// The number of lobes solved (the explicit count, or the automatic one).
+    pub lobe_count: usize,
+    /// The lobes the FRFs' band of significant response needs down to the slowest speed.
+    pub lobes_needed: usize,
+    /// The highest frequency of significant response over every FRF, Hz.
+    pub band_top_hz: f64,
 }
 
 /// Natural cubic spline weights: the spline through `(knots[j], y_j)` at `s` is `Σ w_j y_j`.
@@ -310,6 +324,16 @@ pub fn speed_dependent_lobes(
 ) -> Result<SpeedDependentLimit, StabilityError> {
     let knots: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
     check_knots("FRF speeds", &knots)?;
+    for f in frfs {
+        f.frf.validate()?;
+    }
+    stationary.validate()?;
+    let refined: Vec<SpeedFrf> = frfs
+        .iter()
+        .map(|f| SpeedFrf { speed_rpm: f.speed_rpm, frf: refine(&f.frf, options.resolution_hz).into_owned() })
+        .collect();
+    let frfs = &refined[..];
+    let stationary = &*refine(stationary, options.resolution_hz);
     let grid = &frfs[0].frf.freqs_hz;
     for f in frfs {
         if f.frf.freqs_hz.len() != grid.len()
@@ -354,6 +378,10 @@ pub fn speed_dependent_lobes(
             true,
         )?,
     )?;
+    let band_top = frfs.iter().map(|f| band_top_hz(&f.frf)).fold(band_top_hz(stationary), f64::max);
+    let n_min = speeds.first().copied().unwrap_or(f64::INFINITY);
+    let needed = lobes_needed(band_top, teeth, n_min);
+    let count = lobe_count(options.lobes, band_top, teeth, n_min)?;
     let with_cross = frfs.iter().all(|f| f.frf.cross.is_some());
     let curves = SplineFrf::new(&knots, frfs, with_cross);
     let per_tooth = 60.0 / teeth as f64;
@@ -366,7 +394,7 @@ pub fn speed_dependent_lobes(
             // Lobes k < lobes pass this speed only on lines with f τ ≤ lobes (the phase fraction is below one),
             // so the eigenproblem is solved on those lines and the next one only.
             let tau = per_tooth / s;
-            let needed = |freqs: &[f64]| freqs.partition_point(|&f| f * tau <= options.lobes as f64 + 1e-6) + 1;
+            let needed = |freqs: &[f64]| freqs.partition_point(|&f| f * tau <= count as f64 + 1e-6) + 1;
             let lines = needed(grid).min(grid.len());
             curves.at(s, lines, scratch);
             let frf = FrfSlices {
@@ -376,10 +404,10 @@ pub fn speed_dependent_lobes(
                 cross: with_cross.then_some((&scratch.xy[..], &scratch.yx[..])),
             };
             line_roots(frf, &milling, false, &mut scratch.roots);
-            let dynamic = limit_at_speed(frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
+            let dynamic = limit_at_speed(frf.freqs_hz, &scratch.roots, teeth, count, s);
             let fixed_frf = stationary.slices(needed(&stationary.freqs_hz));
             line_roots(fixed_frf, &milling, false, &mut scratch.roots);
-            let fixed = limit_at_speed(fixed_frf.freqs_hz, &scratch.roots, teeth, options.lobes, s);
+            let fixed = limit_at_speed(fixed_frf.freqs_hz, &scratch.roots, teeth, count, s);
             Ok([dynamic, fixed])
         })
         .collect::<Result<_, StabilityError>>()?;
@@ -389,5 +417,11 @@ pub fn speed_dependent_lobes(
         chatter_hz: rows.iter().map(|r| r[which].1).collect(),
         lobe: rows.iter().map(|r| r[which].2).collect(),
     };
-    Ok(SpeedDependentLimit { speed_dependent: build(0), stationary: build(1) })
+    Ok(SpeedDependentLimit {
+        speed_dependent: build(0),
+        stationary: build(1),
+        lobe_count: count,
+        lobes_needed: needed,
+        band_top_hz: band_top,
+    })
 }

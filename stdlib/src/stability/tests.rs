@@ -104,7 +104,7 @@ fn zoa_sdof_minimum_matches_closed_form() {
     let k = benchmark_stiffness();
     let min_re = -1.0 / (4.0 * k * 0.011 * 1.011);
     let freqs = fine_grid();
-    let opts = ZoaOptions { lobes: 5, speeds_rpm: vec![10_000.0], keep_lobes: false };
+    let opts = ZoaOptions { lobes: Some(5), speeds_rpm: vec![10_000.0], keep_lobes: false, ..ZoaOptions::default() };
     // Slotting, x flexible: b = 8kζ(1+ζ)/(N Kn) = 0.29805 mm.
     let frf = benchmark_model().receptance(&freqs).unwrap();
     let z = zoa_lobes(&frf, &benchmark_milling(1.0), &opts).unwrap();
@@ -145,7 +145,7 @@ fn zoa_lobe_points_solve_characteristic_equation() {
     let frf = model.receptance(&freqs).unwrap();
     let mill =
         Milling::new(3, 0.4, MillingDirection::Up, CuttingCoefficients::from_kt_kn(7e8, 2.5e8).unwrap()).unwrap();
-    let z = zoa_lobes(&frf, &mill, &ZoaOptions { lobes: 6, ..ZoaOptions::default() }).unwrap();
+    let z = zoa_lobes(&frf, &mill, &ZoaOptions { lobes: Some(6), ..ZoaOptions::default() }).unwrap();
     let alpha = mill.directional_factors();
     let mut checked = 0;
     for lobe in z.lobes.iter() {
@@ -245,7 +245,7 @@ fn low_immersion_flip_lobes_missed_by_zoa() {
     let zoa = zoa_lobes(
         &model.receptance(&fine_grid()).unwrap(),
         &mill,
-        &ZoaOptions { lobes: 20, speeds_rpm: speeds.clone(), keep_lobes: false },
+        &ZoaOptions { lobes: Some(20), speeds_rpm: speeds.clone(), keep_lobes: false, ..ZoaOptions::default() },
     )
     .unwrap();
     let sd = sd_depth_limits(&model, &mill, &speeds, 10e-3, &tight()).unwrap();
@@ -275,7 +275,7 @@ fn chatter_frequency_speed_mapping_agrees_with_sd() {
     let zoa = zoa_lobes(
         &model.receptance(&fine_grid()).unwrap(),
         &mill,
-        &ZoaOptions { lobes: 10, speeds_rpm: vec![speed], keep_lobes: false },
+        &ZoaOptions { lobes: Some(10), speeds_rpm: vec![speed], keep_lobes: false, ..ZoaOptions::default() },
     )
     .unwrap();
     let tau = mill.tooth_period(speed);
@@ -377,7 +377,12 @@ fn speed_dependent_equals_stationary_for_constant_frfs() {
     let zoa = zoa_lobes(
         &frf,
         &mill,
-        &ZoaOptions { lobes: 20, speeds_rpm: out.stationary.speed_rpm.clone(), keep_lobes: false },
+        &ZoaOptions {
+            lobes: None,
+            speeds_rpm: out.stationary.speed_rpm.clone(),
+            keep_lobes: false,
+            ..ZoaOptions::default()
+        },
     )
     .unwrap();
     let mut finite = 0;
@@ -451,7 +456,7 @@ fn w04_lobes_match_the_numpy_peer() {
     let z = zoa_lobes(
         &model.receptance(&freqs).unwrap(),
         &mill,
-        &ZoaOptions { lobes: 20, speeds_rpm: grid.clone(), keep_lobes: true },
+        &ZoaOptions { lobes: Some(20), speeds_rpm: grid.clone(), keep_lobes: true, ..ZoaOptions::default() },
     )
     .unwrap();
     let e = &z.limit.depth_m;
@@ -484,4 +489,142 @@ fn w04_lobes_match_the_numpy_peer() {
     // Every lobe point is kept: 20 lobes of every line with a root on either branch.
     let kept: usize = z.lobes.iter().map(|l| l.speed_rpm.len()).sum();
     assert!(kept > 20 * 10_000, "{kept}");
+}
+
+/// Validation a reviewer can redo by hand: one mode at 3 kHz (ζ = 2 %, k = 2·10⁷ N/m) in the feed direction,
+/// a 4-tooth slot (`Kt` 600 MPa, `Kn` 200 MPa), speeds down to 1,000 rpm.
+///
+/// - At 1,000 rpm the mode's chatter needs lobe `k ≈ 60·3000/(4·1000) = 45`; the automatic count
+///   `⌈60 f_max/(N n_min)⌉ + 1` reaches it, a fixed 20 lobes does not.
+/// - Closed form: the slot's only eigenvalue is `α_xx Φ` with `α_xx = −Kr π`, so
+///   `b_min = 8kζ(1 + ζ)/(N Kn)` = 0.816 mm; at low speed the dense lobes touch it.
+/// - Independent scan: at each speed, the real roots in ω of `b = 4π/(N Kt λ(ω)(1 − e^{−iωτ}))` with the
+///   analytic receptance (sign changes of the imaginary part on a 0.5 Hz grid, then bisection), the lowest
+///   positive one — no lobe numbers, no frequency lines.
+#[test]
+fn automatic_lobe_count_reaches_a_3_khz_mode_at_1000_rpm() {
+    let (fn_hz, zeta, k) = (3000.0, 0.02, 2e7);
+    let (kt, kn, teeth) = (6e8, 2e8, 4usize);
+    let mass = k / (TAU * fn_hz).powi(2);
+    let model = ModalModel::new(vec![Mode { freq_hz: fn_hz, damping_ratio: zeta, modal_mass: mass }], vec![]).unwrap();
+    let freqs: Vec<f64> = (1..=32_000).map(|i| 0.25 * i as f64).collect();
+    let frf = model.receptance(&freqs).unwrap();
+    let mill =
+        Milling::new(teeth, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(kt, kn).unwrap()).unwrap();
+    let speeds: Vec<f64> = (0..=200).map(|i| 1000.0 + 10.0 * i as f64).collect();
+    let auto = zoa_lobes(
+        &frf,
+        &mill,
+        &ZoaOptions { lobes: None, speeds_rpm: speeds.clone(), keep_lobes: false, ..ZoaOptions::default() },
+    )
+    .unwrap();
+
+    // The band of significant response ends where |Φ| is 1 % of its peak 1/(2kζ): (r² − 1) ≈ 2ζ/0.01, r ≈ 2.24.
+    assert!((auto.band_top_hz / fn_hz - 5f64.sqrt()).abs() < 0.01, "{}", auto.band_top_hz);
+    let by_hand = (60.0 * auto.band_top_hz / (teeth as f64 * 1000.0)).ceil() as usize + 1;
+    assert_eq!(auto.lobe_count, by_hand);
+    assert!(auto.lobe_count > 45);
+
+    // Closed form, and no speed below it.
+    let b_min = 8.0 * k * zeta * (1.0 + zeta) / (teeth as f64 * kn);
+    assert!((auto.min_depth_m / b_min - 1.0).abs() < 1e-4, "{} vs {b_min}", auto.min_depth_m);
+    let low = auto.limit.depth_m[..=10].iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(low < 1.01 * b_min, "lowest limit at 1000–1100 rpm {low} against b_min {b_min}");
+    assert!(auto.limit.depth_m.iter().all(|&d| d >= b_min * (1.0 - 1e-6)));
+
+    // The independent scan.
+    let phi = |w: f64| {
+        Complex64::new(1.0, 0.0)
+            / (k * Complex64::new(1.0 - (w / (TAU * fn_hz)).powi(2), 2.0 * zeta * w / (TAU * fn_hz)))
+    };
+    let lam = |w: f64| -(kn / kt) * PI * phi(w);
+    let scan = |n_rpm: f64| -> f64 {
+        let tau = 60.0 / (teeth as f64 * n_rpm);
+        let g = |w: f64| lam(w) * (1.0 - Complex64::from_polar(1.0, -w * tau));
+        let depth = |w: f64| 4.0 * PI / (teeth as f64 * kt * g(w).re);
+        let mut best = f64::INFINITY;
+        let (mut w0, step) = (TAU * 1000.0, TAU * 0.5);
+        while w0 < TAU * 7000.0 {
+            let w1 = w0 + step;
+            if g(w0).im.signum() != g(w1).im.signum() {
+                let (mut a, mut b) = (w0, w1);
+                for _ in 0..60 {
+                    let m = 0.5 * (a + b);
+                    if g(a).im.signum() == g(m).im.signum() { a = m } else { b = m }
+                }
+                let d = depth(0.5 * (a + b));
+                if d > 0.0 {
+                    best = best.min(d);
+                }
+            }
+            w0 = w1;
+        }
+        best
+    };
+    for (i, &n) in speeds.iter().enumerate().step_by(4) {
+        let want = scan(n);
+        let got = auto.limit.depth_m[i];
+        assert!((got / want - 1.0).abs() < 2e-3, "{n} rpm: lobes {got} against the scan's {want}");
+    }
+
+    // Twenty lobes reach only 20·4·1000/60 ≈ 1.3 kHz at 1000 rpm: the limit there is missed.
+    let twenty = zoa_lobes(
+        &frf,
+        &mill,
+        &ZoaOptions { lobes: Some(20), speeds_rpm: speeds.clone(), keep_lobes: false, ..ZoaOptions::default() },
+    )
+    .unwrap();
+    assert_eq!(twenty.lobes_needed, auto.lobe_count);
+    assert!(twenty.limit.depth_m[0] > 3.0 * scan(1000.0), "{}", twenty.limit.depth_m[0]);
+
+    // The speed-dependent diagram of the same FRF at every speed takes the same count and gives the same limit.
+    let sd = speed_dependent_lobes(
+        &[SpeedFrf { speed_rpm: 0.0, frf: frf.clone() }, SpeedFrf { speed_rpm: 4000.0, frf: frf.clone() }],
+        &CoefficientTable::KtKn(vec![[0.0, kt, kn], [4000.0, kt, kn]]),
+        teeth,
+        1.0,
+        MillingDirection::Down,
+        &frf,
+        &SpeedDependentOptions { speeds_rpm: Some(speeds.clone()), ..SpeedDependentOptions::default() },
+    )
+    .unwrap();
+    assert_eq!(sd.lobe_count, auto.lobe_count);
+    for (i, (&a, &b)) in sd.speed_dependent.depth_m.iter().zip(&auto.limit.depth_m).enumerate() {
+        assert!((a / b - 1.0).abs() < 1e-9, "{} rpm: {a} vs {b}", speeds[i]);
+    }
+}
+
+/// Validation against the closed form: a lightly damped tool mode (ζ = 0.5 %) whose peak falls between two lines
+/// of a 2.5 Hz grid, as analysers often deliver it, in a 3-tooth slot. The lobes' common minimum is
+/// `8kζ(1 + ζ)/(N Kn)`; read straight off the grid it sits 1.2 % too high (the deepest line misses the peak of
+/// `Re λ`, and depths between lines are interpolated linearly), and so does the dense low-speed envelope that
+/// touches it. Resolved at 1 Hz (the default: the receptance interpolated between lines) both are within
+/// 0.2 %.
+#[test]
+fn coarse_frfs_are_resolved_finely_enough_for_the_lobe_minima() {
+    let (f0, zeta, k) = (1501.25, 0.005, 2e7);
+    let model = ModalModel::new(vec![Mode::from_stiffness(f0, zeta, k)], vec![]).unwrap();
+    let mill =
+        Milling::new(3, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let closed = 8.0 * k * zeta * (1.0 + zeta) / (3.0 * 2e8);
+    let speeds: Vec<f64> = (0..=100).map(|i| 1000.0 + i as f64).collect();
+    let freqs: Vec<f64> = (1..=2400).map(|i| 2.5 * i as f64).collect();
+    let frf = model.receptance(&freqs).unwrap();
+    let errors = |resolution_hz: Option<f64>| {
+        let opts = ZoaOptions { lobes: None, speeds_rpm: speeds.clone(), keep_lobes: false, resolution_hz };
+        let z = zoa_lobes(&frf, &mill, &opts).unwrap();
+        let low = z.limit.depth_m.iter().copied().fold(f64::INFINITY, f64::min);
+        (z.min_depth_m / closed - 1.0, low / closed - 1.0)
+    };
+    let (coarse_min, coarse_low) = errors(None);
+    assert!(coarse_min > 0.008 && coarse_low > 0.008, "straight off the grid: {coarse_min}, {coarse_low}");
+    let (min, low) = errors(Some(1.0));
+    assert!(min.abs() < 0.002 && low.abs() < 0.002, "resolved at 1 Hz: {min}, {low}");
+    // The default resolves; a grid already finer than the resolution is taken as it is.
+    assert_eq!(ZoaOptions::default().resolution_hz, Some(1.0));
+    assert!(matches!(refine(&frf, Some(2.5)), std::borrow::Cow::Borrowed(_)));
+    let refined = refine(&frf, Some(1.0));
+    assert_eq!(refined.freqs_hz.len(), 3 * 2399 + 1);
+    assert_eq!(refined.freqs_hz[3], 5.0);
+    assert_eq!(refined.xx[3], frf.xx[1]);
 }

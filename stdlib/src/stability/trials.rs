@@ -62,6 +62,58 @@ pub struct TrialScore {
     pub fraction_right: Option<f64>,
 }
 
+/// How likely a diagram makes each trial's outcome: a cut at depth `b` where the diagram's limit is `b_lim`
+/// chatters with probability `ε + (1 − 2ε) Φ(ln(b/b_lim)/σ)`, a probit in the log depth ratio (the likelihood
+/// of the Bayesian stability work of Schmitz's group: Karandikar, Schmitz et al., *Precision Engineering*, 2014)
+/// mixed with a lapse rate `ε` (a mislabelled or disturbed cut), so no single trial costs more than `−2 ln ε`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialLikelihood {
+    /// Standard deviation of `ln(b/b_lim)` at the boundary: how sharply the diagram's boundary is known.
+    pub sigma: f64,
+    /// Lapse rate `ε`, in `[0, ½)`.
+    pub lapse: f64,
+}
+
+impl Default for TrialLikelihood {
+    /// σ = 0.1 (a limit known to about 10 %), ε = 2 %.
+    fn default() -> Self {
+        TrialLikelihood { sigma: 0.1, lapse: 0.02 }
+    }
+}
+
+/// The standard normal distribution function, `Φ(x) = ½ erfc(−x/√2)`.
+pub fn normal_cdf(x: f64) -> f64 {
+    0.5 * libm::erfc(-x / std::f64::consts::SQRT_2)
+}
+
+impl TrialLikelihood {
+    /// Probability that a cut at `depth_m` chatters where the limit is `limit_m` (`+∞`: no limit found).
+    pub fn chatter_probability(&self, depth_m: f64, limit_m: f64) -> f64 {
+        let x = (depth_m / limit_m).ln() / self.sigma;
+        let p = if x.is_nan() { 0.5 } else { normal_cdf(x) };
+        self.lapse + (1.0 - 2.0 * self.lapse) * p
+    }
+
+    /// `−2 ln p` of what the trial showed, given the limit at its speed.
+    pub fn deviance(&self, trial: &Trial, limit_m: f64) -> f64 {
+        let p = self.chatter_probability(trial.depth_m, limit_m);
+        let p = if trial.outcome == Outcome::Chatter { p } else { 1.0 - p };
+        -2.0 * p.max(f64::MIN_POSITIVE).ln()
+    }
+
+    /// `−2 ln L` of the scored trials (those outside the diagram do not count).
+    pub fn total_deviance(&self, trials: &[Trial], verdicts: &[Verdict]) -> f64 {
+        trials
+            .iter()
+            .zip(verdicts)
+            .filter_map(|(t, v)| match *v {
+                Verdict::Scored { limit_m, .. } => Some(self.deviance(t, limit_m)),
+                Verdict::OutsideDiagram => None,
+            })
+            .sum()
+    }
+}
+
 /// Limiting depth at `speed` by linear interpolation of the diagram (`None` outside its range). Between a finite
 /// and an infinite limit (a speed where no lobe was found) the limit is infinite.
 fn limit_at(speeds: &[f64], limits: &[f64], speed: f64) -> Option<f64> {
@@ -141,6 +193,24 @@ pub fn score_trials(speeds_rpm: &[f64], limits_m: &[f64], trials: &[Trial]) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The probit's known values: on the boundary one half; one σ into the chatter side `Φ(1)` = 0.841345;
+    /// a stable cut deep on the chatter side costs no more than `−2 ln ε`; `+∞` limit: stable but for the lapse.
+    #[test]
+    fn the_trial_likelihood_is_a_probit_in_the_log_depth_ratio_with_a_lapse() {
+        let l = TrialLikelihood { sigma: 0.1, lapse: 0.0 };
+        assert!((l.chatter_probability(1e-3, 1e-3) - 0.5).abs() < 1e-15);
+        assert!((l.chatter_probability(1e-3 * 0.1f64.exp(), 1e-3) - 0.841_344_746_068_543).abs() < 1e-12);
+        assert!((normal_cdf(-1.959_963_984_540_054) - 0.025).abs() < 1e-12);
+        let l = TrialLikelihood::default();
+        let stable_deep = Trial { speed_rpm: 1000.0, depth_m: 10e-3, outcome: Outcome::Stable, chatter_hz: None };
+        let cost = l.deviance(&stable_deep, 1e-3);
+        assert!(cost <= -2.0 * 0.02f64.ln() + 1e-12 && cost > -2.0 * 0.021f64.ln(), "{cost}");
+        assert!((l.chatter_probability(1e-3, f64::INFINITY) - 0.02).abs() < 1e-15);
+        // Right trials cost less the farther they lie from the boundary.
+        let right = |d: f64| l.deviance(&Trial { depth_m: d, ..stable_deep }, 1e-3);
+        assert!(right(0.5e-3) < right(0.9e-3) && right(0.9e-3) < right(1.1e-3));
+    }
 
     /// A V-shaped lobe: 2 mm at 1000 rpm down to 1 mm at 2000 rpm and up to 4 mm at 3000 rpm, no limit (+∞)
     /// at 4000 rpm.
