@@ -138,7 +138,7 @@ impl Evaluation {
         self.files.iter().map(|f| 2.0 * f.n_eff * f.ratio * f.ratio).sum()
     }
     /// `−2 ln L` of the trials: the probit likelihood of `trials.score` (a cut chatters with
-    /// probability `ε + (1 − 2ε) Φ(ln(depth/limit)/σ)`, σ = 10 %, ε = 2 %).
+    /// probability `ε + (1 − 2ε) Φ(ln(depth/limit)/σ)`, σ = 5 %, ε = 2 %).
     fn trial_cost(&self) -> f64 {
         self.trial_deviance.unwrap_or(0.0)
     }
@@ -602,9 +602,9 @@ fn try_candidate(
     }
     let cutting = effects.iter().all(|e| e.scope() == Scope::Cutting);
     let (objective, method) = match (cutting, &ctx.roles.trials) {
-        // The trials' likelihood, and the hinge distance of the wrong ones, which still
-        // slopes where the probit has saturated (a boundary far from every trial).
-        (true, Some(t)) => (vec![format!("@{t}.deviance"), format!("@{t}.misfit")], "nelder-mead"),
+        // The trials' likelihood, which sets the boundary where the stable and the
+        // chattering cuts are best told apart.
+        (true, Some(t)) => (vec![format!("@{t}.deviance")], "nelder-mead"),
         _ => (ctx.roles.gaps.iter().map(|g| format!("@{}.residual", g.step)).collect(), "least-squares"),
     };
     let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(&mine)).max().unwrap_or(0) } else { 0 };

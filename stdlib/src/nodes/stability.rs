@@ -1014,7 +1014,7 @@ impl TrialsScore {
                     Field::def(
                         "sigma",
                         T::Quantity(D::DIMENSIONLESS),
-                        "10 %",
+                        "5 %",
                         "standard deviation of ln(depth/limit) at the boundary in the trials' likelihood: how sharply the diagram's limit is known",
                     ),
                     Field::def(
@@ -1165,7 +1165,7 @@ impl Node for TrialsScore {
             .sum::<f64>()
             .sqrt();
         let likelihood = TrialLikelihood {
-            sigma: ctx.params.f64("sigma").unwrap_or(0.1),
+            sigma: ctx.params.f64("sigma").unwrap_or(0.05),
             lapse: ctx.params.f64("lapse").unwrap_or(0.02),
         };
         let deviance = likelihood.total_deviance(&trials, &score.verdicts);

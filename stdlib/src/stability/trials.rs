@@ -75,9 +75,9 @@ pub struct TrialLikelihood {
 }
 
 impl Default for TrialLikelihood {
-    /// σ = 0.1 (a limit known to about 10 %), ε = 2 %.
+    /// σ = 0.05 (a limit known to about 5 %), ε = 2 %.
     fn default() -> Self {
-        TrialLikelihood { sigma: 0.1, lapse: 0.02 }
+        TrialLikelihood { sigma: 0.05, lapse: 0.02 }
     }
 }
 
