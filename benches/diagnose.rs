@@ -1,6 +1,8 @@
 //! A full diagnosis over the whole effect library, from the recipe `spindlelab import`
-//! writes: `train_02` (a hidden tool–holder joint; two FRFs, 39 trials) and `train_03`
-//! (spindle stiffening with speed; eight FRFs at four speeds).
+//! writes, for every training case: a sensor delay, a tool–holder joint (two FRFs, 39
+//! trials), spindle stiffening with speed (eight FRFs at four speeds), a tip mass, fluted
+//! stiffness, speed-dependent cutting coefficients, no effect, and a resonance outside the
+//! library.
 
 #[path = "common/alloc.rs"]
 mod alloc;
@@ -13,7 +15,11 @@ fn bench(c: &mut Criterion) {
     let registry = spindlelab::registry();
     let mut group = c.benchmark_group("diagnose");
     group.sample_size(10).measurement_time(Duration::from_secs(60));
-    for case in ["train_02", "train_03"] {
+    let only = std::env::var("SPINDLELAB_BENCH_CASES").unwrap_or_default();
+    for case in ["train_01", "train_02", "train_03", "train_04", "train_05", "train_06", "train_07", "train_08"] {
+        if !only.is_empty() && !only.split(',').any(|c| c == case) {
+            continue;
+        }
         let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/training").join(case);
         let dir = tempfile::tempdir().expect("temporary folder");
         for entry in std::fs::read_dir(&from).expect("case folder") {

@@ -70,9 +70,9 @@ enum Command {
         #[arg(long)]
         report: bool,
     },
-    /// Write the HTML report of a finished run from its output folder.
+    /// Write the HTML report of a finished run (or a diagnosis) from its output folder.
     Report {
-        /// The run's output folder (it holds `manifest.json`).
+        /// The run's output folder (it holds `manifest.json`), or a diagnosis folder.
         run_dir: PathBuf,
         /// Where to write the report (default: `<folder>.report.html` beside the folder).
         #[arg(short, long)]
@@ -550,9 +550,29 @@ fn main() -> ExitCode {
 /// `spindlelab report RUN_DIR`: the HTML report of a finished run, from its manifest and the
 /// files the manifest lists (each read through the data-file cap).
 fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
+    let target_for = |out: Option<PathBuf>| {
+        out.unwrap_or_else(|| {
+            let name = run_dir
+                .canonicalize()
+                .ok()
+                .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .unwrap_or_else(|| "run".into());
+            run_dir.join("..").join(format!("{name}.report.html"))
+        })
+    };
+    // A diagnosis folder: its page and pictures.
+    if run_dir.join("diagnosis.md").is_file() && run_dir.join("diagnosis.json").is_file() {
+        return match spindlelab::diagnose::report_html(run_dir) {
+            Ok(html) => write_report(&target_for(out), html),
+            Err(e) => {
+                eprintln!("error: {e}; rerun `spindlelab diagnose` into that folder");
+                ExitCode::from(EXIT_BAD_INPUT)
+            }
+        };
+    }
     let Some(manifest) = engine::exec::Manifest::read(run_dir) else {
         eprintln!(
-            "error: {} holds no readable manifest.json; give the output folder of a run (`spindlelab run` writes it)",
+            "error: {} holds no readable manifest.json; give the output folder of a run (`spindlelab run` writes it) or of a diagnosis (`spindlelab diagnose`)",
             run_dir.display()
         );
         return ExitCode::from(EXIT_BAD_INPUT);
@@ -575,16 +595,13 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
     }
     let text = (!manifest.recipe_text.is_empty()).then_some(manifest.recipe_text.as_str());
     let html = engine::report::html(&manifest, text, &files);
-    let target = out.unwrap_or_else(|| {
-        let name = run_dir
-            .canonicalize()
-            .ok()
-            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .unwrap_or_else(|| "run".into());
-        run_dir.join("..").join(format!("{name}.report.html"))
-    });
+    write_report(&target_for(out), html)
+}
+
+/// Writes a report page whole (a temporary file renamed into place).
+fn write_report(target: &Path, html: String) -> ExitCode {
     let tmp = target.with_extension("html.tmp");
-    if let Err(e) = std::fs::write(&tmp, html).and_then(|_| std::fs::rename(&tmp, &target)) {
+    if let Err(e) = std::fs::write(&tmp, html).and_then(|_| std::fs::rename(&tmp, target)) {
         let _ = std::fs::remove_file(&tmp);
         eprintln!("error: cannot write {}: {e}", target.display());
         return ExitCode::from(EXIT_FAILURE);

@@ -163,8 +163,9 @@ fn spindlelab(args: &[&std::ffi::OsStr]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_spindlelab")).args(args).env("NO_COLOR", "1").output().unwrap()
 }
 
-/// The command writes its three files; `diagnosed.yaml` differs from the input only by added
-/// lines (the effect, its parameters and a header), and runs to the noise floor.
+/// The command writes its three files and its pictures; `report` makes the folder a page;
+/// `diagnosed.yaml` differs from the input only by added lines (the effect, its parameters and
+/// a header), and runs to the noise floor.
 #[test]
 fn the_command_writes_a_diagnosed_recipe_that_runs_at_the_floor() {
     let (dir, recipe) = imported("train_04");
@@ -177,7 +178,32 @@ fn the_command_writes_a_diagnosed_recipe_that_runs_at_the_floor() {
     for key in ["effects", "unexplained", "gap", "candidates"] {
         assert!(json.get(key).is_some(), "{key}");
     }
-    assert!(std::fs::read_to_string(out.join("diagnosis.md")).unwrap().contains("mass_loading"));
+    let md = std::fs::read_to_string(out.join("diagnosis.md")).unwrap();
+    assert!(md.contains("mass_loading"));
+    // The fitted mass as value ± σ, rounded to σ, here and in the diagnosed recipe's header.
+    let fitted = md.lines().find(|l| l.contains("fitted: added_tip_mass = ")).unwrap_or_else(|| panic!("{md}"));
+    assert!(fitted.contains(" ± ") && fitted.ends_with(" g"), "{fitted}");
+    // The pictures: per measured file and the lobes, linked from the page, each an SVG that
+    // names what it draws.
+    for (picture, needles) in [
+        ("fit_frf_x_0rpm.svg", &["measured", "model before", "model after"][..]),
+        ("fit_frf_y_0rpm.svg", &["measured", "model before", "model after"]),
+        ("lobes.svg", &["model before", "model after", "trials: stable"]),
+    ] {
+        assert!(md.contains(&format!("]({picture})")), "{picture} not linked\n{md}");
+        let svg = std::fs::read_to_string(out.join(picture)).unwrap();
+        assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{picture}");
+        for n in needles {
+            assert!(svg.contains(n), "{picture} lacks `{n}`");
+        }
+    }
+    // `report` makes the folder one page with the pictures in it.
+    let page = dir.path().join("diag.html");
+    let o = spindlelab(&["report".as_ref(), out.as_os_str(), "-o".as_ref(), page.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert_eq!(html.matches("<figure id=\"fig-").count(), 3, "{html}");
+    assert!(html.contains("href=\"#fig-lobes.svg\"") && html.contains("<table>"));
     let input = std::fs::read_to_string(&recipe).unwrap();
     let diagnosed = std::fs::read_to_string(out.join("diagnosed.yaml")).unwrap();
     // Every input line is kept, in order, but for a reference rewired through the effect's

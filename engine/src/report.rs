@@ -181,6 +181,25 @@ th{background:#f3f5f8}td:first-child,th:first-child{text-align:left}pre{backgrou
 .warn{color:#8a4b00}.fail{color:#b00020}figure{margin:1em 0}figcaption{font-size:.9em;color:#555}\
 .graph{overflow:auto}.graph svg{max-width:none}svg{max-width:100%;height:auto}";
 
+/// A self-contained page with the report's style around `body` (HTML), titled `title`.
+pub fn standalone(title: &str, body: &str) -> String {
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n",
+        esc(title)
+    )
+}
+
+/// An SVG file as a figure the page carries itself (a data URI), with `id` to link to.
+pub fn svg_figure(id: &str, caption: &str, svg: &[u8]) -> String {
+    format!(
+        "<figure id=\"{}\"><img alt=\"{}\" src=\"data:image/svg+xml;base64,{}\"><figcaption>{}</figcaption></figure>",
+        esc(id),
+        esc(caption),
+        base64(svg),
+        esc(caption)
+    )
+}
+
 /// The report of a run: its manifest and its files (name and bytes, as in the folder).
 pub fn html(m: &Manifest, recipe_text: Option<&str>, files: &[(String, Vec<u8>)]) -> String {
     let mut s = String::new();

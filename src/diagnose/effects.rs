@@ -222,6 +222,57 @@ impl Effect for PluginEffect {
     }
 }
 
+/// A resonance outside the library, along one direction and within a band: one mode added
+/// to the model FRFs of that direction (`frf.add_mode`). Never named: it stands in for what
+/// the library cannot say, so a known effect can be judged beside it and the rest located.
+pub struct UnknownResonance {
+    pub direction: String,
+    /// The band its frequency is searched in, Hz.
+    pub band_hz: [f64; 2],
+}
+
+impl Effect for UnknownResonance {
+    fn name(&self) -> &'static str {
+        "unknown_resonance"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Measurement
+    }
+    fn description(&self) -> &'static str {
+        "one mode the model lacks, along one direction (not an effect of the library)"
+    }
+    fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        if roles.gaps.is_empty() {
+            return Err("no model is compared with a measurement".into());
+        }
+        let [lo, hi] = self.band_hz;
+        let free = vec![
+            Free::lin("unknown_f", "Hz", 0.5 * (lo + hi), lo, hi),
+            Free::log("unknown_zeta", "", 0.03, 0.003, 0.3),
+            Free::log("unknown_k", "N/m", 1e10, 1e5, 1e12),
+        ];
+        declare(r, &free)?;
+        let direction = self.direction.clone();
+        wrap_gap_models(roles, r, "unknown_resonance", &|src| {
+            Ok(format!(
+                "# Diagnosed: a resonance outside the library along {direction}, located, not named.\nunknown_resonance:\n  kind: frf.add_mode\n  params: {{ f: $unknown_f, zeta: $unknown_zeta, stiffness: $unknown_k, direction: {direction} }}\n  inputs: {{ frf: \"{src}\" }}"
+            ))
+        })?;
+        Ok(free)
+    }
+    fn starts(&self, free: &[Free]) -> usize {
+        16 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        m.insert("direction".into(), json!(self.direction));
+        m.insert("f_hz".into(), json!(value(values, "unknown_f")));
+        m.insert("zeta".into(), json!(value(values, "unknown_zeta")));
+        m.insert("stiffness_n_per_m".into(), json!(value(values, "unknown_k")));
+        m
+    }
+}
+
 /// A sensor's phase lag linear in frequency (§2.3, Eq. 2.11): acts on the measured FRFs only.
 pub struct SensorDelay;
 
@@ -248,11 +299,6 @@ impl Effect for SensorDelay {
             ))
         })?;
         Ok(free)
-    }
-    /// A phase slope wraps the phase at the top of the band several times over its range:
-    /// a scan of the one parameter keeps the search out of a wrapped well.
-    fn starts(&self, _free: &[Free]) -> usize {
-        16
     }
     fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
         let mut m = Map::new();

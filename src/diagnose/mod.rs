@@ -11,8 +11,10 @@
 //!    with 2 n_eff degrees of freedom per file at the floor), plus the trials' deviance
 //!    under the probit likelihood of `trials.score`, plus `k ln n` for k parameters. An
 //!    effect is named when it beats the model without it by [`BIC_STRONG`] and brings every
-//!    file to the floor; pairs are tried when no single effect does; a candidate that leaves
-//!    only narrow bands off the floor is named beside them ([`explains_outside_bands`]).
+//!    file to the floor; pairs are tried when no single effect does; when none does, one
+//!    mode outside the library stands in where the largest discrepancy remains, and an
+//!    effect is named beside it when together they explain every file and beat the mode
+//!    alone ([`locate_unknown`]).
 //!    What nothing explains is reported with its place — files and trials — never forced
 //!    onto a name.
 //! 4. **Add** and **show.** The named effects are written into the recipe at their fitted
@@ -88,18 +90,6 @@ impl FileGap {
     }
     pub fn discrepant(&self) -> bool {
         self.z() > Z_DISCREPANT
-    }
-    /// Standard deviations of the residual outside `band` (Hz) above the floor: the lines outside carry
-    /// `ratio_out² = Σ_out |r|² · n/n_out`, which at the floor is `1 ± 1/√(n_eff n_out/n)`.
-    pub fn z_outside(&self, band: [f64; 2]) -> f64 {
-        let n = self.residual.len();
-        let out: Vec<f64> = self.residual.iter().filter(|(f, _)| *f < band[0] || *f > band[1]).map(|r| r.1).collect();
-        if n == 0 || out.is_empty() {
-            return 0.0;
-        }
-        let share = out.len() as f64 / n as f64;
-        let ratio2 = out.iter().sum::<f64>() / share;
-        (ratio2 - 1.0) * (self.n_eff * share).sqrt()
     }
 }
 
@@ -188,6 +178,19 @@ pub struct FrfDiscrepancy {
     pub near_hz: f64,
     pub band_hz: [f64; 2],
     pub ratio: f64,
+    /// One mode along this direction that brings the files to the floor (beside the named
+    /// effects), when one does: where the missing resonance is, and how stiff and damped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resonance: Option<UnknownMode>,
+}
+
+/// A mode outside the library that explains what the named effects leave.
+#[derive(Debug, Clone, Serialize)]
+pub struct UnknownMode {
+    pub direction: String,
+    pub f_hz: f64,
+    pub zeta: f64,
+    pub stiffness_n_per_m: f64,
 }
 
 /// A discrepancy left without a name: where it is, never forced onto an effect.
@@ -331,31 +334,20 @@ fn band_around(freq: &[f64], r: &[num_complex::Complex64]) -> [f64; 2] {
     [freq[lo], freq[hi]]
 }
 
-/// Whether `after` leaves only narrow discrepancies that `before` did not already have alone: every file of
-/// `after` is at the floor outside its band of largest discrepancy (widened by its own width, at most a third
-/// of the measured span), and some file of `before` was off the floor outside those bands. The test of a known
-/// effect beside an unknown resonance: the effect must have removed a discrepancy the resonance cannot make.
-fn explains_outside_bands(before: &Evaluation, after: &Evaluation) -> bool {
-    if after.at_floor() || before.files.len() != after.files.len() {
-        return false;
+/// Where a resonance outside the library would sit: along the direction of the file most
+/// off the floor, in a band around its largest discrepancy (the half-peak band of the
+/// residual, widened to twice its width or 5 % of its centre either side, within the measured
+/// lines). `None` when every file is at the floor.
+fn locate_unknown(e: &Evaluation) -> Option<effects::UnknownResonance> {
+    let f = e.files.iter().filter(|f| f.discrepant()).max_by(|a, b| a.z().total_cmp(&b.z()))?;
+    let [lo, hi] = f.band_hz;
+    let (first, last) = (f.residual.first()?.0, f.residual.last()?.0);
+    if !(lo.is_finite() && hi.is_finite()) {
+        return None;
     }
-    let mut bands = Vec::with_capacity(after.files.len());
-    for f in &after.files {
-        if !f.discrepant() {
-            bands.push([f64::INFINITY, f64::NEG_INFINITY]);
-            continue;
-        }
-        let [lo, hi] = f.band_hz;
-        let (Some(first), Some(last)) = (f.residual.first(), f.residual.last()) else { return false };
-        let widen = (hi - lo).max(0.02 * 0.5 * (lo + hi));
-        let band = [lo - widen, hi + widen];
-        let narrow = band[1] - band[0] <= (last.0 - first.0) / 3.0;
-        if !narrow || f.z_outside(band) > Z_DISCREPANT {
-            return false;
-        }
-        bands.push(band);
-    }
-    before.files.iter().zip(&bands).any(|(f, &band)| f.z_outside(band) > Z_DISCREPANT)
+    let (centre, half) = (0.5 * (lo + hi), (hi - lo).max(0.05 * 0.5 * (lo + hi)));
+    let band = [(centre - 2.0 * half).max(first.max(1.0)), (centre + 2.0 * half).min(last)];
+    (band[1] > band[0]).then(|| effects::UnknownResonance { direction: f.direction.clone(), band_hz: band })
 }
 
 /// Runs the gaps and the trials of a compiled recipe in memory.
@@ -722,6 +714,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
     let mut named: Vec<&dyn Effect> = Vec::new();
     let mut named_values: Vec<(String, f64)> = Vec::new();
     let mut current = baseline.clone();
+    let mut unknown_fit: Option<UnknownMode> = None;
 
     // Structural and measurement effects, when the FRFs disagree.
     if !baseline.at_floor() {
@@ -784,21 +777,44 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
             }
         }
         if chosen.is_none() {
-            // A known effect beside an unknown one: the best candidate that brings every file to the floor
-            // outside the narrow bands it leaves, where the model without it was off.
-            let partial = |c: &&Candidate| {
-                c.skipped.is_none()
-                    && c.delta_bic > BIC_STRONG
-                    && c.evaluation.as_ref().is_some_and(|after| explains_outside_bands(&baseline, after))
-            };
-            let single = fitted.iter().filter(partial).min_by(|a, b| a.bic.total_cmp(&b.bic));
-            let pair = candidates
-                .iter()
-                .filter(|c| c.effects.len() > 1)
-                .filter(partial)
-                .filter(|c| single.is_none_or(|s| s.bic - c.bic > BIC_STRONG))
-                .min_by(|a, b| a.bic.total_cmp(&b.bic));
-            chosen = pair.or(single).cloned();
+            // Something outside the library: one mode stands in for it where the largest
+            // discrepancy remains (after the best effect with strong evidence, else as written),
+            // and a known effect is named beside it when the two explain every file and beat
+            // that mode alone by ΔBIC > 10.
+            let best = ranked.first().filter(|&&i| fitted[i].delta_bic > BIC_STRONG);
+            let from = best.and_then(|&i| fitted[i].evaluation.as_ref()).unwrap_or(&baseline);
+            if let Some(unknown) = locate_unknown(from) {
+                let alone = try_candidate(&ctx, &[&unknown], &[], &[], &[], &baseline);
+                let top: Vec<usize> =
+                    ranked.iter().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG).take(3).collect();
+                let beside: Vec<Candidate> = top
+                    .par_iter()
+                    .map(|&i| {
+                        let starts: Vec<(String, f64)> =
+                            fitted[i].values.iter().chain(&alone.values).cloned().collect();
+                        try_candidate(&ctx, &[singles[i], &unknown], &[], &[], &starts, &baseline)
+                    })
+                    .collect();
+                let known = beside
+                    .iter()
+                    .filter(|c| c.skipped.is_none() && c.explains)
+                    .filter(|c| alone.skipped.is_some() || alone.bic - c.bic > BIC_STRONG)
+                    .min_by(|a, b| a.bic.total_cmp(&b.bic))
+                    .cloned();
+                let located = known.as_ref().or((alone.skipped.is_none() && alone.explains).then_some(&alone));
+                if let Some(c) = located {
+                    let at = |n: &str| c.values.iter().find(|(k, _)| k == n).map_or(f64::NAN, |v| v.1);
+                    unknown_fit = Some(UnknownMode {
+                        direction: unknown.direction.clone(),
+                        f_hz: at("unknown_f"),
+                        zeta: at("unknown_zeta"),
+                        stiffness_n_per_m: at("unknown_k"),
+                    });
+                }
+                chosen = known;
+                candidates.push(alone);
+                candidates.extend(beside);
+            }
         }
         candidates.splice(0..0, fitted);
         if let Some(ch) = &chosen {
@@ -852,6 +868,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 near_hz: f.max_discrepancy_hz,
                 band_hz: f.band_hz,
                 ratio: f.ratio,
+                resonance: unknown_fit.clone().filter(|u| u.direction == f.direction),
             })
         })
         .collect();
@@ -1050,10 +1067,18 @@ pub fn markdown(d: &Diagnosis) -> String {
     }
     for u in &d.unexplained {
         match u {
-            Unexplained::Frf(u) => s.push_str(&format!(
-                "- unexplained in {} at {} rpm near {:.0} Hz (band {:.0}–{:.0} Hz), gap ratio {:.2}\n",
-                u.direction, u.speed_rpm, u.near_hz, u.band_hz[0], u.band_hz[1], u.ratio
-            )),
+            Unexplained::Frf(u) => {
+                s.push_str(&format!(
+                    "- unexplained in {} at {} rpm near {:.0} Hz (band {:.0}–{:.0} Hz), gap ratio {:.2}\n",
+                    u.direction, u.speed_rpm, u.near_hz, u.band_hz[0], u.band_hz[1], u.ratio
+                ));
+                if let Some(r) = &u.resonance {
+                    s.push_str(&format!(
+                        "  - one mode outside the library explains it: {:.0} Hz, ζ {:.3}, k {:.3e} N/m along {}\n",
+                        r.f_hz, r.zeta, r.stiffness_n_per_m, r.direction
+                    ));
+                }
+            }
             Unexplained::Trial(t) => s.push_str(&format!(
                 "- unexplained trial at {} rpm, {:.3} mm: {} where the lobes give {:.3} mm ({:+.0} % from the limit)\n",
                 t.speed_rpm,
@@ -1149,6 +1174,43 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
         }
     }
     out
+}
+
+/// The HTML page of a diagnosis folder: `diagnosis.md` with the pictures it links drawn in
+/// place of the links (each read through the data-file cap), one self-contained file.
+pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
+    use crate::engine::formats::{MAX_DATA_BYTES, read_capped};
+    use pulldown_cmark::{Event, Options, Parser, Tag, TagEnd, html};
+    let read = |name: &str| {
+        read_capped(&dir.join(name), MAX_DATA_BYTES)
+            .map_err(|e| DiagnoseError::Input(format!("{}: {e}", dir.join(name).display())))
+    };
+    let md = String::from_utf8(read("diagnosis.md")?)
+        .map_err(|_| DiagnoseError::Input(format!("{}: not UTF-8 text", dir.join("diagnosis.md").display())))?;
+    let mut figures = Vec::new();
+    let mut events = Vec::new();
+    for ev in Parser::new_ext(&md, Options::ENABLE_TABLES) {
+        match ev {
+            // A link to a picture of the folder goes to its figure below.
+            Event::Start(Tag::Link { link_type, dest_url, title, id })
+                if dest_url.ends_with(".svg") && !dest_url.contains(['/', '\\']) && !dest_url.starts_with('.') =>
+            {
+                let bytes = read(&dest_url)?;
+                figures.push(crate::engine::report::svg_figure(&format!("fig-{dest_url}"), &dest_url, &bytes));
+                let dest_url = format!("#fig-{dest_url}").into();
+                events.push(Event::Start(Tag::Link { link_type, dest_url, title, id }));
+            }
+            Event::End(TagEnd::Link) => events.push(ev),
+            other => events.push(other),
+        }
+    }
+    let mut body = String::new();
+    html::push_html(&mut body, events.into_iter());
+    for f in figures {
+        body.push_str(&f);
+        body.push('\n');
+    }
+    Ok(crate::engine::report::standalone(&format!("diagnosis of {}", dir.display()), &body))
 }
 
 /// Writes `diagnosis.json`, `diagnosis.md` and `diagnosed.yaml` into `out`, each whole or

@@ -109,8 +109,18 @@ pub fn levenberg_marquardt(f: &mut Residuals<'_>, z0: &[f64], opts: SearchOption
         }
         let jtj = j.transpose() * &j;
         let rv = Mat::<f64>::from_fn(m, 1, |i, _| r[i]);
-        let g = j.transpose() * &rv;
+        let mut g = j.transpose() * &rv;
         jac = Some(j);
+        // Coordinates on a bound that the descent direction −g pushes outward stay there: the
+        // step is solved for the others only (an active set), so a clamped coordinate does not
+        // spoil the step of the free ones and the search goes on along the face. (A joint
+        // damping on its lower bound otherwise made the joint-and-delay pair of the diagnosis
+        // matrix creep to its evaluation budget at twice the noise floor.)
+        let pinned: Vec<bool> =
+            (0..n).map(|k| (z[k] <= 0.0 && g[(k, 0)] > 0.0) || (z[k] >= 1.0 && g[(k, 0)] < 0.0)).collect();
+        for k in (0..n).filter(|&k| pinned[k]) {
+            g[(k, 0)] = 0.0;
+        }
         loop {
             if t.evaluations >= opts.max_evaluations {
                 break 'outer;
@@ -118,6 +128,13 @@ pub fn levenberg_marquardt(f: &mut Residuals<'_>, z0: &[f64], opts: SearchOption
             let mut a = jtj.clone();
             for k in 0..n {
                 a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
+            }
+            for k in (0..n).filter(|&k| pinned[k]) {
+                for i in 0..n {
+                    a[(k, i)] = 0.0;
+                    a[(i, k)] = 0.0;
+                }
+                a[(k, k)] = 1.0;
             }
             let step = a.partial_piv_lu().solve(-&g);
             let mut zn: Vec<f64> = (0..n).map(|k| z[k] + step[(k, 0)]).collect();

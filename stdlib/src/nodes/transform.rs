@@ -212,6 +212,11 @@ impl FrfAddMode {
                         T::Quantity(D::STIFFNESS),
                         "modal stiffness k (its static compliance is 1/k)",
                     ),
+                    Field::opt(
+                        "direction",
+                        T::Choice(&["x", "y", "z"]),
+                        "add the mode only to FRFs along this direction (others pass unchanged): a resonance of one direction in a sweep over both",
+                    ),
                 ],
             ),
         }
@@ -232,6 +237,18 @@ impl Node for FrfAddMode {
         let Value::Frf(frf) = ctx.input("frf")? else {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
+        if let Some(only) = ctx.params.text("direction") {
+            match frf.direction.as_deref() {
+                Some(d) if d == only => {}
+                Some(_) => return Ok(outputs(vec![("frf", Value::Frf(frf.clone()))])),
+                None => {
+                    return Err(NodeError::input(
+                        "frf",
+                        format!("the FRF states no direction, so `direction: {only}` cannot pick it"),
+                    ));
+                }
+            }
+        }
         let mode = Mode::from_stiffness(ctx.f64("f")?, ctx.f64("zeta")?, ctx.f64("stiffness")?);
         let mut out: Frf = frf.clone();
         for (v, f) in out.values.iter_mut().zip(&frf.freq_hz) {
