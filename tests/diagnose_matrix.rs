@@ -3,8 +3,9 @@
 //! pairs of effects, no-effect controls, and a resonance outside the library), with the
 //! noise model of the training cases, then diagnosed from the baseline recipe.
 //!
-//! Run with `--nocapture` for the table of every case; the test holds the identification
-//! rate (≥ 95 %) and the false alarms on the controls (none).
+//! Slow: run with `-- --ignored --nocapture` for the table of every case; the test holds the
+//! identification rate (≥ 95 %) and the false alarms on the controls (none). The verdicts
+//! that leave something unexplained are checked in the default tier.
 
 mod common;
 
@@ -88,6 +89,7 @@ fn matrix() -> Vec<Case> {
 }
 
 #[test]
+#[ignore = "slow: twenty-five diagnoses, about ten minutes on two cores"]
 fn the_synthetic_matrix_is_identified_without_false_alarms() {
     let only = std::env::var("SPINDLELAB_MATRIX_ONLY").unwrap_or_default();
     let cases: Vec<Case> = matrix().into_iter().filter(|c| c.name.contains(&only)).collect();
