@@ -54,9 +54,13 @@ fn generate(dir: &Path, case: &Case) {
         std::fs::write(&truth_path, &truth).unwrap();
         let c =
             spindlelab::engine::compile_file(&truth_path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
-        let sub = Roles::find(&c).substructure.expect("a beam.substructure step");
         let mut r = RecipeText::new("truth.yaml", truth).unwrap();
-        r.set_key(&diagnose::edit::path(&["steps", &sub, "params"]), "max_element", mesh).unwrap();
+        let beams: Vec<&str> =
+            c.recipe.steps.iter().filter(|s| s.kind == "beam.substructure").map(|s| s.id.as_str()).collect();
+        assert!(!beams.is_empty(), "{}: no beam.substructure step to mesh finer", case.name);
+        for sub in beams {
+            r.set_key(&diagnose::edit::path(&["steps", sub, "params"]), "max_element", mesh).unwrap();
+        }
         truth = r.text;
     }
     std::fs::write(&truth_path, &truth).unwrap();
@@ -159,9 +163,8 @@ pub fn diagnose_case(case: &Case) -> Diagnosis {
         .unwrap_or_else(|e| panic!("{}: {e}", case.name))
 }
 
-/// The main parameter of an effect, as the truth wrote it and as the diagnosis reports it:
-/// the relative error.
-pub fn main_param_error(effect: &str, truth: &[(&str, f64)], d: &Diagnosis) -> Option<f64> {
+/// The main parameter of an effect, as the truth wrote it and as the diagnosis reports it.
+pub fn main_param(effect: &str, truth: &[(&str, f64)], d: &Diagnosis) -> Option<(f64, f64)> {
     let p = &d.effects.iter().find(|e| e.name == effect)?.params;
     let t = |n: &str| truth.iter().find(|(k, _)| *k == n).map(|v| v.1);
     let (want, got) = match effect {
@@ -178,7 +181,7 @@ pub fn main_param_error(effect: &str, truth: &[(&str, f64)], d: &Diagnosis) -> O
         }
         _ => return None,
     };
-    Some((got / want - 1.0).abs())
+    Some((want, got))
 }
 
 /// What a diagnosis of a case came to.
@@ -189,6 +192,8 @@ pub struct Scored {
     pub verdict: &'static str,
     pub named: Vec<&'static str>,
     pub param_error: Option<f64>,
+    /// Each effect's main parameter: name, truth, diagnosed.
+    pub params: Vec<(&'static str, f64, f64)>,
     pub seconds: f64,
 }
 
@@ -214,28 +219,31 @@ pub fn score(case: &Case) -> Scored {
     } else {
         (if case.effects.len() == 1 { "single" } else { "pair" }, d.verdict == diagnose::VERDICT_EFFECTS && want == got)
     };
-    let param_error = case
-        .effects
+    let params: Vec<(&'static str, f64, f64)> =
+        case.effects.iter().filter_map(|(e, v)| main_param(e, v, &d).map(|(w, g)| (*e, w, g))).collect();
+    let param_error = params
         .iter()
-        .filter_map(|(e, v)| main_param_error(e, v, &d))
+        .map(|(_, w, g)| (g / w - 1.0).abs())
         .fold(None, |a: Option<f64>, b| Some(a.map_or(b, |a| a.max(b))));
-    Scored { name: case.name.clone(), kind, right, verdict: d.verdict, named, param_error, seconds: d.seconds }
+    Scored { name: case.name.clone(), kind, right, verdict: d.verdict, named, param_error, params, seconds: d.seconds }
 }
 
 /// Prints the table of outcomes and returns (identification rate over the cases with an
 /// effect, false alarms on the controls, main-parameter errors of the right answers).
 pub fn summarise(outcomes: &[Scored]) -> (f64, usize, Vec<f64>) {
     println!(
-        "| case | kind | verdict | named | right | main parameter error | seconds |\n|---|---|---|---|---|---|---|"
+        "| case | kind | verdict | named | right | main parameters (truth → diagnosed) | worst error | seconds |\n|---|---|---|---|---|---|---|---|"
     );
     for o in outcomes {
+        let params: Vec<String> = o.params.iter().map(|(e, w, g)| format!("{e} {w:.4} → {g:.4}")).collect();
         println!(
-            "| {} | {} | {} | {} | {} | {} | {:.1} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {:.1} |",
             o.name,
             o.kind,
             o.verdict,
             o.named.join(" + "),
             if o.right { "yes" } else { "NO" },
+            params.join("; "),
             o.param_error.map_or("—".into(), |e| format!("{:.1} %", e * 100.0)),
             o.seconds
         );
