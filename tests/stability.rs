@@ -235,6 +235,27 @@ fn bad_cutting_setups_are_refused_before_running() {
 }
 
 #[test]
+fn out_of_range_resolution_likelihood_and_direction_are_refused_before_running() {
+    let e = rejected("stability-params.yaml", false);
+    assert_has(
+        &e,
+        &[
+            "stability-params.yaml:11:",
+            "resolution",
+            "stability-params.yaml:15:",
+            "`lapse`",
+            "rate in [0, 50) %",
+            "stability-params.yaml:19:",
+            "`sigma`",
+            "give a positive spread",
+            "stability-params.yaml:23:",
+            "`w`",
+            "nothing was run",
+        ],
+    );
+}
+
+#[test]
 fn stability_failures_at_run_time_say_what_and_what_to_do() {
     let e = rejected("stability-failures.yaml", true);
     assert_has(

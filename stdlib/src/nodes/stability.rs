@@ -1097,7 +1097,7 @@ impl Node for TrialsScore {
         if let Some(sigma) = p.f64("sigma")
             && !(sigma.is_finite() && sigma > 0.0)
         {
-            return Err(NodeError::param("sigma", format!("{} %: give a positive spread, e.g. `10 %`", sigma * 100.0)));
+            return Err(NodeError::param("sigma", format!("{} %: give a positive spread, e.g. `5 %`", sigma * 100.0)));
         }
         if let Some(lapse) = p.f64("lapse")
             && !(0.0..0.5).contains(&lapse)

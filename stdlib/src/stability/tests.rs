@@ -628,3 +628,18 @@ fn coarse_frfs_are_resolved_finely_enough_for_the_lobe_minima() {
     assert_eq!(refined.freqs_hz[3], 5.0);
     assert_eq!(refined.xx[3], frf.xx[1]);
 }
+
+/// A speed range reaching far below the band's modes would need more lobes than a diagram may take: refused
+/// with the count and what to change, not allocated.
+#[test]
+fn a_lobe_count_beyond_the_cap_is_refused_with_what_to_change() {
+    let model = ModalModel::new(vec![Mode::from_stiffness(3000.0, 0.02, 2e7)], vec![]).unwrap();
+    let freqs: Vec<f64> = (1..=8000).map(|i| i as f64).collect();
+    let mill =
+        Milling::new(4, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let opts = ZoaOptions { speeds_rpm: vec![0.5, 1000.0], keep_lobes: true, ..ZoaOptions::default() };
+    let e = zoa_lobes(&model.receptance(&freqs).unwrap(), &mill, &opts).unwrap_err();
+    let StabilityError::TooManyLobes { lobes, teeth, .. } = e else { panic!("{e:?}") };
+    assert!(lobes > MAX_LOBES && teeth == 4, "{lobes}");
+    assert!(e.to_string().contains("start the speeds higher or give `lobes` explicitly"), "{e}");
+}
