@@ -590,11 +590,11 @@ impl Effect for SpeedDependentCuttingCoefficients {
         declare(r, &free)?;
         Ok(free)
     }
-    /// The trials' likelihood is piecewise flat in the coefficients' speed law (a trial
-    /// counts only as it crosses the boundary), and a change of Ks and one of β move the
-    /// boundary alike at most speeds: a dense scan of the plane finds the well.
+    /// The trials' likelihood is nearly flat in the coefficients' speed law away from the
+    /// trials (a trial counts most as it crosses the boundary): a scan of the plane finds
+    /// the well. Four times as many samples found the same ends on every case tried.
     fn starts(&self, free: &[Free]) -> usize {
-        32 * free.len()
+        8 * free.len()
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let reference = roles
