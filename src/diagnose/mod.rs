@@ -74,10 +74,9 @@ pub struct FileGap {
     pub max_discrepancy_hz: f64,
     /// Where the noise-weighted residual is above half its peak, around the peak (Hz).
     pub band_hz: [f64; 2],
-    /// The noise-weighted residual's energy `|r|²` per measured line, with the line's frequency (Hz); it sums
-    /// to `ratio²`.
+    /// The first and last measured line the gap compares, Hz.
     #[serde(skip)]
-    pub residual: Vec<(f64, f64)>,
+    pub span_hz: [f64; 2],
     /// The model and the measured FRF the gap compares, for the pictures.
     #[serde(skip)]
     pub frfs: Option<(Arc<Value>, Arc<Value>)>,
@@ -341,8 +340,8 @@ fn band_around(freq: &[f64], r: &[num_complex::Complex64]) -> [f64; 2] {
 fn locate_unknown(e: &Evaluation) -> Option<effects::UnknownResonance> {
     let f = e.files.iter().filter(|f| f.discrepant()).max_by(|a, b| a.z().total_cmp(&b.z()))?;
     let [lo, hi] = f.band_hz;
-    let (first, last) = (f.residual.first()?.0, f.residual.last()?.0);
-    if !(lo.is_finite() && hi.is_finite()) {
+    let [first, last] = f.span_hz;
+    if !(lo.is_finite() && hi.is_finite() && first.is_finite() && last.is_finite()) {
         return None;
     }
     let (centre, half) = (0.5 * (lo + hi), (hi - lo).max(0.05 * 0.5 * (lo + hi)));
@@ -374,12 +373,12 @@ fn evaluate(
             let Some(Value::Table(t)) = out.get("summary").map(|v| v.as_ref()) else {
                 return Err(format!("`{}` gave no summary", c.graph.instances[i].id));
             };
-            let (band, residual) = match out.get("residual").map(|v| v.as_ref()) {
+            let (band, span_hz) = match out.get("residual").map(|v| v.as_ref()) {
                 Some(Value::Frf(r)) => (
                     band_around(&r.freq_hz, &r.values),
-                    r.freq_hz.iter().zip(&r.values).map(|(f, v)| (*f, v.norm_sqr())).collect(),
+                    [r.freq_hz.first().copied().unwrap_or(f64::NAN), r.freq_hz.last().copied().unwrap_or(f64::NAN)],
                 ),
-                _ => ([f64::NAN; 2], vec![]),
+                _ => ([f64::NAN; 2], [f64::NAN; 2]),
             };
             let input = |port: &str| -> Option<Arc<Value>> {
                 let (producer, out_port) = c.graph.instances[i].inputs.get(port)?.first()?;
@@ -407,7 +406,7 @@ fn evaluate(
                 n_eff: table_value(t, "n_eff"),
                 max_discrepancy_hz: table_value(t, "max_discrepancy_hz"),
                 band_hz: band,
-                residual,
+                span_hz,
                 frfs,
             });
         }
