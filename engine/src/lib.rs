@@ -138,6 +138,12 @@ pub fn run(
     progress: &(dyn Fn(usize, &str) + Sync),
 ) -> Result<RunReport, RunError> {
     let dir = exec::OutputDir::open(&opts.out_dir).map_err(RunError::Output)?;
+    // A file of the user's where an output goes is refused before anything is computed.
+    let names = compiled.recipe.outputs.iter().map(|o| o.file.as_str());
+    let names = names.chain(opts.extra_files.iter().map(|(rel, _)| rel.as_str()));
+    let names = names.chain([exec::manifest::MANIFEST_FILE]);
+    let names = names.chain(opts.report.then_some(report::REPORT_FILE));
+    dir.check_outputs(names).map_err(RunError::Output)?;
     let result = exec::execute(&compiled.recipe, &compiled.graph, registry, opts, progress);
     let failures: Vec<(String, String)> =
         result.failures(&compiled.graph).map(|(id, e)| (id.to_string(), e.to_string())).collect();
@@ -184,6 +190,7 @@ pub fn run(
         &result,
         written.clone(),
     );
+    manifest.notes.extend(dir.notes().iter().cloned());
     manifest.notes.extend(plot_notes);
     manifest.recipe_text = compiled.sources.first().map(|s| s.text.to_string()).unwrap_or_default();
     manifest.files = staged.files().iter().cloned().collect();

@@ -1,15 +1,24 @@
 //! The content-addressed cache of node outputs.
 //!
-//! An entry is written to a temporary file and renamed into place, and carries a checksum of
-//! its payload and the key it was written for: an interrupted write, damaged bytes or an entry
-//! under the wrong name is never served; the run recomputes it and says so.
+//! An entry is written to a temporary file and renamed into place, and carries its payload's
+//! length, a checksum of it and the key it was written for: an interrupted write, damaged
+//! bytes or an entry under the wrong name is never served; the run recomputes it and says so.
+//! An entry is opened without following links or waiting on pipes, and read only as far as
+//! its declared length (and [`MAX_ENTRY_BYTES`]) allows. The checksum detects damage, not a
+//! local user who can write the folder and recompute it.
 
+use super::files::{self, Refused};
 use crate::node::Outputs;
 use crate::value::Value;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-const MAGIC: &[u8; 8] = b"SPLCACH4";
+const MAGIC: &[u8; 8] = b"SPLCACH5";
+/// Magic, payload length (u64, little endian), BLAKE3 of the payload.
+const HEADER: usize = 8 + 8 + 32;
+
+/// The largest entry written or read; larger outputs are recomputed on every run instead.
+pub const MAX_ENTRY_BYTES: u64 = 1 << 30;
 
 /// A cache entry: a node's outputs and the warnings it raised making them.
 pub struct Entry {
@@ -47,12 +56,27 @@ impl Cache {
 
     /// The entry under `key`: present and intact, absent, or present but unusable (and why).
     pub fn lookup(&self, key: &str) -> Lookup {
-        let Ok(bytes) = std::fs::read(self.path(key)) else { return Lookup::Miss };
-        if bytes.len() < 40 || &bytes[..8] != MAGIC {
+        let path = self.path(key);
+        if path.parent().is_some_and(files::is_link) {
+            return Lookup::Damaged("its folder is a symbolic link".into());
+        }
+        let bytes = match files::read_regular(&path, HEADER as u64 + MAX_ENTRY_BYTES) {
+            Ok(b) => b,
+            Err(Refused::Missing) => return Lookup::Miss,
+            Err(e) => return Lookup::Damaged(e.to_string()),
+        };
+        if bytes.len() < HEADER || &bytes[..8] != MAGIC {
             return Lookup::Damaged("written by another version or cut short".into());
         }
-        let (sum, payload) = bytes[8..].split_at(32);
-        if blake3::hash(payload).as_bytes() != sum {
+        let declared = u64::from_le_bytes(bytes[8..16].try_into().expect("eight bytes"));
+        let payload = &bytes[HEADER..];
+        if declared != payload.len() as u64 {
+            return Lookup::Damaged(format!(
+                "it holds {} bytes where its header declares {declared}",
+                payload.len()
+            ));
+        }
+        if blake3::hash(payload).as_bytes() != &bytes[16..HEADER] {
             return Lookup::Damaged("its checksum does not match its contents".into());
         }
         type Stored = (String, Vec<String>, Vec<(String, Value)>);
@@ -66,19 +90,31 @@ impl Cache {
     }
 
     /// Stores outputs under `key` atomically. The entry is created with the process's umask,
-    /// so users who share an output folder share its cache.
+    /// so users who share an output folder share its cache. A link standing in place of the
+    /// entry's folder is removed (never written through); an entry over [`MAX_ENTRY_BYTES`]
+    /// is not stored.
     pub fn put(&self, key: &str, outputs: &Outputs, warnings: &[String]) -> std::io::Result<()> {
         static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let path = self.path(key);
         let parent = path.parent().expect("entry has a parent");
+        if files::is_link(&self.dir) {
+            return Err(std::io::Error::other("the cache folder is a symbolic link"));
+        }
+        if files::is_link(parent) {
+            std::fs::remove_file(parent)?;
+        }
         std::fs::create_dir_all(parent)?;
         let pairs: Vec<(&String, &Value)> = outputs.iter().collect();
         let payload = postcard::to_stdvec(&(key, warnings, pairs)).map_err(std::io::Error::other)?;
+        if payload.len() as u64 > MAX_ENTRY_BYTES {
+            return Err(std::io::Error::other("the outputs are larger than a cache entry may be"));
+        }
         let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let tmp = parent.join(format!(".tmp-{}-{n}", std::process::id()));
         let written = (|| {
             let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
             f.write_all(MAGIC)?;
+            f.write_all(&(payload.len() as u64).to_le_bytes())?;
             f.write_all(blake3::hash(&payload).as_bytes())?;
             f.write_all(&payload)?;
             f.sync_data()?;
@@ -90,12 +126,40 @@ impl Cache {
         written
     }
 
+    /// Removes links standing in the cache in place of its folders or entries (they would lead
+    /// reads and writes elsewhere); returns a note per link for the run to report.
+    pub fn remove_links(&self) -> Vec<String> {
+        let mut notes = Vec::new();
+        let mut unlink = |p: &Path| {
+            let target = std::fs::read_link(p).map(|t| t.display().to_string()).unwrap_or_default();
+            if std::fs::remove_file(p).is_ok() {
+                notes.push(format!(
+                    "the cache held a symbolic link `{}` → `{target}`; it was removed (not followed) and what it stood for is recomputed",
+                    p.display()
+                ));
+            }
+        };
+        for sub in std::fs::read_dir(&self.dir).into_iter().flatten().flatten() {
+            let Ok(ft) = sub.file_type() else { continue };
+            if ft.is_symlink() {
+                unlink(&sub.path());
+            } else if ft.is_dir() {
+                for e in std::fs::read_dir(sub.path()).into_iter().flatten().flatten() {
+                    if e.file_type().is_ok_and(|t| t.is_symlink()) {
+                        unlink(&e.path());
+                    }
+                }
+            }
+        }
+        notes
+    }
+
     /// The cache folder.
-    pub fn dir(&self) -> &std::path::Path {
+    pub fn dir(&self) -> &Path {
         &self.dir
     }
 
-    /// Every entry file with its key and size in bytes.
+    /// Every entry file with its key and size in bytes (links are not entries).
     fn entries(&self) -> Vec<(String, PathBuf, u64)> {
         let mut out = Vec::new();
         for sub in std::fs::read_dir(&self.dir).into_iter().flatten().flatten() {
@@ -104,7 +168,9 @@ impl Cache {
             }
             for e in std::fs::read_dir(sub.path()).into_iter().flatten().flatten() {
                 let name = e.file_name().to_string_lossy().to_string();
-                if let Some(key) = name.strip_suffix(".bin") {
+                if let Some(key) = name.strip_suffix(".bin")
+                    && e.file_type().is_ok_and(|t| t.is_file())
+                {
                     let size = e.metadata().map_or(0, |m| m.len());
                     out.push((key.to_string(), e.path(), size));
                 }

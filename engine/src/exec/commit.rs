@@ -7,17 +7,26 @@
 //! OUT/.spindlelab/runs/run-XXXX/  one folder per run: its files and manifest.json
 //! OUT/.spindlelab/current         symbolic link → runs/run-XXXX, the committed run
 //! OUT/<file>                      symbolic link → .spindlelab/current/<file>
+//! OUT/<folder>                    symbolic link → .spindlelab/current/<folder> (outputs in it)
 //! OUT/.spindlelab-cache/          the cache (see [`super::Cache`])
 //! ```
 //!
 //! A run writes every file into a fresh run folder, then switches `current` by renaming a new
 //! link over it: that rename is the single commit point, so a run killed at any moment leaves
-//! the previous run whole, and a reader never sees files of two runs. A file the new run does
-//! not write disappears with the switch (its link dangles and is removed). The run before the
-//! committed one is kept until the next run; older run folders, staging folders of killed
-//! runs and the cache's temporary files are removed when the next run takes the lock.
+//! the previous run whole, and a reader never sees files of two runs. An output in a folder is
+//! reached through one link for the folder's topmost part that is not the user's, so a name
+//! can turn from a file into a folder between runs and back, still in the one switch. A file
+//! the new run does not write disappears with the switch (its link dangles and is removed).
+//!
+//! The folder is the user's too: a file or folder spindlelab did not make is never replaced
+//! or removed (the run is refused before it computes, naming it), and a run folder in which
+//! the user left or changed a file is kept when it ages out. The run before the committed one
+//! is kept until the next run; older run folders, staging folders of killed runs and the
+//! cache's temporary files are removed when the next run takes the lock. The lock, the
+//! manifest and cache entries are opened without following links (see [`super::files`]).
 
 use super::Cache;
+use super::files::{self, Refused};
 use std::fs::File;
 use std::io::Write;
 use std::path::{Component, Path, PathBuf};
@@ -40,6 +49,12 @@ pub enum CommitError {
         "`{0}` is a symbolic link inside the output folder; spindlelab never writes through links it did not make (remove it, or choose another output folder)"
     )]
     ForeignLink(PathBuf),
+    #[error(
+        "`{path}` is a {what} spindlelab did not write, standing where this run puts an output; it is never replaced: move it away, rename the output, or give this run another folder with -o"
+    )]
+    NotOurs { path: PathBuf, what: &'static str },
+    #[error("`{0}` is not a regular file (a pipe, a device or a folder); remove it, or give this run another folder with -o")]
+    Special(PathBuf),
     #[error("`{path}`: {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
@@ -62,6 +77,9 @@ pub struct OutputDir {
     root: PathBuf,
     meta: PathBuf,
     _lock: File,
+    /// What opening found and repaired or kept (links in the cache, run folders holding the
+    /// user's files), for the run's manifest.
+    notes: Vec<String>,
 }
 
 impl OutputDir {
@@ -75,15 +93,34 @@ impl OutputDir {
         std::fs::create_dir_all(meta.join(RUNS)).map_err(io(&meta))?;
         refuse_link(&meta.join(RUNS))?;
         let lock_path = meta.join(LOCK);
-        let lock = File::options().create(true).truncate(false).write(true).open(&lock_path).map_err(io(&lock_path))?;
+        let lock = match files::open_regular(&lock_path, File::options().create(true).truncate(false).write(true)) {
+            Ok(f) => f,
+            Err(Refused::Link) => return Err(CommitError::ForeignLink(lock_path)),
+            Err(Refused::Special) => return Err(CommitError::Special(lock_path)),
+            Err(e) => return Err(io(&lock_path)(std::io::Error::other(e.to_string()))),
+        };
         match lock.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => return Err(CommitError::Busy(root.to_path_buf())),
             Err(std::fs::TryLockError::Error(e)) => return Err(io(&lock_path)(e)),
         }
-        let dir = OutputDir { root: root.to_path_buf(), meta, _lock: lock };
-        dir.clean_leftovers();
+        let mut dir = OutputDir { root: root.to_path_buf(), meta, _lock: lock, notes: Vec::new() };
+        dir.notes = dir.clean_leftovers();
         Ok(dir)
+    }
+
+    /// What opening the folder repaired or kept, one sentence each.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// Checks, before anything is computed, that every output (`rel`, relative to the folder)
+    /// can be put in place without replacing a file, a folder or a link that is not the tool's.
+    pub fn check_outputs<'a>(&self, rels: impl IntoIterator<Item = &'a str>) -> Result<(), CommitError> {
+        for rel in rels {
+            place(&self.root, rel)?;
+        }
+        Ok(())
     }
 
     pub fn root(&self) -> &Path {
@@ -106,23 +143,39 @@ impl OutputDir {
         std::fs::read_link(self.meta.join(name)).ok()
     }
 
-    /// Removes run folders other than the current and the previous one.
-    fn remove_old_runs(&self) {
+    /// Removes run folders other than the current and the previous one, except those holding
+    /// a file the run did not write or that changed since (the user's, through the links);
+    /// returns a note for each kept.
+    fn remove_old_runs(&self) -> Vec<String> {
         let keep: Vec<PathBuf> = [CURRENT, PREVIOUS].iter().filter_map(|n| self.link_target(n)).collect();
+        let mut notes = Vec::new();
         if let Ok(rd) = std::fs::read_dir(self.meta.join(RUNS)) {
             for e in rd.flatten() {
                 let rel = Path::new(RUNS).join(e.file_name());
-                if !keep.contains(&rel) {
+                if keep.contains(&rel) {
+                    continue;
+                }
+                let foreign = users_files(&e.path());
+                if foreign.is_empty() {
                     let _ = std::fs::remove_dir_all(e.path());
+                } else {
+                    let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+                    let more = if foreign.len() > 5 { format!(" and {} more", foreign.len() - 5) } else { String::new() };
+                    notes.push(format!(
+                        "`{}` was kept: it holds files the run did not write or that were changed after it ({}{more}); move them out and remove the folder",
+                        e.path().display(),
+                        shown.join(", ")
+                    ));
                 }
             }
         }
+        notes
     }
 
     /// Removes run folders other than the current and previous one, staging folders of the
-    /// older layout and temporary files of interrupted cache writes.
-    fn clean_leftovers(&self) {
-        self.remove_old_runs();
+    /// older layout, temporary files of interrupted cache writes and links in the cache.
+    fn clean_leftovers(&self) -> Vec<String> {
+        let mut notes = self.remove_old_runs();
         if let Ok(rd) = std::fs::read_dir(&self.meta) {
             for e in rd.flatten() {
                 if e.file_name().to_string_lossy().starts_with(".tmp") {
@@ -137,6 +190,7 @@ impl OutputDir {
                 }
             }
         }
+        notes.extend(self.cache().remove_links());
         if let Ok(rd) = std::fs::read_dir(super::cache_dir(&self.root)) {
             for sub in rd.flatten().filter(|e| e.file_type().is_ok_and(|t| t.is_dir())) {
                 for e in std::fs::read_dir(sub.path()).into_iter().flatten().flatten() {
@@ -146,7 +200,47 @@ impl OutputDir {
                 }
             }
         }
+        notes
     }
+}
+
+/// The files in a run folder that its manifest does not list with their current contents:
+/// written or changed by someone else through the links. A folder without a manifest was
+/// never committed, so nobody could reach it; it holds nothing of the user's.
+fn users_files(run: &Path) -> Vec<String> {
+    let Ok(bytes) = files::read_regular(&run.join(super::manifest::MANIFEST_FILE), 1 << 30) else {
+        return Vec::new();
+    };
+    let Ok(manifest) = serde_json::from_slice::<super::Manifest>(&bytes) else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    let mut stack = vec![run.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+            let Ok(ft) = e.file_type() else { continue };
+            let path = e.path();
+            if ft.is_dir() {
+                stack.push(path);
+                continue;
+            }
+            if !ft.is_file() {
+                continue; // a link or a pipe holds no data of anyone's
+            }
+            let rel = path.strip_prefix(run).unwrap_or(&path).to_string_lossy().replace('\\', "/");
+            if rel == super::manifest::MANIFEST_FILE {
+                continue;
+            }
+            let same = manifest.files.get(&rel).is_some_and(|want| {
+                files::read_regular(&path, 1 << 30).is_ok_and(|b| blake3::hash(&b).to_hex().as_str() == want)
+            });
+            if !same {
+                found.push(rel);
+            }
+        }
+    }
+    found.sort();
+    found
 }
 
 fn refuse_link(path: &Path) -> Result<(), CommitError> {
@@ -198,7 +292,13 @@ impl Staged<'_> {
         let root = &self.dir.root;
         let meta = &self.dir.meta;
         for (rel, _) in &self.files {
-            link_file(root, rel)?;
+            if let Some((at, prefix)) = place(root, rel)? {
+                let parent = at.parent().unwrap_or(root);
+                let tmp = parent.join(format!(".link-{}", std::process::id()));
+                let _ = std::fs::remove_file(&tmp);
+                symlink(&link_text(&prefix), &tmp).map_err(io(&tmp))?;
+                std::fs::rename(&tmp, &at).map_err(io(&at))?;
+            }
         }
         let run_rel = Path::new(RUNS).join(self.run.file_name().unwrap_or_default());
         let old = self.dir.link_target(CURRENT);
@@ -210,7 +310,7 @@ impl Staged<'_> {
             let _ = d.sync_all();
         }
         remove_dangling_links(root, 0);
-        self.dir.remove_old_runs();
+        let _ = self.dir.remove_old_runs();
         Ok(())
     }
 }
@@ -226,42 +326,39 @@ fn link_text(rel: &str) -> PathBuf {
     t.join(META_DIR).join(CURRENT).join(rel)
 }
 
-/// Creates (or keeps) `root/rel` as a link through `current`, refusing to pass through any
-/// link on the way: a planted link could lead out of the folder.
-fn link_file(root: &Path, rel: &str) -> Result<(), CommitError> {
+/// Where the output `rel` needs a link so that it is reached through `current`: `None` when a
+/// link of the tool's already reaches it, else the place and the part of `rel` it stands
+/// for (the topmost part that is absent or a link of the tool's). Passes through folders the
+/// user made, never through a link it did not make, and never replaces the user's file or
+/// folder.
+fn place(root: &Path, rel: &str) -> Result<Option<(PathBuf, String)>, CommitError> {
     let mut at = root.to_path_buf();
+    let mut prefix = PathBuf::new();
     let parts: Vec<_> = Path::new(rel).components().filter(|c| matches!(c, Component::Normal(_))).collect();
     for (i, c) in parts.iter().enumerate() {
         at.push(c);
+        prefix.push(c);
         let last = i + 1 == parts.len();
+        let prefix_text = prefix.to_string_lossy().replace('\\', "/");
         match std::fs::symlink_metadata(&at) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Some((at, prefix_text))),
+            Err(e) => return Err(io(&at)(e)),
             Ok(m) if m.file_type().is_symlink() => {
-                if last && std::fs::read_link(&at).ok().as_deref() == Some(link_text(rel).as_path()) {
-                    return Ok(());
+                if std::fs::read_link(&at).ok().as_deref() == Some(link_text(&prefix_text).as_path()) {
+                    return Ok(None);
                 }
-                if !last || !is_ours(&at) {
-                    return Err(CommitError::ForeignLink(at));
+                if is_ours(&at) {
+                    return Ok(Some((at, prefix_text)));
                 }
+                return Err(CommitError::ForeignLink(at));
             }
-            Ok(m) if !last && m.is_dir() => continue,
-            Ok(_) if !last => return Err(CommitError::ForeignLink(at)),
-            Ok(m) if m.is_dir() => return Err(CommitError::ForeignLink(at)),
-            Ok(_) => {} // a plain file of the older layout: replaced by the link below
-            Err(_) if !last => {
-                std::fs::create_dir(&at).map_err(io(&at))?;
-                continue;
-            }
-            Err(_) => {}
-        }
-        if last {
-            let parent = at.parent().unwrap_or(root);
-            let tmp = parent.join(format!(".link-{}", std::process::id()));
-            let _ = std::fs::remove_file(&tmp);
-            symlink(&link_text(rel), &tmp).map_err(io(&tmp))?;
-            std::fs::rename(&tmp, &at).map_err(io(&at))?;
+            Ok(m) if m.is_dir() && !last => {}
+            Ok(m) if m.is_dir() => return Err(CommitError::NotOurs { path: at, what: "folder" }),
+            Ok(m) if m.is_file() => return Err(CommitError::NotOurs { path: at, what: "file" }),
+            Ok(_) => return Err(CommitError::Special(at)),
         }
     }
-    Ok(())
+    Ok(None)
 }
 
 /// Whether a link points through some output folder's `current` (ours to replace).
@@ -280,7 +377,8 @@ fn switch_link(meta: &Path, name: &str, target: &Path) -> Result<(), CommitError
 }
 
 /// Removes links through `current` whose file the committed run does not have. Does not
-/// descend into nested output folders (those with their own `.spindlelab`).
+/// descend into nested output folders (those with their own `.spindlelab`), and removes no
+/// folder: the ones on an output's path are the user's.
 fn remove_dangling_links(dir: &Path, depth: usize) {
     if depth > 32 {
         return;
@@ -299,8 +397,6 @@ fn remove_dangling_links(dir: &Path, depth: usize) {
             }
         } else if ft.is_dir() && !path.join(META_DIR).exists() {
             remove_dangling_links(&path, depth + 1);
-            // A folder left empty by removed links goes too.
-            let _ = std::fs::remove_dir(&path);
         }
     }
 }
@@ -386,6 +482,162 @@ mod tests {
         let elsewhere = tempfile::tempdir().unwrap();
         symlink(elsewhere.path(), &tmp.path().join(".spindlelab-cache")).unwrap();
         assert!(matches!(OutputDir::open(tmp.path()), Err(CommitError::ForeignLink(_))));
+    }
+
+    fn run(root: &Path, files: &[(&str, &[u8])]) -> Result<(), CommitError> {
+        let d = OutputDir::open(root)?;
+        d.check_outputs(files.iter().map(|(r, _)| *r))?;
+        let mut s = d.stage()?;
+        for (rel, bytes) in files {
+            s.write(rel, bytes)?;
+        }
+        s.commit()
+    }
+
+    #[test]
+    fn a_users_file_or_folder_named_like_an_output_is_refused_and_left_alone() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        std::fs::write(root.join("t.csv"), b"the user's data").unwrap();
+        std::fs::create_dir_all(root.join("f.csv")).unwrap();
+        for rel in ["t.csv", "f.csv", "t.csv/x.csv"] {
+            let e = run(root, &[(rel, b"1")]).unwrap_err();
+            assert!(matches!(e, CommitError::NotOurs { .. }), "{rel}: {e}");
+            assert!(e.is_bad_input() && e.to_string().contains("did not write"), "{e}");
+        }
+        assert_eq!(read(&root.join("t.csv")).as_deref(), Some("the user's data"));
+        assert!(root.join("f.csv").is_dir() && !std::fs::symlink_metadata(root.join("f.csv")).unwrap().is_symlink());
+        // Refused at commit too, when the file appears while the run computes.
+        let d = OutputDir::open(root).unwrap();
+        let mut s = d.stage().unwrap();
+        s.write("late.csv", b"1").unwrap();
+        std::fs::write(root.join("late.csv"), b"appeared").unwrap();
+        assert!(matches!(s.commit(), Err(CommitError::NotOurs { .. })));
+        assert_eq!(read(&root.join("late.csv")).as_deref(), Some("appeared"));
+    }
+
+    #[test]
+    fn the_users_empty_folders_outlive_every_run() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        std::fs::create_dir_all(root.join("empty/deeper")).unwrap();
+        std::fs::create_dir_all(root.join("sub")).unwrap();
+        run(root, &[("sub/a.csv", b"1"), ("b.csv", b"2")]).unwrap();
+        // The user's folder holds the run's file through a link inside it.
+        assert_eq!(read(&root.join("sub/a.csv")).as_deref(), Some("1"));
+        assert!(!std::fs::symlink_metadata(root.join("sub")).unwrap().is_symlink());
+        run(root, &[("b.csv", b"3")]).unwrap();
+        assert!(std::fs::symlink_metadata(root.join("sub/a.csv")).is_err(), "the stale link goes");
+        assert!(root.join("sub").is_dir() && root.join("empty/deeper").is_dir(), "the user's folders stay");
+    }
+
+    #[test]
+    fn a_name_turns_from_file_to_folder_and_back_between_runs() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        run(root, &[("t.csv", b"file")]).unwrap();
+        assert_eq!(read(&root.join("t.csv")).as_deref(), Some("file"));
+        run(root, &[("t.csv/x.csv", b"inside")]).unwrap();
+        assert_eq!(read(&root.join("t.csv/x.csv")).as_deref(), Some("inside"));
+        run(root, &[("t.csv", b"file again"), ("d/e/f.csv", b"deep")]).unwrap();
+        assert_eq!(read(&root.join("t.csv")).as_deref(), Some("file again"));
+        assert_eq!(read(&root.join("d/e/f.csv")).as_deref(), Some("deep"));
+        run(root, &[("d/e.csv", b"shallow")]).unwrap();
+        assert_eq!(read(&root.join("d/e.csv")).as_deref(), Some("shallow"));
+        assert!(std::fs::symlink_metadata(root.join("t.csv")).is_err());
+    }
+
+    #[test]
+    fn a_run_folder_holding_the_users_files_is_kept_and_said() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        let manifest = |n: &str| {
+            let m = format!(
+                r#"{{"tool":"t","recipe_name":"r","recipe_hash":"h","recipe_path":"p","seconds":0,"cache_hits":0,"computed":0,"nodes":[],"outputs":[],"files":{{"sub/a.csv":"{}"}}}}"#,
+                blake3::hash(n.as_bytes()).to_hex()
+            );
+            m.into_bytes()
+        };
+        run(root, &[("sub/a.csv", b"1"), ("manifest.json", &manifest("1"))]).unwrap();
+        // The user saves a note into the output's folder and edits the output in place.
+        std::fs::write(root.join("sub/note.txt"), b"mine").unwrap();
+        run(root, &[("sub/a.csv", b"2"), ("manifest.json", &manifest("2"))]).unwrap();
+        run(root, &[("sub/a.csv", b"3"), ("manifest.json", &manifest("3"))]).unwrap();
+        let d = OutputDir::open(root).unwrap();
+        let note = d.notes().iter().find(|n| n.contains("note.txt")).expect("the kept run is said");
+        assert!(note.contains("was kept"), "{note}");
+        let runs = std::fs::read_dir(root.join(META_DIR).join(RUNS)).unwrap().count();
+        assert_eq!(runs, 3, "current, previous and the run holding the note");
+        // An untouched run ages out as before.
+        drop(d);
+        run(root, &[("sub/a.csv", b"4"), ("manifest.json", &manifest("4"))]).unwrap();
+        assert_eq!(std::fs::read_dir(root.join(META_DIR).join(RUNS)).unwrap().count(), 3);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_linked_or_special_lock_is_refused_and_nothing_is_created_where_it_points() {
+        let tmp = tempfile::tempdir().unwrap();
+        let elsewhere = tempfile::tempdir().unwrap();
+        let root = tmp.path().join("r");
+        std::fs::create_dir_all(root.join(META_DIR)).unwrap();
+        let target = elsewhere.path().join("created");
+        symlink(&target, &root.join(META_DIR).join(LOCK)).unwrap();
+        assert!(matches!(OutputDir::open(&root), Err(CommitError::ForeignLink(_))));
+        assert!(!target.exists());
+        std::fs::remove_file(root.join(META_DIR).join(LOCK)).unwrap();
+        let c = std::ffi::CString::new(root.join(META_DIR).join(LOCK).as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        assert!(matches!(OutputDir::open(&root), Err(CommitError::Special(_))));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_in_the_cache_are_removed_not_followed_and_said() {
+        use crate::node::Outputs;
+        let tmp = tempfile::tempdir().unwrap();
+        let elsewhere = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        let key = "ab".repeat(32);
+        let cache_dir = super::super::cache_dir(root);
+        std::fs::create_dir_all(&cache_dir).unwrap();
+        symlink(elsewhere.path(), &cache_dir.join("ab")).unwrap();
+        let cache = Cache::new(&cache_dir);
+        assert!(matches!(cache.lookup(&key), super::super::Lookup::Damaged(_)));
+        let d = OutputDir::open(root).unwrap();
+        assert!(d.notes().iter().any(|n| n.contains("symbolic link")), "{:?}", d.notes());
+        d.cache().put(&key, &Outputs::new(), &[]).unwrap();
+        assert_eq!(std::fs::read_dir(elsewhere.path()).unwrap().count(), 0, "wrote through the link");
+        assert!(d.cache().contains(&key));
+        assert_eq!(d.cache().usage().0, 1);
+        // An entry that is a link to a device, or a pipe, is damage: never read, never waited on.
+        let entry = cache_dir.join("ab").join(format!("{key}.bin"));
+        std::fs::remove_file(&entry).unwrap();
+        symlink(Path::new("/dev/zero"), &entry).unwrap();
+        assert!(matches!(cache.lookup(&key), super::super::Lookup::Damaged(m) if m.contains("link")));
+        std::fs::remove_file(&entry).unwrap();
+        let c = std::ffi::CString::new(entry.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        assert!(matches!(cache.lookup(&key), super::super::Lookup::Damaged(m) if m.contains("regular")));
+        // A put replaces the pipe by an entry.
+        d.cache().put(&key, &Outputs::new(), &[]).unwrap();
+        assert!(cache.contains(&key));
+    }
+
+    #[test]
+    fn an_entry_whose_length_disagrees_with_its_header_is_damage() {
+        use crate::node::Outputs;
+        let tmp = tempfile::tempdir().unwrap();
+        let cache = Cache::new(tmp.path());
+        let key = "cd".repeat(32);
+        cache.put(&key, &Outputs::new(), &["w".into()]).unwrap();
+        let entry = tmp.path().join("cd").join(format!("{key}.bin"));
+        let mut bytes = std::fs::read(&entry).unwrap();
+        bytes.extend_from_slice(&[0; 16]);
+        std::fs::write(&entry, &bytes).unwrap();
+        assert!(matches!(cache.lookup(&key), super::super::Lookup::Damaged(m) if m.contains("declares")));
     }
 
     #[test]

@@ -119,9 +119,15 @@ impl Manifest {
         }
     }
 
+    /// The manifest of the run committed in the output folder `out_dir` (or of the run folder
+    /// `out_dir` itself); `None` when there is none or it cannot be read.
     pub fn read(out_dir: &Path) -> Option<Manifest> {
-        let text = std::fs::read_to_string(out_dir.join(MANIFEST_FILE)).ok()?;
-        serde_json::from_str(&text).ok()
+        // Through the committed run's own folder: the visible name is a link, and a pipe or
+        // a link planted as the manifest is not read, a huge one not whole.
+        let committed = out_dir.join(super::commit::META_DIR).join("current");
+        let dir = if committed.is_dir() { committed } else { out_dir.to_path_buf() };
+        let bytes = super::files::read_regular(&dir.join(MANIFEST_FILE), 1 << 30).ok()?;
+        serde_json::from_slice(&bytes).ok()
     }
 }
 
@@ -140,8 +146,9 @@ pub enum PlanReason {
     NotInCache,
     /// Not cached, but every consumer is, and no output file reads it.
     NotNeeded,
-    /// Never cached (large outputs that are cheaper to remake), and needed.
-    Uncacheable,
+    /// Never cached (large outputs that are cheaper to remake), and needed: by the output file
+    /// or the uncached instance named.
+    Uncacheable { needed_by: String },
 }
 
 impl std::fmt::Display for PlanReason {
@@ -160,7 +167,9 @@ impl std::fmt::Display for PlanReason {
             }
             PlanReason::NotInCache => write!(f, "run: not in cache"),
             PlanReason::NotNeeded => write!(f, "skip: every consumer comes from the cache"),
-            PlanReason::Uncacheable => write!(f, "run: never cached (large outputs, cheap to remake)"),
+            PlanReason::Uncacheable { needed_by } => {
+                write!(f, "run: never cached (large outputs, cheap to remake), and {needed_by} needs it")
+            }
         }
     }
 }
@@ -171,6 +180,22 @@ pub struct PlanEntry {
     pub id: String,
     pub kind: String,
     pub reason: PlanReason,
+}
+
+/// What makes the uncached instance `i` run: an output file that reads its step, else the
+/// first consumer that runs too.
+fn needed_by(recipe: &Recipe, graph: &Graph, i: usize, needed: &[bool], cached: &[bool]) -> String {
+    let step = graph.instances[i].step.as_str();
+    if let Some(out) = recipe.outputs.iter().find(|o| o.steps().any(|s| s == step)) {
+        return format!("the output `{}`", out.file);
+    }
+    graph
+        .instances
+        .iter()
+        .enumerate()
+        .skip(i + 1)
+        .find(|(j, inst)| needed[*j] && !cached[*j] && inst.deps().any(|d| d == i))
+        .map_or_else(|| "the run (nothing consumes it)".to_string(), |(_, inst)| format!("`{}`", inst.id))
 }
 
 /// Says, without running anything, which instances would run and why.
@@ -202,7 +227,7 @@ pub fn plan(
             } else if !needed[i] {
                 PlanReason::NotNeeded
             } else if !cacheable[i] {
-                PlanReason::Uncacheable
+                PlanReason::Uncacheable { needed_by: needed_by(recipe, graph, i, &needed, &cached) }
             } else {
                 match previous.as_ref().and_then(|m| m.nodes.iter().find(|n| n.id == inst.id)) {
                     None => PlanReason::New,

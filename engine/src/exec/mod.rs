@@ -4,6 +4,7 @@
 
 mod cache;
 pub mod commit;
+pub mod files;
 pub mod manifest;
 pub mod write;
 

@@ -259,7 +259,7 @@ impl Host {
             dir.join(format!("{sha}-{:016x}.cwasm", h.finish()))
         });
         if let Some(file) = &cached
-            && let Ok(data) = std::fs::read(file)
+            && let Ok(data) = spindlelab_engine::exec::files::read_regular_via_links(file, 4 * MAX_COMPONENT_BYTES)
             && data.len() > 64
         {
             // The file holds the checksum of the compiled bytes, then the bytes: a damaged or
@@ -359,15 +359,19 @@ pub fn check_pins(manifest: &Manifest, expect: &Expect) -> Result<(), LoadError>
     Ok(())
 }
 
+/// Reads a component through the cap; a pipe or a device named as one is refused, never
+/// waited on.
 fn read_capped(path: &Path) -> Result<Vec<u8>, LoadError> {
-    use std::io::Read;
-    let file = std::fs::File::open(path).map_err(io(path))?;
-    let mut bytes = Vec::new();
-    file.take(MAX_COMPONENT_BYTES + 1).read_to_end(&mut bytes).map_err(io(path))?;
-    if bytes.len() as u64 > MAX_COMPONENT_BYTES {
-        return Err(LoadError::TooLarge { path: path.to_path_buf(), size: bytes.len() as u64 });
+    use spindlelab_engine::exec::files::{Refused, read_regular_via_links};
+    match read_regular_via_links(path, MAX_COMPONENT_BYTES) {
+        Ok(bytes) => Ok(bytes),
+        Err(Refused::TooLarge(_)) => Err(LoadError::TooLarge {
+            path: path.to_path_buf(),
+            size: std::fs::metadata(path).map_or(MAX_COMPONENT_BYTES + 1, |m| m.len()),
+        }),
+        Err(Refused::Io(e)) => Err(io(path)(e)),
+        Err(e) => Err(io(path)(std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))),
     }
-    Ok(bytes)
 }
 
 /// The checksum a cache entry carries of its compiled bytes: BLAKE3, in hex. It guards

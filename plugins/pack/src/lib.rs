@@ -85,6 +85,13 @@ impl Manifest {
     /// paths that leave the manifest's folder.
     pub fn read(path: &Path) -> Result<Manifest, PackError> {
         use std::io::Read;
+        // A pipe or a device named as the manifest would be waited on or read forever.
+        if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+            return Err(io(path)(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file (a pipe, a device or a folder)",
+            )));
+        }
         let file = std::fs::File::open(path).map_err(io(path))?;
         let mut text = String::new();
         file.take(MAX_MANIFEST_BYTES + 1).read_to_string(&mut text).map_err(io(path))?;

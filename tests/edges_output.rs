@@ -1,0 +1,242 @@
+//! The output folder is the user's too: what a run refuses to replace, the links and special
+//! files it does not follow or wait on (docs/guarantees.md), each through the binary.
+
+#![cfg(unix)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_spindlelab"));
+    c.env("NO_COLOR", "1").env_remove("RUST_BACKTRACE");
+    c
+}
+
+/// Runs the binary, failing the test (not hanging it) if it has not ended within a minute.
+fn run_in(cwd: &Path, args: &[&str]) -> Output {
+    let mut child = bin()
+        .args(args)
+        .current_dir(cwd)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("`spindlelab {}` hung", args.join(" "));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn text(o: &Output) -> String {
+    format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn no_panic(o: &Output) {
+    let t = text(o);
+    assert!(!t.contains("panicked"), "the binary panicked:\n{t}");
+    assert_ne!(o.status.code(), Some(101), "{t}");
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates the node.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", path.display());
+}
+
+/// A small swept recipe whose outputs are `outputs` (YAML list items).
+fn write_recipe(dir: &Path, outputs: &[(&str, &str)]) -> PathBuf {
+    let path = dir.join("r.yaml");
+    let mut text = String::from(
+        r#"spindlelab: 1
+name: "edges"
+steps:
+  hit:
+    kind: impact.simulate
+    params:
+      hammer_stiffness: 500 N/m
+      target_mass: 0.1 kg
+      target_stiffness: 5e7 N/m
+    sweep:
+      hammer_mass: 0.03..0.05 step 0.01 kg
+  impulse:
+    kind: table.collect
+    inputs: { values: "@hit.impulse_time" }
+outputs:
+"#,
+    );
+    for (from, file) in outputs {
+        text.push_str(&format!("  - {{ from: \"{from}\", file: \"{file}\" }}\n"));
+    }
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn entries(cache: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for sub in std::fs::read_dir(cache).unwrap().flatten() {
+        if sub.file_type().unwrap().is_dir() {
+            for e in std::fs::read_dir(sub.path()).unwrap().flatten() {
+                if e.file_name().to_string_lossy().ends_with(".bin") {
+                    out.push(e.path());
+                }
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn a_users_file_named_like_an_output_is_refused_before_computing_and_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = write_recipe(tmp.path(), &[("@impulse.table", "impulse.csv"), ("@hit.force", "sub/force.csv")]);
+    let out = tmp.path().join("o");
+    std::fs::create_dir_all(out.join("empty")).unwrap();
+    std::fs::write(out.join("impulse.csv"), b"the user's own data\n").unwrap();
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.contains("impulse.csv") && said.contains("did not write"), "{said}");
+    assert!(!said.contains("computed"), "refused before computing: {said}");
+    assert_eq!(std::fs::read(out.join("impulse.csv")).unwrap(), b"the user's own data\n");
+    assert!(!out.join(".spindlelab/current").exists(), "nothing committed");
+
+    // Moved away, the run goes through; the user's empty folder outlives it and a rerun.
+    std::fs::rename(out.join("impulse.csv"), tmp.path().join("mine.csv")).unwrap();
+    for _ in 0..2 {
+        let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    std::fs::write(&recipe, std::fs::read_to_string(&recipe).unwrap().replace("  - { from: \"@hit.force\", file: \"sub/force.csv\" }\n", "")).unwrap();
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(out.join("empty").is_dir(), "the user's empty folder was removed");
+    assert!(std::fs::symlink_metadata(out.join("sub")).is_err(), "the run's own folder link goes with its files");
+}
+
+#[test]
+fn a_name_turns_from_file_to_folder_between_runs_and_back() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases: [&[(&str, &str)]; 3] = [
+        &[("@impulse.table", "t.csv")],
+        &[("@impulse.table", "t.csv/x.csv")],
+        &[("@impulse.table", "t.csv")],
+    ];
+    for (i, outputs) in cases.into_iter().enumerate() {
+        let recipe = write_recipe(tmp.path(), outputs);
+        let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+        no_panic(&o);
+        assert!(o.status.success(), "run {i}: {}", text(&o));
+        let file = tmp.path().join("o").join(outputs[0].1);
+        assert!(std::fs::read_to_string(&file).unwrap().contains("hammer_mass_kg"), "run {i}: {}", file.display());
+    }
+}
+
+#[test]
+fn a_linked_cache_folder_or_lock_is_not_written_through() {
+    let tmp = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    let recipe = write_recipe(tmp.path(), &[("@impulse.table", "impulse.csv")]);
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let cache = tmp.path().join("o/.spindlelab-cache");
+    let before = entries(&cache).len();
+    // A cache subfolder replaced by a link to another folder.
+    let sub = entries(&cache)[0].parent().unwrap().to_path_buf();
+    std::fs::remove_dir_all(&sub).unwrap();
+    std::os::unix::fs::symlink(elsewhere.path(), &sub).unwrap();
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o"]);
+    no_panic(&o);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("symbolic link"), "the repair is said: {}", text(&o));
+    assert_eq!(std::fs::read_dir(elsewhere.path()).unwrap().count(), 0, "entries written through the link");
+    assert_eq!(entries(&cache).len(), before, "the entries are back in the cache");
+    let du = run_in(tmp.path(), &["cache", "du", "o"]);
+    assert!(String::from_utf8_lossy(&du.stdout).contains(&format!("{before} entries")), "{}", text(&du));
+
+    // A link at the lock: refused, and nothing is created where it points.
+    let lock = tmp.path().join("o/.spindlelab/lock");
+    std::fs::remove_file(&lock).unwrap();
+    std::os::unix::fs::symlink(elsewhere.path().join("planted"), &lock).unwrap();
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("lock") && text(&o).contains("symbolic link"), "{}", text(&o));
+    assert!(!elsewhere.path().join("planted").exists());
+}
+
+#[test]
+fn pipes_and_devices_in_the_cache_are_recomputed_not_waited_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = write_recipe(tmp.path(), &[("@impulse.table", "impulse.csv")]);
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let first = std::fs::read(tmp.path().join("o/impulse.csv")).unwrap();
+    let all = entries(&tmp.path().join("o/.spindlelab-cache"));
+    std::fs::remove_file(&all[0]).unwrap();
+    mkfifo(&all[0]);
+    std::fs::remove_file(&all[1]).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &all[1]).unwrap();
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o"]);
+    no_panic(&o);
+    assert!(o.status.success(), "{}", text(&o));
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.matches("was not used").count() >= 1, "{said}");
+    assert_eq!(std::fs::read(tmp.path().join("o/impulse.csv")).unwrap(), first);
+    // Both are ordinary entries again.
+    for e in &all[..2] {
+        assert!(std::fs::symlink_metadata(e).unwrap().is_file(), "{} not replaced", e.display());
+    }
+}
+
+#[test]
+fn a_pipe_named_as_a_plugin_or_its_component_is_refused_not_waited_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    mkfifo(&dir.join("c.wasm"));
+    std::fs::write(
+        dir.join("p.plugin.json"),
+        format!(
+            r#"{{"id":"p","version":"0.1.0","interface":"0.2.0","wasm":"c.wasm","sha256":"{}"}}"#,
+            "0".repeat(64)
+        ),
+    )
+    .unwrap();
+    mkfifo(&dir.join("q.plugin.json"));
+    for manifest in ["p.plugin.json", "q.plugin.json"] {
+        std::fs::write(
+            dir.join("r.yaml"),
+            format!("spindlelab: 1\nname: pipes\nplugins:\n  - {{ path: {manifest} }}\nsteps: {{}}\n"),
+        )
+        .unwrap();
+        let o = run_in(dir, &["check", "r.yaml"]);
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(2), "{manifest}: {}", text(&o));
+        assert!(text(&o).contains("not a regular file"), "{manifest}: {}", text(&o));
+    }
+}
+
+#[test]
+fn plan_says_why_a_rerun_remakes_an_uncached_intermediate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = tmp.path().join("r.yaml");
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), &recipe).unwrap();
+    let o = run_in(tmp.path(), &["run", "r.yaml", "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = run_in(tmp.path(), &["plan", "r.yaml", "-o", "o"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let plan = String::from_utf8_lossy(&o.stdout);
+    // The impact table is written to a file from the uncached segmenter: it and what feeds it
+    // run again, and the plan names the file and the chain; the FRFs come from the cache.
+    let line = |id: &str| plan.lines().find(|l| l.starts_with(id)).unwrap_or_else(|| panic!("{id}: {plan}")).to_string();
+    assert!(line("records[").contains("the output `impacts.csv` needs it"), "{plan}");
+    assert!(line("runout[").contains("`records["), "{plan}");
+    assert!(line("frf[").contains("from cache"), "{plan}");
+}
