@@ -240,3 +240,28 @@ fn plan_says_why_a_rerun_remakes_an_uncached_intermediate() {
     assert!(line("runout[").contains("`records["), "{plan}");
     assert!(line("frf[").contains("from cache"), "{plan}");
 }
+
+/// Peak resident memory of one run of the binary, in KiB (from the kernel's account of the
+/// child, not sampled).
+fn peak_kib(cwd: &Path, args: &[&str]) -> i64 {
+    let child = bin().args(args).current_dir(cwd).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let mut status = 0;
+    // SAFETY: a zeroed rusage is a valid value for wait4 to fill in.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: waits for our own child, with valid pointers to locals.
+    let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as libc::pid_t);
+    assert!(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0, "`spindlelab {}` failed", args.join(" "));
+    usage.ru_maxrss
+}
+
+#[test]
+fn threads_beyond_the_cores_do_not_multiply_the_memory_of_large_intermediates() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), tmp.path().join("r.yaml")).unwrap();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let at = |j: usize| peak_kib(tmp.path(), &["run", "r.yaml", "-o", &format!("o{j}"), "-q", "--no-cache", "-j", &j.to_string()]);
+    let (few, many) = (at(cores), at(8 * cores));
+    // Eighteen raw recordings: before the bound, eight times the threads held about twice the memory.
+    assert!((many as f64) < 1.3 * few as f64, "-j {cores}: {few} KiB, -j {}: {many} KiB", 8 * cores);
+}

@@ -212,6 +212,9 @@ pub fn execute(
         depth[i] = graph.instances[i].deps().map(|d| depth[d] + 1).max().unwrap_or(0);
     }
     let width = pool.current_num_threads().max(1);
+    // Large intermediates in flight: one chain per thread, but no more than the machine has
+    // cores, so threads beyond the cores (`-j 16` on two) do not multiply the memory they hold.
+    let heavy_width = width.min(std::thread::available_parallelism().map_or(1, |n| n.get()));
     let mut failed_steps: std::collections::HashSet<String> = std::collections::HashSet::new();
     while outcomes.iter().any(Option::is_none) {
         // The next wave: every instance whose inputs are all settled.
@@ -220,7 +223,7 @@ pub fn execute(
             .collect();
         if opts.release_consumed {
             // Producers of large uncached intermediates (raw records) start at most one per
-            // thread, deepest first, so a sweep's recordings are consumed and released chain by
+            // thread and core, deepest first, so a sweep's recordings are consumed and released chain by
             // chain instead of all being alive at once; everything else runs as soon as it is
             // ready. The order changes when an instance runs, never what it computes.
             wave.sort_by_key(|&i| (std::cmp::Reverse(depth[i]), i));
@@ -228,7 +231,7 @@ pub fn execute(
             wave.retain(|&i| {
                 let cacheable = registry.get(&graph.instances[i].kind).is_none_or(|node| node.cacheable());
                 heavy += usize::from(!cacheable);
-                cacheable || heavy <= width
+                cacheable || heavy <= heavy_width
             });
             wave.sort_unstable();
         }
