@@ -7,6 +7,9 @@
 //! The case format is described with the training data; the recipe it gives compiles on
 //! its own (`spindlelab check`), with the data files beside it.
 
+use crate::engine::grammar::parse_unit;
+use crate::engine::model::entity_fields;
+use crate::engine::spec::{EntityKind, FieldType};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -137,38 +140,244 @@ fn num(x: f64) -> String {
     if r != 0.0 && (r.abs() >= 1e6 || r.abs() < 1e-3) { format!("{r:e}") } else { format!("{r}") }
 }
 
-/// A YAML-safe name: letters, digits, `_` and `-`, starting with a letter or `_`.
-fn name(s: &str) -> String {
-    let mut out: String = s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
-    if !out.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_') {
-        out.insert(0, '_');
+/// Text as a YAML double-quoted scalar that reads back as exactly `s`: the quote, the
+/// backslash, every line break and every character YAML does not take raw (control
+/// characters, U+FEFF, U+FFFE, U+FFFF) are escaped, and so are the characters that reorder a
+/// line on screen, so no string of a case can end its scalar or its line, or change what a
+/// reader of the recipe sees around it.
+pub fn yaml_quoted(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\0' => out.push_str("\\0"),
+            '\t' => out.push_str("\\t"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\u{1b}' => out.push_str("\\e"),
+            '\u{85}' => out.push_str("\\N"),
+            '\u{2028}' => out.push_str("\\L"),
+            '\u{2029}' => out.push_str("\\P"),
+            c if (c as u32) < 0x100 && c.is_control() => {
+                let _ = write!(out, "\\x{:02X}", c as u32);
+            }
+            '\u{feff}'
+            | '\u{fffe}'
+            | '\u{ffff}'
+            | '\u{061c}'
+            | '\u{200e}'
+            | '\u{200f}'
+            | '\u{202a}'..='\u{202e}'
+            | '\u{2066}'..='\u{2069}' => {
+                let _ = write!(out, "\\u{:04X}", c as u32);
+            }
+            c => out.push(c),
+        }
     }
+    out.push('"');
     out
 }
 
-/// Text as a YAML double-quoted scalar.
-fn quoted(s: &str) -> String {
-    serde_json::to_string(s).expect("a string serialises")
+/// A string of the case as a YAML scalar: plain when it is a word that YAML reads as that
+/// same text (`steel`, `holder+tool`, `m/N`), double-quoted otherwise.
+fn scalar(s: &str) -> String {
+    let word = s.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
+        && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '+' | '/'));
+    let keyword = matches!(
+        s.to_ascii_lowercase().as_str(),
+        "true" | "false" | "null" | "yes" | "no" | "on" | "off" | "y" | "n" | "inf" | "nan" | "infinity"
+    );
+    if word && !keyword { s.to_string() } else { yaml_quoted(s) }
+}
+
+/// A string of the case as a message shows it: quoted and escaped, cut after 60 characters.
+fn shown(s: &str) -> String {
+    let cut: String = s.chars().take(60).collect();
+    let more = if cut.len() < s.len() { format!(" (… {} bytes in all)", s.len()) } else { String::new() };
+    format!("{}{more}", yaml_quoted(&cut))
+}
+
+/// Whether `s` names an entity as a recipe does: letters, digits, `_` and `-`, starting with
+/// a letter or `_`.
+fn is_name(s: &str) -> bool {
+    s.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
+        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// The words a choice field of an entity takes, from the engine's field tables (`path` goes
+/// through nested lists of mappings, e.g. `sections`, `component`).
+fn choices(kind: EntityKind, path: &[&str]) -> &'static [&'static str] {
+    let mut fields = entity_fields(kind);
+    for (i, name) in path.iter().enumerate() {
+        let Some(f) = fields.iter().find(|f| f.name == *name) else { return &[] };
+        match (&f.ty, i + 1 == path.len()) {
+            (FieldType::Choice(words), true) => return words,
+            (FieldType::ObjectList(inner) | FieldType::Object(inner), false) => fields = inner,
+            _ => return &[],
+        }
+    }
+    &[]
+}
+
+/// Longest name the recipe writes as a key of a mapping (YAML reads a plain or quoted key of
+/// at most 1024 characters on the key's line).
+const MAX_KEY_BYTES: usize = 128;
+
+/// Longest file name (one path component) and whole path the systems a recipe runs on take.
+const MAX_NAME_BYTES: usize = 255;
+const MAX_PATH_BYTES: usize = 4096;
+
+/// Checks every string of the case that the recipe states, so that each reads back as
+/// exactly what the case says and means there what it means in the case; the first string
+/// that cannot is the error, naming its field.
+fn check_strings(case: &Case) -> Result<(), String> {
+    // Any string the recipe holds: `$` at its start would make it a parameter reference.
+    let text = |field: &str, s: &str| -> Result<(), String> {
+        if s.trim_start().starts_with('$') {
+            return Err(format!(
+                "`{field}` is {}, which begins with `$`: a recipe reads that as a parameter reference; \
+                 change it in the case file",
+                shown(s)
+            ));
+        }
+        Ok(())
+    };
+    let word = |field: &str, s: &str, words: &[&str]| -> Result<(), String> {
+        if words.contains(&s) {
+            return Ok(());
+        }
+        Err(format!(
+            "`{field}` is {}, but a recipe takes one of {}; correct it in the case file",
+            shown(s),
+            words.join(" | ")
+        ))
+    };
+    let material = |field: &str, s: &str| -> Result<(), String> {
+        if !case.materials.contains_key(s) {
+            return Err(format!(
+                "`{field}` is {}, which `materials` lacks; add it there or correct the name",
+                shown(s)
+            ));
+        }
+        Ok(())
+    };
+    let file = |field: &str, s: &str, glob: bool| -> Result<(), String> {
+        text(field, s)?;
+        let problem = if s.trim().is_empty() {
+            Some("is empty".to_string())
+        } else if s.contains('\0') {
+            Some("holds a NUL character, which no file name can".into())
+        } else if s.len() > MAX_PATH_BYTES {
+            Some(format!("is {} bytes long, beyond the {MAX_PATH_BYTES} bytes of a path", s.len()))
+        } else if s.split('/').any(|part| part.len() > MAX_NAME_BYTES) {
+            Some(format!("has a name longer than the {MAX_NAME_BYTES} bytes a file name can have"))
+        } else if std::path::Path::new(s).is_absolute() {
+            Some("is an absolute path; a recipe names its data files relative to its own folder".into())
+        } else if glob && s.contains(['*', '?', '[']) {
+            Some("holds `*`, `?` or `[`, which a measurement set reads as a glob".into())
+        } else {
+            None
+        };
+        match problem {
+            Some(p) => Err(format!("`{field}` {} {p}; rename the file and the case's entry", shown(s))),
+            None => Ok(()),
+        }
+    };
+    if let Some(id) = &case.case_id {
+        text("case_id", id)?;
+    }
+    for m in case.materials.keys() {
+        if m.len() > MAX_KEY_BYTES {
+            return Err(format!(
+                "material {} is {} bytes long; a name that keys a recipe's mapping has at most {MAX_KEY_BYTES}; \
+                 shorten it (and its uses) in the case file",
+                shown(m),
+                m.len()
+            ));
+        }
+        if !is_name(m) {
+            return Err(format!(
+                "material {} cannot name a recipe's material: names start with a letter or `_` and hold \
+                 letters, digits, `_` and `-`; rename it (and its uses) in the case file",
+                shown(m)
+            ));
+        }
+    }
+    for dir in case.spindle.modes.keys() {
+        if !matches!(dir.as_str(), "x" | "y") {
+            return Err(format!("spindle modes in direction {}: the model knows x and y", shown(dir)));
+        }
+    }
+    for (i, s) in case.holder_tool.sections.iter().enumerate() {
+        let at = |f: &str| format!("holder_tool.sections[{i}].{f}");
+        text(&at("name"), &s.name)?;
+        word(&at("component"), &s.component, choices(EntityKind::Assembly, &["sections", "component"]))?;
+        if let Some(k) = &s.kind {
+            word(&at("kind"), k, choices(EntityKind::Assembly, &["sections", "kind"]))?;
+        }
+        material(&at("outer_material"), &s.outer_material)?;
+        if let Some(m) = &s.inner_material {
+            material(&at("inner_material"), m)?;
+        }
+    }
+    if let Some(s) = &case.sensor {
+        word("sensor.type", &s.kind, choices(EntityKind::Sensor, &["kind"]))?;
+        if let Some(l) = &s.location {
+            text("sensor.location", l)?;
+        }
+    }
+    if let Some(c) = &case.cutting {
+        word("cutting.milling", &c.milling, choices(EntityKind::Cutting, &["milling"]))?;
+        if let Some(m) = &c.workpiece_material {
+            text("cutting.workpiece_material", m)?;
+        }
+    }
+    if let Some(m) = &case.measurements {
+        for (i, f) in m.frf.iter().enumerate() {
+            let at = |k: &str| format!("measurements.frf[{i}].{k}");
+            file(&at("file"), &f.file, true)?;
+            word(&at("direction"), &f.direction, &["x", "y", "z"])?;
+            if let Some(u) = &f.units {
+                text(&at("units"), u)?;
+                if let Err(e) = parse_unit(u) {
+                    return Err(format!(
+                        "`{}` is {}, which is not a unit ({}); write the unit of the file's values, e.g. `m/N`",
+                        at("units"),
+                        shown(u),
+                        crate::engine::diag::escape_controls(&e.message)
+                    ));
+                }
+            }
+        }
+        if let Some(t) = &m.trials {
+            file("measurements.trials", t, false)?;
+        }
+    }
+    Ok(())
 }
 
 /// Writes the recipe for the case in `json` (its file name `path` is for messages).
 pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
     let case: Case = serde_json::from_str(json).map_err(|source| ImportError::Json { path: path.into(), source })?;
     let invalid = |message: String| ImportError::Invalid { path: path.into(), message };
+    check_strings(&case).map_err(invalid)?;
     let id = case.case_id.clone().unwrap_or_else(|| "case".into());
     let mut y = String::new();
     let w = &mut y;
-    let _ = writeln!(w, "# Baseline model of case {id}, imported from {}.", path.rsplit('/').next().unwrap_or(path));
+    let file_name = path.rsplit('/').next().unwrap_or(path);
+    let _ = writeln!(w, "# Baseline model of case {}, imported from {}.", scalar(&id), scalar(file_name));
     let _ = writeln!(w, "# The measured configuration (sensor on the tool) is compared with every measured FRF;");
     let _ = writeln!(w, "# the cutting configuration (no sensor) gives the lobes that score the cutting trials.");
     let _ = writeln!(w, "spindlelab: 1");
-    let _ = writeln!(w, "name: {}", name(&id));
+    let _ = writeln!(w, "name: {}", scalar(&id));
     let _ = writeln!(w);
 
     // Materials of the holder and tool, then the spindle's, under a name of its own.
     let _ = writeln!(w, "materials:");
     for (mname, m) in &case.materials {
-        let _ = write!(w, "  {}: {{ E: {} GPa, rho: {} kg/m^3", name(mname), num(m.e_pa / 1e9), num(m.rho_kg_m3));
+        let _ = write!(w, "  {}: {{ E: {} GPa, rho: {} kg/m^3", scalar(mname), num(m.e_pa / 1e9), num(m.rho_kg_m3));
         if let Some(nu) = m.nu {
             let _ = write!(w, ", nu: {}", num(nu));
         }
@@ -204,9 +413,6 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
     );
     let _ = writeln!(w, "      modes:");
     for (dir, modes) in &case.spindle.modes {
-        if !matches!(dir.as_str(), "x" | "y") {
-            return Err(invalid(format!("spindle modes in direction `{dir}`: the model knows x and y")));
-        }
         let _ = writeln!(w, "        {dir}:");
         for m in modes {
             let _ = write!(w, "          - {{ f: {} Hz, d: {} mm, eta: {}", num(m.f_hz), num(m.d_m * 1e3), num(m.eta));
@@ -243,13 +449,7 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
     let _ = writeln!(w, "  holder_tool:");
     let _ = writeln!(w, "    sections:");
     for s in &case.holder_tool.sections {
-        if !case.materials.contains_key(&s.outer_material) {
-            return Err(invalid(format!(
-                "section `{}` is of material `{}`, which `materials` lacks",
-                s.name, s.outer_material
-            )));
-        }
-        let _ = write!(w, "      - {{ name: {}, component: {}", name(&s.name), s.component);
+        let _ = write!(w, "      - {{ name: {}, component: {}", scalar(&s.name), s.component);
         if let Some(k) = s.kind.as_deref().filter(|k| *k != "plain") {
             let _ = write!(w, ", kind: {k}");
         }
@@ -260,9 +460,9 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         if let Some(d) = s.d_in_m.filter(|d| *d > 0.0) {
             let _ = write!(w, ", d_in: {} mm", num(d * 1e3));
         }
-        let _ = write!(w, ", length: {} mm, outer: {}", num(s.length_m * 1e3), name(&s.outer_material));
+        let _ = write!(w, ", length: {} mm, outer: {}", num(s.length_m * 1e3), scalar(&s.outer_material));
         if let Some(inner) = &s.inner_material {
-            let _ = write!(w, ", inner: {}", name(inner));
+            let _ = write!(w, ", inner: {}", scalar(inner));
         }
         let _ = writeln!(w, " }}");
     }
@@ -273,7 +473,7 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         let _ = writeln!(w, "sensors:");
         let _ = write!(w, "  sensor: {{ kind: {}", s.kind);
         if let Some(l) = &s.location {
-            let _ = write!(w, ", location: {}", quoted(l));
+            let _ = write!(w, ", location: {}", yaml_quoted(l));
         }
         let _ = writeln!(w, ", mass: {} g }}", num(s.mass_kg.unwrap_or(0.0) * 1e3));
         let _ = writeln!(w);
@@ -292,7 +492,7 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
             let _ = writeln!(w, "    calibrated_at: {} rpm", num(n));
         }
         if let Some(m) = &c.workpiece_material {
-            let _ = writeln!(w, "    workpiece: {}", quoted(m));
+            let _ = writeln!(w, "    workpiece: {}", yaml_quoted(m));
         }
         if let Some([a, b]) = c.trial_rpm_range {
             let _ = writeln!(w, "    trial_speeds: [{} rpm, {} rpm]", num(a), num(b));
@@ -308,11 +508,11 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         let _ = writeln!(w, "  tool_tip:");
         let _ = writeln!(w, "    files:");
         for f in frfs {
-            let _ = writeln!(w, "      - {}   # {}, {} rpm", quoted(&f.file), f.direction, num(f.speed_rpm));
+            let _ = writeln!(w, "      - {}   # {}, {} rpm", yaml_quoted(&f.file), f.direction, num(f.speed_rpm));
         }
         let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
         if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
-            let _ = writeln!(w, "    units: {u}");
+            let _ = writeln!(w, "    units: {}", scalar(u));
         }
         let _ = writeln!(w);
     }
@@ -392,7 +592,7 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         if let Some(t) = meas.and_then(|m| m.trials.as_deref()) {
             let _ = writeln!(w, "  trials:");
             let _ = writeln!(w, "    kind: trials.score");
-            let _ = writeln!(w, "    params: {{ file: {} }}", quoted(t));
+            let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(t));
             let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
         }
     }
@@ -413,7 +613,26 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    use super::{EntityKind, choices, num, scalar, yaml_quoted};
+
+    #[test]
+    fn choice_words_come_from_the_engine_s_field_tables() {
+        assert_eq!(choices(EntityKind::Cutting, &["milling"]), &["up", "down"]);
+        assert!(choices(EntityKind::Assembly, &["sections", "component"]).contains(&"holder+tool"));
+        assert!(choices(EntityKind::Assembly, &["sections", "kind"]).contains(&"plain"));
+        assert!(choices(EntityKind::Sensor, &["kind"]).contains(&"accelerometer"));
+        assert!(choices(EntityKind::Sensor, &["location"]).is_empty(), "free text has no words");
+    }
+
+    #[test]
+    fn strings_are_plain_only_where_yaml_reads_them_as_the_same_text() {
+        assert_eq!(scalar("holder+tool"), "holder+tool");
+        assert_eq!(scalar("m/N"), "m/N");
+        for s in ["true", "Null", "y", "a b", "1e3", "", "-x", "a:b", "inf"] {
+            assert!(scalar(s).starts_with('"'), "{s}");
+        }
+        assert_eq!(yaml_quoted("a\"b\\c\n\u{1b}\0\u{7f}\u{2028}\u{feff}é"), r#""a\"b\\c\n\e\0\x7F\L\uFEFFé""#);
+    }
 
     #[test]
     fn numbers_read_as_a_person_writes_them() {

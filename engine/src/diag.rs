@@ -3,8 +3,54 @@
 //! Loading never stops at the first problem: every stage pushes into a
 //! [`Diagnostics`] list, and the caller decides at a stage boundary whether to go on.
 
+use std::borrow::Cow;
 use std::fmt;
 use std::sync::Arc;
+
+/// Whether a character of foreign text must not reach a terminal as it is: a control
+/// character (it could move the cursor, start an escape sequence or a line of its own) or a
+/// character that reorders a line on screen (bidirectional overrides and isolates).
+fn needs_escape(c: char) -> bool {
+    c.is_control()
+        || matches!(c, '\u{061c}' | '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+        || matches!(c, '\u{2028}' | '\u{2029}')
+}
+
+/// Text from outside the program (a recipe's strings, a data file, a plugin's message) as a
+/// terminal may show it: every control character and every character that reorders a line
+/// is written as an escape (`\x1b`, `\n`, `\t`, `\u{202e}`), so the text cannot recolour the
+/// terminal, move its cursor or print a line that looks like the program's own.
+pub fn escape_controls(text: &str) -> Cow<'_, str> {
+    if !text.chars().any(needs_escape) {
+        return Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 16);
+    for c in text.chars() {
+        match c {
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if needs_escape(c) && (c as u32) < 0x80 => out.push_str(&format!("\\x{:02x}", c as u32)),
+            c if needs_escape(c) => out.push_str(&format!("\\u{{{:x}}}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    Cow::Owned(out)
+}
+
+/// How a failed node's error puts each of its warnings on a line of its own (the executor
+/// appends them so).
+pub const NOTE_BREAK: &str = "\n  note: ";
+
+/// A node's error (or any message that may quote foreign text) as a terminal may show it:
+/// [`escape_controls`] on each part, the breaks before its notes ([`NOTE_BREAK`]) kept, so
+/// every line it prints is either its first or a note.
+pub fn escape_message(text: &str) -> Cow<'_, str> {
+    if text.split(NOTE_BREAK).all(|part| !part.chars().any(needs_escape)) {
+        return Cow::Borrowed(text);
+    }
+    Cow::Owned(text.split(NOTE_BREAK).map(escape_controls).collect::<Vec<_>>().join(NOTE_BREAK))
+}
 
 /// A source file known to the loader, kept so diagnostics can quote it.
 #[derive(Debug, Clone)]
@@ -91,12 +137,13 @@ impl fmt::Display for Diagnostic {
             Severity::Error => "error",
             Severity::Warning => "warning",
         };
+        let message = escape_controls(&self.message);
         match &self.span {
-            Some(span) => write!(f, "{span}: {level}: {}", self.message)?,
-            None => write!(f, "{level}: {}", self.message)?,
+            Some(span) => write!(f, "{}: {level}: {message}", escape_controls(&span.to_string()))?,
+            None => write!(f, "{level}: {message}")?,
         }
         if let Some(help) = &self.help {
-            write!(f, "\n  help: {help}")?;
+            write!(f, "\n  help: {}", escape_controls(help))?;
         }
         Ok(())
     }
@@ -180,8 +227,32 @@ impl fmt::Display for Diagnostics {
 
 impl std::error::Error for Diagnostics {}
 
+/// A quoted source line with its control characters escaped, and the byte range `start..end`
+/// of the line moved to where it sits in the escaped text.
+fn escaped_line(line: &str, start: usize, end: usize) -> (String, usize, usize) {
+    let floor = |mut i: usize| {
+        i = i.min(line.len());
+        while !line.is_char_boundary(i) {
+            i -= 1;
+        }
+        i
+    };
+    let (start, end) = (floor(start), floor(end));
+    let before = escape_controls(&line[..start]).len();
+    let inside = escape_controls(&line[start..end]).len();
+    (escape_controls(line).into_owned(), before, before + inside)
+}
+
 fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
     use annotate_snippets::{AnnotationKind, Group, Level, Renderer, Snippet};
+    // A recipe's keys and values, a data file's text and a plugin's words reach the message:
+    // none of them may drive the terminal.
+    let escaped = Diagnostic {
+        message: escape_controls(&d.message).into_owned(),
+        help: d.help.as_deref().map(|h| escape_controls(h).into_owned()),
+        ..d.clone()
+    };
+    let d = &escaped;
     let level = match d.severity {
         Severity::Error => Level::ERROR,
         Severity::Warning => Level::WARNING,
@@ -206,7 +277,8 @@ fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
         };
         let line_end = text[line_start..].find('\n').map(|i| line_start + i).unwrap_or(text.len());
         let end = end.min(line_end).max(start);
-        Some((s.clone(), text[line_start..line_end].to_string(), start - line_start, end - line_start))
+        let (line, start, end) = escaped_line(&text[line_start..line_end], start - line_start, end - line_start);
+        Some((s.clone(), line, start, end))
     });
     if source.is_none() {
         // Nothing to quote: a plain two-line message reads better than an empty frame.
@@ -215,7 +287,7 @@ fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
             Severity::Warning => "warning",
         };
         let mut out = match &d.span {
-            Some(s) => format!("{level_word}: {}\n --> {s}\n", d.message),
+            Some(s) => format!("{level_word}: {}\n --> {}\n", d.message, escape_controls(&s.to_string())),
             None => format!("{level_word}: {}\n", d.message),
         };
         if let Some(h) = &d.help {
@@ -225,14 +297,15 @@ fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
     }
     // With a quoted line the renderer shows the location; without one the title carries it.
     let title = match (&d.span, &source) {
-        (Some(s), None) => format!("{}  [{s}]", d.message),
+        (Some(s), None) => format!("{}  [{}]", d.message, escape_controls(&s.to_string())),
         _ => d.message.clone(),
     };
+    let path = source.as_ref().map(|(span, ..)| escape_controls(&span.file).into_owned()).unwrap_or_default();
     let group = match &source {
         Some((span, line, s, e)) => level.primary_title(title.as_str()).element(
             Snippet::source(line.as_str())
                 .line_start(span.line as usize)
-                .path(span.file.as_ref())
+                .path(path.as_str())
                 .annotation(AnnotationKind::Primary.span(*s..(*e).max(*s + 1).min(line.len().max(*s + 1)))),
         ),
         None => Group::with_title(level.primary_title(title.as_str())),
@@ -244,4 +317,46 @@ fn render_one(d: &Diagnostic, sources: &[SourceFile], color: bool) -> String {
     }
     let renderer = if color { Renderer::styled() } else { Renderer::plain() };
     renderer.render(&groups).to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn foreign_text_cannot_drive_the_terminal() {
+        assert!(matches!(escape_controls("plain text, ünïcödé ✓"), Cow::Borrowed(_)));
+        assert_eq!(escape_controls("a\u{1b}[2K\rb\nerror: fake\tc\0"), "a\\x1b[2K\\rb\\nerror: fake\\tc\\x00");
+        assert_eq!(escape_controls("\u{1b}]0;title\u{7}"), "\\x1b]0;title\\x07");
+        assert_eq!(escape_controls("\u{9b}31m \u{202e}txt.exe \u{2028}"), "\\u{9b}31m \\u{202e}txt.exe \\u{2028}");
+        // The breaks before a node error's notes are the program's; any other is escaped.
+        let e = format!("bad\nline{NOTE_BREAK}first \u{1b}[1m{NOTE_BREAK}second");
+        assert_eq!(escape_message(&e), format!("bad\\nline{NOTE_BREAK}first \\x1b[1m{NOTE_BREAK}second"));
+    }
+
+    #[test]
+    fn a_rendered_diagnostic_escapes_its_message_help_and_quoted_line() {
+        let text = "name: ok\nbad: \"a\u{1b}[31mb\u{1b}[0m\"  # \u{202e}x\n";
+        let source = SourceFile { path: Arc::from("r\u{1b}.yaml"), text: Arc::from(text) };
+        let at = text.find("mb").unwrap() + 1; // the `b` after the first escape sequence
+        let span = Span { file: source.path.clone(), line: 2, column: 12, bytes: Some((at, at + 1)) };
+        let mut diags = Diagnostics::new();
+        diags.push(
+            Diagnostic::error(Some(span), "unknown value `a\u{1b}[31mb`\nerror: all good")
+                .with_help("write \u{1b}]8;;x\u{7}"),
+        );
+        for rendered in [diags.render(std::slice::from_ref(&source), false), diags.to_string()] {
+            assert!(!rendered.chars().any(|c| c.is_control() && c != '\n'), "{rendered:?}");
+            assert!(!rendered.contains('\u{202e}'), "{rendered}");
+            assert!(!rendered.lines().any(|l| l.starts_with("error: all good")), "{rendered}");
+            assert!(rendered.contains("a\\x1b[31mb`\\nerror: all good"), "{rendered}");
+            assert!(rendered.contains("write \\x1b]8;;x\\x07"), "{rendered}");
+        }
+        // The caret stays under the `b` of the escaped line.
+        let rendered = diags.render(std::slice::from_ref(&source), false);
+        let lines: Vec<&str> = rendered.lines().collect();
+        let quoted = lines.iter().position(|l| l.contains("bad: \"a\\x1b[31mb")).expect("the line is quoted");
+        let col = lines[quoted].find("mb\\x1b[0m").unwrap() + 1;
+        assert_eq!(lines[quoted + 1].find('^'), Some(col), "{rendered}");
+    }
 }
