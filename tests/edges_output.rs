@@ -265,3 +265,44 @@ fn threads_beyond_the_cores_do_not_multiply_the_memory_of_large_intermediates() 
     // Eighteen raw recordings: before the bound, eight times the threads held about twice the memory.
     assert!((many as f64) < 1.3 * few as f64, "-j {cores}: {few} KiB, -j {}: {many} KiB", 8 * cores);
 }
+
+#[test]
+fn a_full_disk_fails_the_run_cleanly_and_leaves_the_previous_run_whole() {
+    use std::os::unix::process::CommandExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = write_recipe(tmp.path(), &[("@impulse.table", "impulse.csv"), ("@hit.force", "sub/force.csv")]);
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let before: Vec<Vec<u8>> =
+        ["impulse.csv", "sub/force.csv"].iter().map(|f| std::fs::read(tmp.path().join("o").join(f)).unwrap()).collect();
+    std::fs::write(&recipe, std::fs::read_to_string(&recipe).unwrap().replace("500 N/m", "800 N/m")).unwrap();
+    for limit in [0u64, 512, 4096] {
+        // Every file the run writes stops at `limit` bytes, as on a full disk (EFBIG; the
+        // signal that would kill the process is ignored, as a full disk sends none).
+        let mut cmd = bin();
+        cmd.args(["run", recipe.to_str().unwrap(), "-o", "o"]).current_dir(tmp.path());
+        // SAFETY: only async-signal-safe calls between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+                let lim = libc::rlimit { rlim_cur: limit, rlim_max: libc::RLIM_INFINITY };
+                if libc::setrlimit(libc::RLIMIT_FSIZE, &lim) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let o = cmd.output().unwrap();
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(1), "limit {limit}: {}", text(&o));
+        assert!(String::from_utf8_lossy(&o.stderr).contains("error"), "limit {limit}: {}", text(&o));
+        for (f, bytes) in ["impulse.csv", "sub/force.csv"].iter().zip(&before) {
+            assert_eq!(&std::fs::read(tmp.path().join("o").join(f)).unwrap(), bytes, "limit {limit}: {f} changed");
+        }
+    }
+    // With room again the run completes, and no half-written cache entry is served.
+    let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("was not used"), "{}", text(&o));
+    assert_ne!(std::fs::read(tmp.path().join("o/impulse.csv")).unwrap(), before[0]);
+}
