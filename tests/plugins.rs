@@ -216,6 +216,70 @@ fn hostile_plugins_fail_alone_with_clear_errors_within_their_bounds() {
     }
 }
 
+/// A recipe of the `hostile` fixture plugin: one input value, then `steps` (`name: kind`).
+fn hostile_recipe(dir: &Path, steps: &[(&str, &str)]) -> PathBuf {
+    let mut text = String::from(
+        "spindlelab: 1\nname: hostile-edges\nplugins: [hostile]\nsteps:\n  one: { kind: rhai.eval, params: { expr: \"1.5\" } }\n",
+    );
+    for (name, kind) in steps {
+        text.push_str(&format!("  {name}: {{ kind: {kind}, inputs: {{ x: \"@one.value\" }} }}\n"));
+    }
+    let path = dir.join("hostile-edges.yaml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn a_plugin_output_that_is_not_a_finite_number_is_refused_with_its_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut plugins = plugins_in(&shared_cache());
+    let recipe =
+        hostile_recipe(dir.path(), &[("nan", "fixture.nan"), ("inf", "fixture.inf"), ("fine", "fixture.noop")]);
+    let outcomes = run(&recipe, &mut plugins);
+    let e = failure(&outcomes, "nan");
+    assert!(
+        e.contains("plugin `hostile` 0.1.0, node `fixture.nan`: output `y`: row 3 of column `v` is NaN; a plugin's outputs must be finite"),
+        "{e}"
+    );
+    let e = failure(&outcomes, "inf");
+    assert!(e.contains("node `fixture.inf`: output `y`: the value is -inf"), "{e}");
+    let Value::Scalar(y) = value(&outcomes, "fine", "y") else { panic!() };
+    assert_eq!(y.value, 1.5, "the other nodes run");
+}
+
+/// Whether a control character (but the line break) or a line-reordering one is in `s`.
+fn has_raw_controls(s: &str) -> bool {
+    s.chars().any(|c| (c.is_control() && c != '\n') || c == '\u{202e}')
+}
+
+#[test]
+fn a_plugin_s_error_and_warnings_reach_the_terminal_escaped() {
+    let home = tempfile::tempdir().unwrap();
+    let dir = examples();
+    let plugin_dir = dir.to_str().unwrap();
+
+    let recipe = hostile_recipe(home.path(), &[("forge", "fixture.forge")]);
+    let (code, out, err) =
+        spindlelab(&["run", recipe.to_str().unwrap(), "--plugin", plugin_dir, "--no-cache"], home.path());
+    assert_eq!(code, 2, "{err}");
+    assert!(!has_raw_controls(&out) && !has_raw_controls(&err), "{out:?}\n{err:?}");
+    assert!(
+        err.contains(
+            "node `fixture.forge`: \\x1b[2K\\r\\x1b[32mfine\\x1b[0m\\nerror: forged line\\x1b]0;owned\\x07\\u{202e}"
+        ),
+        "{err}"
+    );
+    assert!(!err.lines().any(|l| l.starts_with("error: forged")), "{err}");
+
+    let recipe = hostile_recipe(home.path(), &[("warns", "fixture.forge_warning")]);
+    let (code, out, err) =
+        spindlelab(&["run", recipe.to_str().unwrap(), "--plugin", plugin_dir, "--no-cache"], home.path());
+    assert_eq!(code, 0, "{err}");
+    assert!(!has_raw_controls(&out) && !has_raw_controls(&err), "{out:?}\n{err:?}");
+    assert!(out.contains("warning: \\x1b[2K\\rwarning line\\nok: forged by a warning"), "{out}");
+    assert!(!out.lines().any(|l| l.starts_with("ok: forged")), "{out}");
+}
+
 /// Writes `component` and a manifest with its true hash into `dir` as plugin `id`.
 fn write_plugin(dir: &Path, id: &str, component: &[u8], interface: &str) -> PathBuf {
     std::fs::write(dir.join(format!("{id}.wasm")), component).unwrap();

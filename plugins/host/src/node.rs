@@ -5,10 +5,12 @@ use crate::lend;
 use crate::v0_1_0::{self as v1, NamedParam, ParamType, ParamValue};
 use crate::v0_2_0 as v2;
 use crate::{Limits, LoadError, Manifest};
+use spindlelab_engine::diag::escape_controls;
 use spindlelab_engine::grammar::{self, Dimension};
 use spindlelab_engine::model::Recipe;
 use spindlelab_engine::node::{EffectParam, EffectSpec, Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
+use spindlelab_engine::value::Value;
 use std::sync::Arc;
 use wasmtime::component::{self, ComponentExportIndex, InstancePre};
 use wasmtime::{Engine, ResourceLimiter, Store, Trap};
@@ -208,7 +210,7 @@ impl Runtime {
                 .typed::<Run, (Result<v1::Outcome, String>,)>(&*store)?;
             Ok(run.call(store, (kind, params, inputs))?.0)
         })?;
-        result.map_err(CallError::Plugin)
+        result.map_err(|m| CallError::Plugin(guest_text(&m)))
     }
 
     fn explain(&self, e: CallError) -> String {
@@ -234,6 +236,100 @@ fn leak(s: String) -> &'static str {
     Box::leak(s.into_boxed_str())
 }
 
+/// A plugin's words (its error, a warning, a description) as the host passes them on: at
+/// most [`MAX_TEXT`] characters, control characters escaped (`\x1b`, `\n`), so a plugin can
+/// neither drive the terminal nor print a line that looks like the program's own.
+fn guest_text(s: &str) -> String {
+    let cut: String = s.chars().take(MAX_TEXT).collect();
+    let more = if cut.len() < s.len() { "…" } else { "" };
+    format!("{}{more}", escape_controls(&cut))
+}
+
+/// What a number that is not finite is, for a message.
+fn not_finite(x: f64) -> &'static str {
+    if x.is_nan() {
+        "NaN"
+    } else if x > 0.0 {
+        "+inf"
+    } else {
+        "-inf"
+    }
+}
+
+/// Where the first number of a plugin's output that is not finite sits, and what it is
+/// (`sample 7 of channel `ax` is NaN`), or `None` when every number is finite. Lobes may
+/// hold `+inf` as their documented "no limit at this speed" (and any chatter frequency there).
+pub(crate) fn first_non_finite(v: &Value) -> Option<String> {
+    let first = |xs: &[f64]| xs.iter().position(|x| !x.is_finite()).map(|i| (i, not_finite(xs[i])));
+    match v {
+        Value::Scalar(s) => first(&[s.value]).map(|(_, w)| format!("the value is {w}")),
+        Value::TimeSeries(t) => first(&[t.sample_rate])
+            .map(|(_, w)| format!("the sample rate is {w}"))
+            .or_else(|| first(&[t.t0]).map(|(_, w)| format!("the start time is {w}")))
+            .or_else(|| {
+                t.channels.iter().find_map(|c| {
+                    first(&c.samples).map(|(i, w)| format!("sample {i} of channel `{}` is {w}", guest_text(&c.name)))
+                })
+            }),
+        Value::Frf(f) => {
+            let re: Vec<f64> = f.values.iter().map(|v| v.re).collect();
+            let im: Vec<f64> = f.values.iter().map(|v| v.im).collect();
+            let lines = [("frequency", &f.freq_hz[..]), ("real part", &re[..]), ("imaginary part", &im[..])];
+            let coherence = f.coherence.as_deref().map(|c| ("coherence", c));
+            lines
+                .into_iter()
+                .chain(coherence)
+                .filter_map(|(what, xs)| first(xs).map(|(i, w)| (i, format!("the {what} at line {i} is {w}"))))
+                .min_by_key(|(i, _)| *i)
+                .map(|(_, m)| m)
+                .or_else(|| f.speed_rpm.and_then(|s| first(&[s])).map(|(_, w)| format!("the speed is {w}")))
+        }
+        Value::ModalModel(m) => m.modes.iter().enumerate().find_map(|(i, mode)| {
+            [("frequency", mode.freq_hz), ("damping ratio", mode.damping_ratio), ("modal mass", mode.modal_mass)]
+                .into_iter()
+                .find(|(_, x)| !x.is_finite())
+                .map(|(what, x)| format!("the {what} of mode {i} is {}", not_finite(x)))
+        }),
+        Value::Lobes(l) => (0..l.speed_rpm.len()).find_map(|i| {
+            let (speed, depth, chatter) = (l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]);
+            if !speed.is_finite() {
+                Some(format!("the speed at point {i} is {}", not_finite(speed)))
+            } else if !depth.is_finite() && depth != f64::INFINITY {
+                Some(format!("the depth limit at point {i} is {}", not_finite(depth)))
+            } else if !chatter.is_finite() && depth != f64::INFINITY {
+                Some(format!("the chatter frequency at point {i} (a finite limit) is {}", not_finite(chatter)))
+            } else {
+                None
+            }
+        }),
+        Value::Table(t) => t
+            .columns
+            .iter()
+            .find_map(|c| first(&c.values).map(|(i, w)| format!("row {i} of column `{}` is {w}", guest_text(&c.name)))),
+        // Kinds a plugin cannot return.
+        Value::ReceptanceSet(_) | Value::BeamModel(_) | Value::Substructure(_) => None,
+    }
+}
+
+/// The first name or unit of a plugin's output that holds a control character (they go
+/// into files' headers and onto the terminal), or `None`.
+pub(crate) fn label_with_control(v: &Value) -> Option<String> {
+    let bad = |what: &str, s: &str| s.chars().any(char::is_control).then(|| format!("{what} {}", guest_text(s)));
+    match v {
+        Value::Scalar(s) => bad("the unit", &s.unit.symbol),
+        Value::TimeSeries(t) => {
+            t.channels.iter().find_map(|c| bad("the channel name", &c.name).or_else(|| bad("the unit", &c.unit.symbol)))
+        }
+        Value::Frf(f) => bad("the unit", &f.unit.symbol)
+            .or_else(|| f.direction.as_deref().and_then(|d| bad("the direction", d)))
+            .or_else(|| f.sensor.as_deref().and_then(|d| bad("the sensor", d))),
+        Value::Table(t) => {
+            t.columns.iter().find_map(|c| bad("the column name", &c.name).or_else(|| bad("the unit", &c.unit.symbol)))
+        }
+        _ => None,
+    }
+}
+
 const MAX_KINDS: usize = 256;
 const MAX_PORTS: usize = 64;
 const MAX_PARAMS: usize = 128;
@@ -247,7 +343,10 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
     if info.name != manifest.id || info.version != manifest.version {
         return Err(bad(format!(
             "it calls itself `{}` {} but its manifest says `{}` {}; rebuild it with `spindlelab plugin build`",
-            info.name, info.version, manifest.id, manifest.version
+            guest_text(&info.name),
+            guest_text(&info.version),
+            guest_text(&manifest.id),
+            guest_text(&manifest.version)
         )));
     }
     if info.nodes.is_empty() || info.nodes.len() > MAX_KINDS {
@@ -261,7 +360,7 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
     let mut nodes = Vec::new();
     for k in info.nodes {
         let kind = k.kind.clone();
-        let bad_kind = |m: String| bad(format!("node kind `{kind}`: {m}"));
+        let bad_kind = |m: String| bad(format!("node kind `{}`: {m}", guest_text(&kind)));
         let dotted = kind.split('.').count() >= 2
             && kind
                 .split('.')
@@ -289,17 +388,20 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
         let mut names = std::collections::HashSet::new();
         for n in k.inputs.iter().map(|p| &p.name).chain(k.params.iter().map(|p| &p.name)) {
             if !ident(n) || !names.insert(n.clone()) {
-                return Err(bad_kind(format!("`{n}` is not a unique lowercase name (letters, digits, `_`)")));
+                return Err(bad_kind(format!(
+                    "`{}` is not a unique lowercase name (letters, digits, `_`)",
+                    guest_text(n)
+                )));
             }
         }
         let mut outs = std::collections::HashSet::new();
         for n in k.outputs.iter().map(|p| &p.name) {
             if !ident(n) || !outs.insert(n.clone()) {
-                return Err(bad_kind(format!("output `{n}` is not a unique lowercase name")));
+                return Err(bad_kind(format!("output `{}` is not a unique lowercase name", guest_text(n))));
             }
         }
         let port = |p: &v1::Port| {
-            let mut s = PortSpec::new(leak(p.name.clone()), v1::port_type(p.ty), leak(p.doc.clone()));
+            let mut s = PortSpec::new(leak(p.name.clone()), v1::port_type(p.ty), leak(guest_text(&p.doc)));
             s.optional = p.optional;
             s
         };
@@ -324,14 +426,14 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
                 ty,
                 required: p.required && p.default.is_none(),
                 default: p.default.clone().map(leak),
-                doc: leak(p.doc.clone()),
+                doc: leak(guest_text(&p.doc)),
             });
         }
         spindlelab_engine::spec::check_defaults(&params).map_err(&bad_kind)?;
         let spec = NodeSpec {
             kind: leak(kind.clone()),
             version: k.version,
-            description: leak(k.description.clone()),
+            description: leak(guest_text(&k.description)),
             inputs: k.inputs.iter().map(port).collect(),
             outputs: k.outputs.iter().map(port).collect(),
             params,
@@ -347,7 +449,7 @@ pub(crate) fn describe(rt: &Arc<Runtime>, manifest: &Manifest) -> Result<Vec<Arc
     if let Some(e) = effects.first() {
         return Err(bad(format!(
             "it offers `{}` as an effect, but describes no such node kind (or offers it twice)",
-            e.kind
+            guest_text(&e.kind)
         )));
     }
     Ok(nodes)
@@ -369,7 +471,7 @@ fn effect_spec(e: v2::Effect, spec: &NodeSpec) -> Result<EffectSpec, String> {
         && e.name.len() <= 64
         && e.name.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
     if !name_ok {
-        return Err(format!("name `{}` is not lowercase words joined by `_`", e.name));
+        return Err(format!("name `{}` is not lowercase words joined by `_`", guest_text(&e.name)));
     }
     if e.description.len() > MAX_TEXT {
         return Err(format!("the description is longer than {MAX_TEXT} bytes"));
@@ -383,7 +485,7 @@ fn effect_spec(e: v2::Effect, spec: &NodeSpec) -> Result<EffectSpec, String> {
             .params
             .iter()
             .find(|f| f.name == p.name)
-            .ok_or_else(|| format!("parameter `{}` is not a parameter of the kind", p.name))?;
+            .ok_or_else(|| format!("parameter `{}` is not a parameter of the kind", guest_text(&p.name)))?;
         let FieldType::Quantity(dim) = &field.ty else {
             return Err(format!("parameter `{}` is not a quantity", p.name));
         };
@@ -409,7 +511,7 @@ fn effect_spec(e: v2::Effect, spec: &NodeSpec) -> Result<EffectSpec, String> {
             log: p.log,
         });
     }
-    Ok(EffectSpec { name: leak(e.name), description: leak(e.description), params })
+    Ok(EffectSpec { name: leak(e.name), description: leak(guest_text(&e.description)), params })
 }
 
 /// The dimension of an SI unit symbol a plugin declares (`kg`, `N/m`, `rad/s`; empty: none).
@@ -417,7 +519,8 @@ fn si_dimension(unit: &str) -> Result<Dimension, String> {
     if unit.trim().is_empty() {
         return Ok(Dimension::DIMENSIONLESS);
     }
-    let u = grammar::parse_unit(unit).map_err(|e| format!("unit `{unit}`: {}", e.message))?;
+    let u =
+        grammar::parse_unit(unit).map_err(|e| format!("unit `{}`: {}", guest_text(unit), guest_text(&e.message)))?;
     if (u.scale - 1.0).abs() > 1e-12 {
         return Err(format!(
             "unit `{unit}` is not SI (1 {unit} = {} {}); plugins receive SI, declare `{}`",
@@ -523,14 +626,15 @@ impl Node for PluginNode {
             )));
         }
         for w in outcome.warnings.into_iter().take(100) {
-            ctx.warn(w.chars().take(MAX_TEXT).collect::<String>());
+            ctx.warn(guest_text(&w));
         }
         let mut out = Outputs::new();
         for o in outcome.outputs {
             let Some(port) = self.spec.output(&o.port) else {
-                return Err(self.fail(format!("it returned an output `{}` it does not declare", o.port)));
+                return Err(self.fail(format!("it returned an output `{}` it does not declare", guest_text(&o.port))));
             };
-            let value = v1::from_wit(o.value).map_err(|m| self.fail(format!("output `{}`: {m}", o.port)))?;
+            let value =
+                v1::from_wit(o.value).map_err(|m| self.fail(format!("output `{}`: {}", o.port, guest_text(&m))))?;
             if value.port_type() != port.ty {
                 return Err(self.fail(format!(
                     "output `{}` is declared a {} but it returned a {}",
@@ -538,6 +642,16 @@ impl Node for PluginNode {
                     port.ty,
                     value.port_type()
                 )));
+            }
+            if let Some(at) = first_non_finite(&value) {
+                return Err(self.fail(format!(
+                    "output `{}`: {at}; a plugin's outputs must be finite numbers (fix the plugin, or the input \
+                     that leads it there)",
+                    o.port
+                )));
+            }
+            if let Some(label) = label_with_control(&value) {
+                return Err(self.fail(format!("output `{}`: {label} holds a control character", o.port)));
             }
             if out.insert(o.port.clone(), value).is_some() {
                 return Err(self.fail(format!("it returned output `{}` twice", o.port)));
@@ -553,7 +667,7 @@ impl Node for PluginNode {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use spindlelab_engine::value::PortType;
+    use spindlelab_engine::value::{PortType, UnitLabel};
 
     fn kind(inputs: &[(&'static str, PortType, bool)]) -> NodeSpec {
         let kg = grammar::parse_unit("kg").unwrap().dim;
@@ -584,6 +698,66 @@ mod tests {
                 .map(|(name, absent, min, max, log)| v2::FreeParam { name: name.into(), absent, min, max, log })
                 .collect(),
         }
+    }
+
+    #[test]
+    fn the_first_number_of_an_output_that_is_not_finite_is_named_by_its_place() {
+        use num_complex::Complex64;
+        use spindlelab_engine::value::{Channel, Column, Frf, Lobes, ModalModel, Mode, Scalar, Table, TimeSeries};
+        let at = |v: Value| first_non_finite(&v);
+        assert_eq!(at(Value::Scalar(Scalar::new(1.0, "m"))), None);
+        assert_eq!(at(Value::Scalar(Scalar::new(f64::NAN, "m"))).as_deref(), Some("the value is NaN"));
+        let table = Table {
+            columns: vec![Column::new("a", "", vec![1.0, 2.0]), Column::new("b\u{1b}", "", vec![0.0, f64::INFINITY])],
+        };
+        assert_eq!(at(Value::Table(table)).as_deref(), Some("row 1 of column `b\\x1b` is +inf"));
+        let mut frf = Frf {
+            freq_hz: vec![0.0, 1.0, 2.0],
+            values: vec![Complex64::new(1.0, 0.0); 3],
+            coherence: Some(vec![1.0, f64::NAN, 1.0]),
+            unit: UnitLabel::new("m/N"),
+            direction: None,
+            speed_rpm: None,
+            sensor: None,
+        };
+        frf.values[2].im = f64::NEG_INFINITY;
+        assert_eq!(at(Value::Frf(frf.clone())).as_deref(), Some("the coherence at line 1 is NaN"));
+        frf.coherence = None;
+        assert_eq!(at(Value::Frf(frf.clone())).as_deref(), Some("the imaginary part at line 2 is -inf"));
+        frf.values[2].im = 0.0;
+        frf.speed_rpm = Some(f64::NAN);
+        assert_eq!(at(Value::Frf(frf)).as_deref(), Some("the speed is NaN"));
+        let series = TimeSeries {
+            sample_rate: 100.0,
+            t0: 0.0,
+            channels: vec![Channel { name: "ax".into(), unit: UnitLabel::new(""), samples: vec![0.0, f64::NAN] }],
+        };
+        assert_eq!(at(Value::TimeSeries(series)).as_deref(), Some("sample 1 of channel `ax` is NaN"));
+        let modes = ModalModel { modes: vec![Mode { freq_hz: 100.0, damping_ratio: f64::NAN, modal_mass: 1.0 }] };
+        assert_eq!(at(Value::ModalModel(modes)).as_deref(), Some("the damping ratio of mode 0 is NaN"));
+        // `+inf` is a lobe diagram's "no limit"; its chatter frequency there means nothing.
+        let lobes = |depth: f64, chatter: f64| {
+            Value::Lobes(Lobes {
+                speed_rpm: vec![1000.0, 2000.0],
+                depth_limit: vec![1e-3, depth],
+                chatter_hz: vec![500.0, chatter],
+            })
+        };
+        assert_eq!(at(lobes(f64::INFINITY, f64::NAN)), None);
+        assert_eq!(at(lobes(f64::NAN, 500.0)).as_deref(), Some("the depth limit at point 1 is NaN"));
+        assert_eq!(
+            at(lobes(2e-3, f64::INFINITY)).as_deref(),
+            Some("the chatter frequency at point 1 (a finite limit) is +inf")
+        );
+    }
+
+    #[test]
+    fn a_plugin_s_words_reach_messages_escaped_and_bounded() {
+        assert_eq!(guest_text("plain"), "plain");
+        assert_eq!(guest_text("\u{1b}[2Kok\nerror: x"), "\\x1b[2Kok\\nerror: x");
+        assert_eq!(guest_text(&"é".repeat(MAX_TEXT + 10)).chars().count(), MAX_TEXT + 1);
+        let series = Value::Scalar(spindlelab_engine::value::Scalar::new(1.0, "m\n"));
+        assert_eq!(label_with_control(&series).as_deref(), Some("the unit m\\n"));
     }
 
     #[test]
