@@ -8,6 +8,7 @@ use spindlelab::plugins::Plugins;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// mimalloc keeps freed memory for reuse: glibc's allocator returns large blocks (a sweep's
 /// records, a coupling's 10,000 lines) to the system on every free and faults them in again.
@@ -18,6 +19,41 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code for a failure of the machine (a file that cannot be written).
 const EXIT_FAILURE: u8 = 1;
+
+/// Set once writing to standard output has failed (a full disk behind `>`): the failure is
+/// said once, and the command ends with [`EXIT_FAILURE`].
+static STDOUT_FAILED: AtomicBool = AtomicBool::new(false);
+
+/// Writes `text` to standard output, flushed. A write that fails is said once on stderr and
+/// sets the exit code, instead of a panic; a closed pipe has ended the process before (by
+/// its signal), as it should.
+fn emit(text: &str) {
+    use std::io::Write;
+    if STDOUT_FAILED.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        STDOUT_FAILED.store(true, Ordering::Relaxed);
+        eprintln!("error: cannot write to standard output: {e}");
+    }
+}
+
+/// `print!` through [`emit`].
+macro_rules! out {
+    ($($arg:tt)*) => { emit(&format!($($arg)*)) };
+}
+
+/// `println!` through [`emit`].
+macro_rules! outln {
+    ($($arg:tt)*) => { emit(&format!("{}\n", format_args!($($arg)*))) };
+}
+
+/// Text that may hold foreign words (a recipe's, a data file's, a plugin's) as the terminal
+/// may show it: control characters escaped, the lines of a node error's notes kept.
+fn esc(text: impl std::fmt::Display) -> String {
+    engine::diag::escape_message(&text.to_string()).into_owned()
+}
 
 #[derive(Parser)]
 #[command(
@@ -271,13 +307,32 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // `--help` and `--version` go to standard output like any other output of ours, so a
+        // full disk behind `>` is said; usage errors go to stderr with clap's exit code (2).
+        Err(e) if !e.use_stderr() && !std::io::stdout().is_terminal() => {
+            out!("{}", e.render());
+            return if STDOUT_FAILED.load(Ordering::Relaxed) {
+                ExitCode::from(EXIT_FAILURE)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+        Err(e) => e.exit(),
+    };
+    let code = command(cli);
+    if STDOUT_FAILED.load(Ordering::Relaxed) { ExitCode::from(EXIT_FAILURE) } else { code }
+}
+
+/// Runs one command of the command line.
+fn command(cli: Cli) -> ExitCode {
     let mut registry = spindlelab::registry();
     let mut plugins = Plugins::new(&cli.plugin);
     match cli.command {
         Command::Check { recipe, set } => match compile_with(&recipe, &set, &mut registry, &mut plugins) {
             Ok(c) => {
-                println!(
+                outln!(
                     "{}: ok — {} steps, {} node instances, {} outputs",
                     recipe.display(),
                     c.recipe.steps.len(),
@@ -294,7 +349,7 @@ fn main() -> ExitCode {
                     GraphFormat::Dot => engine::graph::to_dot(&c.graph),
                     GraphFormat::Mermaid => engine::graph::to_mermaid(&c.graph),
                 };
-                print!("{text}");
+                out!("{text}");
                 ExitCode::SUCCESS
             }
             Err(code) => code,
@@ -308,10 +363,10 @@ fn main() -> ExitCode {
                     let entries = plan(&c.recipe, &c.graph, &registry, &out, cache.as_ref());
                     let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
                     for e in &entries {
-                        println!("{:width$}  {:18}  {}", e.id, e.kind, e.reason);
+                        outln!("{:width$}  {:18}  {}", esc(&e.id), e.kind, esc(&e.reason));
                     }
                     let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
-                    println!(
+                    outln!(
                         "{} to run, {} from cache (output directory {})",
                         entries.len() - cached,
                         cached,
@@ -324,11 +379,11 @@ fn main() -> ExitCode {
         }
         Command::Nodes { kind } => {
             if let Err(e) = plugins.load_always(&mut registry) {
-                eprintln!("error: {e}");
+                eprintln!("error: {}", esc(&e));
                 return ExitCode::from(EXIT_BAD_INPUT);
             }
             for (manifest, e) in plugins.load_search_path(&mut registry).1 {
-                eprintln!("warning: {}: {e}", manifest.display());
+                eprintln!("warning: {}: {}", esc(manifest.display()), esc(&e));
             }
             let mut any = false;
             for node in registry.kinds() {
@@ -337,14 +392,14 @@ fn main() -> ExitCode {
                     continue;
                 }
                 any = true;
-                print!("{}", describe_node(spec, node.effect()));
+                out!("{}", describe_node(spec, node.effect()));
             }
             if !any {
                 let k = kind.unwrap_or_default();
                 let hint = engine::spec::suggest(&k, registry.names())
                     .map(|s| format!(" (did you mean `{s}`?)"))
                     .unwrap_or_default();
-                eprintln!("error: unknown node kind `{k}`{hint}");
+                eprintln!("error: unknown node kind `{}`{hint}", esc(&k));
                 return ExitCode::from(EXIT_BAD_INPUT);
             }
             ExitCode::SUCCESS
@@ -357,11 +412,11 @@ fn main() -> ExitCode {
             let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
                 Ok(d) => d,
                 Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_FAILURE);
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
@@ -370,13 +425,13 @@ fn main() -> ExitCode {
                 Path::new("out").join(stem).join("diagnosis")
             });
             if let Err(e) = spindlelab::diagnose::write(&d, &out) {
-                eprintln!("error: {e}");
+                eprintln!("error: {}", esc(&e));
                 let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
                 return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
             }
             if !quiet {
-                print!("{}", spindlelab::diagnose::markdown(&d));
-                println!(
+                out!("{}", spindlelab::diagnose::markdown(&d));
+                outln!(
                     "\nwrote diagnosis.json, diagnosis.md and diagnosed.yaml to {} in {:.1} s",
                     out.display(),
                     d.seconds
@@ -389,19 +444,19 @@ fn main() -> ExitCode {
             let text = match std::fs::read_to_string(&case) {
                 Ok(t) => t,
                 Err(e) => {
-                    eprintln!("error: cannot read {shown}: {e}");
+                    eprintln!("error: cannot read {}: {e}", esc(&shown));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
             let recipe = match spindlelab::import::recipe_from_case(&text, &shown) {
                 Ok(r) => r,
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
             match out {
-                None => print!("{recipe}"),
+                None => out!("{recipe}"),
                 Some(path) => {
                     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
                     let written = tempfile::NamedTempFile::new_in(dir).and_then(|mut tmp| {
@@ -419,7 +474,7 @@ fn main() -> ExitCode {
         Command::Cache { action } => cache_command(action),
         Command::Plugin { action } => plugin_command(action, &mut plugins),
         Command::Schema => {
-            println!(
+            outln!(
                 "{}",
                 serde_json::to_string_pretty(&engine::schema::recipe_schema(&registry)).expect("schema serialises")
             );
@@ -438,12 +493,12 @@ fn main() -> ExitCode {
                 let report = match spindlelab::fit::fit(&c, &set, &registry, threads) {
                     Ok(r) => r,
                     Err(e) => {
-                        eprintln!("error: fit: {e}");
+                        eprintln!("error: fit: {}", esc(&e));
                         return ExitCode::from(EXIT_BAD_INPUT);
                     }
                 };
                 if !quiet {
-                    print!("{}", spindlelab::summary::fit_summary(&report));
+                    out!("{}", spindlelab::summary::fit_summary(&report));
                 }
                 // The run that writes the outputs is the recipe with the fitted values.
                 let mut with_fit: Vec<(String, String)> =
@@ -473,7 +528,7 @@ fn main() -> ExitCode {
             };
             let progress = |_: usize, id: &str| {
                 bar.inc(1);
-                bar.set_message(id.to_string());
+                bar.set_message(esc(id));
             };
             let outcome = engine::run(&c, &registry, &opts, &progress);
             bar.finish_and_clear();
@@ -483,7 +538,7 @@ fn main() -> ExitCode {
                 Err(_) => &[],
             };
             for n in notes {
-                eprintln!("warning: {n}");
+                eprintln!("warning: {}", esc(n));
             }
             if let Some(report) = fitted.as_ref().filter(|r| !r.converged) {
                 eprintln!(
@@ -494,12 +549,12 @@ fn main() -> ExitCode {
             match outcome {
                 Ok(report) => {
                     if verbose {
-                        print!("{}", spindlelab::summary::summarize(&c, &report.result));
+                        out!("{}", spindlelab::summary::summarize(&c, &report.result));
                     } else if !quiet {
-                        print!("{}", spindlelab::summary::short(&c, &report.result));
+                        out!("{}", spindlelab::summary::short(&c, &report.result));
                     }
                     if !quiet {
-                        println!(
+                        outln!(
                             "{} computed, {} from cache in {:.3} s; wrote {} file(s) and manifest.json to {}",
                             report.manifest.computed,
                             report.manifest.cache_hits,
@@ -518,9 +573,9 @@ fn main() -> ExitCode {
                             .iter()
                             .find(|i| &i.id == id)
                             .and_then(|i| c.recipe.step(&i.step))
-                            .map(|s| format!("\n --> {} (step `{}`)", s.span, s.id))
+                            .map(|s| format!("\n --> {} (step `{}`)", esc(&s.span), s.id))
                             .unwrap_or_default();
-                        eprintln!("error: node `{id}` failed: {e}{at}");
+                        eprintln!("error: node `{}` failed: {}{at}", esc(id), esc(e));
                     }
                     {
                         let r = report;
@@ -539,7 +594,7 @@ fn main() -> ExitCode {
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
                 Err(RunError::Output(e)) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
                 }
             }
@@ -565,7 +620,7 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
         return match spindlelab::diagnose::report_html(run_dir) {
             Ok(html) => write_report(&target_for(out), html),
             Err(e) => {
-                eprintln!("error: {e}; rerun `spindlelab diagnose` into that folder");
+                eprintln!("error: {}; rerun `spindlelab diagnose` into that folder", esc(&e));
                 ExitCode::from(EXIT_BAD_INPUT)
             }
         };
@@ -606,7 +661,7 @@ fn write_report(target: &Path, html: String) -> ExitCode {
         eprintln!("error: cannot write {}: {e}", target.display());
         return ExitCode::from(EXIT_FAILURE);
     }
-    println!("wrote {}", target.display());
+    outln!("wrote {}", target.display());
     ExitCode::SUCCESS
 }
 
@@ -647,19 +702,19 @@ fn cache_command(action: CacheAction) -> ExitCode {
     for folder in folders {
         let cache = Cache::new(engine::exec::cache_dir(&folder));
         if !cache.dir().is_dir() {
-            println!("{}: no cache", folder.display());
+            outln!("{}: no cache", folder.display());
             continue;
         }
         if verb == "du" {
             let (n, bytes) = cache.usage();
-            println!("{}: {n} entries, {}", folder.display(), human_bytes(bytes));
+            outln!("{}: {n} entries, {}", folder.display(), human_bytes(bytes));
             continue;
         }
         // Changing the cache needs the folder: not while a run uses it.
         let _held = match OutputDir::open(&folder) {
             Ok(d) => d,
             Err(e) => {
-                eprintln!("error: {e}");
+                eprintln!("error: {}", esc(&e));
                 code = ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE });
                 continue;
             }
@@ -675,13 +730,13 @@ fn cache_command(action: CacheAction) -> ExitCode {
                 .collect();
             cache.retain(|k| keep.contains(k))
         };
-        println!("{}: removed {n} entries, {}", folder.display(), human_bytes(bytes));
+        outln!("{}: removed {n} entries, {}", folder.display(), human_bytes(bytes));
     }
     code
 }
 
 fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::EffectSpec>) -> String {
-    let mut s = format!("{} (version {})\n  {}\n", spec.kind, spec.version, spec.description);
+    let mut s = format!("{} (version {})\n  {}\n", spec.kind, spec.version, esc(spec.description));
     if !spec.inputs.is_empty() {
         s.push_str("  inputs:\n");
         for p in &spec.inputs {
@@ -691,12 +746,12 @@ fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::Ef
                 (false, true) => " (collects a sweep)",
                 _ => "",
             };
-            s.push_str(&format!("    {:16} {}{flags} — {}\n", p.name, p.ty, p.doc));
+            s.push_str(&format!("    {:16} {}{flags} — {}\n", p.name, p.ty, esc(p.doc)));
         }
     }
     s.push_str("  outputs:\n");
     for p in &spec.outputs {
-        s.push_str(&format!("    {:16} {} — {}\n", p.name, p.ty, p.doc));
+        s.push_str(&format!("    {:16} {} — {}\n", p.name, p.ty, esc(p.doc)));
     }
     if !spec.params.is_empty() {
         s.push_str("  params:\n");
@@ -704,13 +759,13 @@ fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::Ef
             let req = if f.required {
                 "required".to_string()
             } else {
-                f.default.map(|d| format!("default {d}")).unwrap_or_else(|| "optional".into())
+                f.default.map(|d| format!("default {}", esc(d))).unwrap_or_else(|| "optional".into())
             };
-            s.push_str(&format!("    {:16} {} ({req}) — {}\n", f.name, f.ty.describe(), f.doc));
+            s.push_str(&format!("    {:16} {} ({req}) — {}\n", f.name, esc(f.ty.describe()), esc(f.doc)));
         }
     }
     if let Some(e) = effect {
-        s.push_str(&format!("  effect for the diagnosis: {} — {}\n", e.name, e.description));
+        s.push_str(&format!("  effect for the diagnosis: {} — {}\n", e.name, esc(e.description)));
         for p in &e.params {
             let scale = if p.log { ", log scale" } else { "" };
             s.push_str(&format!(
@@ -730,15 +785,15 @@ fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::Ef
 fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
     use spindlelab::engine::node::Registry;
     let describe_plugin = |p: &spindlelab_plugin_host::Plugin| {
-        println!(
+        outln!(
             "{} {} — {} (interface {}, sha256 {})",
-            p.manifest.id,
-            p.manifest.version,
-            p.manifest_path.display(),
-            p.manifest.interface,
-            &p.manifest.sha256[..16]
+            esc(&p.manifest.id),
+            esc(&p.manifest.version),
+            esc(p.manifest_path.display()),
+            esc(&p.manifest.interface),
+            esc(p.manifest.sha256.get(..16).unwrap_or(&p.manifest.sha256))
         );
-        println!(
+        outln!(
             "  limits: {} MiB memory, {:.1e} fuel, {} numbers out per call",
             p.limits.memory >> 20,
             p.limits.fuel as f64,
@@ -746,9 +801,9 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
         );
         for n in &p.nodes {
             let spec = engine::node::Node::spec(n.as_ref());
-            println!("  {} v{}: {}", spec.kind, spec.version, spec.description);
+            outln!("  {} v{}: {}", spec.kind, spec.version, esc(spec.description));
             if let Some(e) = engine::node::Node::effect(n.as_ref()) {
-                println!("    effect for the diagnosis: {}", e.name);
+                outln!("    effect for the diagnosis: {}", e.name);
             }
         }
     };
@@ -759,11 +814,11 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
             match plugins.load(&manifest, &Default::default(), &mut registry) {
                 Ok(p) => {
                     describe_plugin(&p);
-                    println!("{}: ok", manifest.display());
+                    outln!("{}: ok", manifest.display());
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
@@ -773,16 +828,16 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
             match spindlelab::plugins::new_plugin(&name, &dir) {
                 Ok(files) => {
                     for f in files {
-                        println!("wrote {}", f.display());
+                        outln!("wrote {}", f.display());
                     }
-                    println!(
+                    outln!(
                         "next: `rustup target add wasm32-unknown-unknown` once, then `spindlelab plugin build {}`",
                         dir.display()
                     );
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
@@ -800,15 +855,15 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                     match plugins.load(&packed.manifest_path, &Default::default(), &mut registry) {
                         Ok(p) => describe_plugin(&p),
                         Err(e) => {
-                            eprintln!("error: the plugin was built but does not load: {e}");
+                            eprintln!("error: the plugin was built but does not load: {}", esc(&e));
                             return ExitCode::from(EXIT_BAD_INPUT);
                         }
                     }
-                    println!("wrote {}", packed.manifest_path.display());
+                    outln!("wrote {}", packed.manifest_path.display());
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    eprintln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
@@ -820,11 +875,11 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                 describe_plugin(p);
             }
             for (m, e) in &failed {
-                eprintln!("warning: {}: {e}", m.display());
+                eprintln!("warning: {}: {}", esc(m.display()), esc(&e));
             }
             if ok.is_empty() && failed.is_empty() {
                 let dirs: Vec<String> = plugins.search.iter().map(|d| d.display().to_string()).collect();
-                println!("no plugins in {}", dirs.join(", "));
+                outln!("no plugins in {}", dirs.join(", "));
             }
             ExitCode::SUCCESS
         }

@@ -1,6 +1,7 @@
 //! A stable, human-readable summary of a run: every output of every instance, numbers
 //! rounded to a stated number of significant digits, no timings and no paths.
 
+use spindlelab_engine::diag::{escape_controls, escape_message};
 use spindlelab_engine::exec::{Outcome, RunResult};
 use spindlelab_engine::round_sig;
 use spindlelab_engine::value::Value;
@@ -10,19 +11,25 @@ use std::fmt::Write as _;
 /// Significant digits of every number in a summary.
 pub const SIGNIFICANT_DIGITS: i32 = 4;
 
+/// Names and units that came from a data file or a plugin, as the terminal may show them.
+fn shown(s: &str) -> std::borrow::Cow<'_, str> {
+    escape_controls(s)
+}
+
 fn n(x: f64) -> String {
     format!("{}", round_sig(x, SIGNIFICANT_DIGITS))
 }
 
 fn describe(v: &Value) -> String {
     match v {
-        Value::Scalar(s) => format!("{} {}", n(s.value), s.unit.symbol),
+        Value::Scalar(s) => format!("{} {}", n(s.value), shown(&s.unit.symbol)),
         Value::TimeSeries(ts) => {
             let mut s = format!("time series, {} samples at {} Hz", ts.len(), n(ts.sample_rate));
             for c in &ts.channels {
                 let peak = c.samples.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 let rms = (c.samples.iter().map(|x| x * x).sum::<f64>() / c.samples.len().max(1) as f64).sqrt();
-                let _ = write!(s, "; {}: peak {} {}, rms {} {}", c.name, n(peak), c.unit.symbol, n(rms), c.unit.symbol);
+                let u = shown(&c.unit.symbol);
+                let _ = write!(s, "; {}: peak {} {u}, rms {} {u}", shown(&c.name), n(peak), n(rms));
             }
             s
         }
@@ -44,7 +51,7 @@ fn describe(v: &Value) -> String {
                 n(*f.freq_hz.first().unwrap_or(&0.0)),
                 n(*f.freq_hz.last().unwrap_or(&0.0)),
                 n(vmax),
-                f.unit.symbol,
+                shown(&f.unit.symbol),
                 n(f.freq_hz.get(imax).copied().unwrap_or(0.0))
             )
         }
@@ -53,7 +60,7 @@ fn describe(v: &Value) -> String {
             for c in &t.columns {
                 let vals: Vec<String> = c.values.iter().take(12).map(|x| n(*x)).collect();
                 let more = if c.values.len() > 12 { ", …" } else { "" };
-                let _ = write!(s, "\n      {} [{}]: {}{more}", c.name, c.unit.symbol, vals.join(", "));
+                let _ = write!(s, "\n      {} [{}]: {}{more}", shown(&c.name), shown(&c.unit.symbol), vals.join(", "));
             }
             s
         }
@@ -66,10 +73,10 @@ fn describe(v: &Value) -> String {
                 .iter()
                 .map(|p| {
                     let first = p.natural_hz.get(p.rigid_modes).map_or(String::from("-"), |f| n(*f));
-                    format!("{} ({} modes, first flexible {first} Hz)", p.name, p.nu.len())
+                    format!("{} ({} modes, first flexible {first} Hz)", shown(&p.name), p.nu.len())
                 })
                 .collect();
-            format!("substructure of `{}`: {}", s.assembly, parts.join(", "))
+            format!("substructure of `{}`: {}", shown(&s.assembly), parts.join(", "))
         }
         Value::Lobes(l) => format!("lobes, {} speeds", l.speed_rpm.len()),
     }
@@ -81,20 +88,20 @@ pub fn summarize(compiled: &Compiled, result: &RunResult) -> String {
 }
 
 fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
-    let mut out = format!("recipe {name}: {} node instance(s)\n", graph.instances.len());
+    let mut out = format!("recipe {}: {} node instance(s)\n", shown(name), graph.instances.len());
     for (inst, outcome) in graph.instances.iter().zip(&result.outcomes) {
-        let _ = writeln!(out, "{} ({})", inst.id, inst.kind);
+        let _ = writeln!(out, "{} ({})", shown(&inst.id), inst.kind);
         match outcome {
             Outcome::Computed { outputs, .. } | Outcome::Cached { outputs, .. } => {
                 for (port, v) in outputs.iter() {
                     let _ = writeln!(out, "  {port}: {}", describe(v));
                 }
                 for w in outcome.warnings() {
-                    let _ = writeln!(out, "  warning: {w}");
+                    let _ = writeln!(out, "  warning: {}", shown(w));
                 }
             }
             Outcome::Failed(e) => {
-                let _ = writeln!(out, "  failed: {e}");
+                let _ = writeln!(out, "  failed: {}", escape_message(&e.to_string()));
             }
             Outcome::Skipped => {
                 let _ = writeln!(out, "  skipped");
@@ -102,7 +109,7 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
             Outcome::Released { .. } => {
                 let _ = writeln!(out, "  outputs released once every consumer had run (never cached)");
                 for w in outcome.warnings() {
-                    let _ = writeln!(out, "  warning: {w}");
+                    let _ = writeln!(out, "  warning: {}", shown(w));
                 }
             }
             Outcome::Unneeded { cached } => {
@@ -179,7 +186,7 @@ fn headline(values: &[&Value]) -> String {
     match first {
         Value::Scalar(s) => range(
             values.iter().filter_map(|v| if let Value::Scalar(s) = v { Some(s.value) } else { None }).collect(),
-            &s.unit.symbol,
+            &shown(&s.unit.symbol),
         ),
         Value::Frf(f) => {
             let peaks: Vec<(f64, f64)> = values
@@ -195,7 +202,7 @@ fn headline(values: &[&Value]) -> String {
                 .collect();
             let top = peaks.iter().fold((0.0, 0.0), |a, b| if b.0 > a.0 { *b } else { a });
             let what = if count > 1 { format!("{count} FRFs, ") } else { String::new() };
-            format!("{what}peak |H| {} at {}", eng(top.0, &f.unit.symbol), eng(top.1, "Hz"))
+            format!("{what}peak |H| {} at {}", eng(top.0, &shown(&f.unit.symbol)), eng(top.1, "Hz"))
         }
         Value::Lobes(_) => {
             let mins: Vec<(f64, f64)> = values
@@ -215,7 +222,7 @@ fn headline(values: &[&Value]) -> String {
             .columns
             .iter()
             .take(6)
-            .map(|c| format!("{} {}", c.name, eng(c.values[0], &c.unit.symbol)))
+            .map(|c| format!("{} {}", shown(&c.name), eng(c.values[0], &shown(&c.unit.symbol))))
             .collect::<Vec<_>>()
             .join(", "),
         Value::Table(_) => {
@@ -279,7 +286,7 @@ pub fn short(compiled: &Compiled, result: &RunResult) -> String {
         }
         for (w, n) in warnings {
             let times = if n > 1 { format!(" (×{n})") } else { String::new() };
-            let _ = writeln!(out, "  warning{times}: {w}");
+            let _ = writeln!(out, "  warning{times}: {}", shown(&w));
         }
     }
     out

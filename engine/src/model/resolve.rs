@@ -36,6 +36,33 @@ const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];
 /// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
 const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml", "report.html"];
 
+/// Longest name of one file or folder, and of a whole path, that the file systems a run
+/// writes to take (bytes).
+const MAX_NAME_BYTES: usize = 255;
+const MAX_PATH_BYTES: usize = 4096;
+
+/// Why an output file name cannot be written on any common file system, if it cannot: a NUL
+/// character, a file or folder name over 255 bytes, a path over 4096 bytes.
+fn unwritable_name(name: &str) -> Option<String> {
+    if name.contains('\0') {
+        return Some("holds a NUL character, which no file name can".into());
+    }
+    if name.len() > MAX_PATH_BYTES {
+        return Some(format!("is {} bytes long, beyond the {MAX_PATH_BYTES} bytes of a path", name.len()));
+    }
+    let longest = name.split('/').map(str::len).max().unwrap_or(0);
+    if longest > MAX_NAME_BYTES {
+        return Some(format!("has a part of {longest} bytes, beyond the {MAX_NAME_BYTES} bytes of a file name"));
+    }
+    None
+}
+
+/// A long name cut for a message: its first 60 characters and how long it is.
+fn shorten(name: &str) -> String {
+    let cut: String = name.chars().take(60).collect();
+    if cut.len() < name.len() { format!("{cut}… ({} bytes)", name.len()) } else { cut }
+}
+
 fn valid_name(s: &str) -> bool {
     let mut chars = s.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
@@ -835,6 +862,16 @@ fn resolve_outputs(
                 Some(&file.span),
                 format!("output file `{fname}` must stay inside the output directory"),
                 "use a relative name without `..`",
+            );
+            continue;
+        }
+        // Names no file system takes fail only when the file is written, after the whole
+        // computation: refused here instead.
+        if let Some(problem) = unwritable_name(fname) {
+            diags.error_help(
+                Some(&file.span),
+                format!("output file `{}` {problem}", shorten(fname)),
+                "choose a shorter name without NUL characters",
             );
             continue;
         }
