@@ -11,6 +11,8 @@ use super::{FormatError, Loc, unit_to_si};
 use crate::value::{Channel, Frf, Lobes, ReceptanceSet, Table, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::{self as grammar, Dimension};
+use std::borrow::Cow;
+use std::collections::HashMap;
 use std::fmt::Write as _;
 
 /// Appends `,` (unless `first`) and the shortest round-trip text of each of `values`.
@@ -168,6 +170,19 @@ pub fn write_frf(f: &Frf) -> String {
     out
 }
 
+/// Most columns a CSV header row may name: the channels of a time series, the columns of a
+/// table. Each column becomes a vector in memory, so a wider header is refused before
+/// anything is allocated for it; a wider recording is split into files of fewer channels.
+pub const MAX_COLUMNS: usize = 4096;
+
+/// Most sweep-coordinate columns that may lead the columns of an FRF or table file (a swept
+/// output writes one per swept parameter).
+pub const MAX_SWEEP_COLUMNS: usize = 64;
+
+/// Most sweep points (runs of rows with the same sweep coordinates) one FRF or table file may
+/// hold: as many as a recipe's graph may have node instances.
+pub const MAX_SWEEP_POINTS: usize = crate::graph::MAX_INSTANCES;
+
 /// A `# key: value` line, with the 1-based line number and the column of the value.
 struct Meta<'a> {
     key: &'a str,
@@ -177,14 +192,153 @@ struct Meta<'a> {
 }
 
 /// A `channel=unit` entry of `# units`, with the column where it starts.
-type UnitEntry = (String, String, usize);
+type UnitEntry<'a> = (&'a str, &'a str, usize);
 
-/// The pieces of a CSV file: `#` header lines, the column header row and the data rows.
+/// The `# key: value` line `raw` (line number `line`), or `None` for any other line. Only
+/// `# word: …` lines are header lines; any other `#` line is a comment.
+fn meta_line(raw: &str, line: usize) -> Option<Meta<'_>> {
+    let trimmed = raw.trim();
+    let (key, value) = trimmed.strip_prefix('#')?.split_once(':')?;
+    let key = key.trim();
+    if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return None;
+    }
+    let lead = raw.len() - raw.trim_start().len();
+    let value_start = lead + trimmed.len() - value.trim_start().len();
+    Some(Meta { key, value: value.trim(), line, column: raw[..value_start].chars().count() + 1 })
+}
+
+/// The lines of `text` from byte `from`, numbered from `first`, without their line ends
+/// (`\n` or `\r\n`).
+fn numbered(text: &str, from: usize, first: usize) -> impl Iterator<Item = (usize, &str)> {
+    text[from..].split_inclusive('\n').zip(first..).map(|(piece, n)| (n, without_end(piece)))
+}
+
+/// A line without its line end (`\n` or `\r\n`).
+fn without_end(piece: &str) -> &str {
+    match piece.strip_suffix('\n') {
+        Some(l) => l.strip_suffix('\r').unwrap_or(l),
+        None => piece,
+    }
+}
+
+/// True for a line that is neither blank nor a `#` line: the header row or a data row.
+fn is_data(raw: &str) -> bool {
+    let t = raw.trim();
+    !t.is_empty() && !t.starts_with('#')
+}
+
+/// How much of what spreadsheets do to a CSV file a reader undoes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Forms {
+    /// The plain form only (what outputs write).
+    Plain,
+    /// A byte-order mark, and `;` separators with decimal commas.
+    Spreadsheet,
+    /// As `Spreadsheet`, and a capitalised header row of fixed names (`Freq_Hz,Real,Imag`).
+    SpreadsheetHeader,
+}
+
+/// A CSV file as the readers walk it: the text (after a byte-order mark), the column header
+/// row and where the data rows start. `#` lines and rows are read from the text as they are
+/// needed, never gathered, so a file is held in memory once, with what is read from it.
+///
+/// A spreadsheet's form is undone line by line: `;` separators with decimal commas
+/// (`1,5;2,0` in European locales) become `1.5,2.0`, a capitalised header row of fixed names
+/// is lowercased. Every change keeps each character in its place, so lines and columns in
+/// messages still point into the file as written.
 struct Sheet<'a> {
-    meta: Vec<Meta<'a>>,
-    header: Option<(usize, &'a str)>,
-    rows: Vec<(usize, &'a str)>,
-    last_line: usize,
+    text: &'a str,
+    header: Option<(usize, Cow<'a, str>)>,
+    /// The number of cells of the header row as written.
+    header_width: usize,
+    /// Byte offset of the line after the header row.
+    rows_at: usize,
+    semicolons: bool,
+}
+
+impl<'a> Sheet<'a> {
+    fn open(bytes: &'a [u8], path: &str, forms: Forms) -> Result<Self, FormatError> {
+        let body = match forms {
+            Forms::Plain => bytes,
+            _ => bytes.strip_prefix(b"\xef\xbb\xbf".as_slice()).unwrap_or(bytes),
+        };
+        let text = as_text(body, path)?;
+        if text.trim().is_empty() {
+            return Err(FormatError::Empty { at: Loc::new(path, 0, 0) });
+        }
+        let mut rows_at = 0;
+        let mut header = None;
+        for (piece, n) in text.split_inclusive('\n').zip(1..) {
+            rows_at += piece.len();
+            if is_data(piece) {
+                header = Some((n, without_end(piece)));
+                break;
+            }
+        }
+        let Some((line, raw)) = header else {
+            return Ok(Sheet { text, header: None, header_width: 0, rows_at: text.len(), semicolons: false });
+        };
+        let semicolons = forms != Forms::Plain && raw.contains(';') && !raw.contains(',');
+        let lower = forms == Forms::SpreadsheetHeader && raw.bytes().any(|b| b.is_ascii_uppercase());
+        let sep = if semicolons { b';' } else { b',' };
+        let header_width = raw.bytes().filter(|b| *b == sep).count() + 1;
+        Ok(Sheet { text, header: Some((line, rewrite(raw, semicolons, lower))), header_width, rows_at, semicolons })
+    }
+
+    /// The `# key: value` lines, wherever they are in the file.
+    fn meta(&self) -> impl Iterator<Item = Meta<'a>> + use<'a> {
+        numbered(self.text, 0, 1).filter_map(|(n, raw)| meta_line(raw, n))
+    }
+
+    /// The data rows after the header row, with their line numbers.
+    fn rows(&self) -> impl Iterator<Item = (usize, Cow<'a, str>)> + use<'a> {
+        let first = self.header.as_ref().map_or(1, |(l, _)| l + 1);
+        let semicolons = self.semicolons;
+        numbered(self.text, self.rows_at, first)
+            .filter(|(_, raw)| is_data(raw))
+            .map(move |(n, raw)| (n, rewrite(raw, semicolons, false)))
+    }
+
+    /// The number of the file's last line.
+    fn last_line(&self) -> usize {
+        numbered(self.text, 0, 1).count()
+    }
+
+    /// How many rows of at least `row_bytes` bytes each (with its line end) the text after
+    /// the header row can hold, and no more than it has lines: a capacity the file's length
+    /// vouches for.
+    fn row_bound(&self, row_bytes: usize) -> usize {
+        let rest = &self.text.as_bytes()[self.rows_at..];
+        let lines = rest.iter().filter(|b| **b == b'\n').count() + 1;
+        lines.min(rest.len() / row_bytes.max(1) + 1)
+    }
+}
+
+/// Cells of a line beyond which no reader looks: the widest header read, and one more to see
+/// that a line is wider.
+const CELLS_LOOKED_AT: usize = MAX_SWEEP_COLUMNS + MAX_COLUMNS + 2;
+
+/// A line with a spreadsheet's form undone: with `semicolons`, `;` made `,` and `,` made `.`;
+/// with `lower`, ASCII letters lowercased. Borrowed when nothing changes; a rewritten line
+/// ends after [`CELLS_LOOKED_AT`] cells, so a line of millions of cells is not copied whole.
+fn rewrite(raw: &str, semicolons: bool, lower: bool) -> Cow<'_, str> {
+    if !semicolons && !lower {
+        return Cow::Borrowed(raw);
+    }
+    let sep = if semicolons { b';' } else { b',' };
+    let cut = raw.bytes().enumerate().filter(|(_, b)| *b == sep).nth(CELLS_LOOKED_AT).map_or(raw.len(), |(i, _)| i);
+    Cow::Owned(
+        raw[..cut]
+            .chars()
+            .map(|c| match c {
+                ',' if semicolons => '.',
+                ';' if semicolons => ',',
+                c if lower => c.to_ascii_lowercase(),
+                c => c,
+            })
+            .collect(),
+    )
 }
 
 fn as_text<'a>(bytes: &'a [u8], path: &str) -> Result<&'a str, FormatError> {
@@ -204,79 +358,28 @@ fn as_text<'a>(bytes: &'a [u8], path: &str) -> Result<&'a str, FormatError> {
     }
 }
 
-/// A CSV as spreadsheets save it, rewritten to the plain form, or `None` when it is plain
-/// already: a byte-order mark dropped (Excel writes one), `;` separators with decimal commas
-/// (`1,5;2,0` in European locales) made `1.5,2.0`, and with `fixed_header` the column header
-/// row lowercased (`Freq_Hz,Real,Imag`). Every change keeps each character in its place, so
-/// lines and columns in messages still point into the file as written.
-fn from_spreadsheet(bytes: &[u8], fixed_header: bool) -> Option<Vec<u8>> {
-    let body = bytes.strip_prefix(b"\xef\xbb\xbf".as_slice());
-    let text = body.unwrap_or(bytes);
-    let mut lines = text.split(|b| *b == b'\n');
-    let header = lines.find(|l| {
-        let t = l.trim_ascii();
-        !t.is_empty() && !t.starts_with(b"#")
-    })?;
-    let semicolons = header.contains(&b';') && !header.contains(&b',');
-    let upper = fixed_header && header.iter().any(u8::is_ascii_uppercase);
-    if body.is_none() && !semicolons && !upper {
-        return None;
+/// The cells of a header row, trimmed, at most `max` of them; a wider row is an error that
+/// counts its cells (`width`, as written) and says what to do (`what` names the columns,
+/// `help` the remedy).
+fn header_cells<'h>(
+    (line, raw): (usize, &'h str),
+    width: usize,
+    path: &str,
+    max: usize,
+    what: &str,
+    help: &str,
+) -> Result<Vec<(usize, &'h str)>, FormatError> {
+    let mut out = Vec::new();
+    for (at, cell) in cells(raw) {
+        if out.len() == max {
+            return Err(FormatError::Unsupported {
+                at: Loc::new(path, line, column_of(raw, at)),
+                message: format!("the header row has {width} columns; at most {max} {what} are read: {help}"),
+            });
+        }
+        out.push((at, cell));
     }
-    let mut out = Vec::with_capacity(text.len());
-    let mut seen_header = false;
-    for (i, line) in text.split(|b| *b == b'\n').enumerate() {
-        if i > 0 {
-            out.push(b'\n');
-        }
-        let t = line.trim_ascii();
-        if t.starts_with(b"#") || t.is_empty() {
-            out.extend_from_slice(line);
-            continue;
-        }
-        let is_header = !seen_header;
-        seen_header = true;
-        out.extend(line.iter().map(|&b| match b {
-            b',' if semicolons => b'.',
-            b';' if semicolons => b',',
-            b if is_header && upper => b.to_ascii_lowercase(),
-            b => b,
-        }));
-    }
-    Some(out)
-}
-
-fn split_sheet<'a>(bytes: &'a [u8], path: &str) -> Result<Sheet<'a>, FormatError> {
-    let text = as_text(bytes, path)?;
-    if text.trim().is_empty() {
-        return Err(FormatError::Empty { at: Loc::new(path, 0, 0) });
-    }
-    let mut sheet = Sheet { meta: Vec::new(), header: None, rows: Vec::new(), last_line: 0 };
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        sheet.last_line = line;
-        let trimmed = raw.trim();
-        if trimmed.is_empty() {
-            continue;
-        }
-        if let Some(comment) = trimmed.strip_prefix('#') {
-            if let Some((key, value)) = comment.split_once(':') {
-                let key = key.trim();
-                // Only `# word: …` lines are header lines; any other `#` line is a comment.
-                if !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-                    let value_start = raw.len() - value.trim_start().len();
-                    let column = raw[..value_start].chars().count() + 1;
-                    sheet.meta.push(Meta { key, value: value.trim(), line, column });
-                }
-            }
-            continue;
-        }
-        if sheet.header.is_none() {
-            sheet.header = Some((line, raw));
-        } else {
-            sheet.rows.push((line, raw));
-        }
-    }
-    Ok(sheet)
+    Ok(out)
 }
 
 fn column_of(line: &str, byte: usize) -> usize {
@@ -294,7 +397,6 @@ fn cells(line: &str) -> impl Iterator<Item = (usize, &str)> {
     })
 }
 
-/// Parses one finite number in a cell; `what` names the column for messages.
 /// Parses one data row of exactly `names.len()` numeric cells into `row` (a ragged row is an
 /// error naming the line and the expected `columns`).
 fn fixed_row(
@@ -320,7 +422,8 @@ fn fixed_row_after(
     skip: usize,
 ) -> Result<(), FormatError> {
     let mut k = 0;
-    for (at, cell) in cells(raw).skip(skip) {
+    // A row is counted no further than one cell past the widest header read.
+    for (at, cell) in cells(raw).skip(skip).take(MAX_COLUMNS + 1) {
         if k < names.len() {
             row[k] = number(cell, path, line, raw, at, || format!("column `{}`", names[k]))?;
         }
@@ -350,13 +453,13 @@ fn number(
         Ok(v) if v.is_finite() => Ok(v),
         Ok(_) => Err(FormatError::NonFinite {
             at: Loc::new(path, line, column_of(raw, at)),
-            text: text.to_string(),
+            text: shown_cell(text),
             what: what(),
         }),
         Err(_) => Err(FormatError::Expected {
             at: Loc::new(path, line, column_of(raw, at)),
             expected: format!("a number in {}", what()),
-            found: if text.is_empty() { "an empty cell".into() } else { format!("`{text}`") },
+            found: if text.is_empty() { "an empty cell".into() } else { format!("`{}`", shown_cell(text)) },
         }),
     }
 }
@@ -372,11 +475,11 @@ fn quantity(m: &Meta, dim: Dimension, example: &str, path: &str) -> Result<f64, 
         Some((n, u)) => (n, u.trim()),
         None => (m.value, ""),
     };
-    let v: f64 = num.parse().map_err(|_| err(format!("`{}`", m.value)))?;
+    let v: f64 = num.parse().map_err(|_| err(format!("`{}`", shown_cell(m.value))))?;
     if !v.is_finite() {
         return Err(FormatError::NonFinite {
             at: Loc::new(path, m.line, m.column),
-            text: num.to_string(),
+            text: shown_cell(num),
             what: format!("`# {}`", m.key),
         });
     }
@@ -385,7 +488,7 @@ fn quantity(m: &Meta, dim: Dimension, example: &str, path: &str) -> Result<f64, 
     }
     match grammar::parse_unit(unit) {
         Ok(u) if u.dim == dim => Ok(if u.scale == 1.0 { v } else { v * u.scale }),
-        _ => Err(err(format!("`{}`", m.value))),
+        _ => Err(err(format!("`{}`", shown_cell(m.value)))),
     }
 }
 
@@ -393,63 +496,56 @@ fn quantity(m: &Meta, dim: Dimension, example: &str, path: &str) -> Result<f64, 
 /// any order and other `#` lines are comments; the sample rate is required, `t0` defaults
 /// to 0 and a channel missing from `# units` has no unit. Units are brought to SI.
 pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatError> {
-    let spreadsheet = from_spreadsheet(bytes, false);
-    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
+    let sheet = Sheet::open(bytes, path, Forms::Spreadsheet)?;
     let mut sample_rate = None;
     let mut t0 = 0.0;
     // The `# units` line and its `(channel, unit, column)` entries.
-    let mut units: Option<(&Meta, Vec<UnitEntry>)> = None;
-    for m in &sheet.meta {
+    let mut units: Option<(Meta, Vec<UnitEntry>)> = None;
+    for m in sheet.meta() {
         match m.key {
             "sample_rate" => {
-                let fs = quantity(m, Dimension::FREQUENCY, "100000 Hz", path)?;
+                let fs = quantity(&m, Dimension::FREQUENCY, "100000 Hz", path)?;
                 if fs <= 0.0 {
                     return Err(FormatError::Expected {
                         at: Loc::new(path, m.line, m.column),
                         expected: "a positive sample rate".into(),
-                        found: format!("`{}`", m.value),
+                        found: format!("`{}`", shown_cell(m.value)),
                     });
                 }
                 sample_rate = Some(fs);
             }
-            "t0" => t0 = quantity(m, Dimension::TIME, "-0.001 s", path)?,
+            "t0" => t0 = quantity(&m, Dimension::TIME, "-0.001 s", path)?,
             "units" => {
-                let mut list = Vec::new();
-                let mut offset = 0;
-                for item in m.value.split(',') {
-                    let col = m.column + m.value[..offset].chars().count() + (item.len() - item.trim_start().len());
-                    offset += item.len() + 1;
-                    let item = item.trim();
-                    if item.is_empty() {
-                        continue;
-                    }
-                    let Some((name, unit)) = item.split_once('=') else {
-                        return Err(FormatError::Expected {
-                            at: Loc::new(path, m.line, col),
-                            expected: "`channel=unit` in `# units:`".into(),
-                            found: format!("`{item}`"),
-                        });
-                    };
-                    list.push((name.trim().to_string(), unit.trim().to_string(), col));
-                }
+                let list = unit_entries(&m, path)?;
                 units = Some((m, list));
             }
             _ => {}
         }
     }
-    let Some((hline, hraw)) = sheet.header else {
+    let Some((hline, hraw)) = &sheet.header else {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line, 0),
+            at: Loc::new(path, sheet.last_line(), 0),
             expected: "a row of channel names".into(),
             found: "only `#` lines".into(),
         });
     };
+    let hline = *hline;
     let Some(sample_rate) = sample_rate else {
         return Err(FormatError::MissingSampleRate { at: Loc::new(path, 0, 0) });
     };
-    let mut names: Vec<String> = Vec::new();
-    for (at, cell) in cells(hraw) {
-        let name = cell.trim_matches('"').to_string();
+    let header = header_cells(
+        (hline, hraw),
+        sheet.header_width,
+        path,
+        MAX_COLUMNS,
+        "channels",
+        "split the recording into files of fewer channels, or keep the channels the recipe reads",
+    )?;
+    // Names by position, and positions by name: each name is looked up once.
+    let mut names: Vec<&str> = Vec::with_capacity(header.len());
+    let mut index: HashMap<&str, usize> = HashMap::with_capacity(header.len());
+    for (at, cell) in header {
+        let name = cell.trim_matches('"');
         if name.is_empty() {
             return Err(FormatError::Expected {
                 at: Loc::new(path, hline, column_of(hraw, at)),
@@ -457,7 +553,7 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
                 found: "an empty cell".into(),
             });
         }
-        if names.contains(&name) {
+        if index.insert(name, names.len()).is_some() {
             return Err(FormatError::ChannelMismatch {
                 at: Loc::new(path, hline, column_of(hraw, at)),
                 message: format!("channel `{name}` appears twice in the header row"),
@@ -465,17 +561,17 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
         }
         names.push(name);
     }
-    let mut unit_of: Vec<String> = vec![String::new(); names.len()];
+    let mut unit_of: Vec<&str> = vec![""; names.len()];
     if let Some((m, list)) = &units {
-        for (name, unit, col) in list {
-            match names.iter().position(|n| n == name) {
-                Some(k) => unit_of[k] = unit.clone(),
+        for &(name, unit, col) in list {
+            match index.get(name) {
+                Some(&k) => unit_of[k] = unit,
                 None => {
                     return Err(FormatError::ChannelMismatch {
-                        at: Loc::new(path, m.line, *col),
+                        at: Loc::new(path, m.line, col),
                         message: format!(
                             "`# units` names channel `{name}`, which the header row (line {hline}) does not have: {}",
-                            names.join(", ")
+                            super::listed(&names, ", ")
                         ),
                     });
                 }
@@ -488,24 +584,27 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
                     "`# units` gives {} channel(s), the header row (line {hline}) has {}: {}",
                     list.len(),
                     names.len(),
-                    names.join(", ")
+                    super::listed(&names, ", ")
                 ),
             });
         }
     }
-    if sheet.rows.is_empty() {
+    let mut rows = sheet.rows().peekable();
+    if rows.peek().is_none() {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line + 1, 0),
+            at: Loc::new(path, sheet.last_line() + 1, 0),
             expected: "rows of samples after the channel names".into(),
             found: "the end of the file".into(),
         });
     }
-    let mut samples: Vec<Vec<f64>> = vec![Vec::with_capacity(sheet.rows.len()); names.len()];
-    for &(line, raw) in &sheet.rows {
+    // A row of n channels takes at least 2n bytes (`1,` per cell, a line end for the last).
+    let capacity = sheet.row_bound(2 * names.len());
+    let mut samples: Vec<Vec<f64>> = (0..names.len()).map(|_| Vec::with_capacity(capacity)).collect();
+    for (line, raw) in rows {
         let mut n = 0;
-        for (at, cell) in cells(raw) {
+        for (at, cell) in cells(&raw).take(MAX_COLUMNS + 1) {
             if n < names.len() {
-                samples[n].push(number(cell, path, line, raw, at, || format!("channel `{}`", names[n]))?);
+                samples[n].push(number(cell, path, line, &raw, at, || format!("channel `{}`", names[n]))?);
             }
             n += 1;
         }
@@ -514,7 +613,7 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
                 at: Loc::new(path, line, 0),
                 found: n,
                 expected: names.len(),
-                columns: format!("one per channel: {}", names.join(", ")),
+                columns: format!("one per channel: {}", super::listed(&names, ", ")),
             });
         }
     }
@@ -523,14 +622,56 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
         .zip(unit_of)
         .zip(samples)
         .map(|((name, unit), mut samples)| {
-            let (scale, symbol) = unit_to_si(&unit, None);
+            let (scale, symbol) = unit_to_si(unit, None);
             if scale != 1.0 {
                 samples.iter_mut().for_each(|v| *v *= scale);
             }
-            Channel { name, unit: UnitLabel::new(symbol), samples }
+            Channel { name: name.to_string(), unit: UnitLabel::new(symbol), samples }
         })
         .collect();
     Ok(TimeSeries { sample_rate, t0, channels })
+}
+
+/// The `channel=unit` entries of a `# units:` line, each with the column where it starts; at
+/// most [`MAX_COLUMNS`] of them.
+fn unit_entries<'a>(m: &Meta<'a>, path: &str) -> Result<Vec<UnitEntry<'a>>, FormatError> {
+    let mut list = Vec::new();
+    // Characters before the current item, counted as the items pass: linear in the line.
+    let mut chars_before = 0;
+    for item in m.value.split(',') {
+        let col = m.column + chars_before + (item.len() - item.trim_start().len());
+        chars_before += item.chars().count() + 1;
+        let item = item.trim();
+        if item.is_empty() {
+            continue;
+        }
+        let at = Loc::new(path, m.line, col);
+        if list.len() == MAX_COLUMNS {
+            return Err(FormatError::Unsupported {
+                at,
+                message: format!(
+                    "`# units` lists more than {MAX_COLUMNS} channels, the most a time series is read with: \
+                     split the recording into files of fewer channels"
+                ),
+            });
+        }
+        let Some((name, unit)) = item.split_once('=') else {
+            return Err(FormatError::Expected {
+                at,
+                expected: "`channel=unit` in `# units:`".into(),
+                found: format!("`{}`", shown_cell(item)),
+            });
+        };
+        list.push((name.trim(), unit.trim(), col));
+    }
+    Ok(list)
+}
+
+/// A cell's text for a message, cut to 80 characters.
+fn shown_cell(text: &str) -> String {
+    let mut chars = text.chars();
+    let head: String = chars.by_ref().take(80).collect();
+    if chars.next().is_some() { format!("{head}…") } else { head }
 }
 
 /// One sweep point of a swept FRF file (as a swept output writes it): the sweep coordinates
@@ -545,29 +686,36 @@ pub struct FrfBlock {
 /// swept output wrote it. Each run of rows with the same coordinates is one block; a
 /// `direction` or `speed_rpm` coordinate gives the block's direction or speed.
 pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, FormatError> {
-    let spreadsheet = from_spreadsheet(bytes, true);
-    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
-    let mut unit = String::new();
+    let sheet = Sheet::open(bytes, path, Forms::SpreadsheetHeader)?;
+    let mut unit = (1.0, String::new());
     let mut direction = None;
     let mut speed = None;
     let mut sensor = None;
-    for m in &sheet.meta {
+    for m in sheet.meta() {
         match m.key {
-            "units" => unit = m.value.to_string(),
+            "units" => unit = frf_unit(&m, path)?,
             "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
             "sensor" if !m.value.is_empty() => sensor = Some(m.value.to_string()),
-            "speed_rpm" => speed = Some(speed_rpm(m, path)?),
+            "speed_rpm" => speed = Some(speed_rpm(&m, path)?),
             _ => {}
         }
     }
-    let Some((hline, hraw)) = sheet.header else {
+    let Some((hline, hraw)) = &sheet.header else {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line, 0),
+            at: Loc::new(path, sheet.last_line(), 0),
             expected: "the header row `freq_hz,real,imag[,coherence]`".into(),
             found: "only `#` lines".into(),
         });
     };
-    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
+    let hline = *hline;
+    let help = format!(
+        "an FRF file has the columns `freq_hz,real,imag[,coherence]`, after at most {MAX_SWEEP_COLUMNS} sweep columns"
+    );
+    let header: Vec<&str> =
+        header_cells((hline, hraw), sheet.header_width, path, MAX_SWEEP_COLUMNS + 4, "columns", &help)?
+            .into_iter()
+            .map(|(_, c)| c)
+            .collect();
     let lead = header.iter().position(|h| *h == "freq_hz").unwrap_or(0);
     let with_coherence = match &header[lead..] {
         ["freq_hz", "real", "imag"] => false,
@@ -580,9 +728,10 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
             });
         }
     };
-    if sheet.rows.is_empty() {
+    let mut rows = sheet.rows().peekable();
+    if rows.peek().is_none() {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line + 1, 0),
+            at: Loc::new(path, sheet.last_line() + 1, 0),
             expected: "rows of `freq_hz,real,imag` values after the header row".into(),
             found: "the end of the file".into(),
         });
@@ -590,31 +739,49 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
     let names: &[&str] =
         if with_coherence { &["freq_hz", "real", "imag", "coherence"] } else { &["freq_hz", "real", "imag"] };
     let columns = names.join(",");
-    let (scale, symbol) = unit_to_si(&unit, None);
+    let (scale, symbol) = unit;
+    // A file of one FRF (no sweep columns) reserves its rows, as many as its length can hold
+    // (`1,2,3` and a line end per row); a swept file's blocks grow as they are read.
+    let capacity = if lead == 0 { sheet.row_bound(2 * names.len()) } else { 0 };
     let mut blocks: Vec<FrfBlock> = Vec::new();
     let mut row = [0.0; 4];
-    for &(line, raw) in &sheet.rows {
-        let coords: Vec<(String, String)> = header[..lead]
-            .iter()
-            .zip(cells(raw))
-            .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
-            .collect();
-        fixed_row_after(&mut row, names, &columns, path, line, raw, lead)?;
-        if blocks.last().is_none_or(|b| b.coords != coords) {
+    for (line, raw) in rows {
+        fixed_row_after(&mut row, names, &columns, path, line, &raw, lead)?;
+        let same = blocks.last().is_some_and(|b| {
+            b.coords.iter().zip(cells(&raw)).all(|((_, v), (_, c))| c.trim_matches('"') == v.as_str())
+        });
+        if !same {
+            if blocks.len() == MAX_SWEEP_POINTS {
+                return Err(FormatError::Unsupported {
+                    at: Loc::new(path, line, 1),
+                    message: format!(
+                        "more than {MAX_SWEEP_POINTS} sweep points (runs of rows with the same sweep columns); \
+                         split the file"
+                    ),
+                });
+            }
+            let coords: Vec<(String, String)> = header[..lead]
+                .iter()
+                .zip(cells(&raw))
+                .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
+                .collect();
             let of = |key: &str| coords.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
             let block_speed = match of("speed_rpm") {
-                Some(v) => Some(v.parse::<f64>().map_err(|_| FormatError::Expected {
-                    at: Loc::new(path, line, 1),
-                    expected: "a speed in rpm in column `speed_rpm`".into(),
-                    found: format!("`{v}`"),
-                })?),
+                Some(v) => {
+                    Some(v.parse::<f64>().ok().filter(|s| s.is_finite()).ok_or_else(|| FormatError::Expected {
+                        at: Loc::new(path, line, 1),
+                        expected: "a finite speed in rpm in column `speed_rpm`".into(),
+                        found: format!("`{}`", shown_cell(&v)),
+                    })?)
+                }
                 None => speed,
             };
+            let reserve = if blocks.is_empty() { capacity } else { 0 };
             blocks.push(FrfBlock {
                 frf: Frf {
-                    freq_hz: Vec::new(),
-                    values: Vec::new(),
-                    coherence: with_coherence.then(Vec::new),
+                    freq_hz: Vec::with_capacity(reserve),
+                    values: Vec::with_capacity(reserve),
+                    coherence: with_coherence.then(|| Vec::with_capacity(reserve)),
                     unit: UnitLabel::new(symbol.clone()),
                     direction: of("direction").or_else(|| direction.clone()),
                     speed_rpm: block_speed,
@@ -631,6 +798,15 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
         }
     }
     Ok(blocks)
+}
+
+/// The unit of an FRF file's values from its `# units:` line: the factor to SI and the SI
+/// label (see [`super::frf_unit`]); a unit of another dimension is an error at its column.
+fn frf_unit(m: &Meta, path: &str) -> Result<(f64, String), FormatError> {
+    super::frf_unit(m.value).map_err(|why| FormatError::Unsupported {
+        at: Loc::new(path, m.line, m.column),
+        message: format!("`# units:` {why}; the values of an FRF are {}", super::FRF_UNIT_EXPECTED),
+    })
 }
 
 /// Reads an FRF file that holds one FRF (see [`read_frf_blocks`] for swept files).
@@ -665,30 +841,47 @@ pub struct TableBlock {
 /// `inf` allowed: a trial outside a diagram, a lobe that limits nothing). Without a units
 /// line every column is the table's, with no unit.
 pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatError> {
-    let sheet = split_sheet(bytes, path)?;
-    let mut units: Vec<(String, String)> = Vec::new();
-    for m in sheet.meta.iter().filter(|m| m.key == "units") {
+    let sheet = Sheet::open(bytes, path, Forms::Plain)?;
+    let mut units: Vec<(&str, &str)> = Vec::new();
+    for m in sheet.meta().filter(|m| m.key == "units") {
         for pair in m.value.split(", ").filter(|p| !p.is_empty()) {
             let Some((name, unit)) = pair.split_once('=') else {
                 return Err(FormatError::Expected {
                     at: Loc::new(path, m.line, m.column),
                     expected: "`name=unit` pairs after `# units:`".into(),
-                    found: format!("`{pair}`"),
+                    found: format!("`{}`", shown_cell(pair)),
                 });
             };
-            units.push((name.trim().to_string(), unit.trim().to_string()));
+            if units.len() == MAX_COLUMNS {
+                return Err(FormatError::Unsupported {
+                    at: Loc::new(path, m.line, m.column),
+                    message: format!("`# units:` names more than {MAX_COLUMNS} columns, the most a table is read with"),
+                });
+            }
+            units.push((name.trim(), unit.trim()));
         }
     }
-    let Some((hline, hraw)) = sheet.header else {
+    let Some((hline, hraw)) = &sheet.header else {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line, 0),
+            at: Loc::new(path, sheet.last_line(), 0),
             expected: "a header row of column names".into(),
             found: "only `#` lines".into(),
         });
     };
-    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
+    let hline = *hline;
+    let header: Vec<&str> = header_cells(
+        (hline, hraw),
+        sheet.header_width,
+        path,
+        MAX_COLUMNS + MAX_SWEEP_COLUMNS,
+        "columns",
+        "split the table into files of fewer columns",
+    )?
+    .into_iter()
+    .map(|(_, c)| c)
+    .collect();
     if units.is_empty() {
-        units = header.iter().map(|h| (h.to_string(), String::new())).collect();
+        units = header.iter().map(|h| (*h, "")).collect();
     }
     let Some(lead) = header.len().checked_sub(units.len()) else {
         return Err(FormatError::Expected {
@@ -697,24 +890,28 @@ pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatEr
             found: shown_header(hraw),
         });
     };
-    let names: Vec<&str> = units.iter().map(|(n, _)| n.as_str()).collect();
-    let columns = header[lead..].join(",");
+    if lead > MAX_SWEEP_COLUMNS {
+        return Err(FormatError::Unsupported {
+            at: Loc::new(path, hline, 1),
+            message: format!(
+                "{lead} sweep columns lead the table's own; at most {MAX_SWEEP_COLUMNS} are read: \
+                 name every column of the table in `# units:`"
+            ),
+        });
+    }
+    let names: Vec<&str> = units.iter().map(|(n, _)| *n).collect();
+    let columns = super::listed(&header[lead..], ",");
     let mut blocks: Vec<TableBlock> = Vec::new();
     let mut row = vec![0.0; names.len()];
-    for &(line, raw) in &sheet.rows {
-        let coords: Vec<(String, String)> = header[..lead]
-            .iter()
-            .zip(cells(raw))
-            .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
-            .collect();
+    for (line, raw) in sheet.rows() {
         // Cells of the table itself; non-finite numbers are values here.
         let mut k = 0;
-        for (_, cell) in cells(raw).skip(lead) {
+        for (_, cell) in cells(&raw).skip(lead).take(MAX_COLUMNS + 1) {
             if k < names.len() {
                 row[k] = cell.parse::<f64>().map_err(|_| FormatError::Expected {
                     at: Loc::new(path, line, 0),
                     expected: format!("a number in column `{}`", names[k]),
-                    found: if cell.is_empty() { "an empty cell".into() } else { format!("`{cell}`") },
+                    found: if cell.is_empty() { "an empty cell".into() } else { format!("`{}`", shown_cell(cell)) },
                 })?;
             }
             k += 1;
@@ -722,9 +919,26 @@ pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatEr
         if k != names.len() {
             return Err(FormatError::Ragged { at: Loc::new(path, line, 0), found: k, expected: names.len(), columns });
         }
-        if blocks.last().is_none_or(|b| b.coords != coords) {
+        let same = blocks.last().is_some_and(|b| {
+            b.coords.iter().zip(cells(&raw)).all(|((_, v), (_, c))| c.trim_matches('"') == v.as_str())
+        });
+        if !same {
+            if blocks.len() == MAX_SWEEP_POINTS {
+                return Err(FormatError::Unsupported {
+                    at: Loc::new(path, line, 1),
+                    message: format!(
+                        "more than {MAX_SWEEP_POINTS} sweep points (runs of rows with the same sweep columns); \
+                         split the file"
+                    ),
+                });
+            }
+            let coords: Vec<(String, String)> = header[..lead]
+                .iter()
+                .zip(cells(&raw))
+                .map(|(h, (_, c))| (h.to_string(), c.trim_matches('"').to_string()))
+                .collect();
             let table =
-                Table { columns: units.iter().map(|(n, u)| crate::value::Column::new(n, u, Vec::new())).collect() };
+                Table { columns: units.iter().map(|&(n, u)| crate::value::Column::new(n, u, Vec::new())).collect() };
             blocks.push(TableBlock { coords, table });
         }
         let t = &mut blocks.last_mut().expect("pushed").table;
@@ -748,7 +962,7 @@ pub fn read_lobes(bytes: &[u8], path: &str) -> Result<Vec<(Coords, Lobes)>, Form
                 return Err(FormatError::Expected {
                     at: Loc::new(path, 0, 0),
                     expected: format!("the header `{LOBES_HEADER}`"),
-                    found: format!("`{}`", names.join(",")),
+                    found: format!("`{}`", super::listed(&names, ",")),
                 });
             }
             let col = |i: usize| b.table.columns[n - 3 + i].values.clone();
@@ -788,11 +1002,11 @@ fn speed_rpm(m: &Meta, path: &str) -> Result<f64, FormatError> {
     let at = Loc::new(path, m.line, m.column);
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(FormatError::NonFinite { at, text: text.into(), what: "`# speed_rpm`".into() }),
+        Ok(_) => Err(FormatError::NonFinite { at, text: shown_cell(text), what: "`# speed_rpm`".into() }),
         Err(_) => Err(FormatError::Expected {
             at,
             expected: "a speed in rpm after `# speed_rpm:`".into(),
-            found: format!("`{}`", m.value),
+            found: format!("`{}`", shown_cell(m.value)),
         }),
     }
 }
@@ -801,22 +1015,24 @@ fn speed_rpm(m: &Meta, path: &str) -> Result<f64, FormatError> {
 /// (`h=m/N, l=m/(N*m), n=rad/N, p=rad/(N*m)`; blocks left out are taken as SI).
 fn receptance_units(m: &Meta, path: &str) -> Result<[f64; 4], FormatError> {
     let mut scale = [1.0; 4];
-    let mut offset = 0;
+    // Characters before the current item, counted as the items pass: linear in the line.
+    let mut chars_before = 0;
     for item in m.value.split(',') {
-        let col = m.column + m.value[..offset].chars().count() + (item.len() - item.trim_start().len());
-        offset += item.len() + 1;
+        let col = m.column + chars_before + (item.len() - item.trim_start().len());
+        chars_before += item.chars().count() + 1;
         let item = item.trim();
         if item.is_empty() {
             continue;
         }
         let at = Loc::new(path, m.line, col);
         let expected = "`block=unit` with block h, l, n or p in `# units:` (e.g. `h=m/N`)";
+        let found = || format!("`{}`", shown_cell(item));
         let Some((name, unit)) = item.split_once('=') else {
-            return Err(FormatError::Expected { at, expected: expected.into(), found: format!("`{item}`") });
+            return Err(FormatError::Expected { at, expected: expected.into(), found: found() });
         };
         let (name, unit) = (name.trim(), unit.trim());
         let Some(k) = BLOCKS.iter().position(|(n, _, _)| *n == name) else {
-            return Err(FormatError::Expected { at, expected: expected.into(), found: format!("`{item}`") });
+            return Err(FormatError::Expected { at, expected: expected.into(), found: found() });
         };
         let (_, si, dim) = BLOCKS[k];
         if unit == si || unit.is_empty() {
@@ -828,7 +1044,7 @@ fn receptance_units(m: &Meta, path: &str) -> Result<[f64; 4], FormatError> {
                 return Err(FormatError::Expected {
                     at,
                     expected: format!("a unit of {} for `{name}` (e.g. `{si}`)", dim.describe()),
-                    found: format!("`{unit}`"),
+                    found: format!("`{}`", shown_cell(unit)),
                 });
             }
         };
@@ -840,43 +1056,45 @@ fn receptance_units(m: &Meta, path: &str) -> Result<[f64; 4], FormatError> {
 /// `freq_hz,h_re,h_im,l_re,l_im,n_re,n_im,p_re,p_im`; `# units`, `# direction` and
 /// `# speed_rpm` are optional and in any order. Units are brought to SI.
 pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, FormatError> {
-    let spreadsheet = from_spreadsheet(bytes, true);
-    let sheet = split_sheet(spreadsheet.as_deref().unwrap_or(bytes), path)?;
+    let sheet = Sheet::open(bytes, path, Forms::SpreadsheetHeader)?;
     let mut scale = [1.0; 4];
     let mut direction = None;
     let mut speed = None;
-    for m in &sheet.meta {
+    for m in sheet.meta() {
         match m.key {
-            "units" => scale = receptance_units(m, path)?,
+            "units" => scale = receptance_units(&m, path)?,
             "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
-            "speed_rpm" => speed = Some(speed_rpm(m, path)?),
+            "speed_rpm" => speed = Some(speed_rpm(&m, path)?),
             _ => {}
         }
     }
-    let Some((hline, hraw)) = sheet.header else {
+    let Some((hline, hraw)) = &sheet.header else {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line, 0),
+            at: Loc::new(path, sheet.last_line(), 0),
             expected: format!("the header row `{RECEPTANCE_HEADER}`"),
             found: "only `#` lines".into(),
         });
     };
     let names: Vec<&str> = RECEPTANCE_HEADER.split(',').collect();
-    let header: Vec<&str> = cells(hraw).map(|(_, c)| c).collect();
-    if header != names {
+    // Compared cell by cell, so a row of any width is looked at no further than it differs.
+    let same = cells(hraw).map(|(_, c)| c).take(names.len() + 1).eq(names.iter().copied());
+    if !same {
         return Err(FormatError::Expected {
-            at: Loc::new(path, hline, 1),
+            at: Loc::new(path, *hline, 1),
             expected: format!("the header row `{RECEPTANCE_HEADER}`"),
             found: shown_header(hraw),
         });
     }
-    if sheet.rows.is_empty() {
+    let mut rows = sheet.rows().peekable();
+    if rows.peek().is_none() {
         return Err(FormatError::Expected {
-            at: Loc::new(path, sheet.last_line + 1, 0),
+            at: Loc::new(path, sheet.last_line() + 1, 0),
             expected: "rows of values after the header row".into(),
             found: "the end of the file".into(),
         });
     }
-    let n = sheet.rows.len();
+    // As many rows as the file's length can hold, of nine cells and a line end each.
+    let n = sheet.row_bound(2 * names.len());
     let mut r = ReceptanceSet {
         freq_hz: Vec::with_capacity(n),
         h: Vec::with_capacity(n),
@@ -887,8 +1105,8 @@ pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, Format
         speed_rpm: speed,
     };
     let mut row = [0.0; 9];
-    for &(line, raw) in &sheet.rows {
-        fixed_row(&mut row, &names, RECEPTANCE_HEADER, path, line, raw)?;
+    for (line, raw) in rows {
+        fixed_row(&mut row, &names, RECEPTANCE_HEADER, path, line, &raw)?;
         r.freq_hz.push(row[0]);
         r.h.push(Complex64::new(row[1], row[2]) * scale[0]);
         r.l.push(Complex64::new(row[3], row[4]) * scale[1]);
@@ -1100,5 +1318,163 @@ pub(crate) mod tests {
         }
         let e = read_frf("freq_hz;real;imag\n100;1,5e-6;x\n".as_bytes(), "s.csv").unwrap_err();
         assert_eq!(e.line_column(), (2, 12), "{e}");
+    }
+
+    /// A header of `n` channels `c0,c1,…` with `rows` rows of ones.
+    fn wide(n: usize, rows: usize) -> String {
+        let names: Vec<String> = (0..n).map(|i| format!("c{i}")).collect();
+        let mut text = format!("# sample_rate: 1 kHz\n{}\n", names.join(","));
+        for _ in 0..rows {
+            text.push_str(&vec!["1"; n].join(","));
+            text.push('\n');
+        }
+        text
+    }
+
+    #[test]
+    fn a_header_of_200k_channels_is_refused_with_its_line_and_count() {
+        let e = read_time_series(wide(200_000, 0).as_bytes(), "w.csv").unwrap_err();
+        let text = e.to_string();
+        assert!(matches!(e, FormatError::Unsupported { .. }), "{text}");
+        assert_eq!(e.line_column().0, 2, "{text}");
+        assert!(text.contains("200000 columns") && text.contains("at most 4096 channels"), "{text}");
+        assert!(text.contains("split the recording"), "{text}");
+        assert!(text.len() < 400, "{} characters", text.len());
+    }
+
+    #[test]
+    fn a_header_of_4096_channels_is_read_and_a_name_repeated_last_is_found() {
+        let ts = read_time_series(wide(MAX_COLUMNS, 3).as_bytes(), "w.csv").unwrap();
+        assert_eq!((ts.channels.len(), ts.len()), (MAX_COLUMNS, 3));
+        assert_eq!(ts.channels[MAX_COLUMNS - 1].name, format!("c{}", MAX_COLUMNS - 1));
+        let mut names: Vec<String> = (0..MAX_COLUMNS - 1).map(|i| format!("c{i}")).collect();
+        names.push("c7".into());
+        let text = format!("# sample_rate: 1 kHz\n{}\n{}\n", names.join(","), vec!["1"; MAX_COLUMNS].join(","));
+        let e = read_time_series(text.as_bytes(), "w.csv").unwrap_err();
+        assert!(e.to_string().contains("channel `c7` appears twice"), "{e}");
+        assert_eq!(e.line_column().0, 2);
+    }
+
+    #[test]
+    fn messages_list_a_few_channels_and_count_the_rest() {
+        let mut text = wide(1000, 0);
+        text.push_str("1,2\n");
+        let e = read_time_series(text.as_bytes(), "w.csv").unwrap_err().to_string();
+        assert!(e.contains("ragged row: 2 values, expected 1000") && e.contains("and 992 more"), "{e}");
+        assert!(e.len() < 300, "{e}");
+        let e =
+            read_time_series(b"# sample_rate: 1 Hz\n# units: x=m\na,b,c,d,e,f,g,h,i,j\n1,1,1,1,1,1,1,1,1,1\n", "u.csv")
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("does not have: a, b, c, d, e, f, g, h, … and 2 more"), "{e}");
+    }
+
+    #[test]
+    fn a_units_line_of_more_entries_than_channels_can_have_is_refused_at_its_line() {
+        let units: Vec<String> = (0..MAX_COLUMNS + 1).map(|i| format!("c{i}=m")).collect();
+        let text = format!("# units: {}\n# sample_rate: 1 Hz\na\n1\n", units.join(", "));
+        let e = read_time_series(text.as_bytes(), "u.csv").unwrap_err();
+        assert!(matches!(e, FormatError::Unsupported { .. }), "{e}");
+        assert_eq!(e.line_column().0, 1);
+        assert!(e.to_string().contains("more than 4096 channels"), "{e}");
+    }
+
+    #[test]
+    fn a_row_of_a_million_cells_is_ragged_and_counted_no_further_than_the_cap() {
+        let mut text = String::from("freq_hz,real,imag\n");
+        text.push_str(&vec!["1"; 1_000_000].join(","));
+        let e = read_frf(text.as_bytes(), "f.csv").unwrap_err();
+        assert!(matches!(e, FormatError::Ragged { .. }), "{e}");
+        assert!(e.to_string().contains("ragged row: more than 4096 values, expected 3"), "{e}");
+        // The same through a time series, and as a spreadsheet writes it (`;`, decimal commas).
+        let mut text = String::from("# sample_rate: 1 Hz\na;b\n");
+        text.push_str(&vec!["1,5"; 1_000_000].join(";"));
+        let e = read_time_series(text.as_bytes(), "t.csv").unwrap_err();
+        assert!(e.to_string().contains("ragged row: more than 4096 values, expected 2"), "{e}");
+    }
+
+    #[test]
+    fn a_one_line_file_of_a_million_cells_is_refused_by_its_header_in_every_form() {
+        for cell in ["a", "A"] {
+            for sep in [",", ";"] {
+                let text = vec![cell; 1_000_000].join(sep);
+                let e = read_frf(text.as_bytes(), "one.csv").unwrap_err();
+                assert!(matches!(e, FormatError::Unsupported { .. }), "{cell}{sep}: {e}");
+                assert!(e.to_string().contains("the header row has 1000000 columns"), "{cell}{sep}: {e}");
+                assert_eq!(e.line_column().0, 1);
+                let e = read_time_series(format!("# sample_rate: 1 Hz\n{text}").as_bytes(), "one.csv").unwrap_err();
+                assert!(e.to_string().contains("the header row has 1000000 columns"), "{cell}{sep}: {e}");
+                // Tables are read in the plain form only, where `;` is part of a name.
+                if sep == "," {
+                    let e = read_tables(text.as_bytes(), "one.csv").unwrap_err();
+                    assert!(e.to_string().contains("the header row has 1000000 columns"), "{cell}{sep}: {e}");
+                }
+                assert!(read_receptance(text.as_bytes(), "one.csv").is_err());
+            }
+        }
+    }
+
+    #[test]
+    fn sweep_points_beyond_the_cap_are_refused_at_the_first_row_past_it() {
+        let mut text = String::from("speed_rpm,freq_hz,real,imag\n");
+        for i in 0..=MAX_SWEEP_POINTS {
+            text.push_str(&format!("{i},1,2,3\n"));
+        }
+        let e = read_frf_blocks(text.as_bytes(), "s.csv").unwrap_err();
+        assert_eq!(e.line_column().0, MAX_SWEEP_POINTS + 2, "{e}");
+        assert!(e.to_string().contains("more than 50000 sweep points"), "{e}");
+        let mut text = String::from("# units: value_m=m\nk,value_m\n");
+        for i in 0..=MAX_SWEEP_POINTS {
+            text.push_str(&format!("{i},1\n"));
+        }
+        let e = read_tables(text.as_bytes(), "s.csv").unwrap_err();
+        assert!(e.to_string().contains("more than 50000 sweep points"), "{e}");
+    }
+
+    #[test]
+    fn frf_units_are_checked_for_the_dimension_of_an_frf() {
+        let read = |unit: &str| read_frf(format!("# units: {unit}\nfreq_hz,real,imag\n1,2,3\n").as_bytes(), "f.csv");
+        let f = read("um/N").unwrap();
+        assert_eq!((f.unit.symbol.as_str(), f.values[0]), ("m/N", Complex64::new(2e-6, 3e-6)));
+        assert_eq!(read("m/s^2/N").unwrap().unit.symbol, "m/s^2/N");
+        assert_eq!(read("mm/s/N").unwrap().unit.symbol, "m/s/N");
+        assert_eq!(read("g/N").unwrap().unit.symbol, "g/N");
+        for (unit, why) in [
+            ("kg", "`kg` is a mass (kg), not the unit of an FRF"),
+            ("N/m", "is a stiffness"),
+            ("m^999999999999/N", "`m^999999999999/N` is not a unit"),
+            ("m/N/N", "not the unit of an FRF"),
+            ("bananas", "is not a unit"),
+        ] {
+            let e = read(unit).unwrap_err();
+            let text = e.to_string();
+            assert_eq!(e.line_column(), (1, 10), "{text}");
+            assert!(text.contains(why) && text.contains("a receptance, length per force (`m/N`"), "{text}");
+        }
+    }
+
+    #[test]
+    fn long_cells_are_cut_in_messages() {
+        let long = "x".repeat(100_000);
+        let e = read_frf(format!("freq_hz,real,imag\n1,2,{long}\n").as_bytes(), "f.csv").unwrap_err().to_string();
+        assert!(e.len() < 300 && e.contains("xxx…"), "{}", e.len());
+        let e = read_time_series(format!("# sample_rate: {long}\na\n1\n").as_bytes(), "t.csv").unwrap_err();
+        assert!(e.to_string().len() < 300, "{}", e.to_string().len());
+        let e = read_frf(format!("freq_hz,real,imag\n1,2,1e{}\n", "9".repeat(100_000)).as_bytes(), "f.csv");
+        assert!(e.unwrap_err().to_string().len() < 300);
+    }
+
+    #[test]
+    fn row_capacity_is_what_the_file_length_can_hold() {
+        // A header of 4096 channels before a million one-cell rows: the rows the file can hold
+        // at 2 bytes per cell, not a million per channel.
+        let mut text = wide(MAX_COLUMNS, 0);
+        text.push_str(&"1\n".repeat(1_000_000));
+        let sheet = Sheet::open(text.as_bytes(), "w.csv", Forms::Spreadsheet).unwrap();
+        let bound = sheet.row_bound(2 * MAX_COLUMNS);
+        assert!(bound <= 2_000_000 / (2 * MAX_COLUMNS) + 1, "{bound}");
+        assert!(matches!(read_time_series(text.as_bytes(), "w.csv"), Err(FormatError::Ragged { found: 1, .. })));
+        let plain = Sheet::open(b"a\n1\n2\n3", "p.csv", Forms::Plain).unwrap();
+        assert_eq!(plain.row_bound(2), 3);
     }
 }

@@ -68,7 +68,7 @@ pub enum FormatError {
     Expected { at: Loc, expected: String, found: String },
     #[error("{at}: `{text}` in {what}: NaN samples and infinite values are not accepted")]
     NonFinite { at: Loc, text: String, what: String },
-    #[error("{at}: ragged row: {found} values, expected {expected} ({columns})")]
+    #[error("{at}: ragged row: {} values, expected {expected} ({columns})", cell_count(*.found))]
     Ragged { at: Loc, found: usize, expected: usize, columns: String },
     #[error("{at}: mismatched channels: {message}")]
     ChannelMismatch { at: Loc, message: String },
@@ -83,12 +83,37 @@ pub enum FormatError {
 }
 
 fn skipped_list(skipped: &[Skipped]) -> String {
-    if skipped.is_empty() {
-        String::new()
-    } else {
-        let items: Vec<String> = skipped.iter().map(Skipped::to_string).collect();
-        format!("; skipped {}", items.join(", "))
+    if skipped.is_empty() { String::new() } else { format!("; skipped {}", listed(skipped, ", ")) }
+}
+
+/// At most this many items of a list are written out in a message or in notes; the rest are
+/// counted, so a file of a hundred thousand datasets gives a message of one line.
+pub const LISTED: usize = 8;
+
+/// The items joined by `sep`, the first [`LISTED`] written out and the rest counted
+/// (`a, b, c, … and 97 more`).
+pub(crate) fn listed<T: fmt::Display>(items: impl IntoIterator<Item = T>, sep: &str) -> String {
+    let mut out = String::new();
+    let mut n = 0usize;
+    for item in items {
+        if n < LISTED {
+            if n > 0 {
+                out.push_str(sep);
+            }
+            out.push_str(&item.to_string());
+        }
+        n += 1;
     }
+    if n > LISTED {
+        out.push_str(&format!("{sep}… and {} more", n - LISTED));
+    }
+    out
+}
+
+/// The number of cells found in a row, for a message: a row is counted only up to one cell
+/// past [`csv::MAX_COLUMNS`].
+fn cell_count(found: usize) -> String {
+    if found > csv::MAX_COLUMNS { format!("more than {}", csv::MAX_COLUMNS) } else { found.to_string() }
 }
 
 impl FormatError {
@@ -163,7 +188,10 @@ pub const MAX_DATA_BYTES: u64 = 512 * 1024 * 1024;
 /// is an error that says so, never an allocation sized by the file.
 pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
     let f = std::fs::File::open(path)?;
-    let mut bytes = Vec::new();
+    // A regular file's length, to the cap, is read into one allocation; a device or a pipe
+    // (length 0) grows the buffer as it is read.
+    let hint = f.metadata().map_or(0, |m| if m.is_file() { m.len().min(cap) } else { 0 });
+    let mut bytes = Vec::with_capacity(usize::try_from(hint).unwrap_or(0).saturating_add(1));
     std::io::Read::read_to_end(&mut std::io::Read::take(f, cap + 1), &mut bytes)?;
     if bytes.len() as u64 > cap {
         return Err(std::io::Error::new(
@@ -179,7 +207,41 @@ fn read_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {
 }
 
 fn skipped_notes(path: &str, skipped: &[Skipped]) -> Vec<String> {
-    skipped.iter().map(|s| format!("{path}: {s} is not read (only datasets 58 and 58b are)")).collect()
+    let mut notes = Notes::new(path);
+    for s in skipped {
+        notes.push(|| format!("{path}: {s} is not read (only datasets 58 and 58b are)"));
+    }
+    notes.finish()
+}
+
+/// Notes on what a reader passed over, one per item up to [`LISTED`], then one that counts
+/// the rest: a file of many skipped datasets does not bury a run's warnings.
+pub(crate) struct Notes<'a> {
+    path: &'a str,
+    notes: Vec<String>,
+    more: usize,
+}
+
+impl<'a> Notes<'a> {
+    pub(crate) fn new(path: &'a str) -> Self {
+        Notes { path, notes: Vec::new(), more: 0 }
+    }
+
+    /// Adds the note `text` makes, or counts it once [`LISTED`] are kept.
+    pub(crate) fn push(&mut self, text: impl FnOnce() -> String) {
+        if self.notes.len() < LISTED {
+            self.notes.push(text());
+        } else {
+            self.more += 1;
+        }
+    }
+
+    pub(crate) fn finish(mut self) -> Vec<String> {
+        if self.more > 0 {
+            self.notes.push(format!("{}: … and {} more passed over like these", self.path, self.more));
+        }
+        self.notes
+    }
 }
 
 /// Reads a time series from a CSV or UFF file. For UFF, `dataset` (1-based, counting the
@@ -202,17 +264,21 @@ pub fn read_time_series(
                 return Ok(Loaded { value: ds.to_time_series(&shown)?, notes });
             }
             let mut series: Vec<TimeSeries> = Vec::new();
+            let mut passed = Notes::new(&shown);
             for ds in &file.datasets {
                 if ds.function_type == uff::FUNCTION_TIME {
                     series.push(ds.to_time_series(&shown)?);
                 } else {
-                    notes.push(format!(
-                        "{shown}: dataset 58 at line {} is {}, not a time response; skipped",
-                        ds.line,
-                        uff::function_name(ds.function_type)
-                    ));
+                    passed.push(|| {
+                        format!(
+                            "{shown}: dataset 58 at line {} is {}, not a time response; skipped",
+                            ds.line,
+                            uff::function_name(ds.function_type)
+                        )
+                    });
                 }
             }
+            notes.extend(passed.finish());
             let Some(first) = series.first() else {
                 return Err(FormatError::Selection {
                     path: shown,
@@ -311,7 +377,7 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
             let mut notes = skipped_notes(&shown, &file.skipped);
             if let Some(k) = select.dataset {
                 let ds = pick_of_type(&file, k, &shown, uff::FUNCTION_FRF, "an FRF (function type 4)")?;
-                let frf = ds.to_frf(&shown)?;
+                let frf = checked_frf(ds, &shown)?;
                 if let Some(want) = &select.direction
                     && frf.direction.as_deref() != Some(want.as_str())
                 {
@@ -327,13 +393,16 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                 return Ok(Loaded { value: frf, notes });
             }
             let mut frfs = Vec::new();
+            let mut passed = Notes::new(&shown);
             for ds in &file.datasets {
                 if ds.function_type != uff::FUNCTION_FRF {
-                    notes.push(format!(
-                        "{shown}: dataset 58 at line {} is {}, not an FRF; skipped",
-                        ds.line,
-                        uff::function_name(ds.function_type)
-                    ));
+                    passed.push(|| {
+                        format!(
+                            "{shown}: dataset 58 at line {} is {}, not an FRF; skipped",
+                            ds.line,
+                            uff::function_name(ds.function_type)
+                        )
+                    });
                 } else if select
                     .direction
                     .as_deref()
@@ -342,8 +411,9 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     frfs.push(ds);
                 }
             }
+            notes.extend(passed.finish());
             match frfs.as_slice() {
-                [one] => Ok(Loaded { value: one.to_frf(&shown)?, notes }),
+                [one] => Ok(Loaded { value: checked_frf(one, &shown)?, notes }),
                 [] => Err(FormatError::Selection {
                     path: shown,
                     message: match &select.direction {
@@ -351,17 +421,14 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                         None => format!("no FRF (function type 4) among its datasets: {}", file.summary()),
                     },
                 }),
-                many => {
-                    let list: Vec<String> = many.iter().map(|d| d.describe()).collect();
-                    Err(FormatError::Selection {
-                        path: shown,
-                        message: format!(
-                            "{} FRFs match ({}); choose one with `direction` or `dataset`",
-                            many.len(),
-                            list.join(", ")
-                        ),
-                    })
-                }
+                many => Err(FormatError::Selection {
+                    path: shown,
+                    message: format!(
+                        "{} FRFs match ({}); choose one with `direction` or `dataset`",
+                        many.len(),
+                        listed(many.iter().map(|d| d.describe()), ", ")
+                    ),
+                }),
             }
         }
     }
@@ -437,6 +504,77 @@ fn pick_of_type<'a>(
     Ok(ds)
 }
 
+/// The kinds of FRF the readers take, by the dimension of the values (response per force),
+/// with the SI label each is given. Nodes that need a receptance check for `m/N`.
+const FRF_KINDS: [(spindlelab_grammar::Dimension, &str); 3] = [
+    (spindlelab_grammar::Dimension::COMPLIANCE, "m/N"),
+    (spindlelab_grammar::Dimension::new(0, -1, 1, 0), "m/s/N"),
+    (spindlelab_grammar::Dimension::new(0, -1, 0, 0), "m/s^2/N"),
+];
+
+/// What an FRF's unit must be, for messages.
+pub const FRF_UNIT_EXPECTED: &str = "a receptance, length per force (`m/N`, `um/N`), or a mobility (`m/s/N`) or \
+                                     accelerance (`m/s^2/N`)";
+
+/// An FRF's unit label brought to SI: the factor for its values and the SI label of its kind
+/// (`um/N` → 1e-6 and `m/N`; empty for none). A label with a bare `g` (standard gravity as
+/// often as grams) is kept as written with factor 1. A label the unit grammar cannot read, or
+/// of a dimension no FRF has (`kg`), is refused: `Err` says why, for the caller to place.
+pub fn frf_unit(label: &str) -> Result<(f64, String), String> {
+    let label = label.trim();
+    if label.is_empty() {
+        return Ok((1.0, String::new()));
+    }
+    // A unit is a few symbols; a longer label is neither parsed nor quoted whole.
+    const LONGEST: usize = 100;
+    let length = label.chars().count();
+    if length > LONGEST {
+        return Err(format!("a label of {length} characters is not a unit"));
+    }
+    if has_bare_g(label) {
+        return Ok((1.0, label.to_string()));
+    }
+    let u = spindlelab_grammar::parse_unit(label).map_err(|e| format!("`{label}` is not a unit: {e}"))?;
+    match FRF_KINDS.iter().find(|(d, _)| *d == u.dim) {
+        Some((_, si)) => Ok((u.scale, si.to_string())),
+        None => Err(format!("`{label}` is {}, not the unit of an FRF", u.dim.describe())),
+    }
+}
+
+/// True for the SI label of a kind of FRF (`m/N`, `m/s/N`, `m/s^2/N`), as [`frf_unit`] gives it.
+pub fn is_frf_si_label(label: &str) -> bool {
+    FRF_KINDS.iter().any(|(_, si)| *si == label)
+}
+
+/// Dataset `ds` as an FRF whose unit (from its ordinate axes) is checked to be one of an FRF
+/// where the unit grammar reads it; a label it does not read stays as the file writes it.
+fn checked_frf(ds: &uff::Dataset58, path: &str) -> Result<Frf, FormatError> {
+    let mut frf = ds.to_frf(path)?;
+    let label = frf.unit.symbol.trim();
+    if label.is_empty() || has_bare_g(label) || spindlelab_grammar::parse_unit(label).is_err() {
+        return Ok(frf);
+    }
+    match frf_unit(label) {
+        Ok((scale, si)) => {
+            if scale != 1.0 {
+                frf.values.iter_mut().for_each(|v| *v *= scale);
+            }
+            frf.unit = crate::value::UnitLabel::new(si);
+            Ok(frf)
+        }
+        Err(why) => Err(FormatError::Unsupported {
+            at: Loc::new(path, ds.line, 0),
+            message: format!("the FRF's values are in {why} (records 9 and 10); expected {FRF_UNIT_EXPECTED}"),
+        }),
+    }
+}
+
+/// True when a unit label has the word `g`, which data files use for standard gravity as
+/// often as for grams.
+fn has_bare_g(label: &str) -> bool {
+    label.split(|c: char| !c.is_alphabetic()).any(|w| w == "g")
+}
+
 /// A unit label as found in a file, brought to SI: the factor to multiply values by and the
 /// SI symbol. Labels the unit grammar does not read, or whose dimension contradicts `expected`,
 /// are kept as written with factor 1, and so is any label with a bare `g`, which data files
@@ -446,7 +584,7 @@ pub(crate) fn unit_to_si(label: &str, expected: Option<spindlelab_grammar::Dimen
     if label.is_empty() {
         return (1.0, String::new());
     }
-    if label.split(|c: char| !c.is_alphabetic()).any(|w| w == "g") {
+    if has_bare_g(label) {
         return (1.0, label.to_string());
     }
     match spindlelab_grammar::parse_unit(label) {
@@ -482,5 +620,38 @@ mod tests {
         assert_eq!(Loc::new("a.csv", 3, 7).to_string(), "a.csv:3:7");
         assert_eq!(Loc::new("a.csv", 3, 0).to_string(), "a.csv:3");
         assert_eq!(Loc::new("a.csv", 0, 0).to_string(), "a.csv");
+    }
+
+    #[test]
+    fn lists_in_messages_show_a_few_items_and_count_the_rest() {
+        assert_eq!(listed(["a", "b"], ", "), "a, b");
+        assert_eq!(listed(0..LISTED, ","), "0,1,2,3,4,5,6,7");
+        assert_eq!(listed(0..100_000, ", "), "0, 1, 2, 3, 4, 5, 6, 7, … and 99992 more");
+        let skipped: Vec<Skipped> = (0..100_000).map(|i| Skipped { dataset: 15, line: 3 * i + 2 }).collect();
+        let e = FormatError::NoSupportedDataset { path: "big.uff".into(), skipped: skipped.clone() }.to_string();
+        assert!(e.ends_with("and 99992 more") && e.len() < 300, "{e}");
+        let notes = skipped_notes("big.uff", &skipped);
+        assert_eq!(notes.len(), LISTED + 1);
+        assert_eq!(notes[LISTED], "big.uff: … and 99992 more passed over like these");
+    }
+
+    #[test]
+    fn frf_units_of_every_kind_come_to_si_and_others_are_refused() {
+        assert_eq!(frf_unit(""), Ok((1.0, String::new())));
+        assert_eq!(frf_unit("m/N"), Ok((1.0, "m/N".into())));
+        assert_eq!(frf_unit("N^-1*m"), Ok((1.0, "m/N".into())));
+        let (s, l) = frf_unit("um/N").unwrap();
+        assert!((s - 1e-6).abs() < 1e-20 && l == "m/N");
+        assert_eq!(frf_unit("m/s/N").map(|u| u.1), Ok("m/s/N".into()));
+        assert_eq!(frf_unit("m/s^2/N").map(|u| u.1), Ok("m/s^2/N".into()));
+        assert_eq!(frf_unit("g/N"), Ok((1.0, "g/N".into())));
+        assert!(frf_unit("kg").unwrap_err().contains("a mass (kg)"));
+        assert!(frf_unit("m").unwrap_err().contains("a length (m)"));
+        // Exponents past the grammar's range are an error, never an overflow.
+        for u in ["m^999999999999/N", "m^-999999999999/N", "m^127*m^127/N", "m^99999999999999999999999"] {
+            assert!(frf_unit(u).is_err(), "{u}");
+        }
+        assert!(is_frf_si_label("m/N") && !is_frf_si_label("um/N"));
+        assert_eq!(frf_unit(&"m".repeat(1_000_000)).unwrap_err(), "a label of 1000000 characters is not a unit");
     }
 }

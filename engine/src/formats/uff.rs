@@ -169,10 +169,9 @@ pub struct UffFile {
 
 impl UffFile {
     /// The datasets 58 as a list for messages: `1: an FRF in x (line 2), ...`.
+    /// At most [`super::LISTED`] are written out, the rest counted.
     pub fn summary(&self) -> String {
-        let items: Vec<String> =
-            self.datasets.iter().enumerate().map(|(i, d)| format!("{}: {}", i + 1, d.describe())).collect();
-        items.join(", ")
+        super::listed(self.datasets.iter().enumerate().map(|(i, d)| format!("{}: {}", i + 1, d.describe())), ", ")
     }
 }
 
@@ -693,7 +692,7 @@ pub fn parse(bytes: &[u8], path: &str) -> Result<UffFile, FormatError> {
 fn skip_dataset(cur: &mut Cursor, hl: usize, head: &[u8], number: u32, binary: bool) -> Result<(), FormatError> {
     if binary {
         let fields: Vec<usize> =
-            tokens(head).skip(1).map_while(|(_, t)| std::str::from_utf8(t).ok()?.parse().ok()).collect();
+            tokens(head).skip(1).take(4).map_while(|(_, t)| std::str::from_utf8(t).ok()?.parse().ok()).collect();
         if let [_, _, lines, nbytes, ..] = fields[..] {
             for _ in 0..lines {
                 cur.record(&format!("an ASCII header line of dataset {number}b"))?;
@@ -728,7 +727,8 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
     let mut little_endian = true;
     let mut declared_bytes = 0usize;
     if binary {
-        let fields: Vec<(usize, &[u8])> = tokens(head).skip(1).collect();
+        // The fields read; a line of more tokens is not gathered whole.
+        let fields: Vec<(usize, &[u8])> = tokens(head).skip(1).take(8).collect();
         let field = |k: usize, what: &str| -> Result<Option<i64>, FormatError> {
             match fields.get(k) {
                 None => Ok(None),
@@ -795,7 +795,7 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
     };
 
     let (l7, t7) = cur.record(&format!("record 7 (data form) of {kind}"))?;
-    let fields7: Vec<(usize, &[u8])> = tokens(t7).collect();
+    let fields7: Vec<(usize, &[u8])> = tokens(t7).take(8).collect();
     let what7 = ["the ordinate data type", "the number of points", "the abscissa spacing (1 even, 0 uneven)"];
     let mut ints = [0i64; 3];
     for (k, slot) in ints.iter_mut().enumerate() {
@@ -1269,25 +1269,29 @@ pub fn to_receptance(
     path: &str,
     direction: Option<&str>,
 ) -> Result<(ReceptanceSet, Vec<String>), FormatError> {
-    let mut notes = Vec::new();
+    let mut notes = super::Notes::new(path);
     // Per direction found: the dataset of each block.
     let mut found: Vec<(&str, [Option<&Dataset58>; 4])> = Vec::new();
     for ds in &file.datasets {
         let dofs = (receptance_dof(ds.response.direction), receptance_dof(ds.reference.direction));
         let (Some((dir, resp_rot, _)), Some((dir2, ref_rot, _))) = dofs else {
-            notes.push(format!(
-                "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
-                ds.line,
-                ds.describe()
-            ));
+            notes.push(|| {
+                format!(
+                    "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
+                    ds.line,
+                    ds.describe()
+                )
+            });
             continue;
         };
         if ds.function_type != FUNCTION_FRF || dir != dir2 {
-            notes.push(format!(
-                "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
-                ds.line,
-                ds.describe()
-            ));
+            notes.push(|| {
+                format!(
+                    "{path}: dataset 58 at line {} ({}) is not a bending receptance; skipped",
+                    ds.line,
+                    ds.describe()
+                )
+            });
             continue;
         }
         if direction.is_some_and(|d| d != dir) {
@@ -1374,7 +1378,7 @@ pub fn to_receptance(
     let mut it = values.into_iter();
     let mut next = || it.next().unwrap_or_default();
     let (h, l, n, p) = (next(), next(), next(), next());
-    Ok((ReceptanceSet { freq_hz, h, l, n, p, direction: Some(dir.to_string()), speed_rpm }, notes))
+    Ok((ReceptanceSet { freq_hz, h, l, n, p, direction: Some(dir.to_string()), speed_rpm }, notes.finish()))
 }
 
 /// The code written for a translation or rotation of direction `dir`.
@@ -1386,6 +1390,17 @@ fn code_of(dir: &str, rotation: bool) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_of_100k_skipped_datasets_is_refused_in_one_short_line() {
+        let text = "    -1\n    15\n    1 0 0 0\n    -1\n".repeat(100_000);
+        let e = parse(text.as_bytes(), "big.uff").unwrap_err().to_string();
+        assert!(e.starts_with("big.uff: no dataset 58 or 58b"), "{e}");
+        assert!(e.contains("… and 99992 more") && e.len() < 400 && !e.contains('\n'), "{} characters", e.len());
+        // A 58b header line of a million tokens is read no further than its fields.
+        let head = format!("    -1\n    58b 1 2 11 64 {}\n", "0 ".repeat(1_000_000));
+        assert!(parse(head.as_bytes(), "b.uff").is_err());
+    }
 
     #[test]
     fn receptance_set_round_trips_through_four_datasets() {

@@ -8,7 +8,7 @@ use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
 use spindlelab_engine::value::{PortType, UnitLabel, Value};
-use spindlelab_grammar::{Dimension as D, parse_unit};
+use spindlelab_grammar::Dimension as D;
 use std::f64::consts::TAU;
 use std::path::Path;
 
@@ -160,7 +160,9 @@ impl Node for ReadFrf {
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         if let Some(u) = p.text("units") {
-            parse_unit(u).map_err(|e| NodeError::param("units", format!("`{u}` is not a unit: {e}")))?;
+            formats::frf_unit(u).map_err(|why| {
+                NodeError::param("units", format!("{why}; the values of an FRF are {}", formats::FRF_UNIT_EXPECTED))
+            })?;
         }
         super::non_negative(p, &["speed"])
     }
@@ -189,22 +191,24 @@ impl Node for ReadFrf {
             }
         }
         if let Some(u) = ctx.params.text("units") {
-            let want = parse_unit(u).map_err(|e| NodeError::param("units", e.to_string()))?;
-            match parse_unit(&frf.unit.symbol).ok().filter(|_| !frf.unit.symbol.trim().is_empty()) {
-                Some(have) if have.dim != want.dim => {
-                    return Err(NodeError::param(
-                        "units",
-                        format!(
-                            "{shown} holds values in {} (its `# units:`), the recipe says `{u}`, a different kind of FRF; state the file's own units, or convert the file",
-                            frf.unit.symbol
-                        ),
-                    ));
-                }
-                Some(_) => {}
-                None => {
-                    frf.values.iter_mut().for_each(|v| *v *= want.scale);
-                    frf.unit = UnitLabel::new(want.dim.si_unit());
-                }
+            let (scale, want) = formats::frf_unit(u).map_err(|why| NodeError::param("units", why))?;
+            // Both labels are SI labels of their kind (`m/N`), or a label kept as written.
+            let have = frf.unit.symbol.trim();
+            if have.is_empty() {
+                frf.values.iter_mut().for_each(|v| *v *= scale);
+                frf.unit = UnitLabel::new(want);
+            } else if have != want {
+                let kind = if formats::is_frf_si_label(have) && formats::is_frf_si_label(&want) {
+                    "a different kind of FRF"
+                } else {
+                    "which cannot be checked against it"
+                };
+                return Err(NodeError::param(
+                    "units",
+                    format!(
+                        "{shown} holds values in {have} (its `# units:`), the recipe says `{u}`, {kind}; state the file's own units, or convert the file",
+                    ),
+                ));
             }
         }
         Ok([("frf".to_string(), Value::Frf(frf))].into_iter().collect())
