@@ -3,9 +3,15 @@
 //! `rel_l2 = √(Σ|H_model − H_meas|² / Σ|H_meas|²)` over the compared lines, and the noise
 //! floor `√(Σσ² / Σ|H|²)`, the `rel_l2` a perfect model would show; their ratio is about 1
 //! when the model explains the data to the noise and grows with what it misses. σ per line
-//! comes from the coherence (a synthetic signal-to-noise indicator
-//! `γ = 1/(1 + 20σ²/|H|²)`, so `σ² = |H|²(1/γ − 1)/20`) or from a declared noise model
-//! `σ² = σ_rel²|H|² + (floor·max|H|)²(1 + (f/f_exc)⁴)`.
+//! comes from one of three noise models:
+//! - `Coherence`: the coherence read as a synthetic signal-to-noise indicator
+//!   `γ = 1/(1 + 20σ²/|H|²)`, so `σ² = |H|²(1/γ − 1)/20` (the convention of the virtual rig's
+//!   and the training cases' files);
+//! - `H1`: the variance of an H1 estimate averaged over `n` impacts or blocks, with γ² the
+//!   ordinary coherence an analyser writes: the random errors of magnitude and phase are
+//!   `ε² = (1 − γ²)/(2nγ²)` each (Bendat & Piersol, *Random Data*, Table 9.6), so
+//!   `σ² = E|ΔH|² = |H|²(1 − γ²)/(nγ²)`;
+//! - `Declared`: `σ² = σ_rel²|H|² + (floor·max|H|)²(1 + (f/f_exc)⁴)`.
 //!
 //! The weighted residual `r_k = (H_model − H_meas)_k / (noise_floor · √Σ|H_meas|²)` has
 //! `Σ|r_k|² = ratio²` exactly, so a least-squares fit of its real and imaginary parts
@@ -19,6 +25,8 @@ use thiserror::Error;
 pub enum NoiseModel {
     /// From the measured FRF's coherence, `σ² = |H|²(1/γ − 1)/20`.
     Coherence,
+    /// The H1 estimator's variance over `averages` averages, `σ² = |H|²(1 − γ²)/(nγ²)`.
+    H1 { averages: f64 },
     /// Relative noise `sigma_rel`, plus an absolute floor `floor_rel · max|H|` rising as
     /// `√(1 + (f/rolloff)⁴)` beyond the excitation's roll-off.
     Declared { sigma_rel: f64, floor_rel: f64, rolloff_hz: f64 },
@@ -111,6 +119,17 @@ fn variances(
                 .map(|(h, &c)| {
                     let c = c.clamp(1e-12, 1.0);
                     h.norm_sqr() * (1.0 / c - 1.0) / 20.0
+                })
+                .collect())
+        }
+        NoiseModel::H1 { averages } => {
+            let g = coherence.ok_or(GapError::NoCoherence)?;
+            Ok(measured
+                .iter()
+                .zip(g)
+                .map(|(h, &c)| {
+                    let c = c.clamp(1e-12, 1.0);
+                    h.norm_sqr() * (1.0 - c) / (averages * c)
                 })
                 .collect())
         }
@@ -262,6 +281,49 @@ mod tests {
         assert!((990.0..=1060.0).contains(&g.max_discrepancy_hz), "{}", g.max_discrepancy_hz);
         // Coherence 0.99 everywhere: σ²/|H|² = (1/0.99 − 1)/20 on every line.
         assert!((g.noise_floor - ((1.0 / 0.99 - 1.0) / 20.0f64).sqrt()).abs() < 1e-12);
+    }
+
+    /// An H1 estimate simulated from its definition, independently of the formula: n blocks
+    /// of force F_i (unit, random phase) and response X_i = H·F_i + N_i with complex Gaussian
+    /// noise N_i; Ĥ = ΣX F*/Σ|F|², γ² = |ΣX F*|²/(Σ|F|² Σ|X|²). The spread of Ĥ around H
+    /// over many lines matches σ² = |H|²(1 − γ²)/(nγ²) with γ² the estimate itself.
+    #[test]
+    fn the_h1_variance_matches_a_simulated_averaged_estimate() {
+        let h = Complex64::new(2.0, -1.0);
+        let n = 8usize;
+        let noise_sd = 0.6; // per real and imaginary part
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut gauss = || {
+            let (u, v) = (uniform().max(1e-300), uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let lines = 20_000;
+        let (mut err2, mut predicted) = (0.0, 0.0);
+        for _ in 0..lines {
+            let (mut sxf, mut sff, mut sxx) = (Complex64::new(0.0, 0.0), 0.0, 0.0);
+            for _ in 0..n {
+                let f = Complex64::from_polar(1.0, std::f64::consts::TAU * gauss().abs().fract());
+                let x = h * f + Complex64::new(noise_sd * gauss(), noise_sd * gauss());
+                sxf += x * f.conj();
+                sff += f.norm_sqr();
+                sxx += x.norm_sqr();
+            }
+            let est = sxf / sff;
+            let coh = sxf.norm_sqr() / (sff * sxx);
+            err2 += (est - h).norm_sqr();
+            let v = variances(&[1.0], &[est], Some(&[coh]), NoiseModel::H1 { averages: n as f64 }).unwrap()[0];
+            predicted += v;
+        }
+        let (measured, predicted) = (err2 / lines as f64, predicted / lines as f64);
+        // Exact: E|ΔH|² = 2·noise_sd²/n = 0.09; the formula, evaluated on the estimates.
+        assert!((measured - 2.0 * noise_sd * noise_sd / n as f64).abs() < 0.05 * measured, "{measured}");
+        assert!((predicted / measured - 1.0).abs() < 0.2, "predicted {predicted}, simulated {measured}");
     }
 
     #[test]

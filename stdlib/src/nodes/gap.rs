@@ -57,9 +57,14 @@ impl FrfGap {
                     ),
                     Field::def(
                         "noise",
-                        T::Choice(&["coherence", "declared"]),
+                        T::Choice(&["coherence", "h1", "declared"]),
                         "coherence",
-                        "where the noise of each line comes from: the measured coherence γ (σ² = |H|²(1/γ − 1)/20), or `sigma_rel`, `floor_rel` and `rolloff`",
+                        "where the noise of each line comes from: the coherence as the virtual rig writes it (σ² = |H|²(1/γ − 1)/20); an analyser's H1 estimate over `averages` averages with γ² its ordinary coherence (σ² = |H|²(1 − γ²)/(nγ²)); or `sigma_rel`, `floor_rel` and `rolloff`",
+                    ),
+                    Field::opt(
+                        "averages",
+                        T::Integer { min: 1, max: 1_000_000 },
+                        "`noise: h1`: the number of impacts or blocks averaged into the measured FRF",
                     ),
                     Field::opt(
                         "sigma_rel",
@@ -89,6 +94,12 @@ impl FrfGap {
 }
 
 fn declared(p: &Params) -> Result<Option<NoiseModel>, NodeError> {
+    if p.text("noise") == Some("h1") {
+        let n = p.int("averages").ok_or_else(|| {
+            NodeError::param("averages", "`noise: h1` needs `averages`: how many impacts or blocks the FRF averages")
+        })?;
+        return Ok(Some(NoiseModel::H1 { averages: n as f64 }));
+    }
     if p.text("noise") != Some("declared") {
         return Ok(None);
     }
