@@ -49,6 +49,12 @@ macro_rules! outln {
     ($($arg:tt)*) => { emit(&format!("{}\n", format_args!($($arg)*))) };
 }
 
+/// A document of many lines that quotes foreign words (a graph, a diagnosis): every control
+/// character but its line breaks escaped.
+fn esc_lines(text: &str) -> String {
+    text.split('\n').map(engine::diag::escape_controls).collect::<Vec<_>>().join("\n")
+}
+
 /// Text that may hold foreign words (a recipe's, a data file's, a plugin's) as the terminal
 /// may show it: control characters escaped, the lines of a node error's notes kept.
 fn esc(text: impl std::fmt::Display) -> String {
@@ -349,7 +355,7 @@ fn command(cli: Cli) -> ExitCode {
                     GraphFormat::Dot => engine::graph::to_dot(&c.graph),
                     GraphFormat::Mermaid => engine::graph::to_mermaid(&c.graph),
                 };
-                out!("{text}");
+                out!("{}", esc_lines(&text));
                 ExitCode::SUCCESS
             }
             Err(code) => code,
@@ -430,7 +436,7 @@ fn command(cli: Cli) -> ExitCode {
                 return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
             }
             if !quiet {
-                out!("{}", spindlelab::diagnose::markdown(&d));
+                out!("{}", esc_lines(&spindlelab::diagnose::markdown(&d)));
                 outln!(
                     "\nwrote diagnosis.json, diagnosis.md and diagnosed.yaml to {} in {:.1} s",
                     out.display(),
