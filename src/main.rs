@@ -75,7 +75,15 @@ struct Cli {
     /// folder are searched after these.
     #[arg(long = "plugin", global = true, value_name = "FILE|DIR")]
     plugin: Vec<PathBuf>,
+    /// Refuse data files named outside the recipe's folder (an absolute path, or `..`), for
+    /// recipes from elsewhere. Without it a data file is read wherever it is named, and the
+    /// manifest records each with its hash.
+    #[arg(long, global = true)]
+    confine: bool,
 }
+
+/// `--confine`, set once from the command line before any recipe is compiled.
+static CONFINE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 #[derive(Subcommand)]
 enum Command {
@@ -273,7 +281,10 @@ fn compile_with(
     registry: &mut engine::node::Registry,
     plugins: &mut Plugins,
 ) -> Result<Compiled, ExitCode> {
-    match spindlelab::plugins::compile_file(path, set, registry, plugins) {
+    let compiled = spindlelab::plugins::compile_file(path, set, registry, plugins).and_then(|c| {
+        if CONFINE.load(Ordering::Relaxed) { engine::check_confined(&c).map(|()| c) } else { Ok(c) }
+    });
+    match compiled {
         Ok(c) => {
             if !c.warnings.is_empty() {
                 eprint!("{}", c.warnings.render(&c.sources, color()));
@@ -327,6 +338,7 @@ fn main() -> ExitCode {
         }
         Err(e) => e.exit(),
     };
+    CONFINE.store(cli.confine, Ordering::Relaxed);
     let code = command(cli);
     if STDOUT_FAILED.load(Ordering::Relaxed) { ExitCode::from(EXIT_FAILURE) } else { code }
 }

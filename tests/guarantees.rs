@@ -486,14 +486,48 @@ fn a_data_file_that_is_not_csv_never_has_its_lines_quoted() {
     let said = text(&o);
     assert!(said.contains("secret.csv:1"), "{said}");
     assert!(!said.contains("root:x"), "a line of the file was quoted: {said}");
-    // An absolute path is refused when the recipe is loaded, before anything is read.
+    // A file named anywhere is read (and still never quoted); `--confine` refuses names
+    // outside the recipe's folder when the recipe is loaded, before anything is read.
+    std::fs::write(tmp.path().join("elsewhere.csv"), "root:x:0:0:root:/root:/bin/bash\n").unwrap();
+    let absolute = tmp.path().join("elsewhere.csv").display().to_string();
+    let sub = tmp.path().join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    for (dir, file) in [(tmp.path(), absolute.as_str()), (sub.as_path(), "../elsewhere.csv")] {
+        std::fs::write(
+            dir.join("r.yaml"),
+            format!("spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: {{ file: \"{file}\" }}\n"),
+        )
+        .unwrap();
+        let o = run_in(dir, &["run", "r.yaml", "-o", "o", "-q"]);
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", text(&o));
+        assert!(text(&o).contains("elsewhere.csv:1") && !text(&o).contains("root:x"), "{file}: {}", text(&o));
+        let o = run_in(dir, &["check", "r.yaml", "--confine"]);
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", text(&o));
+        assert!(text(&o).contains("outside the recipe's folder") && text(&o).contains("r.yaml:6:"), "{}", text(&o));
+        let o = run_in(dir, &["run", "r.yaml", "-o", "o", "--confine"]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", text(&o));
+        assert!(!text(&o).contains("elsewhere.csv:1"), "read before refusing: {}", text(&o));
+    }
+}
+
+#[test]
+fn the_manifest_records_every_data_file_with_its_hash() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frf = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/engine/tests/data/uff/frf_xy_binary.uff"));
     std::fs::write(
         tmp.path().join("r.yaml"),
-        "spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: { file: /etc/passwd }\n",
+        format!(
+            "spindlelab: 1\nname: s\nsteps:\n  m:\n    kind: read.frf\n    params: {{ file: \"{}\", direction: y }}\noutputs:\n  - {{ from: \"@m.frf\", file: m.csv }}\n",
+            frf.display()
+        ),
     )
     .unwrap();
-    let o = run_in(tmp.path(), &["check", "r.yaml"]);
-    no_panic(&o);
-    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
-    assert!(text(&o).contains("is an absolute path") && text(&o).contains("r.yaml:6:"), "{}", text(&o));
+    let o = run_in(tmp.path(), &["run", "r.yaml", "-o", "o", "-q"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("o/manifest.json")).unwrap()).unwrap();
+    let hash = blake3::hash(&std::fs::read(&frf).unwrap()).to_hex().to_string();
+    assert_eq!(m["data_files"][frf.display().to_string()].as_str(), Some(hash.as_str()), "{m}");
 }

@@ -104,6 +104,37 @@ pub fn compile_raw(
     }
 }
 
+/// Refuses, for `--confine`, every data file named outside the recipe's folder: an absolute
+/// path or one that climbs out with `..` (by name; links inside the folder are followed as
+/// the system does). Without it, data files are read wherever they are named, and the
+/// manifest records each with its hash.
+pub fn check_confined(compiled: &Compiled) -> Result<(), CompileError> {
+    let base = compiled.path.parent().unwrap_or(Path::new(""));
+    let mut diags = Diagnostics::new();
+    for f in compiled.recipe.data_files() {
+        let inside = f.path.strip_prefix(base).is_ok_and(|rel| {
+            rel.components().all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir))
+        });
+        if !inside {
+            diags.error_help(
+                f.span,
+                format!(
+                    "step `{}`, `{}`: `{}` lies outside the recipe's folder, which --confine refuses",
+                    f.step,
+                    f.param,
+                    f.path.display()
+                ),
+                "copy the file beside the recipe, or run without --confine",
+            );
+        }
+    }
+    if diags.has_errors() {
+        diags.sort();
+        return Err(CompileError { diagnostics: diags, sources: compiled.sources.clone() });
+    }
+    Ok(())
+}
+
 /// Why a run did not complete.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {

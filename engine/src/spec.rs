@@ -746,15 +746,9 @@ fn check_file(raw: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Opti
         diags.error(Some(&raw.span), format!("{what} is an empty file path"));
         return None;
     }
-    if Path::new(written).is_absolute() {
-        // A recipe from elsewhere must not reach into the machine's other files.
-        diags.error_help(
-            Some(&raw.span),
-            format!("{what}: `{written}` is an absolute path; data files are named relative to the recipe's folder"),
-            "copy or link the file beside the recipe, or write its path relative to the recipe",
-        );
-        return None;
-    }
+    // A relative name is the recipe's folder's; an absolute one is read where it is. Either
+    // way the manifest records the file and its hash; `--confine` refuses names outside the
+    // recipe's folder.
     let path = match ctx.base_dir {
         Some(base) => base.join(written),
         None => PathBuf::from(written),

@@ -51,6 +51,10 @@ pub struct Manifest {
     /// BLAKE3 hash (hex).
     #[serde(default)]
     pub files: IndexMap<String, String>,
+    /// Every data file the recipe read, as named (resolved against the recipe's folder), with
+    /// the BLAKE3 hash of what was read.
+    #[serde(default, skip_serializing_if = "IndexMap::is_empty")]
+    pub data_files: IndexMap<String, String>,
     /// What the run noticed about itself (cache entries it could not use and recomputed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
@@ -115,6 +119,11 @@ impl Manifest {
             nodes,
             outputs,
             files: IndexMap::new(),
+            data_files: recipe
+                .data_files()
+                .into_iter()
+                .map(|f| (f.path.display().to_string(), f.hash.to_string()))
+                .collect(),
             notes: result.notes.clone(),
         }
     }

@@ -50,9 +50,54 @@ pub struct Recipe {
     pub fit: Option<FitSpec>,
 }
 
+/// A data file a recipe reads: where it was named and what was read.
+#[derive(Debug, Clone)]
+pub struct DataFile<'a> {
+    /// The step and parameter naming it.
+    pub step: &'a str,
+    pub param: &'a str,
+    /// Where the parameter was written.
+    pub span: Option<&'a Span>,
+    pub path: &'a std::path::Path,
+    /// BLAKE3 of its contents when the recipe was loaded.
+    pub hash: &'a str,
+}
+
 impl Recipe {
     pub fn step(&self, id: &str) -> Option<&Step> {
         self.steps.iter().find(|s| s.id == id)
+    }
+
+    /// Every data file the steps read (parameters, nested objects and sweep values), in
+    /// recipe order.
+    pub fn data_files(&self) -> Vec<DataFile<'_>> {
+        fn walk<'a>(step: &'a Step, param: &'a str, v: &'a ParamValue, out: &mut Vec<DataFile<'a>>) {
+            match v {
+                ParamValue::File { path, hash } => out.push(DataFile {
+                    step: &step.id,
+                    param,
+                    span: step.param_spans.get(param),
+                    path,
+                    hash,
+                }),
+                ParamValue::Object(p) => p.values.values().for_each(|v| walk(step, param, v, out)),
+                ParamValue::Objects(ps) => {
+                    ps.iter().flat_map(|p| p.values.values()).for_each(|v| walk(step, param, v, out))
+                }
+                ParamValue::Map(m) => m.values().for_each(|v| walk(step, param, v, out)),
+                _ => {}
+            }
+        }
+        let mut out = Vec::new();
+        for step in &self.steps {
+            for (name, v) in &step.params.values {
+                walk(step, name, v, &mut out);
+            }
+            for axis in &step.sweep {
+                axis.values.iter().for_each(|v| walk(step, &axis.param, v, &mut out));
+            }
+        }
+        out
     }
 
     /// The digest of an entity's contents (and of the entities it names): cache keys carry
