@@ -35,13 +35,30 @@ fn emit(text: &str) {
     let mut out = std::io::stdout().lock();
     if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
         STDOUT_FAILED.store(true, Ordering::Relaxed);
-        eprintln!("error: cannot write to standard output: {e}");
+        let _ = writeln!(std::io::stderr(), "error: cannot write to standard output: {e}");
     }
 }
 
 /// `print!` through [`emit`].
 macro_rules! out {
     ($($arg:tt)*) => { emit(&format!($($arg)*)) };
+}
+
+/// `eprint!` that never panics: with standard error gone (closed, or a full disk) there is
+/// nowhere left to say anything, and the exit code still tells.
+macro_rules! eout {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// `eprintln!` that never panics (see [`eout!`]).
+macro_rules! eoutln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
 }
 
 /// `println!` through [`emit`].
@@ -287,12 +304,12 @@ fn compile_with(
     match compiled {
         Ok(c) => {
             if !c.warnings.is_empty() {
-                eprint!("{}", c.warnings.render(&c.sources, color()));
+                eout!("{}", c.warnings.render(&c.sources, color()));
             }
             Ok(c)
         }
         Err(CompileError { diagnostics, sources }) => {
-            eprint!("{}", diagnostics.render(&sources, color()));
+            eout!("{}", diagnostics.render(&sources, color()));
             Err(ExitCode::from(EXIT_BAD_INPUT))
         }
     }
@@ -310,7 +327,7 @@ fn clamp_threads(asked: Option<usize>) -> Option<usize> {
     asked.map(|n| {
         let used = n.clamp(1, most);
         if used != n {
-            eprintln!("warning: -j {n} is outside 1..={most} for this machine's {cores} core(s); using {used}");
+            eoutln!("warning: -j {n} is outside 1..={most} for this machine's {cores} core(s); using {used}");
         }
         used
     })
@@ -397,11 +414,11 @@ fn command(cli: Cli) -> ExitCode {
         }
         Command::Nodes { kind } => {
             if let Err(e) = plugins.load_always(&mut registry) {
-                eprintln!("error: {}", esc(&e));
+                eoutln!("error: {}", esc(&e));
                 return ExitCode::from(EXIT_BAD_INPUT);
             }
             for (manifest, e) in plugins.load_search_path(&mut registry).1 {
-                eprintln!("warning: {}: {}", esc(manifest.display()), esc(&e));
+                eoutln!("warning: {}: {}", esc(manifest.display()), esc(&e));
             }
             let mut any = false;
             for node in registry.kinds() {
@@ -417,7 +434,7 @@ fn command(cli: Cli) -> ExitCode {
                 let hint = engine::spec::suggest(&k, registry.names())
                     .map(|s| format!(" (did you mean `{s}`?)"))
                     .unwrap_or_default();
-                eprintln!("error: unknown node kind `{}`{hint}", esc(&k));
+                eoutln!("error: unknown node kind `{}`{hint}", esc(&k));
                 return ExitCode::from(EXIT_BAD_INPUT);
             }
             ExitCode::SUCCESS
@@ -430,11 +447,11 @@ fn command(cli: Cli) -> ExitCode {
             let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
                 Ok(d) => d,
                 Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_FAILURE);
                 }
                 Err(e) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
@@ -443,7 +460,7 @@ fn command(cli: Cli) -> ExitCode {
                 Path::new("out").join(stem).join("diagnosis")
             });
             if let Err(e) = spindlelab::diagnose::write(&d, &out) {
-                eprintln!("error: {}", esc(&e));
+                eoutln!("error: {}", esc(&e));
                 let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
                 return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
             }
@@ -462,14 +479,14 @@ fn command(cli: Cli) -> ExitCode {
             let text = match std::fs::read_to_string(&case) {
                 Ok(t) => t,
                 Err(e) => {
-                    eprintln!("error: cannot read {}: {e}", esc(&shown));
+                    eoutln!("error: cannot read {}: {e}", esc(&shown));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
             let recipe = match spindlelab::import::recipe_from_case(&text, &shown) {
                 Ok(r) => r,
                 Err(e) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
@@ -482,7 +499,7 @@ fn command(cli: Cli) -> ExitCode {
                         tmp.persist(&path).map(|_| ()).map_err(|e| e.error)
                     });
                     if let Err(e) = written {
-                        eprintln!("error: cannot write {}: {e}", path.display());
+                        eoutln!("error: cannot write {}: {e}", path.display());
                         return ExitCode::from(EXIT_FAILURE);
                     }
                 }
@@ -511,7 +528,7 @@ fn command(cli: Cli) -> ExitCode {
                 let report = match spindlelab::fit::fit(&c, &set, &registry, threads) {
                     Ok(r) => r,
                     Err(e) => {
-                        eprintln!("error: fit: {}", esc(&e));
+                        eoutln!("error: fit: {}", esc(&e));
                         return ExitCode::from(EXIT_BAD_INPUT);
                     }
                 };
@@ -556,10 +573,10 @@ fn command(cli: Cli) -> ExitCode {
                 Err(_) => &[],
             };
             for n in notes {
-                eprintln!("warning: {}", esc(n));
+                eoutln!("warning: {}", esc(n));
             }
             if let Some(report) = fitted.as_ref().filter(|r| !r.converged) {
-                eprintln!(
+                eoutln!(
                     "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
                     report.evaluations
                 );
@@ -593,11 +610,11 @@ fn command(cli: Cli) -> ExitCode {
                             .and_then(|i| c.recipe.step(&i.step))
                             .map(|s| format!("\n --> {} (step `{}`)", esc(&s.span), s.id))
                             .unwrap_or_default();
-                        eprintln!("error: node `{}` failed: {}{at}", esc(id), esc(e));
+                        eoutln!("error: node `{}` failed: {}{at}", esc(id), esc(e));
                     }
                     {
                         let r = report;
-                        eprintln!(
+                        eoutln!(
                             "{} instance(s) computed and cached; {}",
                             r.manifest.computed,
                             if r.written.is_empty() && keep_going {
@@ -612,7 +629,7 @@ fn command(cli: Cli) -> ExitCode {
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
                 Err(RunError::Output(e)) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
                 }
             }
@@ -638,13 +655,13 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
         return match spindlelab::diagnose::report_html(run_dir) {
             Ok(html) => write_report(&target_for(out), html),
             Err(e) => {
-                eprintln!("error: {}; rerun `spindlelab diagnose` into that folder", esc(&e));
+                eoutln!("error: {}; rerun `spindlelab diagnose` into that folder", esc(&e));
                 ExitCode::from(EXIT_BAD_INPUT)
             }
         };
     }
     let Some(manifest) = engine::exec::Manifest::read(run_dir) else {
-        eprintln!(
+        eoutln!(
             "error: {} holds no readable manifest.json; give the output folder of a run (`spindlelab run` writes it) or of a diagnosis (`spindlelab diagnose`)",
             run_dir.display()
         );
@@ -658,7 +675,7 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
         match engine::formats::read_capped(&run_dir.join(name), engine::formats::MAX_DATA_BYTES) {
             Ok(bytes) => files.push((name.clone(), bytes)),
             Err(e) => {
-                eprintln!(
+                eoutln!(
                     "error: {}: {e}; the folder no longer matches its manifest (rerun the recipe)",
                     run_dir.join(name).display()
                 );
@@ -676,7 +693,7 @@ fn write_report(target: &Path, html: String) -> ExitCode {
     let tmp = target.with_extension("html.tmp");
     if let Err(e) = std::fs::write(&tmp, html).and_then(|_| std::fs::rename(&tmp, target)) {
         let _ = std::fs::remove_file(&tmp);
-        eprintln!("error: cannot write {}: {e}", target.display());
+        eoutln!("error: cannot write {}: {e}", target.display());
         return ExitCode::from(EXIT_FAILURE);
     }
     outln!("wrote {}", target.display());
@@ -732,7 +749,7 @@ fn cache_command(action: CacheAction) -> ExitCode {
         let _held = match OutputDir::open(&folder) {
             Ok(d) => d,
             Err(e) => {
-                eprintln!("error: {}", esc(&e));
+                eoutln!("error: {}", esc(&e));
                 code = ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE });
                 continue;
             }
@@ -836,7 +853,7 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
@@ -855,14 +872,14 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
         }
         PluginAction::Build { crate_dir, out, target_dir } => {
             let Some(out) = out.or_else(spindlelab::plugins::user_plugin_dir) else {
-                eprintln!("error: no user plugin folder (HOME is not set); give one with --out");
+                eoutln!("error: no user plugin folder (HOME is not set); give one with --out");
                 return ExitCode::from(EXIT_BAD_INPUT);
             };
             let cargo = std::env::var_os("CARGO").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("cargo"));
@@ -873,7 +890,7 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                     match plugins.load(&packed.manifest_path, &Default::default(), &mut registry) {
                         Ok(p) => describe_plugin(&p),
                         Err(e) => {
-                            eprintln!("error: the plugin was built but does not load: {}", esc(&e));
+                            eoutln!("error: the plugin was built but does not load: {}", esc(&e));
                             return ExitCode::from(EXIT_BAD_INPUT);
                         }
                     }
@@ -881,7 +898,7 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {}", esc(&e));
+                    eoutln!("error: {}", esc(&e));
                     ExitCode::from(EXIT_BAD_INPUT)
                 }
             }
@@ -893,7 +910,7 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                 describe_plugin(p);
             }
             for (m, e) in &failed {
-                eprintln!("warning: {}: {}", esc(m.display()), esc(&e));
+                eoutln!("warning: {}: {}", esc(m.display()), esc(&e));
             }
             if ok.is_empty() && failed.is_empty() {
                 let dirs: Vec<String> = plugins.search.iter().map(|d| d.display().to_string()).collect();

@@ -77,6 +77,27 @@ fn a_full_standard_output_ends_the_command_with_one_line_and_exit_code_1() {
 }
 
 #[test]
+fn a_full_standard_error_never_panics_and_the_exit_code_still_tells() {
+    if !Path::new("/dev/full").exists() {
+        eprintln!("skipped: this system has no /dev/full");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = small_recipe(tmp.path());
+    std::fs::write(tmp.path().join("bad.yaml"), "spindlelab: 1\nname: bad\nsteps:\n  a: { kind: no.such }\n").unwrap();
+    for (args, code) in [
+        (vec!["run", recipe.to_str().unwrap(), "-o", "out", "--no-cache", "-q"], 0),
+        (vec!["run", recipe.to_str().unwrap(), "-o", "out", "--no-cache"], 1),
+        (vec!["check", "bad.yaml"], 2),
+        (vec!["run", "bad.yaml"], 2),
+    ] {
+        let full = || std::fs::File::create("/dev/full").unwrap();
+        let o = bin().args(&args).current_dir(tmp.path()).stdout(full()).stderr(full()).output().unwrap();
+        assert_eq!(o.status.code(), Some(code), "{args:?}");
+    }
+}
+
+#[test]
 fn output_names_no_file_system_takes_are_refused_at_their_place_before_anything_runs() {
     let tmp = tempfile::tempdir().unwrap();
     let long_part = "x".repeat(256);
