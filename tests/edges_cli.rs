@@ -181,3 +181,31 @@ fn a_data_file_s_text_reaches_the_terminal_escaped() {
     assert!(err.contains("node `m` failed"), "{err}");
     assert!(err.contains("real=m\\x1b[2K\\r\\x1b[32m\\u{2028}/N"), "the cell is quoted escaped: {err}");
 }
+
+#[test]
+fn a_plugin_pin_that_yaml_reads_as_a_number_asks_for_quotes() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (pin, says) in [
+        ("0".repeat(64), "is read as the number 0, not as text"),
+        ("1234".to_string(), "is read as the number 1234"),
+        ("\"abc\"".to_string(), "must be 64 hexadecimal digits, found 3 characters"),
+    ] {
+        std::fs::write(
+            tmp.path().join("r.yaml"),
+            format!("spindlelab: 1\nname: pins\nplugins:\n  - {{ path: p.plugin.json, sha256: {pin} }}\nsteps: {{}}\n"),
+        )
+        .unwrap();
+        let o = run_in(tmp.path(), &["check", "r.yaml"]);
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says) && err.contains("r.yaml:4:"), "{pin}: {err}");
+    }
+    std::fs::write(
+        tmp.path().join("r.yaml"),
+        "spindlelab: 1\nname: pins\nplugins:\n  - { path: p.plugin.json, version: 1.0 }\nsteps: {}\n",
+    )
+    .unwrap();
+    let o = run_in(tmp.path(), &["check", "r.yaml"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("quote it: `version: \"…\"`"), "{}", text(&o));
+}

@@ -65,6 +65,24 @@ pub fn plugin_refs(raw: &Raw, diags: &mut Diagnostics) -> Vec<PluginRef> {
                         );
                         continue;
                     };
+                    // YAML reads a hash of digits or a version like `1.0` as a number, and
+                    // its text is then lost: ask for quotes instead of comparing the number.
+                    if matches!(k.name.as_str(), "sha256" | "version") && !matches!(v.kind, RawKind::Str(_)) {
+                        diags.error_help(
+                            Some(&v.span),
+                            format!("`{}` of a plugin is read as the number {text}, not as text", k.name),
+                            format!("quote it: `{}: \"…\"`", k.name),
+                        );
+                        continue;
+                    }
+                    if k.name == "sha256" && !(text.len() == 64 && text.bytes().all(|b| b.is_ascii_hexdigit())) {
+                        diags.error_help(
+                            Some(&v.span),
+                            format!("`sha256` of a plugin must be 64 hexadecimal digits, found {} characters", text.chars().count()),
+                            "copy the `sha256` of its manifest, or `spindlelab plugin list` shows it",
+                        );
+                        continue;
+                    }
                     match k.name.as_str() {
                         "id" => r.id = Some(text),
                         "path" => r.path = Some(base.join(text)),
