@@ -668,7 +668,7 @@ fn unit_entries<'a>(m: &Meta<'a>, path: &str) -> Result<Vec<UnitEntry<'a>>, Form
 }
 
 /// A cell's text for a message, cut to 80 characters.
-fn shown_cell(text: &str) -> String {
+pub(crate) fn shown_cell(text: &str) -> String {
     let mut chars = text.chars();
     let head: String = chars.by_ref().take(80).collect();
     if chars.next().is_some() { format!("{head}…") } else { head }
@@ -993,7 +993,10 @@ pub fn read_scalars(bytes: &[u8], path: &str) -> Result<Vec<(Coords, f64, String
 
 /// Each block's coordinates as `name=value, …`.
 pub fn block_names(blocks: &[FrfBlock]) -> Vec<String> {
-    blocks.iter().map(|b| b.coords.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(", ")).collect()
+    blocks
+        .iter()
+        .map(|b| super::listed(b.coords.iter().map(|(k, v)| format!("{}={}", shown_cell(k), shown_cell(v))), ", "))
+        .collect()
 }
 
 /// A `# speed_rpm:` value.

@@ -363,7 +363,10 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     Some(d) if d != want => {
                         return Err(FormatError::Selection {
                             path: shown,
-                            message: format!("the file holds the `{d}` direction, `{want}` was asked for"),
+                            message: format!(
+                                "the file holds the `{}` direction, `{want}` was asked for",
+                                csv::shown_cell(d)
+                            ),
                         });
                     }
                     Some(_) => {}
@@ -453,7 +456,10 @@ pub fn read_receptance(
                     Some(d) if d != want => {
                         return Err(FormatError::Selection {
                             path: shown,
-                            message: format!("the file holds the `{d}` direction, `{want}` was asked for"),
+                            message: format!(
+                                "the file holds the `{}` direction, `{want}` was asked for",
+                                csv::shown_cell(d)
+                            ),
                         });
                     }
                     Some(_) => {}
