@@ -238,3 +238,38 @@ fn mutated_csv_and_uff_files_read_or_fail_without_panicking() {
     });
     assert_no_panic("uff", result);
 }
+
+/// Mutated `case.json` files through the importer, and what it writes through the compiler:
+/// a recipe or an error, never a panic; and a written recipe never gains an output or a step
+/// the case did not ask for (a mutated string cannot inject one).
+#[test]
+fn mutated_cases_import_or_fail_without_panicking_or_injecting() {
+    let registry = spindlelab::registry();
+    let dir = tempfile::tempdir().unwrap();
+    let case = std::fs::read(root().join("tests/data/train_07-case.json")).unwrap();
+    // The case's data beside the recipe, so the written recipe compiles through to its steps.
+    copy_dir(&root().join("tests/data/train-07"), dir.path());
+    copy_dir(&root().join("tests/data/train-07"), &dir.path().join("train-07"));
+    let path = dir.path().join("imported.yaml");
+    let shape = |text: &str| {
+        std::fs::write(&path, text).unwrap();
+        engine::compile_file(&path, &registry).ok().map(|c| (c.recipe.steps.len(), c.recipe.outputs.len()))
+    };
+    let base = shape(&spindlelab::import::recipe_from_case(std::str::from_utf8(&case).unwrap(), "case.json").unwrap())
+        .expect("the case imports and compiles");
+    let (imported, injected) = (std::sync::Mutex::new(0usize), std::sync::Mutex::new(Vec::new()));
+    let result = campaign("cases", &[case], 3000, 0x5eed_0005, |bytes| {
+        let Ok(json) = std::str::from_utf8(bytes) else { return };
+        let Ok(text) = spindlelab::import::recipe_from_case(json, "case.json") else { return };
+        *imported.lock().unwrap() += 1;
+        if let Some((steps, outputs)) = shape(&text)
+            && (steps > base.0 || outputs > base.1)
+        {
+            injected.lock().unwrap().push(json.chars().take(400).collect::<String>());
+        }
+    });
+    println!("cases: {} imported", imported.lock().unwrap());
+    assert_no_panic("cases", result);
+    let injected = injected.into_inner().unwrap();
+    assert!(injected.is_empty(), "{} mutants gained a step or an output; the first:\n{}", injected.len(), injected[0]);
+}
