@@ -553,6 +553,15 @@ pub fn read_time_series(bytes: &[u8], path: &str) -> Result<TimeSeries, FormatEr
                 found: "an empty cell".into(),
             });
         }
+        // A name travels into output headers, plot legends and messages: a control character
+        // (a tab, an escape) would break the files written from it or drive a terminal.
+        if let Some(c) = name.chars().find(|c| c.is_control()) {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, hline, column_of(hraw, at)),
+                expected: "a channel name of printable characters".into(),
+                found: format!("the control character {}", c.escape_unicode()),
+            });
+        }
         if index.insert(name, names.len()).is_some() {
             return Err(FormatError::ChannelMismatch {
                 at: Loc::new(path, hline, column_of(hraw, at)),
@@ -1454,6 +1463,13 @@ pub(crate) mod tests {
             assert_eq!(e.line_column(), (1, 10), "{text}");
             assert!(text.contains(why) && text.contains("a receptance, length per force (`m/N`"), "{text}");
         }
+    }
+
+    #[test]
+    fn a_channel_name_with_a_control_character_is_refused_at_its_place() {
+        let e = read_time_series("# sample_rate: 1000 Hz\nforce,acc\u{1b}[2J\n1,2\n".as_bytes(), "t.csv").unwrap_err();
+        let said = e.to_string();
+        assert!(said.contains("t.csv:2:7") && said.contains("\\u{1b}"), "{said}");
     }
 
     #[test]
