@@ -1,4 +1,6 @@
-//! Compile time of a generated 200-step recipe: parse, resolve, validate and build the graph.
+//! Compile time of a generated 200-step recipe (parse, resolve, validate and build the
+//! graph), and how fast bad recipes are refused: a 50 MB recipe (refused by its size, never
+//! parsed) and a Rhai recipe that never ends (stopped by the operation limit).
 
 #[path = "common/alloc.rs"]
 mod alloc;
@@ -40,5 +42,31 @@ fn bench_compile(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_compile);
+fn bench_refusals(c: &mut Criterion) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let huge = dir.path().join("huge.yaml");
+    let mut text = String::from("spindlelab: 1\nname: huge\nsteps:\n");
+    let mut i = 0;
+    while text.len() < 50 * 1024 * 1024 {
+        let _ = write!(
+            text,
+            "  hit{i}:\n    kind: impact.simulate\n    params: {{ hammer_mass: 0.01 kg, target_mass: 0.1 kg, target_stiffness: 1e7 N/m }}\n"
+        );
+        i += 1;
+    }
+    std::fs::write(&huge, text).expect("write recipe");
+    let forever = dir.path().join("forever.rhai");
+    std::fs::write(&forever, "let x = 0;\nloop {\n    x += 1;\n}\n").expect("write recipe");
+    let registry = spindlelab::registry();
+    let mut g = c.benchmark_group("refuse");
+    g.sample_size(10);
+    for (name, path) in [("50_mb_recipe", &huge), ("endless_rhai", &forever)] {
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(spindlelab::engine::compile_file(black_box(path), &registry).is_err()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_compile, bench_refusals);
 criterion_main!(benches);

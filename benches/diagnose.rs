@@ -16,10 +16,11 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("diagnose");
     group.sample_size(10).measurement_time(Duration::from_secs(60));
     let only = std::env::var("SPINDLELAB_BENCH_CASES").unwrap_or_default();
-    for case in ["train_01", "train_02", "train_03", "train_04", "train_05", "train_06", "train_07", "train_08"] {
-        if !only.is_empty() && !only.split(',').any(|c| c == case) {
-            continue;
-        }
+    let all = ["train_01", "train_02", "train_03", "train_04", "train_05", "train_06", "train_07", "train_08"];
+    let chosen: Vec<&str> =
+        all.into_iter().filter(|case| only.is_empty() || only.split(',').any(|c| c == *case)).collect();
+    assert!(!chosen.is_empty(), "SPINDLELAB_BENCH_CASES={only:?} names no training case (train_01 … train_08)");
+    for case in chosen {
         let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/training").join(case);
         let dir = tempfile::tempdir().expect("temporary folder");
         for entry in std::fs::read_dir(&from).expect("case folder") {

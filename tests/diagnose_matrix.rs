@@ -93,6 +93,7 @@ fn matrix() -> Vec<Case> {
 fn the_synthetic_matrix_is_identified_without_false_alarms() {
     let only = std::env::var("SPINDLELAB_MATRIX_ONLY").unwrap_or_default();
     let cases: Vec<Case> = matrix().into_iter().filter(|c| c.name.contains(&only)).collect();
+    assert!(!cases.is_empty(), "SPINDLELAB_MATRIX_ONLY={only:?} matches no case: nothing would be checked");
     let outcomes: Vec<_> = cases.par_iter().map(score).collect();
     let (identified, false_alarms, _) = summarise(&outcomes);
     let with_effect = outcomes.iter().filter(|o| o.kind != "control").count();

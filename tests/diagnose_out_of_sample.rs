@@ -126,6 +126,7 @@ fn cases() -> Vec<Case> {
 fn out_of_sample_matrix_regression() {
     let only = std::env::var("SPINDLELAB_MATRIX_ONLY").unwrap_or_default();
     let cases: Vec<Case> = cases().into_iter().filter(|c| c.name.contains(&only)).collect();
+    assert!(!cases.is_empty(), "SPINDLELAB_MATRIX_ONLY={only:?} matches no case: nothing would be checked");
     let outcomes: Vec<_> = cases.par_iter().map(score).collect();
     let (identified, false_alarms, _) = summarise(&outcomes);
     // The main parameters of the effects the FRFs carry, and of the cutting coefficients'

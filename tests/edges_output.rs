@@ -114,7 +114,13 @@ fn a_users_file_named_like_an_output_is_refused_before_computing_and_kept() {
         let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
         assert!(o.status.success(), "{}", text(&o));
     }
-    std::fs::write(&recipe, std::fs::read_to_string(&recipe).unwrap().replace("  - { from: \"@hit.force\", file: \"sub/force.csv\" }\n", "")).unwrap();
+    std::fs::write(
+        &recipe,
+        std::fs::read_to_string(&recipe)
+            .unwrap()
+            .replace("  - { from: \"@hit.force\", file: \"sub/force.csv\" }\n", ""),
+    )
+    .unwrap();
     let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(out.join("empty").is_dir(), "the user's empty folder was removed");
@@ -124,11 +130,8 @@ fn a_users_file_named_like_an_output_is_refused_before_computing_and_kept() {
 #[test]
 fn a_name_turns_from_file_to_folder_between_runs_and_back() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [&[(&str, &str)]; 3] = [
-        &[("@impulse.table", "t.csv")],
-        &[("@impulse.table", "t.csv/x.csv")],
-        &[("@impulse.table", "t.csv")],
-    ];
+    let cases: [&[(&str, &str)]; 3] =
+        [&[("@impulse.table", "t.csv")], &[("@impulse.table", "t.csv/x.csv")], &[("@impulse.table", "t.csv")]];
     for (i, outputs) in cases.into_iter().enumerate() {
         let recipe = write_recipe(tmp.path(), outputs);
         let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
@@ -203,10 +206,7 @@ fn a_pipe_named_as_a_plugin_or_its_component_is_refused_not_waited_on() {
     mkfifo(&dir.join("c.wasm"));
     std::fs::write(
         dir.join("p.plugin.json"),
-        format!(
-            r#"{{"id":"p","version":"0.1.0","interface":"0.2.0","wasm":"c.wasm","sha256":"{}"}}"#,
-            "0".repeat(64)
-        ),
+        format!(r#"{{"id":"p","version":"0.1.0","interface":"0.2.0","wasm":"c.wasm","sha256":"{}"}}"#, "0".repeat(64)),
     )
     .unwrap();
     mkfifo(&dir.join("q.plugin.json"));
@@ -235,7 +235,8 @@ fn plan_says_why_a_rerun_remakes_an_uncached_intermediate() {
     let plan = String::from_utf8_lossy(&o.stdout);
     // The impact table is written to a file from the uncached segmenter: it and what feeds it
     // run again, and the plan names the file and the chain; the FRFs come from the cache.
-    let line = |id: &str| plan.lines().find(|l| l.starts_with(id)).unwrap_or_else(|| panic!("{id}: {plan}")).to_string();
+    let line =
+        |id: &str| plan.lines().find(|l| l.starts_with(id)).unwrap_or_else(|| panic!("{id}: {plan}")).to_string();
     assert!(line("records[").contains("the output `impacts.csv` needs it"), "{plan}");
     assert!(line("runout[").contains("`records["), "{plan}");
     assert!(line("frf[").contains("from cache"), "{plan}");
@@ -258,9 +259,12 @@ fn peak_kib(cwd: &Path, args: &[&str]) -> i64 {
 #[test]
 fn threads_beyond_the_cores_do_not_multiply_the_memory_of_large_intermediates() {
     let tmp = tempfile::tempdir().unwrap();
-    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), tmp.path().join("r.yaml")).unwrap();
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), tmp.path().join("r.yaml"))
+        .unwrap();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let at = |j: usize| peak_kib(tmp.path(), &["run", "r.yaml", "-o", &format!("o{j}"), "-q", "--no-cache", "-j", &j.to_string()]);
+    let at = |j: usize| {
+        peak_kib(tmp.path(), &["run", "r.yaml", "-o", &format!("o{j}"), "-q", "--no-cache", "-j", &j.to_string()])
+    };
     let (few, many) = (at(cores), at(8 * cores));
     // Eighteen raw recordings: before the bound, eight times the threads held about twice the memory.
     assert!((many as f64) < 1.3 * few as f64, "-j {cores}: {few} KiB, -j {}: {many} KiB", 8 * cores);

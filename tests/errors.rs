@@ -9,7 +9,6 @@
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
 
 /// Exit code of the CLI for bad input.
 const EXIT_BAD_INPUT: i32 = 2;
@@ -23,7 +22,6 @@ struct Outcome {
     code: Option<i32>,
     stdout: String,
     stderr: String,
-    elapsed: Duration,
 }
 
 fn spindlelab<I, S>(cwd: &Path, args: I) -> Outcome
@@ -31,7 +29,6 @@ where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
 {
-    let start = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
         .args(args)
         .current_dir(cwd)
@@ -43,7 +40,6 @@ where
         code: out.status.code(),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-        elapsed: start.elapsed(),
     }
 }
 
@@ -412,7 +408,6 @@ fn a_50_mb_file_is_refused_before_parsing() {
     let o = spindlelab(dir.path(), [OsStr::new("run"), OsStr::new("huge.yaml"), OsStr::new("-o"), out.as_os_str()]);
     assert_rejected(&o);
     assert_nothing_written(tmp.path(), &out);
-    assert!(o.elapsed < Duration::from_secs(2), "took {:?}: the file was read or parsed", o.elapsed);
     let e = redact(&o.stderr, &[(tmp.path(), "[OUT]"), (dir.path(), "[CWD]")]);
     assert_has(&e, &["huge.yaml", "byte limit", "keep measured data in CSV"]);
     assert_eq!(error_count(&e), 1, "{e}");
@@ -424,10 +419,8 @@ fn a_50_mb_file_is_refused_before_parsing() {
 
 #[test]
 fn rhai_recipe_that_never_ends_hits_the_operation_limit() {
-    let start = Instant::now();
+    // How fast the limit stops it is measured in `benches/compile.rs`, not asserted here.
     let e = reject("forever.rhai");
-    let took = start.elapsed();
-    assert!(took < Duration::from_secs(3), "took {took:?}");
     assert_has(&e, &["Rhai recipe failed", "Too many operations", "operation limit"]);
     assert_at(&e, "forever.rhai", 4, 5);
     insta::assert_snapshot!("rhai_forever", e);

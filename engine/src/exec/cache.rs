@@ -71,10 +71,7 @@ impl Cache {
         let declared = u64::from_le_bytes(bytes[8..16].try_into().expect("eight bytes"));
         let payload = &bytes[HEADER..];
         if declared != payload.len() as u64 {
-            return Lookup::Damaged(format!(
-                "it holds {} bytes where its header declares {declared}",
-                payload.len()
-            ));
+            return Lookup::Damaged(format!("it holds {} bytes where its header declares {declared}", payload.len()));
         }
         if blake3::hash(payload).as_bytes() != &bytes[16..HEADER] {
             return Lookup::Damaged("its checksum does not match its contents".into());

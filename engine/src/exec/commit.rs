@@ -53,7 +53,9 @@ pub enum CommitError {
         "`{path}` is a {what} spindlelab did not write, standing where this run puts an output; it is never replaced: move it away, rename the output, or give this run another folder with -o"
     )]
     NotOurs { path: PathBuf, what: &'static str },
-    #[error("`{0}` is not a regular file (a pipe, a device or a folder); remove it, or give this run another folder with -o")]
+    #[error(
+        "`{0}` is not a regular file (a pipe, a device or a folder); remove it, or give this run another folder with -o"
+    )]
     Special(PathBuf),
     #[error("`{path}`: {source}")]
     Io { path: PathBuf, source: std::io::Error },
@@ -160,7 +162,8 @@ impl OutputDir {
                     let _ = std::fs::remove_dir_all(e.path());
                 } else {
                     let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
-                    let more = if foreign.len() > 5 { format!(" and {} more", foreign.len() - 5) } else { String::new() };
+                    let more =
+                        if foreign.len() > 5 { format!(" and {} more", foreign.len() - 5) } else { String::new() };
                     notes.push(format!(
                         "`{}` was kept: it holds files the run did not write or that were changed after it ({}{more}); move them out and remove the folder",
                         e.path().display(),

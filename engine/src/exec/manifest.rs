@@ -157,7 +157,9 @@ pub enum PlanReason {
     NotNeeded,
     /// Never cached (large outputs that are cheaper to remake), and needed: by the output file
     /// or the uncached instance named.
-    Uncacheable { needed_by: String },
+    Uncacheable {
+        needed_by: String,
+    },
 }
 
 impl std::fmt::Display for PlanReason {

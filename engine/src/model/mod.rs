@@ -73,13 +73,9 @@ impl Recipe {
     pub fn data_files(&self) -> Vec<DataFile<'_>> {
         fn walk<'a>(step: &'a Step, param: &'a str, v: &'a ParamValue, out: &mut Vec<DataFile<'a>>) {
             match v {
-                ParamValue::File { path, hash } => out.push(DataFile {
-                    step: &step.id,
-                    param,
-                    span: step.param_spans.get(param),
-                    path,
-                    hash,
-                }),
+                ParamValue::File { path, hash } => {
+                    out.push(DataFile { step: &step.id, param, span: step.param_spans.get(param), path, hash })
+                }
                 ParamValue::Object(p) => p.values.values().for_each(|v| walk(step, param, v, out)),
                 ParamValue::Objects(ps) => {
                     ps.iter().flat_map(|p| p.values.values()).for_each(|v| walk(step, param, v, out))

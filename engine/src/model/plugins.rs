@@ -78,7 +78,10 @@ pub fn plugin_refs(raw: &Raw, diags: &mut Diagnostics) -> Vec<PluginRef> {
                     if k.name == "sha256" && !(text.len() == 64 && text.bytes().all(|b| b.is_ascii_hexdigit())) {
                         diags.error_help(
                             Some(&v.span),
-                            format!("`sha256` of a plugin must be 64 hexadecimal digits, found {} characters", text.chars().count()),
+                            format!(
+                                "`sha256` of a plugin must be 64 hexadecimal digits, found {} characters",
+                                text.chars().count()
+                            ),
                             "copy the `sha256` of its manifest, or `spindlelab plugin list` shows it",
                         );
                         continue;
