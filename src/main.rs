@@ -909,7 +909,7 @@ fn plugin_command(action: PluginAction, plugins: &mut Plugins) -> ExitCode {
                 describe_plugin(p);
             }
             for (m, e) in &failed {
-                eoutln!("warning: {}: {}", esc(m.display()), esc(&e));
+                eoutln!("warning: {}: {}", esc(m.display()), esc(e));
             }
             if ok.is_empty() && failed.is_empty() {
                 let dirs: Vec<String> = plugins.search.iter().map(|d| d.display().to_string()).collect();

@@ -245,6 +245,8 @@ fn plan_says_why_a_rerun_remakes_an_uncached_intermediate() {
 /// Peak resident memory of one run of the binary, in KiB (from the kernel's account of the
 /// child, not sampled).
 fn peak_kib(cwd: &Path, args: &[&str]) -> i64 {
+    // Reaped by `wait4` below, which also reports its peak memory.
+    #[allow(clippy::zombie_processes)]
     let child = bin().args(args).current_dir(cwd).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
     let mut status = 0;
     // SAFETY: a zeroed rusage is a valid value for wait4 to fill in.

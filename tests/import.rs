@@ -354,7 +354,7 @@ fn no_string_of_a_case_can_change_the_structure_of_its_recipe() {
                     let path: Vec<String> =
                         path.into_iter().map(|p| if p == "{new}" { s.clone() } else { p }).collect();
                     let v = raw_at(&raw, &path).unwrap_or_else(|| panic!("{what}: nothing at {path:?}:\n{text}"));
-                    if !path.last().is_some_and(|p| p == &s) {
+                    if path.last().is_none_or(|p| p != &s) {
                         assert_eq!(v.as_str(), Some(s.as_str()), "{what}: the recipe states another value:\n{text}");
                     }
                     let mut renamed: Vec<String> = base_shape
