@@ -14,6 +14,8 @@
 //! assert_eq!(err.to_string(), "expected a frequency (1/s), found a pressure (Pa)");
 //! ```
 
+#![forbid(unsafe_code)]
+
 mod dimension;
 mod error;
 mod parser;

@@ -1,6 +1,8 @@
 //! The example and fixture plugins of `plugins/guest`, built once for tests and benchmarks:
 //! `dir()` holds `ID.wasm` and `ID.plugin.json` for each of them.
 
+#![forbid(unsafe_code)]
+
 use std::path::Path;
 
 /// The folder holding the built plugins.

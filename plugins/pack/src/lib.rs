@@ -7,6 +7,8 @@
 //! core module a `wasm32-unknown-unknown` build makes into a component (the interface types
 //! travel in the module's custom section, put there by the SDK's bindings).
 
+#![forbid(unsafe_code)]
+
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
