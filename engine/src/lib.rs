@@ -4,6 +4,10 @@
 //! The facade here is what the CLI and tests use: [`compile_file`] collects every
 //! diagnostic before anything runs; [`run`] executes and writes outputs atomically.
 
+// Tests make pipes (mkfifo) to check that they are never waited on; the engine itself holds
+// no unsafe code.
+#![cfg_attr(not(test), forbid(unsafe_code))]
+
 pub mod diag;
 pub mod exec;
 pub mod formats;
