@@ -583,36 +583,36 @@ impl Kernel<'_> {
     /// `K⁻¹` of lines `i..i + LANES` (zero for a rigid joint): a diagonal joint in lanes
     /// (the arithmetic of [`Compliance::at`]), line by line when a lane needs its checks.
     #[inline(always)]
-    fn compliance<V: Lane>(&mut self, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
+    fn compliance<V: Lane>(&mut self, t: V::Token, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
         match comp {
-            None => R4::zero(),
+            None => R4::zero(t),
             Some(Compliance::Diagonal { kt, ct, kr, cr }) if self.lim > 4.0 => {
-                let w = V::splat(TAU) * V::from_array(std::array::from_fn(|l| f[i + l]));
-                let a = C4 { re: V::splat(kt), im: w * V::splat(ct) };
-                let b = C4 { re: V::splat(kr), im: w * V::splat(cr) };
+                let w = V::splat(t, TAU) * V::from_array(t, std::array::from_fn(|l| f[i + l]));
+                let a = C4 { re: V::splat(t, kt), im: w * V::splat(t, ct) };
+                let b = C4 { re: V::splat(t, kr), im: w * V::splat(t, cr) };
                 let (aa, bb) = (a.norm_sqr(), b.norm_sqr());
                 let q = (aa * bb).to_array();
                 if q.iter().all(|&q| (q > 1e-300) & (q < 1e300)) {
-                    let zero = C4::zero();
+                    let zero = C4::zero(t);
                     return R4 { h: a.conj().scale(aa.recip()), l: zero, n: zero, p: b.conj().scale(bb.recip()) };
                 }
-                self.compliance_lines(comp, f, i)
+                self.compliance_lines(t, comp, f, i)
             }
-            Some(_) => self.compliance_lines(comp, f, i),
+            Some(_) => self.compliance_lines(t, comp, f, i),
         }
     }
 
     /// [`Kernel::compliance`] line by line.
     #[cold]
     #[inline(never)]
-    fn compliance_lines<V: Lane>(&mut self, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
+    fn compliance_lines<V: Lane>(&mut self, t: V::Token, comp: Option<Compliance>, f: &[f64], i: usize) -> R4<V> {
         let mut k = [Receptance::ZERO; LANES];
         if let Some(c) = comp {
             for (l, k) in k.iter_mut().enumerate() {
                 *k = c.at(f[i + l], self.lim, self.kdiag);
             }
         }
-        R4::from_blocks(&k)
+        R4::from_blocks(t, &k)
     }
 
     /// `m⁻¹` by the scalar path, recording a line it turns away.
@@ -628,12 +628,12 @@ impl Kernel<'_> {
         let n = f.len();
         let whole = n - n % LANES;
         for i in (0..whole).step_by(LANES) {
-            let k: R4<I::V> = self.compliance(comp, f, i);
+            let k: R4<I::V> = self.compliance(io, comp, f, i);
             let m = match comp {
                 Some(_) => (io.load(r22, i) + k) + io.load(b, i),
                 None => io.load(r22, i) + io.load(b, i),
             };
-            if let Some(x) = m.try_invert(self.lim) {
+            if let Some(x) = m.try_invert(io, self.lim) {
                 io.store(&(io.load(r11, i) - (io.load(r12, i) * x) * io.load(r21, i)), self.out);
             } else {
                 for l in 0..LANES {
@@ -659,9 +659,9 @@ impl Kernel<'_> {
         let n = f.len();
         let whole = n - n % LANES;
         for i in (0..whole).step_by(LANES) {
-            let k: R4<I::V> = self.compliance(comp, f, i);
+            let k: R4<I::V> = self.compliance(io, comp, f, i);
             let m = io.load(r11, i) - io.load(g, i);
-            if let Some(x) = m.try_invert(self.lim) {
+            if let Some(x) = m.try_invert(io, self.lim) {
                 let v = (io.load(r21, i) * x) * io.load(r12, i) - io.load(r22, i);
                 match comp {
                     Some(_) => io.store(&(v - k), self.out),

@@ -8,6 +8,10 @@
 //! only the register type gets four-wide arithmetic). An [`Io`] reads blocks into lanes and
 //! writes them back (with AVX, each complex entry of four blocks is two 128-bit loads, two
 //! inserts and one unpack pair).
+//!
+//! Soundness by construction: a lane is made only from its [`Lane::Token`] (the `Io` itself)
+//! or from other lanes, and [`AvxIo::detect`] is the only way to an `AvxIo`; so an AVX lane
+//! exists only on a CPU with AVX, whoever can name the type.
 
 use super::Receptance;
 use num_complex::Complex64;
@@ -20,8 +24,10 @@ pub(super) const LANES: usize = 4;
 pub(super) trait Lane:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
 {
-    fn splat(x: f64) -> Self;
-    fn from_array(a: [f64; LANES]) -> Self;
+    /// What a new lane is made from: the proof that the CPU runs this lane type.
+    type Token: Copy;
+    fn splat(t: Self::Token, x: f64) -> Self;
+    fn from_array(t: Self::Token, a: [f64; LANES]) -> Self;
     fn to_array(self) -> [f64; LANES];
     fn sqrt(self) -> Self;
     /// `1 / self`.
@@ -74,12 +80,13 @@ impl Neg for P4 {
 }
 
 impl Lane for P4 {
+    type Token = PortableIo;
     #[inline(always)]
-    fn splat(x: f64) -> P4 {
+    fn splat(_: PortableIo, x: f64) -> P4 {
         P4([x; LANES])
     }
     #[inline(always)]
-    fn from_array(a: [f64; LANES]) -> P4 {
+    fn from_array(_: PortableIo, a: [f64; LANES]) -> P4 {
         P4(a)
     }
     #[inline(always)]
@@ -110,13 +117,13 @@ pub(super) struct C4<V> {
 
 impl<V: Lane> C4<V> {
     #[inline(always)]
-    pub(super) fn zero() -> Self {
-        C4 { re: V::splat(0.0), im: V::splat(0.0) }
+    pub(super) fn zero(t: V::Token) -> Self {
+        C4 { re: V::splat(t, 0.0), im: V::splat(t, 0.0) }
     }
 
     #[inline(always)]
-    fn from_fn(f: impl Fn(usize) -> Complex64) -> Self {
-        C4 { re: V::from_array(each(|l| f(l).re)), im: V::from_array(each(|l| f(l).im)) }
+    fn from_fn(t: V::Token, f: impl Fn(usize) -> Complex64) -> Self {
+        C4 { re: V::from_array(t, each(|l| f(l).re)), im: V::from_array(t, each(|l| f(l).im)) }
     }
 
     #[inline(always)]
@@ -184,10 +191,11 @@ pub(super) struct R4<V> {
     pub(super) p: C4<V>,
 }
 
-/// Reads lane groups from blocks and writes them back.
+/// Reads lane groups from blocks and writes them back; it is also the token its lanes are
+/// made from.
 pub(super) trait Io: Copy {
     /// The lane type.
-    type V: Lane;
+    type V: Lane<Token = Self>;
     /// Lines `at..at + LANES` of `r`.
     fn load(self, r: &[Receptance], at: usize) -> R4<Self::V>;
     /// Appends the four blocks of `v` to `out`.
@@ -203,7 +211,7 @@ impl Io for PortableIo {
 
     #[inline(always)]
     fn load(self, r: &[Receptance], at: usize) -> R4<P4> {
-        R4::from_blocks(&r[at..at + LANES])
+        R4::from_blocks(self, &r[at..at + LANES])
     }
 
     #[inline(always)]
@@ -214,8 +222,8 @@ impl Io for PortableIo {
     }
 }
 
-/// With AVX. Only [`AvxIo::detect`] makes one, and only an `AvxIo` makes an [`avx::A4`]
-/// (its loads), so holding either proves the CPU has AVX.
+/// With AVX. Only [`AvxIo::detect`] makes one (its field is private to this module), and
+/// every constructor of an [`avx::A4`] takes one, so holding either proves the CPU has AVX.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(super) struct AvxIo(());
@@ -234,8 +242,9 @@ pub(super) mod avx {
     use std::arch::x86_64::*;
     use std::ops::{Add, Mul, Neg, Sub};
 
-    /// Four f64 in one AVX register. Every value of this type descends from an
-    /// [`super::AvxIo`], so the CPU running its operations has AVX.
+    /// Four f64 in one AVX register. Its constructors take an [`super::AvxIo`] and its
+    /// operations take other `A4`s, so every value descends from an `AvxIo`: the CPU running
+    /// its operations has AVX.
     #[derive(Clone, Copy)]
     pub(in super::super) struct A4(__m256d);
 
@@ -265,14 +274,15 @@ pub(super) mod avx {
     }
 
     impl Lane for A4 {
+        type Token = super::AvxIo;
         #[inline(always)]
-        fn splat(x: f64) -> A4 {
-            // SAFETY: reached only from kernels running on an `AvxIo` (type docs).
+        fn splat(_: super::AvxIo, x: f64) -> A4 {
+            // SAFETY: the `AvxIo` proves AVX.
             A4(unsafe { _mm256_set1_pd(x) })
         }
         #[inline(always)]
-        fn from_array(a: [f64; LANES]) -> A4 {
-            // SAFETY: as above; the array is read unaligned.
+        fn from_array(_: super::AvxIo, a: [f64; LANES]) -> A4 {
+            // SAFETY: the `AvxIo` proves AVX; the array is read unaligned.
             A4(unsafe { _mm256_loadu_pd(a.as_ptr()) })
         }
         #[inline(always)]
@@ -374,18 +384,18 @@ pub(super) mod avx {
 impl<V: Lane> R4<V> {
     /// Four zero blocks.
     #[inline(always)]
-    pub(super) fn zero() -> Self {
-        R4 { h: C4::zero(), l: C4::zero(), n: C4::zero(), p: C4::zero() }
+    pub(super) fn zero(t: V::Token) -> Self {
+        R4 { h: C4::zero(t), l: C4::zero(t), n: C4::zero(t), p: C4::zero(t) }
     }
 
     /// The first four blocks of `r`, element by element.
     #[inline(always)]
-    pub(super) fn from_blocks(r: &[Receptance]) -> Self {
+    pub(super) fn from_blocks(t: V::Token, r: &[Receptance]) -> Self {
         R4 {
-            h: C4::from_fn(|l| r[l].h),
-            l: C4::from_fn(|l| r[l].l),
-            n: C4::from_fn(|l| r[l].n),
-            p: C4::from_fn(|l| r[l].p),
+            h: C4::from_fn(t, |l| r[l].h),
+            l: C4::from_fn(t, |l| r[l].l),
+            n: C4::from_fn(t, |l| r[l].n),
+            p: C4::from_fn(t, |l| r[l].p),
         }
     }
 
@@ -399,20 +409,20 @@ impl<V: Lane> R4<V> {
     /// and the same arithmetic); `None` otherwise. Every lane is computed and the verdicts are
     /// combined at the end, so the work stays in vectors.
     #[inline(always)]
-    pub(super) fn try_invert(&self, half_limit_sq: f64) -> Option<Self> {
+    pub(super) fn try_invert(&self, t: V::Token, half_limit_sq: f64) -> Option<Self> {
         let det = self.h * self.p - self.l * self.n;
         let dd = det.norm_sqr();
         let (hh, pp) = (self.h.norm_sqr(), self.p.norm_sqr());
         let (ll, nn) = (self.l.norm_sqr(), self.n.norm_sqr());
         let s = (hh * pp).sqrt();
-        let bound = V::splat(2.0) * s + ll + nn;
+        let bound = V::splat(t, 2.0) * s + ll + nn;
         let rn = dd.recip();
         let r = C4 { re: det.re * rn, im: -det.im * rn };
         let inv = R4 { h: self.p * r, l: -self.l * r, n: -self.n * r, p: self.h * r };
         // `x · 0` is 0 for finite `x` and NaN otherwise.
-        let o = V::splat(0.0);
-        let zero = [inv.h, inv.l, inv.n, inv.p].iter().fold(V::splat(0.0), |acc, v| acc + v.re * o + v.im * o);
-        V::all_fine(s, bound * bound, V::splat(half_limit_sq) * dd, dd, zero).then_some(inv)
+        let o = V::splat(t, 0.0);
+        let zero = [inv.h, inv.l, inv.n, inv.p].iter().fold(o, |acc, v| acc + v.re * o + v.im * o);
+        V::all_fine(s, bound * bound, V::splat(t, half_limit_sq) * dd, dd, zero).then_some(inv)
     }
 }
 
