@@ -365,6 +365,26 @@ fn command(cli: Cli) -> ExitCode {
     let mut plugins = Plugins::new(&cli.plugin);
     match cli.command {
         Command::Check { recipe, set } => match compile_with(&recipe, &set, &mut registry, &mut plugins) {
+            Ok(c) if c.recipe.library => {
+                let r = &c.recipe;
+                let counts: Vec<String> = [
+                    (r.materials.len(), "material", "materials"),
+                    (r.machines.len(), "machine", "machines"),
+                    (r.assemblies.len(), "assembly", "assemblies"),
+                    (r.sensors.len(), "sensor", "sensors"),
+                    (r.cutting.len(), "cutting setup", "cutting setups"),
+                ]
+                .iter()
+                .filter(|(n, ..)| *n > 0)
+                .map(|(n, one, many)| format!("{n} {}", if *n == 1 { one } else { many }))
+                .collect();
+                outln!(
+                    "{}: ok — library of {}",
+                    recipe.display(),
+                    if counts.is_empty() { "nothing".into() } else { counts.join(", ") }
+                );
+                ExitCode::SUCCESS
+            }
             Ok(c) => {
                 outln!(
                     "{}: ok — {} steps, {} node instances, {} outputs",
@@ -518,6 +538,14 @@ fn command(cli: Cli) -> ExitCode {
         Command::Run { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report } => {
             let threads = clamp_threads(threads);
             let mut c = match compile_with(&recipe, &set, &mut registry, &mut plugins) {
+                Ok(c) if c.recipe.library => {
+                    eoutln!(
+                        "error: {} is a library (entities only): nothing to run; `use` it from a recipe (`use: [{}]`), or `spindlelab check` it",
+                        esc(recipe.display()),
+                        esc(recipe.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default())
+                    );
+                    return ExitCode::from(EXIT_BAD_INPUT);
+                }
                 Ok(c) => c,
                 Err(code) => return code,
             };

@@ -148,7 +148,7 @@ pub fn compile_file(
 ) -> Result<Compiled, CompileError> {
     let mut diags = Diagnostics::new();
     let loaded = syntax::load_file(path, &mut diags);
-    let sources: Vec<SourceFile> = loaded.iter().map(|l| l.file.clone()).collect();
+    let sources: Vec<SourceFile> = loaded.iter().flat_map(|l| l.sources()).collect();
     let Some(raw) = loaded.and_then(|l| l.raw) else {
         diags.sort();
         return Err(CompileError { diagnostics: diags, sources });

@@ -42,6 +42,18 @@ pub struct Compiled {
     pub warnings: Diagnostics,
 }
 
+impl Compiled {
+    /// Every file the recipe took something from besides itself (libraries, recipes run as
+    /// steps, Rhai modules), as shown, with the BLAKE3 hash of what was read.
+    pub fn used_files(&self) -> indexmap::IndexMap<String, String> {
+        self.sources
+            .iter()
+            .skip(1)
+            .map(|s| (s.path.to_string(), blake3::hash(s.text.as_bytes()).to_hex().to_string()))
+            .collect()
+    }
+}
+
 /// A recipe that did not compile, with every diagnostic found.
 #[derive(Debug)]
 pub struct CompileError {
@@ -76,7 +88,7 @@ pub fn compile_file_with(
 ) -> Result<Compiled, CompileError> {
     let mut diags = Diagnostics::new();
     let loaded = syntax::load_file(path, &mut diags);
-    let sources: Vec<SourceFile> = loaded.iter().map(|l| l.file.clone()).collect();
+    let sources: Vec<SourceFile> = loaded.iter().flat_map(|l| l.sources()).collect();
     let raw = loaded.and_then(|l| l.raw);
     match raw {
         Some(raw) => compile_raw(path, raw, overrides, sources, registry, diags),
@@ -87,17 +99,28 @@ pub fn compile_file_with(
     }
 }
 
-/// Resolves and compiles a loaded raw tree with parameter overrides. A fit calls it once
-/// per evaluation, so nothing here reads the recipe file again.
+/// Resolves and compiles a loaded raw tree with parameter overrides. The libraries it uses
+/// and the recipes it runs as steps are read and expanded first (their files added to
+/// `sources`); the tree kept in [`Compiled::raw`] is the expanded one, so a fit, which calls
+/// this once per evaluation, reads no file again.
 pub fn compile_raw(
     path: &Path,
     raw: syntax::Raw,
     overrides: &[(String, String)],
-    sources: Vec<SourceFile>,
+    mut sources: Vec<SourceFile>,
     registry: &Registry,
     mut diags: Diagnostics,
 ) -> Result<Compiled, CompileError> {
-    let recipe = model::resolve(&raw, overrides, registry, &mut diags);
+    let expanded = model::expand(raw, registry, &mut sources, &mut diags);
+    let (raw, library) = (expanded.raw, expanded.library);
+    if diags.has_errors() {
+        diags.sort();
+        return Err(CompileError { diagnostics: diags, sources });
+    }
+    let recipe = model::resolve(&raw, overrides, registry, &mut diags).map(|mut r| {
+        r.library = library;
+        r
+    });
     let graph = recipe.as_ref().filter(|_| !diags.has_errors()).map(|r| graph::compile(r, registry, &mut diags));
     diags.sort();
     match (recipe, graph) {
@@ -228,6 +251,7 @@ pub fn run(
     manifest.notes.extend(dir.notes().iter().cloned());
     manifest.notes.extend(plot_notes);
     manifest.recipe_text = compiled.sources.first().map(|s| s.text.to_string()).unwrap_or_default();
+    manifest.recipe_files = compiled.used_files();
     manifest.files = staged.files().iter().cloned().collect();
     if opts.report {
         let html = report::html(&manifest, Some(&manifest.recipe_text), &contents);

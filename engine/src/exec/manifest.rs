@@ -55,6 +55,15 @@ pub struct Manifest {
     /// the BLAKE3 hash of what was read.
     #[serde(default, skip_serializing_if = "IndexMap::is_empty")]
     pub data_files: IndexMap<String, String>,
+    /// Every file the recipe took something from besides itself (the libraries it uses, the
+    /// recipes it runs as steps, the modules a Rhai recipe imports), as shown, with the BLAKE3
+    /// hash of what was read.
+    #[serde(default, skip_serializing_if = "IndexMap::is_empty")]
+    pub recipe_files: IndexMap<String, String>,
+    /// The digest of every entity (`assemblies.artifact`), so the next plan can say which
+    /// entity changed, and in which file.
+    #[serde(default, skip_serializing_if = "IndexMap::is_empty")]
+    pub entities: IndexMap<String, String>,
     /// What the run noticed about itself (cache entries it could not use and recomputed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
@@ -124,6 +133,12 @@ impl Manifest {
                 .into_iter()
                 .map(|f| (f.path.display().to_string(), f.hash.to_string()))
                 .collect(),
+            recipe_files: IndexMap::new(),
+            entities: recipe
+                .entity_digests
+                .iter()
+                .map(|((kind, name), d)| (Recipe::entity_label(*kind, name), d.clone()))
+                .collect(),
             notes: result.notes.clone(),
         }
     }
@@ -150,6 +165,12 @@ pub enum PlanReason {
         to: u32,
     },
     ChangedParams(Vec<String>),
+    /// Changed parameters naming entities whose contents changed, with the files they are
+    /// defined in (a library the recipe uses, or the recipe itself).
+    ChangedIn {
+        params: Vec<String>,
+        files: Vec<String>,
+    },
     ChangedInputs(Vec<String>),
     /// The previous run did not finish it, or the cache was cleared or bypassed.
     NotInCache,
@@ -172,6 +193,12 @@ impl std::fmt::Display for PlanReason {
                 f,
                 "run: changed parameter {}",
                 p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")
+            ),
+            PlanReason::ChangedIn { params, files } => write!(
+                f,
+                "run: changed parameter {} (changed in {})",
+                params.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", "),
+                files.join(", ")
             ),
             PlanReason::ChangedInputs(p) => {
                 write!(f, "run: changed input {}", p.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", "))
@@ -207,6 +234,61 @@ fn needed_by(recipe: &Recipe, graph: &Graph, i: usize, needed: &[bool], cached: 
         .skip(i + 1)
         .find(|(j, inst)| needed[*j] && !cached[*j] && inst.deps().any(|d| d == i))
         .map_or_else(|| "the run (nothing consumes it)".to_string(), |(_, inst)| format!("`{}`", inst.id))
+}
+
+fn prev_entities(m: Option<&Manifest>) -> IndexMap<String, String> {
+    m.map(|m| m.entities.clone()).unwrap_or_default()
+}
+
+/// The files in which the entities named by `inst`'s changed parameters changed: an entity
+/// whose digest differs from the previous run's, and which names no entity that changed
+/// (an assembly is not what changed when only its material did).
+fn changed_in(
+    recipe: &Recipe,
+    inst: &crate::graph::Instance,
+    changed: &[String],
+    prev: &IndexMap<String, String>,
+) -> Vec<String> {
+    use crate::spec::{EntityKind, ParamValue};
+    fn named(v: &ParamValue, out: &mut Vec<(EntityKind, String)>) {
+        match v {
+            ParamValue::Entity { kind, name } => out.push((*kind, name.clone())),
+            ParamValue::Object(p) => p.values.values().for_each(|v| named(v, out)),
+            ParamValue::Objects(ps) => ps.iter().flat_map(|p| p.values.values()).for_each(|v| named(v, out)),
+            ParamValue::Map(m) => m.values().for_each(|v| named(v, out)),
+            _ => {}
+        }
+    }
+    if prev.is_empty() {
+        return Vec::new();
+    }
+    let differs = |k: EntityKind, n: &str| {
+        let now = recipe.entity_digest(k, n);
+        now.is_some() && prev.get(&Recipe::entity_label(k, n)) != now.as_ref()
+    };
+    let mut files: Vec<String> = Vec::new();
+    for p in changed {
+        let mut direct = Vec::new();
+        if let Some(v) = inst.params.values.get(p) {
+            named(v, &mut direct);
+        }
+        for (k, n) in direct {
+            for (ek, en) in recipe.entity_closure(k, &n) {
+                let own_change = differs(ek, &en)
+                    && recipe
+                        .entity_origins
+                        .get(&(ek, en.clone()))
+                        .is_none_or(|o| !o.names.iter().any(|(nk, nn)| differs(*nk, nn)));
+                if own_change
+                    && let Some(o) = recipe.entity_origins.get(&(ek, en.clone()))
+                    && !files.contains(&o.file)
+                {
+                    files.push(o.file.clone());
+                }
+            }
+        }
+    }
+    files
 }
 
 /// Says, without running anything, which instances would run and why.
@@ -253,7 +335,10 @@ pub fn plan(
                             .map(|(k, _)| k.clone())
                             .collect();
                         changed.extend(prev.params.keys().filter(|k| !inst.param_digests.contains_key(*k)).cloned());
-                        if !changed.is_empty() {
+                        let files = changed_in(recipe, inst, &changed, &prev_entities(previous.as_ref()));
+                        if !changed.is_empty() && !files.is_empty() {
+                            PlanReason::ChangedIn { params: changed, files }
+                        } else if !changed.is_empty() {
                             PlanReason::ChangedParams(changed)
                         } else {
                             let now = input_keys(graph, i);

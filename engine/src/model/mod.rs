@@ -9,6 +9,7 @@ mod measurements;
 mod params;
 mod plugins;
 mod resolve;
+mod reuse;
 
 pub use entities::{
     Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
@@ -18,6 +19,8 @@ pub use fit::{FitMethod, FitScale, FitSpec, FreeParam};
 pub use params::{ParamQuantity, Parameter, command_line_span};
 pub use plugins::{PluginRef, plugin_refs};
 pub use resolve::resolve;
+pub(crate) use reuse::source_folder;
+pub use reuse::{Expanded, INPUTS, RECIPE_KIND, expand, is_library, library_search_path};
 
 use crate::diag::Span;
 use crate::spec::{EntityKind, ParamValue, Params};
@@ -35,6 +38,11 @@ pub struct Recipe {
     pub hash: String,
     /// Digest of each entity's contents (see [`Recipe::entity_digest`]).
     pub entity_digests: IndexMap<(EntityKind, String), String>,
+    /// Where each entity is defined (the recipe, or a file it uses) and the entities it names,
+    /// so a plan can say in which file a changed entity changed.
+    pub entity_origins: IndexMap<(EntityKind, String), EntityOrigin>,
+    /// The file holds entities only (a library checked on its own): nothing to run.
+    pub library: bool,
     pub materials: IndexMap<String, Material>,
     pub machines: IndexMap<String, Machine>,
     pub assemblies: IndexMap<String, Assembly>,
@@ -48,6 +56,14 @@ pub struct Recipe {
     pub params: IndexMap<String, Parameter>,
     /// The `fit:` block, when the recipe has one.
     pub fit: Option<FitSpec>,
+}
+
+/// Where an entity is defined and which entities it names.
+#[derive(Debug, Clone, Default)]
+pub struct EntityOrigin {
+    /// The file, as shown in messages.
+    pub file: String,
+    pub names: Vec<(EntityKind, String)>,
 }
 
 /// A data file a recipe reads: where it was named and what was read.
@@ -100,6 +116,28 @@ impl Recipe {
     /// it beside the entity's name, so editing a material reruns the steps that use it.
     pub fn entity_digest(&self, kind: EntityKind, name: &str) -> Option<String> {
         self.entity_digests.get(&(kind, name.to_string())).cloned()
+    }
+
+    /// `materials.steel`: how the manifest names an entity.
+    pub fn entity_label(kind: EntityKind, name: &str) -> String {
+        format!("{}.{name}", kind.section())
+    }
+
+    /// The entity and every entity it names, directly or through others.
+    pub fn entity_closure(&self, kind: EntityKind, name: &str) -> Vec<(EntityKind, String)> {
+        let mut out: Vec<(EntityKind, String)> = vec![(kind, name.to_string())];
+        let mut i = 0;
+        while i < out.len() {
+            if let Some(o) = self.entity_origins.get(&out[i]) {
+                for n in &o.names {
+                    if !out.contains(n) {
+                        out.push(n.clone());
+                    }
+                }
+            }
+            i += 1;
+        }
+        out
     }
 }
 

@@ -29,6 +29,7 @@ const TOP_KEYS: &[&str] = &[
     "fit",
     "measurements",
     "plugins",
+    "exports",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
 const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];
@@ -67,6 +68,12 @@ fn valid_name(s: &str) -> bool {
     let mut chars = s.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// A step name: a name, or names joined by `/` for the steps of a recipe run as a step
+/// (`tap/segment`); a file's own step names cannot hold `/` (see `reuse`).
+fn valid_step_name(s: &str) -> bool {
+    s.split('/').all(valid_name)
 }
 
 fn unknown_keys(raw: &Raw, known: &[&str], what: &str, diags: &mut Diagnostics) {
@@ -188,6 +195,7 @@ pub fn resolve(
         .map(|m| m.iter().map(|(k, _)| k.name.clone()).collect())
         .unwrap_or_default();
     let outputs = resolve_outputs(raw.get("outputs"), &steps, &step_names, registry, diags);
+    check_exports(raw.get("exports"), &steps, &step_names, registry, diags);
     check_cycles(&steps, diags);
     let fit = raw.get("fit").and_then(|f| super::fit::resolve_fit(f, &params, &steps, registry, diags));
 
@@ -198,11 +206,24 @@ pub fn resolve(
     raw.canonical(&mut canonical);
     let hash = blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string();
     let entity_digests = entity_digests(&checked);
+    let mut entity_origins = IndexMap::new();
+    for kind in EntityKind::ALL {
+        for (k, _) in raw.get(kind.section()).and_then(Raw::as_map).unwrap_or(&[]) {
+            let mut names = Vec::new();
+            if let Some(p) = checked[&kind].get(&k.name) {
+                p.values.values().for_each(|v| entity_names(v, &mut names));
+            }
+            let file = k.span.file.split(" (at ").next().unwrap_or(&k.span.file).to_string();
+            entity_origins.insert((kind, k.name.clone()), super::EntityOrigin { file, names });
+        }
+    }
     Some(Recipe {
         name,
         description,
         hash,
         entity_digests,
+        entity_origins,
+        library: false,
         machines: checked[&EntityKind::Machine]
             .iter()
             .map(|(n, p)| (n.clone(), build_machine(p, &materials)))
@@ -220,6 +241,19 @@ pub fn resolve(
         params,
         fit,
     })
+}
+
+/// The entities a checked value names, nested objects included.
+fn entity_names(v: &ParamValue, out: &mut Vec<(EntityKind, String)>) {
+    match v {
+        ParamValue::Entity { kind, name } if !out.iter().any(|(k, n)| k == kind && n == name) => {
+            out.push((*kind, name.clone()));
+        }
+        ParamValue::Object(p) => p.values.values().for_each(|v| entity_names(v, out)),
+        ParamValue::Objects(ps) => ps.iter().flat_map(|p| p.values.values()).for_each(|v| entity_names(v, out)),
+        ParamValue::Map(m) => m.values().for_each(|v| entity_names(v, out)),
+        _ => {}
+    }
 }
 
 /// The digest of every entity's contents, the entities it names included (an assembly's
@@ -540,8 +574,8 @@ fn build_cutting(p: &Params) -> Cutting {
 /// Parses `@step.port` (the `@` may be left out where only a reference makes sense).
 pub(super) fn parse_port_ref(text: &str) -> Option<PortRef> {
     let t = text.trim().strip_prefix('@').unwrap_or(text.trim());
-    let (step, port) = t.split_once('.')?;
-    (valid_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
+    let (step, port) = t.rsplit_once('.')?;
+    (valid_step_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
 }
 
 fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx, diags: &mut Diagnostics) -> Vec<Step> {
@@ -565,8 +599,13 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         .collect();
     let mut steps = Vec::new();
     for (key, sraw) in entries {
+        // File parameters are relative to the file the step is written in (a recipe run as a
+        // step reads its data beside itself).
+        let folder = super::source_folder(&key.span.file);
+        let step_ctx = Ctx { entities: ctx.entities, base_dir: Some(&folder) };
+        let ctx = &step_ctx;
         let id = key.name.clone();
-        if !valid_name(&id) {
+        if !valid_step_name(&id) {
             diags.error_help(
                 Some(&key.span),
                 format!("`{id}` is not a valid step name"),
@@ -1060,6 +1099,57 @@ fn resolve_outputs(
         });
     }
     outputs
+}
+
+/// A recipe's `exports` (what it hands back when run as a step) name outputs of its steps.
+fn check_exports(
+    raw: Option<&Raw>,
+    steps: &[Step],
+    step_names: &[String],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) {
+    let Some(raw) = raw else { return };
+    let Some(entries) = raw.as_map() else {
+        diags.error_help(
+            Some(&raw.span),
+            "`exports` must map names to step outputs",
+            "write `exports: { frf: \"@estimate.frf\" }`",
+        );
+        return;
+    };
+    for (k, v) in entries {
+        if !valid_name(&k.name) {
+            diags.error_help(
+                Some(&k.span),
+                format!("`{}` is not a valid export name", k.name),
+                "use letters, digits, `_` and `-`",
+            );
+        }
+        let Some(r) = v.as_str().and_then(parse_port_ref) else {
+            diags.error_help(Some(&v.span), format!("export `{}` must be a reference", k.name), "write `@step.port`");
+            continue;
+        };
+        match steps.iter().find(|s| s.id == r.step) {
+            Some(step) => {
+                let spec = registry.get(&step.kind).expect("checked kind").spec();
+                if spec.output(&r.port).is_none() {
+                    let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
+                    diags.error_help(
+                        Some(&v.span),
+                        format!("step `{}` has no output `{}`", r.step, r.port),
+                        format!("its outputs: {}", known.join(", ")),
+                    );
+                }
+            }
+            None if step_names.contains(&r.step) => {}
+            None => diags.error_help(
+                Some(&v.span),
+                format!("dangling reference `{r}`: there is no step `{}`", r.step),
+                format!("steps: {}", step_names.join(", ")),
+            ),
+        }
+    }
 }
 
 /// Reports every dependency cycle among steps, naming the steps in it.

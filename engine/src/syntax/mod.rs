@@ -10,7 +10,7 @@ mod yaml;
 pub use raw::{Key, Raw, RawKind};
 /// The Rhai crate, so nodes that evaluate expressions use the same version and sandbox.
 pub use rhai;
-pub use rhai_recipe::{RhaiLimits, load_rhai, sandboxed_engine};
+pub use rhai_recipe::{RecipeModules, RhaiLimits, load_rhai, load_rhai_with_modules, sandboxed_engine};
 pub use yaml::load_yaml;
 
 use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
@@ -24,6 +24,15 @@ pub const MAX_RECIPE_BYTES: u64 = 4 * 1024 * 1024;
 pub struct LoadedSource {
     pub file: SourceFile,
     pub raw: Option<Raw>,
+    /// The modules a Rhai recipe imported, in the order read.
+    pub modules: Vec<SourceFile>,
+}
+
+impl LoadedSource {
+    /// The recipe file and every module it imported, as diagnostics quote them.
+    pub fn sources(&self) -> Vec<SourceFile> {
+        std::iter::once(self.file.clone()).chain(self.modules.iter().cloned()).collect()
+    }
 }
 
 enum RecipeRead {
@@ -93,6 +102,10 @@ pub fn load_file(path: &Path, diags: &mut Diagnostics) -> Option<LoadedSource> {
     };
     let file = SourceFile { path: shown, text: Arc::from(text) };
     let is_rhai = path.extension().is_some_and(|e| e == "rhai");
-    let raw = if is_rhai { load_rhai(&file, &RhaiLimits::default(), diags) } else { load_yaml(&file, diags) };
-    Some(LoadedSource { file, raw })
+    let (raw, modules) = if is_rhai {
+        load_rhai_with_modules(&file, &RhaiLimits::default(), diags)
+    } else {
+        (load_yaml(&file, diags), Vec::new())
+    };
+    Some(LoadedSource { file, raw, modules })
 }

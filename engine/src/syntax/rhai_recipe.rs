@@ -1,13 +1,18 @@
 //! Rhai recipes: a script that builds the same raw recipe a YAML file would, with loops and functions.
 //!
 //! The script runs at compile time in a sandbox: bounded operations, call depth, string,
-//! array and map sizes; no file, network or module access; `print` and `debug` are muted.
-//! Its result (an object map) becomes the raw tree, so caching keys on what it built.
+//! array and map sizes; no file or network access; `print` and `debug` are muted. It may
+//! `import` `.rhai` files from its own folder and the folders below it ([`RecipeModules`]),
+//! under the same limits. Its result (an object map) becomes the raw tree, so caching keys on
+//! what it built.
 
 use super::raw::{Key, Raw, RawKind};
 use crate::diag::{Diagnostic, Diagnostics, SourceFile, Span};
 use rhai::{Dynamic, Engine, EvalAltResult, Position};
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
+use std::rc::Rc;
+use std::sync::{Arc, Mutex};
 
 /// Resource limits for a Rhai recipe or a Rhai step expression.
 #[derive(Debug, Clone)]
@@ -33,7 +38,8 @@ impl Default for RhaiLimits {
     }
 }
 
-/// A Rhai engine with the sandbox limits set, no module loading and muted output.
+/// A Rhai engine with the sandbox limits set, no module loading and muted output (a recipe's
+/// engine is given [`RecipeModules`] in place of the resolver that refuses every import).
 pub fn sandboxed_engine(limits: &RhaiLimits) -> Engine {
     let mut engine = Engine::new();
     engine.set_max_operations(limits.max_operations);
@@ -69,9 +75,187 @@ fn position_span(file: &Arc<str>, pos: Position) -> Span {
     }
 }
 
+/// The modules a Rhai recipe may import: `.rhai` files in its own folder and the folders
+/// below it, named by a relative path without `..` (`import "lib/helpers" as h;`). Anything
+/// else (an absolute path, a URL, a folder, a link that leads out of the folder) is refused.
+/// A module runs once, in the importing script's engine, under the same limits.
+pub struct RecipeModules {
+    /// The recipe's folder as the user named it (for messages) and as the system resolves it.
+    shown_root: PathBuf,
+    root: Option<PathBuf>,
+    state: Mutex<ModuleState>,
+}
+
+#[derive(Default)]
+struct ModuleState {
+    /// Modules evaluated, by relative path, so a module imported twice runs once.
+    done: HashMap<PathBuf, rhai::Shared<rhai::Module>>,
+    /// Modules being evaluated: importing one of them again is a cycle.
+    running: Vec<PathBuf>,
+    /// Every module file read, as diagnostics quote it and the manifest lists it.
+    files: Vec<SourceFile>,
+    /// Why an import was refused, by the path as written.
+    refused: Vec<(String, String)>,
+    /// The shown path of each module by the path as written, for errors inside it.
+    shown: HashMap<String, Arc<str>>,
+}
+
+impl RecipeModules {
+    /// The resolver of a recipe at `recipe` (its path as shown).
+    pub fn new(recipe: &Path) -> RecipeModules {
+        let shown_root = recipe.parent().map(Path::to_path_buf).unwrap_or_default();
+        let root =
+            std::fs::canonicalize(if shown_root.as_os_str().is_empty() { Path::new(".") } else { &shown_root }).ok();
+        RecipeModules { shown_root, root, state: Mutex::new(ModuleState::default()) }
+    }
+
+    fn state(&self) -> std::sync::MutexGuard<'_, ModuleState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The module file `written` names, or why it is refused.
+    fn locate(&self, written: &str) -> Result<(PathBuf, PathBuf), String> {
+        if written.trim().is_empty() {
+            return Err("an empty module path".into());
+        }
+        if written.contains("://") {
+            return Err("a module is a file beside the recipe, not an address".into());
+        }
+        let mut rel = PathBuf::new();
+        for c in Path::new(written).components() {
+            match c {
+                Component::Normal(p) => rel.push(p),
+                Component::CurDir => {}
+                Component::ParentDir => return Err("`..` leads out of the recipe's folder".into()),
+                Component::RootDir | Component::Prefix(_) => {
+                    return Err("an absolute path; name modules relative to the recipe's folder".into());
+                }
+            }
+        }
+        match rel.extension().and_then(|e| e.to_str()) {
+            None => {
+                rel.set_extension("rhai");
+            }
+            Some("rhai") => {}
+            Some(other) => return Err(format!("a module is a `.rhai` file, not `.{other}`")),
+        }
+        let root = self.root.as_ref().ok_or("the recipe's folder cannot be read")?;
+        let path = root.join(&rel);
+        let real = std::fs::canonicalize(&path)
+            .map_err(|_| format!("there is no `{}` in the recipe's folder", rel.display()))?;
+        if !real.starts_with(root) {
+            return Err("a link that leads out of the recipe's folder".into());
+        }
+        if !real.is_file() {
+            return Err(format!("`{}` is not a file", rel.display()));
+        }
+        Ok((rel, real))
+    }
+
+    /// The module files read while the script ran.
+    pub fn files(&self) -> Vec<SourceFile> {
+        self.state().files.clone()
+    }
+
+    fn refusal(&self, written: &str) -> Option<String> {
+        self.state().refused.iter().find(|(w, _)| w == written).map(|(_, r)| r.clone())
+    }
+
+    fn shown(&self, written: &str) -> Option<Arc<str>> {
+        self.state().shown.get(written).cloned()
+    }
+}
+
+impl rhai::ModuleResolver for RecipeModules {
+    fn resolve(
+        &self,
+        engine: &Engine,
+        _source: Option<&str>,
+        path: &str,
+        pos: Position,
+    ) -> Result<rhai::Shared<rhai::Module>, Box<EvalAltResult>> {
+        let refuse = |why: String| {
+            self.state().refused.push((path.to_string(), why));
+            Box::new(EvalAltResult::ErrorModuleNotFound(path.to_string(), pos))
+        };
+        let (rel, real) = self.locate(path).map_err(refuse)?;
+        {
+            let st = self.state();
+            if let Some(m) = st.done.get(&rel) {
+                return Ok(m.clone());
+            }
+            if st.running.contains(&rel) {
+                drop(st);
+                return Err(refuse(format!("`{}` imports itself (through the modules it imports)", rel.display())));
+            }
+        }
+        let text = match super::read_recipe_bytes(&real) {
+            Ok(bytes) => String::from_utf8(bytes).map_err(|_| refuse("the module is not valid UTF-8".into()))?,
+            Err(super::RecipeRead::TooLarge) => {
+                return Err(refuse(format!(
+                    "the module is over the {} byte limit of a recipe",
+                    super::MAX_RECIPE_BYTES
+                )));
+            }
+            Err(super::RecipeRead::Io(e)) => return Err(refuse(format!("cannot read it: {e}"))),
+        };
+        let shown: Arc<str> = Arc::from(self.shown_root.join(&rel).display().to_string());
+        {
+            let mut st = self.state();
+            st.shown.insert(path.to_string(), shown.clone());
+            st.files.push(SourceFile { path: shown, text: Arc::from(text.as_str()) });
+            st.running.push(rel.clone());
+        }
+        let result = engine
+            .compile(&text)
+            .map_err(|e| Box::new(EvalAltResult::ErrorInModule(path.to_string(), e.into(), pos)))
+            .and_then(|mut ast| {
+                ast.set_source(path);
+                rhai::Module::eval_ast_as_new(rhai::Scope::new(), &ast, engine)
+                    .map_err(|e| Box::new(EvalAltResult::ErrorInModule(path.to_string(), e, pos)))
+            });
+        let mut st = self.state();
+        st.running.retain(|r| r != &rel);
+        let module: rhai::Shared<rhai::Module> = result?.into();
+        st.done.insert(rel, module.clone());
+        Ok(module)
+    }
+}
+
 /// Runs a `.rhai` recipe and converts the object map it returns into the raw tree.
 pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics) -> Option<Raw> {
-    let engine = sandboxed_engine(limits);
+    load_rhai_with_modules(file, limits, diags).0
+}
+
+/// [`load_rhai`], also returning the module files the script imported.
+pub fn load_rhai_with_modules(
+    file: &SourceFile,
+    limits: &RhaiLimits,
+    diags: &mut Diagnostics,
+) -> (Option<Raw>, Vec<SourceFile>) {
+    let mut engine = sandboxed_engine(limits);
+    let modules = Rc::new(RecipeModules::new(Path::new(&*file.path)));
+    engine.set_module_resolver(SharedResolver(modules.clone()));
+    let raw = eval_recipe(&engine, &modules, file, diags);
+    (raw, modules.files())
+}
+
+/// The resolver behind an `Rc`, so its files can be read after the engine is done.
+struct SharedResolver(Rc<RecipeModules>);
+
+impl rhai::ModuleResolver for SharedResolver {
+    fn resolve(
+        &self,
+        engine: &Engine,
+        source: Option<&str>,
+        path: &str,
+        pos: Position,
+    ) -> Result<rhai::Shared<rhai::Module>, Box<EvalAltResult>> {
+        self.0.resolve(engine, source, path, pos)
+    }
+}
+
+fn eval_recipe(engine: &Engine, modules: &RecipeModules, file: &SourceFile, diags: &mut Diagnostics) -> Option<Raw> {
     let result: Result<Dynamic, Box<EvalAltResult>> = engine.eval(&file.text);
     match result {
         Ok(value) => {
@@ -89,14 +273,38 @@ pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics
             Some(to_raw(&file.path, "", value))
         }
         Err(e) => {
-            let span = position_span(&file.path, e.position());
+            // An error inside an imported module is shown where it is in the module.
+            let (e, span) = match *e {
+                EvalAltResult::ErrorModuleNotFound(written, pos) if modules.refusal(&written).is_some() => {
+                    let why = modules.refusal(&written).unwrap_or_default();
+                    diags.push(
+                        Diagnostic::error(
+                            Some(position_span(&file.path, pos)),
+                            format!("Rhai recipe cannot import `{written}`: {why}"),
+                        )
+                        .with_help(IMPORT_HELP),
+                    );
+                    return None;
+                }
+                EvalAltResult::ErrorInModule(written, inner, pos) => {
+                    let span = match modules.shown(&written) {
+                        Some(shown) if inner.position().line().is_some() => position_span(&shown, inner.position()),
+                        _ => position_span(&file.path, pos),
+                    };
+                    (inner, span)
+                }
+                other => {
+                    let span = position_span(&file.path, other.position());
+                    (Box::new(other), span)
+                }
+            };
             let help = match *e {
                 EvalAltResult::ErrorTooManyOperations(_) => {
                     "the script ran past its operation limit: a loop that never ends, or a sweep too large for a recipe"
                 }
                 EvalAltResult::ErrorStackOverflow(_) => "the script recursed too deep",
                 EvalAltResult::ErrorDataTooLarge(..) => "a string, array or map in the script grew past its limit",
-                EvalAltResult::ErrorModuleNotFound(..) => "Rhai recipes cannot import modules or read files",
+                EvalAltResult::ErrorModuleNotFound(..) => IMPORT_HELP,
                 _ => "fix the script; it runs at compile time and must return the recipe as an object map",
             };
             let msg = e.to_string();
@@ -109,6 +317,9 @@ pub fn load_rhai(file: &SourceFile, limits: &RhaiLimits, diags: &mut Diagnostics
         }
     }
 }
+
+/// What a refused or missing import should be instead.
+const IMPORT_HELP: &str = "a Rhai recipe imports `.rhai` files from its own folder and the folders below it, by a relative path without `..`: `import \"helpers\" as h;`";
 
 /// Converts a Rhai value into the raw tree. Values built by a script have no line, so
 /// their span names the file and the key path is kept in the message context.
