@@ -21,7 +21,12 @@ fn schema_lists_every_node_kind_and_entity_section() {
     let registry = spindlelab::registry();
     let s = schema::recipe_schema(&registry);
     let kinds = s["properties"]["steps"]["additionalProperties"]["properties"]["kind"]["enum"].as_array().unwrap();
-    assert_eq!(kinds.len(), registry.kinds().count());
+    // Every node kind, and `recipe` for a step that runs another recipe.
+    assert_eq!(kinds.len(), registry.kinds().count() + 1);
+    assert!(kinds.iter().any(|k| k == "recipe"));
+    for key in ["use", "inputs", "exports"] {
+        assert!(s["properties"][key].is_object(), "{key}");
+    }
     for section in ["materials", "machines", "assemblies", "sensors", "cutting"] {
         assert!(s["properties"][section].is_object(), "{section}");
     }

@@ -272,3 +272,26 @@ fn a_library_is_found_on_the_library_path() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn every_library_and_procedure_of_the_examples_checks_on_its_own() {
+    let scripts = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts");
+    let registry = spindlelab::registry();
+    for (folder, library) in [("lib", true), ("procedures", false)] {
+        let mut seen = 0;
+        for e in std::fs::read_dir(scripts.join(folder)).unwrap().flatten() {
+            let path = e.path();
+            let c = spindlelab::engine::compile_file(&path, &registry)
+                .unwrap_or_else(|e| panic!("{} does not check:\n{}", path.display(), e.render(false)));
+            assert_eq!(c.recipe.library, library, "{}", path.display());
+            seen += 1;
+        }
+        assert!(seen > 0, "scripts/{folder} is empty");
+    }
+    // The examples that use them list them in their manifests' files.
+    let c = spindlelab::engine::compile_file(&scripts.join("rcsa-tool-point.yaml"), &registry).unwrap();
+    let used: Vec<String> = c.used_files().keys().cloned().collect();
+    for f in ["lib/materials.yaml", "lib/sensors.yaml", "lib/table-5.1.yaml", "procedures/test-spindle.yaml"] {
+        assert!(used.iter().any(|u| u.ends_with(f)), "{f} not in {used:?}");
+    }
+}

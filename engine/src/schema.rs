@@ -129,12 +129,25 @@ pub fn recipe_schema(registry: &Registry) -> Value {
             }}
         }));
     }
-    let kinds: Vec<&str> = registry.names().collect();
+    // A step that runs another recipe: its file, and what it binds by name.
+    step_variants.push(json!({
+        "if": {"properties": {"kind": {"const": crate::model::RECIPE_KIND}}},
+        "then": {"required": ["file"], "properties": {
+            "params": {"type": "object", "description": "values of the parameters the recipe declares"},
+            "inputs": {"type": "object", "description": "the recipe's declared inputs, each bound to `@step.port`",
+                "additionalProperties": {"type": "string"}},
+            "sweep": {"type": "object", "description": "parameters of the recipe to sweep: the whole procedure runs per value"}
+        }},
+        "else": {"properties": {"file": false}}
+    }));
+    let mut kinds: Vec<&str> = registry.names().collect();
+    kinds.push(crate::model::RECIPE_KIND);
     let step = json!({
         "type": "object",
         "required": ["kind"],
         "properties": {
-            "kind": {"enum": kinds},
+            "kind": {"enum": kinds, "description": "a node kind, or `recipe` to run another recipe as this step"},
+            "file": {"type": "string", "description": "`kind: recipe`: the recipe to run, relative to this file"},
             "description": {"type": "string"},
             "params": {"type": "object"},
             "inputs": {"type": "object"},
@@ -153,6 +166,21 @@ pub fn recipe_schema(registry: &Registry) -> Value {
             json!({"type": "object", "additionalProperties": object_schema(entity_fields(kind))}),
         );
     }
+    props.insert(
+        "use".into(),
+        json!({"type": "array", "items": {"type": "string", "pattern": "\\.ya?ml$"},
+            "description": "library files whose entities (materials, machines, assemblies, sensors, cutting) the recipe takes, relative to it or on $SPINDLELAB_LIBRARY_PATH"}),
+    );
+    props.insert(
+        "inputs".into(),
+        json!({"type": "object", "description": "a recipe run as a step: the inputs it takes, name → port type; its steps read them as `@inputs.NAME`",
+            "additionalProperties": {"enum": ["time series", "frf", "receptance set", "modal model", "beam model", "substructure", "lobes", "table", "scalar"]}}),
+    );
+    props.insert(
+        "exports".into(),
+        json!({"type": "object", "description": "a recipe run as a step: what it hands back, name → `@step.port`",
+            "additionalProperties": {"type": "string"}}),
+    );
     props.insert("speeds".into(), field_schema(&FieldType::QuantityList(Dimension::ROTATIONAL_SPEED)));
     props.insert("steps".into(), json!({"type": "object", "additionalProperties": step}));
     props.insert(
@@ -210,7 +238,7 @@ pub fn recipe_schema(registry: &Registry) -> Value {
         "$id": "https://spindlelab.dev/schema/recipe-1.json",
         "title": "spindlelab recipe",
         "type": "object",
-        "required": ["spindlelab", "steps"],
+        "required": ["spindlelab"],
         "properties": props,
         "additionalProperties": false
     })

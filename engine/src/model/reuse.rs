@@ -862,15 +862,16 @@ impl Expander<'_> {
             let mut swept_used: Vec<&str> = Vec::new();
             for (sk, s) in steps.iter_mut() {
                 let Some(fields) = map_mut(s) else { continue };
-                let mut moved: Vec<(Key, Raw)> = Vec::new();
+                // (place in the running step's sweep, parameter, values)
+                let mut moved: Vec<(usize, Key, Raw)> = Vec::new();
                 for (fk, fv) in fields.iter_mut() {
                     if fk.name == "params"
                         && let Some(params) = map_mut(fv)
                     {
-                        params.retain(|(pk, pv)| match dollar(pv).and_then(|p| swept.get_key_value(p)) {
-                            Some((p, (_, values))) => {
+                        params.retain(|(pk, pv)| match dollar(pv).and_then(|p| swept.get_full(p)) {
+                            Some((at, p, (_, values))) => {
                                 swept_used.push(p.as_str());
-                                moved.push((pk.clone(), values.clone()));
+                                moved.push((at, pk.clone(), values.clone()));
                                 false
                             }
                             None => true,
@@ -888,7 +889,9 @@ impl Expander<'_> {
                 }
                 let sweep = fields.iter_mut().find(|(f, _)| f.name == "sweep").map(|(_, v)| v).expect("just made");
                 let Some(axes) = map_mut(sweep) else { continue };
-                for (mk, mv) in moved {
+                // In the order the running step sweeps them, as its labels show them.
+                moved.sort_by_key(|(at, ..)| *at);
+                for (_, mk, mv) in moved {
                     if axes.iter().any(|(a, _)| a.name == mk.name) {
                         self.diags.error_help(
                             Some(&mk.span),
