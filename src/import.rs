@@ -360,6 +360,43 @@ fn check_strings(case: &Case) -> Result<(), String> {
 
 /// Writes the recipe for the case in `json` (its file name `path` is for messages).
 pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
+    let parts = import_parts(json, path)?;
+    Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
+}
+
+/// The case in `json` as a library of its entities and a short recipe that uses it:
+/// `(library, recipe)`. `use_path` is how the recipe names the library (relative to the
+/// recipe's folder); like every foreign string it is written as a YAML scalar that reads back
+/// exactly.
+pub fn library_from_case(json: &str, path: &str, use_path: &str) -> Result<(String, String), ImportError> {
+    let parts = import_parts(json, path)?;
+    let file_name = path.rsplit('/').next().unwrap_or(path);
+    let library = format!(
+        "# Entities of case {}, imported from {}: materials, the spindle, the holder and tool,\n\
+         # the sensor and the cutting setup. Recipes take them with `use:`.\nspindlelab: 1\n\n{}",
+        scalar(&parts.id),
+        scalar(file_name),
+        parts.entities
+    );
+    let recipe = format!(
+        "{}# Materials, machine, assemblies, sensor and cutting setup: the case's library.\nuse: [{}]\n\n{}",
+        parts.header,
+        yaml_quoted(use_path),
+        parts.rest
+    );
+    Ok((library, recipe))
+}
+
+/// A recipe written from a case in three parts: the header, the entity sections and the rest
+/// (measurements and steps).
+struct Parts {
+    id: String,
+    header: String,
+    entities: String,
+    rest: String,
+}
+
+fn import_parts(json: &str, path: &str) -> Result<Parts, ImportError> {
     let case: Case = serde_json::from_str(json).map_err(|source| ImportError::Json { path: path.into(), source })?;
     let invalid = |message: String| ImportError::Invalid { path: path.into(), message };
     check_strings(&case).map_err(invalid)?;
@@ -374,6 +411,8 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
     let _ = writeln!(w, "name: {}", scalar(&id));
     let _ = writeln!(w);
 
+    let mut entities = String::new();
+    let w = &mut entities;
     // Materials of the holder and tool, then the spindle's, under a name of its own.
     let _ = writeln!(w, "materials:");
     for (mname, m) in &case.materials {
@@ -500,6 +539,8 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
         let _ = writeln!(w);
     }
 
+    let mut rest = String::new();
+    let w = &mut rest;
     let meas = case.measurements.as_ref();
     let frfs: &[CaseFrf] = meas.map_or(&[], |m| &m.frf);
     if !frfs.is_empty() {
@@ -608,7 +649,7 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
             }
         );
     }
-    Ok(y)
+    Ok(Parts { id, header: y, entities, rest })
 }
 
 #[cfg(test)]

@@ -200,6 +200,10 @@ enum Command {
         /// Where to write the recipe (default: print it). Put it beside the case's data files.
         #[arg(short, long)]
         out: Option<PathBuf>,
+        /// Write the case's entities (materials, spindle, holder and tool, sensor, cutting
+        /// setup) to this library file, and a recipe that takes them with `use:`.
+        #[arg(long, value_name = "FILE")]
+        library: Option<PathBuf>,
     },
     /// Find where the recipe's model and its measurements disagree, name the missing physical
     /// effect, add it and show the gap shrink: writes `diagnosis.json`, `diagnosis.md` and
@@ -493,7 +497,7 @@ fn command(cli: Cli) -> ExitCode {
             }
             ExitCode::SUCCESS
         }
-        Command::Import { case, out } => {
+        Command::Import { case, out, library } => {
             let shown = case.display().to_string();
             let text = match std::fs::read_to_string(&case) {
                 Ok(t) => t,
@@ -502,26 +506,49 @@ fn command(cli: Cli) -> ExitCode {
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
-            let recipe = match spindlelab::import::recipe_from_case(&text, &shown) {
+            let imported = match &library {
+                None => spindlelab::import::recipe_from_case(&text, &shown).map(|r| (None, r)),
+                Some(lib) => {
+                    let recipe_dir = out.as_deref().and_then(Path::parent).unwrap_or(Path::new(""));
+                    let use_path = relative_to(lib, recipe_dir);
+                    spindlelab::import::library_from_case(&text, &shown, &use_path).map(|(l, r)| (Some(l), r))
+                }
+            };
+            let (library_text, recipe) = match imported {
                 Ok(r) => r,
                 Err(e) => {
                     eoutln!("error: {}", esc(&e));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
-            match out {
-                None => out!("{recipe}"),
-                Some(path) => {
-                    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-                    let written = tempfile::NamedTempFile::new_in(dir).and_then(|mut tmp| {
-                        std::io::Write::write_all(&mut tmp, recipe.as_bytes())?;
-                        tmp.persist(&path).map(|_| ()).map_err(|e| e.error)
-                    });
-                    if let Err(e) = written {
+            // Each file is written whole to a temporary name first, and both are renamed into
+            // place only when both are written.
+            let stage = |path: &Path, text: &str| {
+                let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+                tempfile::NamedTempFile::new_in(dir).and_then(|mut tmp| {
+                    std::io::Write::write_all(&mut tmp, text.as_bytes())?;
+                    Ok(tmp)
+                })
+            };
+            let mut staged = Vec::new();
+            for (path, text) in [(library.as_ref(), library_text.as_deref()), (out.as_ref(), Some(recipe.as_str()))] {
+                let (Some(path), Some(text)) = (path, text) else { continue };
+                match stage(path, text) {
+                    Ok(tmp) => staged.push((path.clone(), tmp)),
+                    Err(e) => {
                         eoutln!("error: cannot write {}: {e}", path.display());
                         return ExitCode::from(EXIT_FAILURE);
                     }
                 }
+            }
+            for (path, tmp) in staged {
+                if let Err(e) = tmp.persist(&path) {
+                    eoutln!("error: cannot write {}: {}", path.display(), e.error);
+                    return ExitCode::from(EXIT_FAILURE);
+                }
+            }
+            if out.is_none() {
+                out!("{recipe}");
             }
             ExitCode::SUCCESS
         }
@@ -661,6 +688,19 @@ fn command(cli: Cli) -> ExitCode {
                 }
             }
         }
+    }
+}
+
+/// How a file at `path` is named from the folder `dir`: relative when it lies in or below
+/// it (both taken from the current folder), else its absolute path.
+fn relative_to(path: &Path, dir: &Path) -> String {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let (p, d) = (abs(path), abs(if dir.as_os_str().is_empty() { Path::new(".") } else { dir }));
+    let norm =
+        |p: PathBuf| -> PathBuf { p.components().filter(|c| !matches!(c, std::path::Component::CurDir)).collect() };
+    match norm(p.clone()).strip_prefix(norm(d)) {
+        Ok(rel) => rel.display().to_string(),
+        Err(_) => p.display().to_string(),
     }
 }
 
