@@ -225,6 +225,7 @@ fn a_uff_file_of_100k_datasets_gives_a_short_error_and_a_few_notes() {
         direction: Some("x".into()),
         speed_rpm: None,
         sensor: None,
+        dofs: None,
     };
     let mut one = String::new();
     formats::uff::write_frf(&mut one, &frf, "");

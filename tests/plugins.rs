@@ -84,6 +84,7 @@ fn tip_mass_gives_the_receptance_of_the_structure_with_the_added_mass() {
         direction: Some("x".into()),
         speed_rpm: None,
         sensor: None,
+        dofs: None,
     };
     std::fs::write(dir.path().join("sdof.csv"), csv::write_frf(&frf)).unwrap();
     let recipe = dir.path().join("tip-mass.yaml");
@@ -516,6 +517,7 @@ fn bare_and_20_g_heavier(c: f64) -> tempfile::TempDir {
         direction: Some("x".into()),
         speed_rpm: None,
         sensor: None,
+        dofs: None,
     };
     std::fs::write(dir.path().join("bare.csv"), csv::write_frf(&frf(m))).unwrap();
     std::fs::write(dir.path().join("measured.csv"), csv::write_frf(&frf(m + 0.02))).unwrap();
@@ -631,6 +633,7 @@ fn no_call_sees_anything_of_an_earlier_one() {
             direction: None,
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         }),
     );
     let recipe = spindlelab::engine::model::Recipe::default();

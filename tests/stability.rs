@@ -31,6 +31,7 @@ fn frf(freqs: &[f64], values: Vec<Complex64>, direction: &str, speed_rpm: Option
         direction: Some(direction.into()),
         speed_rpm,
         sensor: None,
+        dofs: None,
     }
 }
 
@@ -366,6 +367,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
         direction: Some("x".into()),
         speed_rpm: None,
         sensor: None,
+        dofs: None,
     };
     std::fs::write(dir.path().join("tool.csv"), csv::write_frf(&frf)).unwrap();
     std::fs::write(

@@ -103,6 +103,107 @@ pub struct Frf {
     /// Name of the sensor that measured the response, when known.
     #[serde(default)]
     pub sensor: Option<String>,
+    /// Response and reference node and direction of a measured FRF (UFF 58 record 6), when known.
+    #[serde(default)]
+    pub dofs: Option<FrfDofs>,
+}
+
+/// Where an FRF was measured: the response point and the reference (excitation) point, each a
+/// node number and a direction code as UFF dataset 58 record 6 numbers them (1 x, 2 y, 3 z, 4–6
+/// rotations about x, y, z). Codes are stored positive: the values are already turned to the
+/// positive axes when they are read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrfDofs {
+    pub response_node: i64,
+    pub response_direction: i32,
+    pub reference_node: i64,
+    pub reference_direction: i32,
+}
+
+impl FrfDofs {
+    /// True when response and reference are the same node and direction (a driving-point FRF,
+    /// whose modal constants are all positive).
+    pub fn driving_point(&self) -> bool {
+        self.response_node == self.reference_node && self.response_direction == self.reference_direction
+    }
+
+    /// `response 3 +x, reference 1 +x`, for messages.
+    pub fn describe(&self) -> String {
+        let axis = |c: i32| match c {
+            1 => "x",
+            2 => "y",
+            3 => "z",
+            4 => "rx",
+            5 => "ry",
+            6 => "rz",
+            _ => "scalar",
+        };
+        format!(
+            "response {} {}, reference {} {}",
+            self.response_node,
+            axis(self.response_direction),
+            self.reference_node,
+            axis(self.reference_direction)
+        )
+    }
+}
+
+/// The kind of an FRF by its SI unit label: what response per force it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrfKind {
+    /// Displacement per force, m/N.
+    Receptance,
+    /// Velocity per force, m/s/N.
+    Mobility,
+    /// Acceleration per force, m/s²/N.
+    Accelerance,
+}
+
+impl FrfKind {
+    /// The kind of an SI label (`m/N`, `m/s/N`, `m/s^2/N`); `None` for another label or none.
+    pub fn of_label(label: &str) -> Option<FrfKind> {
+        match label.trim() {
+            "m/N" => Some(FrfKind::Receptance),
+            "m/s/N" => Some(FrfKind::Mobility),
+            "m/s^2/N" => Some(FrfKind::Accelerance),
+            _ => None,
+        }
+    }
+
+    /// The SI label of the kind.
+    pub fn label(self) -> &'static str {
+        match self {
+            FrfKind::Receptance => "m/N",
+            FrfKind::Mobility => "m/s/N",
+            FrfKind::Accelerance => "m/s^2/N",
+        }
+    }
+
+    /// The kind's name, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            FrfKind::Receptance => "receptance",
+            FrfKind::Mobility => "mobility",
+            FrfKind::Accelerance => "accelerance",
+        }
+    }
+
+    /// Powers of `iω` that take a receptance to this kind: 0, 1, 2 (velocity `iωx`,
+    /// acceleration `−ω²x`).
+    pub fn order(self) -> i32 {
+        match self {
+            FrfKind::Receptance => 0,
+            FrfKind::Mobility => 1,
+            FrfKind::Accelerance => 2,
+        }
+    }
+}
+
+impl Frf {
+    /// The FRF's kind by its unit label, when it is an SI label of one.
+    pub fn kind(&self) -> Option<FrfKind> {
+        FrfKind::of_label(&self.unit.symbol)
+    }
 }
 
 /// The 2x2 receptance blocks `[[h, l], [n, p]]` (displacement and rotation per force and moment) on a grid.

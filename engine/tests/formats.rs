@@ -75,7 +75,7 @@ fn fixtures_map_to_typed_values_in_si() {
     assert_eq!(by_dir.direction.as_deref(), Some("y"));
     assert_eq!(by_dir.values[440].re, 8.756411605840658e-07);
     let e = formats::read_frf(&path, FileFormat::Uff, &FrfSelect::default()).unwrap_err();
-    assert!(e.to_string().contains("choose one with `direction` or `dataset`"), "{e}");
+    assert!(e.to_string().contains("`direction` or `dataset`"), "{e}");
     let e =
         formats::read_frf(&path, FileFormat::Uff, &FrfSelect { dataset: Some(3), ..Default::default() }).unwrap_err();
     assert!(matches!(e, FormatError::Selection { .. }), "{e}");

@@ -221,6 +221,7 @@ mod tests {
             direction: Some("x".into()),
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         })
     }
 

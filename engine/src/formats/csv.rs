@@ -68,6 +68,14 @@ pub(crate) fn frf_rows(out: &mut String, f: &Frf, prefix_header: &str, prefix: &
         if let Some(s) = &f.sensor {
             let _ = writeln!(out, "# sensor: {s}");
         }
+        // One FRF's points; a swept file's blocks may differ in them, so it leaves them to UFF.
+        if let Some(d) = f.dofs
+            && prefix_header.is_empty()
+        {
+            let axis = |c: i32| super::uff::direction_name(c).unwrap_or("scalar");
+            let _ = writeln!(out, "# response: {} {}", d.response_node, axis(d.response_direction));
+            let _ = writeln!(out, "# reference: {} {}", d.reference_node, axis(d.reference_direction));
+        }
         let coh = if f.coherence.is_some() { ",coherence" } else { "" };
         let _ = writeln!(out, "{prefix_header}freq_hz,real,imag{coh}");
         *header_done = true;
@@ -700,15 +708,41 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
     let mut direction = None;
     let mut speed = None;
     let mut sensor = None;
+    let (mut response, mut reference) = (None, None);
+    let mut point_line = None;
     for m in sheet.meta() {
         match m.key {
             "units" => unit = frf_unit(&m, path)?,
             "direction" if !m.value.is_empty() => direction = Some(m.value.to_string()),
             "sensor" if !m.value.is_empty() => sensor = Some(m.value.to_string()),
             "speed_rpm" => speed = Some(speed_rpm(&m, path)?),
+            "response" => {
+                response = Some(node_point(&m, path)?);
+                point_line = Some(m.line);
+            }
+            "reference" => {
+                reference = Some(node_point(&m, path)?);
+                point_line = Some(m.line);
+            }
             _ => {}
         }
     }
+    let dofs = match (response, reference) {
+        (Some((rn, rd)), Some((fn_, fd))) => Some(crate::value::FrfDofs {
+            response_node: rn,
+            response_direction: rd,
+            reference_node: fn_,
+            reference_direction: fd,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, point_line.unwrap_or(0), 1),
+                expected: "both `# response: NODE AXIS` and `# reference: NODE AXIS`".into(),
+                found: "only one of them".into(),
+            });
+        }
+    };
     let Some((hline, hraw)) = &sheet.header else {
         return Err(FormatError::Expected {
             at: Loc::new(path, sheet.last_line(), 0),
@@ -795,6 +829,7 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
                     direction: of("direction").or_else(|| direction.clone()),
                     speed_rpm: block_speed,
                     sensor: sensor.clone(),
+                    dofs,
                 },
                 coords,
             });
@@ -1009,6 +1044,25 @@ pub fn block_names(blocks: &[FrfBlock]) -> Vec<String> {
 }
 
 /// A `# speed_rpm:` value.
+/// A `# response:` or `# reference:` line: a node number and an axis (`3 x`; `x`, `y`, `z`,
+/// `rx`, `ry`, `rz`, `scalar`), as the UFF direction code.
+fn node_point(m: &Meta, path: &str) -> Result<(i64, i32), FormatError> {
+    let mut parts = m.value.split_whitespace();
+    let node = parts.next().and_then(|t| t.parse::<i64>().ok());
+    let axis = parts.next().and_then(|t| match t {
+        "scalar" => Some(0),
+        t => Some(super::uff::direction_code(Some(t))).filter(|c| *c != 0),
+    });
+    match (node, axis, parts.next()) {
+        (Some(n), Some(a), None) => Ok((n, a)),
+        _ => Err(FormatError::Expected {
+            at: Loc::new(path, m.line, m.column),
+            expected: format!("a node number and an axis after `# {}:` (`3 x`; axes x, y, z, rx, ry, rz)", m.key),
+            found: format!("`{}`", shown_cell(m.value)),
+        }),
+    }
+}
+
 fn speed_rpm(m: &Meta, path: &str) -> Result<f64, FormatError> {
     let text = m.value.strip_suffix("rpm").unwrap_or(m.value).trim();
     let at = Loc::new(path, m.line, m.column);
@@ -1245,6 +1299,7 @@ pub(crate) mod tests {
             direction: Some("y".into()),
             speed_rpm: Some(12_345.678_9),
             sensor: Some("laser 1".into()),
+            dofs: None,
         };
         let back = read_frf(write_frf(&frf).as_bytes(), "f.csv").unwrap();
         assert_eq!(back, frf);

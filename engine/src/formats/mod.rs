@@ -309,11 +309,40 @@ pub fn read_time_series(
 }
 
 /// Which FRF of a UFF file to take: by position among the datasets 58 (1-based), or by
-/// response direction; with neither, the file must hold exactly one FRF.
+/// response direction and response and reference node numbers (record 6); with none of them,
+/// the file must hold exactly one FRF.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrfSelect {
     pub dataset: Option<usize>,
     pub direction: Option<String>,
+    /// Response node number.
+    pub response: Option<i64>,
+    /// Reference (excitation) node number.
+    pub reference: Option<i64>,
+}
+
+impl FrfSelect {
+    /// Whether the FRF's response and reference nodes are those asked for (an FRF without
+    /// node numbers matches no node asked for).
+    fn nodes_match(&self, dofs: Option<crate::value::FrfDofs>) -> bool {
+        let want = |asked: Option<i64>, have: Option<i64>| asked.is_none_or(|a| have == Some(a));
+        want(self.response, dofs.map(|d| d.response_node)) && want(self.reference, dofs.map(|d| d.reference_node))
+    }
+
+    /// `response 3, reference 1`, `direction x`, for messages (empty when nothing is asked).
+    fn asked(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(d) = &self.direction {
+            parts.push(format!("direction `{d}`"));
+        }
+        if let Some(n) = self.response {
+            parts.push(format!("response node {n}"));
+        }
+        if let Some(n) = self.reference {
+            parts.push(format!("reference node {n}"));
+        }
+        parts.join(", ")
+    }
 }
 
 /// Reads an FRF from a CSV or UFF file.
@@ -373,6 +402,16 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     None => frf.direction = Some(want.clone()),
                 }
             }
+            if !select.nodes_match(frf.dofs) {
+                return Err(FormatError::Selection {
+                    path: shown,
+                    message: format!(
+                        "{} was asked for, the file holds {}",
+                        select.asked(),
+                        frf.dofs.map_or("an FRF without node numbers (`# response:`, `# reference:`)".to_string(), |d| d.describe())
+                    ),
+                });
+            }
             Ok(Loaded { value: frf, notes: Vec::new() })
         }
         FileFormat::Uff => {
@@ -393,6 +432,12 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                         ),
                     });
                 }
+                if !select.nodes_match(frf.dofs) {
+                    return Err(FormatError::Selection {
+                        path: shown,
+                        message: format!("dataset {k} is {}, {} was asked for", ds.describe(), select.asked()),
+                    });
+                }
                 return Ok(Loaded { value: frf, notes });
             }
             let mut frfs = Vec::new();
@@ -410,6 +455,8 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     .direction
                     .as_deref()
                     .is_none_or(|d| uff::direction_name(ds.response.direction) == Some(d))
+                    && select.response.is_none_or(|n| ds.response.node == n)
+                    && select.reference.is_none_or(|n| ds.reference.node == n)
                 {
                     frfs.push(ds);
                 }
@@ -419,15 +466,15 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                 [one] => Ok(Loaded { value: checked_frf(one, &shown)?, notes }),
                 [] => Err(FormatError::Selection {
                     path: shown,
-                    message: match &select.direction {
-                        Some(d) => format!("no FRF in direction `{d}` among its datasets: {}", file.summary()),
-                        None => format!("no FRF (function type 4) among its datasets: {}", file.summary()),
+                    message: match select.asked().as_str() {
+                        "" => format!("no FRF (function type 4) among its datasets: {}", file.summary()),
+                        asked => format!("no FRF with {asked} among its datasets: {}", file.summary()),
                     },
                 }),
                 many => Err(FormatError::Selection {
                     path: shown,
                     message: format!(
-                        "{} FRFs match ({}); choose one with `direction` or `dataset`",
+                        "{} FRFs match ({}); choose one with `response` and `reference` (node numbers), `direction` or `dataset`",
                         many.len(),
                         listed(many.iter().map(|d| d.describe()), ", ")
                     ),

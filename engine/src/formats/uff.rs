@@ -10,7 +10,7 @@
 //! Other datasets are skipped and listed.
 
 use super::{FormatError, Loc, Skipped, unit_to_si};
-use crate::value::{Channel, Frf, ReceptanceSet, TimeSeries, UnitLabel};
+use crate::value::{Channel, Frf, FrfDofs, ReceptanceSet, TimeSeries, UnitLabel};
 use num_complex::Complex64;
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
@@ -204,8 +204,22 @@ impl Dataset58 {
         }
     }
 
-    /// `an FRF in x (line 2)`, for messages.
+    /// `an FRF in x (line 2)`, for messages; an FRF with node numbers says them too
+    /// (`an FRF in x, response 1 x, reference 3 x (line 517)`).
     pub fn describe(&self) -> String {
+        if self.function_type == FUNCTION_FRF && (self.response.node != 0 || self.reference.node != 0) {
+            let axis = |c: i32| direction_name(c).unwrap_or("scalar");
+            return format!(
+                "{} in {}, response {} {}, reference {} {} (line {})",
+                function_name(self.function_type),
+                axis(self.response.direction),
+                self.response.node,
+                axis(self.response.direction),
+                self.reference.node,
+                axis(self.reference.direction),
+                self.line
+            );
+        }
         match direction_name(self.response.direction) {
             Some(d) => format!("{} in {d} (line {})", function_name(self.function_type), self.line),
             None => format!("{} (line {})", function_name(self.function_type), self.line),
@@ -316,13 +330,31 @@ impl Dataset58 {
             direction: direction_name(self.response.direction).map(str::to_string),
             speed_rpm: rpm.then_some(self.z_value),
             sensor,
+            dofs: Some(FrfDofs {
+                response_node: self.response.node,
+                response_direction: self.response.direction.abs(),
+                reference_node: self.reference.node,
+                reference_direction: self.reference.direction.abs(),
+            }),
         })
     }
 
     /// An FRF as a dataset: complex double ordinates, even abscissa when the grid is uniform,
-    /// `label` (a sweep label) in ID line 2, the sensor in ID line 4, the speed on the Z axis.
+    /// `label` (a sweep label) in ID line 2, the sensor in ID line 4, the speed on the Z axis,
+    /// the response and reference nodes and directions of the FRF (without them node 1 and the
+    /// FRF's direction for both: a direct FRF).
     pub fn from_frf(frf: &Frf, label: &str) -> Dataset58 {
         let dir = direction_code(frf.direction.as_deref());
+        let (response, reference) = match frf.dofs {
+            Some(d) => (
+                Dof { entity: "NONE".into(), node: d.response_node, direction: d.response_direction },
+                Dof { entity: "NONE".into(), node: d.reference_node, direction: d.reference_direction },
+            ),
+            None => (
+                Dof { entity: "NONE".into(), node: 1, direction: dir },
+                Dof { entity: "NONE".into(), node: 1, direction: dir },
+            ),
+        };
         let (num, den) = match frf.unit.symbol.rsplit_once('/') {
             Some((n, d)) => (n, d),
             None => (frf.unit.symbol.as_str(), ""),
@@ -344,8 +376,8 @@ impl Dataset58 {
             function_id: 0,
             version: 0,
             load_case: 0,
-            response: Dof { entity: "NONE".into(), node: 1, direction: dir },
-            reference: Dof { entity: "NONE".into(), node: 1, direction: dir },
+            response,
+            reference,
             ordinate_type: OrdinateType::ComplexDouble,
             abscissa,
             z_value: frf.speed_rpm.unwrap_or(0.0),
@@ -546,6 +578,15 @@ impl<'a> Cursor<'a> {
     }
 }
 
+/// Text of an ID line, entity name, axis label or unit: UTF-8 when the bytes are, else
+/// Latin-1 (ISO 8859-1), which older analysers write (`(m/s²)/N` with `²` as the byte 0xB2).
+fn decode_text(bytes: &[u8]) -> String {
+    match std::str::from_utf8(bytes) {
+        Ok(s) => s.to_string(),
+        Err(_) => bytes.iter().map(|&b| char::from(b)).collect(),
+    }
+}
+
 fn shown(text: &[u8]) -> String {
     let s = String::from_utf8_lossy(text);
     let s = s.trim();
@@ -620,7 +661,7 @@ impl Record<'_, '_> {
     }
 
     fn text(&self, col: usize, width: usize) -> String {
-        String::from_utf8_lossy(self.slice(col, width)).trim().to_string()
+        decode_text(self.slice(col, width)).trim().to_string()
     }
 }
 
@@ -774,7 +815,7 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
     let mut id: [String; 5] = Default::default();
     for (k, slot) in id.iter_mut().enumerate() {
         let (_, text) = cur.record(&format!("ID line {} (record {}) of {kind}", k + 1, k + 1))?;
-        *slot = String::from_utf8_lossy(text).trim().to_string();
+        *slot = decode_text(text).trim().to_string();
     }
 
     let (l6, t6) = cur.record(&format!("record 6 (function and DOF identification) of {kind}"))?;
@@ -1251,6 +1292,7 @@ pub fn write_receptance(out: &mut String, r: &ReceptanceSet, label: &str) {
             direction: Some(dir.to_string()),
             speed_rpm: r.speed_rpm,
             sensor: None,
+            dofs: None,
         };
         let mut d = Dataset58::from_frf(&frf, label);
         d.id[0] = format!("receptance {name} {dir}");
@@ -1464,11 +1506,33 @@ mod tests {
             direction: Some("y".into()),
             speed_rpm: Some(12_000.0),
             sensor: Some("laser".into()),
+            dofs: Some(FrfDofs { response_node: 3, response_direction: 2, reference_node: 1, reference_direction: 2 }),
         }
     }
 
     fn close(a: f64, b: f64, rel: f64) -> bool {
         (a - b).abs() <= rel * a.abs().max(b.abs()) || a == b
+    }
+
+    #[test]
+    fn latin1_unit_labels_are_read_and_scaled() {
+        // An accelerance in (mm/s²)/N as an analyser writing Latin-1 labels it: `²` is the byte 0xB2.
+        let f = Frf { unit: UnitLabel::new("m/s^2/N"), ..frf() };
+        let mut text = String::new();
+        write_frf(&mut text, &f, "");
+        let written = format!("{:<20}", "m/s^2");
+        assert!(text.contains(&written), "{text}");
+        let mut bytes = text.replacen(&written, &format!("{:<20}", "(mm/s@)"), 1).into_bytes();
+        let at = bytes.iter().position(|&b| b == b'@').unwrap();
+        bytes[at] = 0xB2;
+        let file = parse(&bytes, "latin1.uff").unwrap();
+        assert_eq!(file.datasets[0].numerator.units, "(mm/s²)");
+        let back = file.datasets[0].to_frf("latin1.uff").unwrap();
+        assert_eq!(back.unit.symbol, "m/s^2/N");
+        for (a, b) in back.values.iter().zip(&f.values) {
+            assert!((a - b * 1e-3).norm() <= 1e-12 * b.norm(), "{a} {b}");
+        }
+        assert_eq!(back.dofs, f.dofs);
     }
 
     #[test]

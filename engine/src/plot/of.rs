@@ -526,6 +526,7 @@ fn modal(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
             direction: None,
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         }));
     }
     let layers: Vec<Layer> =

@@ -719,6 +719,7 @@ mod tests {
             direction: None,
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         };
         frf.values[2].im = f64::NEG_INFINITY;
         assert_eq!(at(Value::Frf(frf.clone())).as_deref(), Some("the coherence at line 1 is NaN"));

@@ -71,6 +71,7 @@ pub fn from_wit(v: wit::Value) -> Result<ev::Value, String> {
                 direction: f.direction,
                 speed_rpm: f.speed_rpm,
                 sensor: f.sensor,
+                dofs: None,
             })
         }
         wit::Value::ModalModel(m) => ev::Value::ModalModel(ev::ModalModel {

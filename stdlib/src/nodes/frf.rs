@@ -193,6 +193,7 @@ impl Node for FrfEstimate {
             direction: None,
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         };
         Ok([("frf".to_string(), Value::Frf(frf))].into_iter().collect())
     }

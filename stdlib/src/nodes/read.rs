@@ -124,8 +124,8 @@ impl ReadFrf {
         ReadFrf {
             spec: NodeSpec {
                 kind: "read.frf",
-                version: 2,
-                description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4); units to SI.",
+                version: 3,
+                description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4), with its response and reference nodes and directions; units to SI. Sweep `dataset`, `response` or `reference` to read a measurement set.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF, frequencies in Hz, values in SI units")],
                 params: vec![
@@ -136,6 +136,16 @@ impl ReadFrf {
                         "direction",
                         T::Choice(&["x", "y", "z"]),
                         "UFF: take the FRF whose response is in this direction; CSV: the direction of a file without `# direction`",
+                    ),
+                    Field::opt(
+                        "response",
+                        T::Integer { min: 0, max: i64::MAX },
+                        "take the FRF whose response node number is this (UFF record 6; CSV `# response:`)",
+                    ),
+                    Field::opt(
+                        "reference",
+                        T::Integer { min: 0, max: i64::MAX },
+                        "take the FRF whose reference (excitation) node number is this",
                     ),
                     Field::opt(
                         "speed",
@@ -169,8 +179,12 @@ impl Node for ReadFrf {
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let (path, format) = source(ctx.params, true)?;
-        let select =
-            FrfSelect { dataset: dataset(ctx.params), direction: ctx.params.text("direction").map(str::to_string) };
+        let select = FrfSelect {
+            dataset: dataset(ctx.params),
+            direction: ctx.params.text("direction").map(str::to_string),
+            response: ctx.params.int("response"),
+            reference: ctx.params.int("reference"),
+        };
         let loaded = formats::read_frf(path, format, &select).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);

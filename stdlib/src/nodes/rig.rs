@@ -509,6 +509,7 @@ impl Node for RigSimulate {
             direction: Some(c.direction.name().into()),
             speed_rpm: Some(c.speed * 60.0 / TAU),
             sensor: Some("rig truth".into()),
+            dofs: None,
         };
 
         const GRID: usize = 3600;

@@ -178,6 +178,7 @@ pub(super) fn h_of(s: &ReceptanceSet) -> Frf {
         direction: s.direction.clone(),
         speed_rpm: s.speed_rpm,
         sensor: None,
+        dofs: None,
     }
 }
 

@@ -282,6 +282,7 @@ mod tests {
             direction: None,
             speed_rpm: None,
             sensor: None,
+            dofs: None,
         }
     }
 
