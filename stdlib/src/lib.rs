@@ -34,6 +34,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ImpactSimulate::new()));
     registry.register(Arc::new(nodes::FrfEstimate::new()));
     registry.register(Arc::new(nodes::FrfCompare::new()));
+    registry.register(Arc::new(nodes::FrfConvert::new()));
     registry.register(Arc::new(nodes::ImpactSegment::new()));
     registry.register(Arc::new(nodes::PhaseCorrect::new()));
     registry.register(Arc::new(nodes::PhaseMeasure::new()));

@@ -9,7 +9,7 @@
 //! a real mode's residue is `R = 1/(2iMω_d)`, which gives its modal mass.
 
 use super::pick::Peak;
-use super::{FitError, Mode, im_peak};
+use super::{FitError, Mode, Weighting, im_peak};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -120,9 +120,11 @@ struct Data {
     h0: f64,
     lo: f64,
     hi: f64,
+    /// `1/|H|` line weights (relative errors), or none.
+    relative: bool,
 }
 
-fn data(freqs: &[f64], h: &[Complex64], range: Range<usize>) -> Data {
+fn data(freqs: &[f64], h: &[Complex64], range: Range<usize>, weighting: Weighting) -> Data {
     let idx: Vec<usize> = range.filter(|&k| freqs[k] > 0.0 && h[k].norm() > 0.0).collect();
     let hi = freqs[*idx.last().unwrap_or(&0)];
     let lo = freqs[*idx.first().unwrap_or(&0)];
@@ -136,6 +138,7 @@ fn data(freqs: &[f64], h: &[Complex64], range: Range<usize>) -> Data {
         h0,
         lo,
         hi,
+        relative: weighting == Weighting::Relative,
     }
 }
 
@@ -150,11 +153,11 @@ fn denominator(d: &Data, n: usize, g: &[f64]) -> Result<Vec<f64>, FitError> {
     let mut sp = vec![Complex64::from(0.0); m];
     let mut sm = vec![Complex64::from(0.0); m];
     for ((&z, &h), &g) in d.z.iter().zip(&d.h).zip(g) {
-        let w2 = g / h.norm_sqr();
+        let w2 = if d.relative { g / h.norm_sqr() } else { g };
         let mut zq = Complex64::from(1.0);
         for q in 0..m {
             r[q] += w2 * zq.re;
-            t[q] += g * zq.re;
+            t[q] += w2 * h.norm_sqr() * zq.re;
             sp[q] -= w2 * h * zq;
             sm[q] -= w2 * h * zq.conj();
             zq *= z;
@@ -239,7 +242,7 @@ fn residues(d: &Data, poles: &[Pole]) -> Result<Vec<Complex64>, FitError> {
     let mut aty = vec![0.0; cols];
     let mut row = vec![Complex64::from(0.0); cols];
     for ((&w, &h), _) in d.w.iter().zip(&d.h).zip(&d.z) {
-        let wt = 1.0 / h.norm();
+        let wt = if d.relative { 1.0 / h.norm() } else { 1.0 };
         let s = Complex64::new(0.0, w);
         for (k, pole) in poles.iter().enumerate() {
             let a = (s - pole.lambda).inv();
@@ -284,8 +287,10 @@ pub(super) fn fit_modes(
     order: Option<usize>,
     v_sens: f64,
     complex: bool,
+    signed: bool,
+    weighting: Weighting,
 ) -> Result<(Vec<Mode>, Vec<Mode>, usize), FitError> {
-    let d = data(freqs, h, range);
+    let d = data(freqs, h, range, weighting);
     // With no order given, four poles per picked peak (at least 8); when fewer poles than peaks are stable
     // (noise or close modes), six and then eight per peak. Orders noise-free data cannot support (singular
     // normal equations) are skipped.
@@ -333,17 +338,21 @@ pub(super) fn fit_modes(
     let mut rejected = Vec::new();
     for (pole, r) in stable.iter().zip(&res) {
         // R = 1/(2 i M ω_d) = −i/(2 M ω_d): M from the imaginary part; a complex residue keeps its modulus.
-        let mode = if complex {
+        let mode = if complex && signed {
+            super::lsfd::signed_mode_of_residue(pole.f_hz, pole.xi, *r)
+        } else if complex {
             super::lsfd::mode_of_residue(pole.f_hz, pole.xi, *r)
         } else {
             let mass = -1.0 / (2.0 * pole.lambda.im * r.im);
             Mode { freq_hz: pole.f_hz, damping_ratio: pole.xi, modal_mass: mass }
         };
         let mass = mode.modal_mass;
-        if mass.is_finite() && mass > 0.0 { kept.push(mode) } else { rejected.push(mode) }
+        // A transfer FRF's modal constants carry signs; only a driving point's must be positive.
+        if mass.is_finite() && mass != 0.0 && (signed || mass > 0.0) { kept.push(mode) } else { rejected.push(mode) }
     }
-    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q)));
-    let (keep, drop): (Vec<Mode>, Vec<Mode>) = kept.into_iter().partition(|q| im_peak(q) >= v_sens * largest);
+    let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q).abs()));
+    let (keep, drop): (Vec<Mode>, Vec<Mode>) =
+        kept.into_iter().partition(|q| im_peak(q).abs() >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
         return Err(FitError::NothingLeft {

@@ -7,7 +7,7 @@
 //! non-proportionally damped mode, which a real modal mass cannot represent. `LR` is the mass line of modes below
 //! the band (`1/M` of a rigid-body-like mode), `UR` the static flexibility `1/K` of modes above it.
 
-use super::{FitError, Mode};
+use super::{FitError, Mode, Weighting};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -20,8 +20,32 @@ pub struct ResidueFit {
     pub lower: f64,
     /// Upper residual `UR` (a constant), m/N: the static flexibility of the modes above the band.
     pub upper: f64,
-    /// Relative L2 residual `‖H − H_fit‖/‖H‖` over the lines of the fit band.
+    /// Global relative L2 residual `‖H − H_fit‖/‖H‖` over the lines of the fit band (the peaks dominate it).
     pub relative_residual: f64,
+    /// The `1/|H|`-weighted relative error `sqrt(mean |H − H_fit|²/|H|²)` over the same lines (every line
+    /// counts by its relative error; the antiresonances dominate it).
+    pub weighted_residual: f64,
+}
+
+/// The global relative L2 residual and the `1/|H|`-weighted relative error (RMS over lines) of `fit`
+/// against `h` (lines where `H = 0` or the fit is not finite are left out of the weighted one).
+pub fn residual_measures(h: &[Complex64], fit: &[Complex64]) -> (f64, f64) {
+    let (mut num, mut den, mut rel, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for (a, b) in h.iter().zip(fit) {
+        let d = (a - b).norm_sqr();
+        if !d.is_finite() {
+            continue;
+        }
+        num += d;
+        den += a.norm_sqr();
+        if a.norm_sqr() > 0.0 {
+            rel += d / a.norm_sqr();
+            n += 1;
+        }
+    }
+    let global = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+    let weighted = if n > 0 { (rel / n as f64).sqrt() } else { 0.0 };
+    (global, weighted)
 }
 
 /// Pole `λ = −ξω_n + iω_n sqrt(1 − ξ²)` of a mode, rad/s.
@@ -41,6 +65,14 @@ pub fn real_residue(mode: &Mode) -> Complex64 {
 pub fn mode_of_residue(freq_hz: f64, damping_ratio: f64, a: Complex64) -> Mode {
     let wd = TAU * freq_hz * (1.0 - damping_ratio * damping_ratio).max(0.0).sqrt();
     Mode { freq_hz, damping_ratio, modal_mass: 1.0 / (2.0 * wd * a.norm()) }
+}
+
+/// [`mode_of_residue`] with the sign of the modal constant kept: a real residue is
+/// `−i/(2Mω_d)`, so the mass is negative where `Im A > 0` (a transfer FRF's mode whose response
+/// and reference move in opposite senses).
+pub fn signed_mode_of_residue(freq_hz: f64, damping_ratio: f64, a: Complex64) -> Mode {
+    let m = mode_of_residue(freq_hz, damping_ratio, a);
+    Mode { modal_mass: if a.im > 0.0 { -m.modal_mass } else { m.modal_mass }, ..m }
 }
 
 /// `A/(iω − λ) + Ā/(iω − λ̄)` at `w` rad/s.
@@ -91,6 +123,17 @@ pub(super) fn least_squares(a: &mut [f64], y: &mut [f64], rows: usize, cols: usi
 /// LSFD residues of `modes` (their poles fixed) and the residual terms on the lines `freqs_hz`, `h` (the fit band;
 /// lines at 0 Hz or with `H = 0` are skipped).
 pub fn lsfd(freqs_hz: &[f64], h: &[Complex64], modes: &[Mode]) -> Result<ResidueFit, FitError> {
+    lsfd_weighted(freqs_hz, h, modes, Weighting::Relative)
+}
+
+/// [`lsfd`] with the line weights of `weighting`: `1/|H|` (relative) or none (absolute, the global L2
+/// residual).
+pub fn lsfd_weighted(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    modes: &[Mode],
+    weighting: Weighting,
+) -> Result<ResidueFit, FitError> {
     let lines: Vec<usize> = (0..freqs_hz.len()).filter(|&k| freqs_hz[k] > 0.0 && h[k].norm() > 0.0).collect();
     let p = modes.len();
     let cols = 2 * p + 2;
@@ -103,7 +146,10 @@ pub fn lsfd(freqs_hz: &[f64], h: &[Complex64], modes: &[Mode]) -> Result<Residue
     let mut y = vec![0.0; rows];
     for (r, &k) in lines.iter().enumerate() {
         let w = TAU * freqs_hz[k];
-        let wt = 1.0 / h[k].norm();
+        let wt = match weighting {
+            Weighting::Relative => 1.0 / h[k].norm(),
+            Weighting::Absolute => 1.0,
+        };
         let mut put = |c: usize, v: Complex64| {
             a[c * rows + 2 * r] = v.re * wt;
             a[c * rows + 2 * r + 1] = v.im * wt;
@@ -121,13 +167,14 @@ pub fn lsfd(freqs_hz: &[f64], h: &[Complex64], modes: &[Mode]) -> Result<Residue
     let x = least_squares(&mut a, &mut y, rows, cols).ok_or(FitError::Singular { what: "LSFD residues" })?;
     let residues: Vec<Complex64> = (0..p).map(|m| Complex64::new(x[2 * m], x[2 * m + 1])).collect();
     let (lower, upper) = (x[2 * p], x[2 * p + 1]);
-    let (mut num, mut den) = (0.0, 0.0);
-    for &k in &lines {
-        let w = TAU * freqs_hz[k];
-        let fit: Complex64 =
-            residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum::<Complex64>() - lower / (w * w) + upper;
-        num += (h[k] - fit).norm_sqr();
-        den += h[k].norm_sqr();
-    }
-    Ok(ResidueFit { residues, lower, upper, relative_residual: (num / den).sqrt() })
+    let fits: Vec<Complex64> = lines
+        .iter()
+        .map(|&k| {
+            let w = TAU * freqs_hz[k];
+            residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum::<Complex64>() - lower / (w * w) + upper
+        })
+        .collect();
+    let measured: Vec<Complex64> = lines.iter().map(|&k| h[k]).collect();
+    let (relative_residual, weighted_residual) = residual_measures(&measured, &fits);
+    Ok(ResidueFit { residues, lower, upper, relative_residual, weighted_residual })
 }

@@ -25,9 +25,9 @@ mod simplex;
 #[cfg(test)]
 mod tests;
 
-pub use lsfd::{ResidueFit, lsfd, mode_of_residue, pair_h, pole, real_residue};
+pub use lsfd::{ResidueFit, lsfd, lsfd_weighted, mode_of_residue, pair_h, pole, real_residue, signed_mode_of_residue};
 pub use map::{beam_for_mode, closed_form_diameter};
-pub use pick::{Peak, moving_average, pick_modes};
+pub use pick::{Peak, moving_average, pick_modes, pick_modes_signed};
 pub use refit::REFIT_ITERATIONS;
 
 use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};
@@ -186,6 +186,16 @@ pub enum Method {
     },
 }
 
+/// How the least-squares steps (LSCF, LSFD) weight the lines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weighting {
+    /// Each line by `1/|H|`: every line counts by its relative error, so the antiresonances and
+    /// the skirts weigh as much as the peaks.
+    Relative,
+    /// Every line alike: the fit minimises the global L2 distance, which the peaks dominate.
+    Absolute,
+}
+
 /// The residue model of the identified modes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Residues {
@@ -229,6 +239,16 @@ pub struct FitOptions {
     /// Refit the mapped beams jointly against the measured FRF (global iterations on the beam model); `false`
     /// keeps the plain per-mode mapping of §5.2.5.
     pub beam_refit: bool,
+    /// Modal constants may be negative (a transfer FRF, response and reference at different points or
+    /// directions); `false` for a driving point, whose modal masses are all positive.
+    pub signed: bool,
+    /// Line weights of the least-squares steps.
+    pub weighting: Weighting,
+    /// The power of `iω` of the FRF the receptance was converted from (0 receptance, 1 mobility, 2
+    /// accelerance): modes are picked on `ω^order |H|`-scaled lines and the global L2 residual is measured
+    /// in that kind, so the lines a measurement resolves best (an accelerometer's at high frequency) lead,
+    /// and low-frequency noise divided by `ω²` does not.
+    pub kind_order: i32,
 }
 
 impl Default for FitOptions {
@@ -248,6 +268,9 @@ impl Default for FitOptions {
             band_points: 200,
             material: BeamMaterial::STEEL,
             beam_refit: true,
+            signed: false,
+            weighting: Weighting::Relative,
+            kind_order: 0,
         }
     }
 }
@@ -259,7 +282,8 @@ pub struct Band {
     pub lo_hz: f64,
     /// Upper edge, Hz.
     pub hi_hz: f64,
-    /// Whether the fit band's edge cut it.
+    /// Whether the fit band's edge cut it ([`mode_bands`]); in a [`ModalFit`], whether that edge cuts into the
+    /// mode's resonance ([`clips`]).
     pub clipped: bool,
 }
 
@@ -421,14 +445,116 @@ pub fn mode_bands(centres_hz: &[f64], lo: f64, hi: f64, df: f64) -> Vec<Band> {
         .collect()
 }
 
+/// The result of a fit whose modes cannot be beams (a negative modal constant): the fitted FRF is the modal
+/// model (Eq. 5.8 modes, or the LSFD residues with their residual terms), the tip blocks `L`, `N`, `P` are NaN.
+#[allow(clippy::too_many_arguments)]
+fn without_beams(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    modes: Vec<Mode>,
+    bands: Vec<Band>,
+    picked_hz: Vec<f64>,
+    deleted: Vec<Mode>,
+    iterations: usize,
+    residue_fit: ResidueFit,
+) -> ModalFit {
+    let poles: Vec<Complex64> = modes.iter().map(pole).collect();
+    let fitted: Vec<Complex64> = freqs_hz
+        .iter()
+        .map(|&f| {
+            let w = TAU * f;
+            let modal: Complex64 = residue_fit.residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum();
+            let lower = if w > 0.0 { residue_fit.lower / (w * w) } else { 0.0 };
+            modal - lower + residue_fit.upper
+        })
+        .collect();
+    let nan = Complex64::new(f64::NAN, f64::NAN);
+    let lines = fitted.iter().map(|&v| Receptance { h: v, l: nan, n: nan, p: nan }).collect();
+    let band_errors = bands
+        .iter()
+        .zip(&modes)
+        .map(|(b, m)| {
+            let a = freqs_hz.partition_point(|&f| f < b.lo_hz);
+            let e = freqs_hz.partition_point(|&f| f <= b.hi_hz);
+            let num: f64 = (a..e).map(|k| (h[k] - fitted[k]).norm()).sum();
+            let den: f64 = (a..e).map(|k| h[k].norm()).sum();
+            let err = if den > 0.0 { num / den } else { f64::NAN };
+            BandError { f_hz: m.freq_hz, lo_hz: b.lo_hz, hi_hz: b.hi_hz, modal: err, beam: f64::NAN, mapped: f64::NAN }
+        })
+        .collect();
+    ModalFit {
+        modes,
+        bands,
+        beams: Vec::new(),
+        fitted,
+        tip: ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines },
+        band_errors,
+        picked_hz,
+        deleted,
+        iterations,
+        refit_sweeps: 0,
+        residue_fit,
+    }
+}
+
+/// Mean line spacing of a grid, Hz (0 for fewer than two lines).
+pub fn line_spacing(freqs_hz: &[f64]) -> f64 {
+    match (freqs_hz.first(), freqs_hz.last()) {
+        (Some(a), Some(b)) if freqs_hz.len() > 1 => (b - a) / (freqs_hz.len() - 1) as f64,
+        _ => 0.0,
+    }
+}
+
+/// Indices of the modes whose half-power width `2ξf` (Eq. 5.8: the band where `|H|` is above
+/// `1/√2` of its peak) is narrower than one line of `freqs_hz`: the lines cannot resolve such a
+/// damping, and a fitted value is only a bound.
+pub fn unresolved_damping(modes: &[Mode], freqs_hz: &[f64]) -> Vec<usize> {
+    let df = line_spacing(freqs_hz);
+    modes.iter().enumerate().filter(|(_, m)| 2.0 * m.damping_ratio * m.freq_hz < df).map(|(i, _)| i).collect()
+}
+
+/// Half-power widths (`2ξf`) of a mode that must lie inside the fit band on either side for its
+/// resonance and skirts to be fitted; the band's edge nearer than that (or than [`CLIP_LINES`]
+/// lines) clips the mode.
+pub const CLIP_WIDTHS: f64 = 3.0;
+
+/// Lines that must lie inside the fit band on either side of a mode (see [`CLIP_WIDTHS`]).
+pub const CLIP_LINES: f64 = 3.0;
+
+/// Whether the fit band `[lo, hi]` cuts into the resonance of `mode`: an edge within
+/// [`CLIP_WIDTHS`] half-power widths or [`CLIP_LINES`] lines of its frequency. A per-mode band
+/// (±200 Hz at most, Eq. 5.13) cut by the fit band's edge loses lines far from the resonance,
+/// which the fit does not need; only a cut near the resonance deserves a warning.
+pub fn clips(mode: &Mode, lo: f64, hi: f64, df: f64) -> bool {
+    let reach = (CLIP_WIDTHS * 2.0 * mode.damping_ratio * mode.freq_hz).max(CLIP_LINES * df);
+    mode.freq_hz - lo < reach || hi - mode.freq_hz < reach
+}
+
 /// Identifies the modes of the direct receptance `h` (m/N) on `freqs_hz`, maps each to its equivalent
 /// fixed-free beam and returns the fitted FRF, the tip block `G11` and the fit errors (§5.2).
 pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<ModalFit, FitError> {
     check_grid(freqs_hz, h)?;
     check_options(opts)?;
     let range = fit_range(freqs_hz, opts)?;
-    let peaks =
-        pick_modes(freqs_hz, h, range.clone(), opts.h_sens, opts.v_sens, 10f64.powf(opts.prominence_db / 20.0))?;
+    let scaled: Vec<Complex64>;
+    let h_pick = if opts.kind_order == 0 {
+        h
+    } else {
+        scaled = freqs_hz.iter().zip(h).map(|(&f, &v)| v * (TAU * f).powi(opts.kind_order)).collect();
+        &scaled
+    };
+    let mut peaks = pick_modes_signed(
+        freqs_hz,
+        h_pick,
+        range.clone(),
+        opts.h_sens,
+        opts.v_sens,
+        10f64.powf(opts.prominence_db / 20.0),
+        opts.signed,
+    )?;
+    for p in &mut peaks {
+        p.im /= (TAU * p.freq_hz).powi(opts.kind_order);
+    }
     let picked_hz: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
     let (lo, hi) = (freqs_hz[range.start], freqs_hz[range.end - 1]);
     let df = (hi - lo) / (range.len() - 1) as f64;
@@ -439,33 +565,71 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
             (modes, bands, deleted, iterations)
         }
         Method::Lscf { order } => {
-            let (modes, rejected, orders) =
-                lscf::fit_modes(freqs_hz, h, range.clone(), &peaks, order, opts.v_sens, complex)?;
+            let (modes, rejected, orders) = lscf::fit_modes(
+                freqs_hz,
+                h,
+                range.clone(),
+                &peaks,
+                order,
+                opts.v_sens,
+                complex,
+                opts.signed,
+                opts.weighting,
+            )?;
             let centres: Vec<f64> = modes.iter().map(|m| m.freq_hz).collect();
             (modes, mode_bands(&centres, lo, hi, df), rejected, orders)
         }
     };
     let residue_fit = if complex {
-        let r = lsfd::lsfd(&freqs_hz[range.clone()], &h[range.clone()], &modes)?;
+        let r = lsfd::lsfd_weighted(&freqs_hz[range.clone()], &h[range.clone()], &modes, opts.weighting)?;
         for (m, a) in modes.iter_mut().zip(&r.residues) {
-            *m = mode_of_residue(m.freq_hz, m.damping_ratio, *a);
+            *m = if opts.signed {
+                signed_mode_of_residue(m.freq_hz, m.damping_ratio, *a)
+            } else {
+                mode_of_residue(m.freq_hz, m.damping_ratio, *a)
+            };
         }
         r
     } else {
-        let (mut num, mut den) = (0.0, 0.0);
-        for k in range.clone() {
-            let w = TAU * freqs_hz[k];
-            let modal: Complex64 = modes.iter().map(|m| m.receptance(w)).sum();
-            num += (h[k] - modal).norm_sqr();
-            den += h[k].norm_sqr();
-        }
+        let fits: Vec<Complex64> =
+            range.clone().map(|k| modes.iter().map(|m| m.receptance(TAU * freqs_hz[k])).sum()).collect();
+        let (relative_residual, weighted_residual) = lsfd::residual_measures(&h[range.clone()], &fits);
         ResidueFit {
             residues: modes.iter().map(real_residue).collect(),
             lower: 0.0,
             upper: 0.0,
-            relative_residual: if den > 0.0 { (num / den).sqrt() } else { 0.0 },
+            relative_residual,
+            weighted_residual,
         }
     };
+    let mut residue_fit = residue_fit;
+    {
+        let poles: Vec<Complex64> = modes.iter().map(pole).collect();
+        let r = &residue_fit;
+        let scale = |f: f64| (TAU * f).powi(opts.kind_order);
+        let lines: Vec<usize> = range.clone().filter(|&k| freqs_hz[k] > 0.0).collect();
+        let fits: Vec<Complex64> = lines
+            .iter()
+            .map(|&k| {
+                let w = TAU * freqs_hz[k];
+                let modal: Complex64 = r.residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum();
+                (modal - r.lower / (w * w) + r.upper) * scale(freqs_hz[k])
+            })
+            .collect();
+        let measured: Vec<Complex64> = lines.iter().map(|&k| h[k] * scale(freqs_hz[k])).collect();
+        let (global, weighted) = lsfd::residual_measures(&measured, &fits);
+        residue_fit.relative_residual = global;
+        residue_fit.weighted_residual = weighted;
+    }
+    let mut bands = bands;
+    for (b, m) in bands.iter_mut().zip(&modes) {
+        b.clipped = clips(m, lo, hi, df);
+    }
+    // Equivalent beams have positive masses: a mode with a negative modal constant (a transfer FRF) has none,
+    // and the fitted FRF is then the modal model itself.
+    if modes.iter().any(|m| m.modal_mass < 0.0) {
+        return Ok(without_beams(freqs_hz, h, modes, bands, picked_hz, deleted, iterations, residue_fit));
+    }
     let mut beams = Vec::with_capacity(modes.len());
     for (i, (m, b)) in modes.iter().zip(&bands).enumerate() {
         let beam = beam_for_mode(m, b, &opts.material, MAP_POINTS).map_err(|source| FitError::Beam {

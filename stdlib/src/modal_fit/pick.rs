@@ -11,8 +11,12 @@ pub struct Peak {
     pub index: usize,
     /// Its frequency, Hz.
     pub freq_hz: f64,
-    /// Smoothed Im(H) at the peak (negative), m/N.
+    /// Smoothed Im(H) at the peak (negative; for a signed pick, minus its modulus), m/N.
     pub im: f64,
+    /// Sign of the mode's modal constant: +1 for a negative Im(H) peak (every mode of a driving
+    /// point), −1 for a positive one (a transfer FRF whose response and reference move in
+    /// opposite senses in this mode).
+    pub sign: f64,
 }
 
 /// Centred moving average of `x` over `width` points (`H_sens`, §5.2.1) into `out`; near the ends the
@@ -82,9 +86,28 @@ pub fn pick_modes(
     v_sens: f64,
     min_prominence: f64,
 ) -> Result<Vec<Peak>, FitError> {
+    pick_modes_signed(freqs_hz, h, range, h_sens, v_sens, min_prominence, false)
+}
+
+/// [`pick_modes`], and with `signed` the peaks of the smoothed `|Im H|` of either sign: a
+/// transfer FRF's modal constants are positive or negative (Eq. 5.8 with a signed `1/M`), so a
+/// mode may peak upwards; each peak carries the sign of its modal constant.
+pub fn pick_modes_signed(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    range: Range<usize>,
+    h_sens: usize,
+    v_sens: f64,
+    min_prominence: f64,
+    signed: bool,
+) -> Result<Vec<Peak>, FitError> {
     let im: Vec<f64> = h[range.clone()].iter().map(|v| v.im).collect();
     let mut s = Vec::new();
     moving_average(&im, h_sens, &mut s);
+    let signs: Vec<f64> = s.iter().map(|v| if *v > 0.0 { -1.0 } else { 1.0 }).collect();
+    if signed {
+        s.iter_mut().for_each(|v| *v = -v.abs());
+    }
     let mut mag = Vec::new();
     if min_prominence > 1.0 {
         let abs: Vec<f64> = h[range.clone()].iter().map(|v| v.norm()).collect();
@@ -113,7 +136,7 @@ pub fn pick_modes(
                     let last = peaks.len() - 1;
                     if s[i] < peaks[last].im {
                         let index = range.start + i;
-                        peaks[last] = Peak { index, freq_hz: freqs_hz[index], im: s[i] };
+                        peaks[last] = Peak { index, freq_hz: freqs_hz[index], im: s[i], sign: signs[i] };
                     }
                     continue;
                 }
@@ -124,7 +147,7 @@ pub fn pick_modes(
             deepest = deepest.max(-s[i]);
             if -s[i] >= cutoff {
                 let index = range.start + i;
-                peaks.push(Peak { index, freq_hz: freqs_hz[index], im: s[i] });
+                peaks.push(Peak { index, freq_hz: freqs_hz[index], im: s[i], sign: signs[i] });
             }
         }
     }

@@ -46,26 +46,35 @@ impl Bounds {
         (0..3).map(|i| (2.0 * (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]) - 1.0).clamp(-1.0, 1.0).asin()).collect()
     }
 
-    /// Whether any of the first `dims` variables sits at a bound.
-    fn stuck(self, x: [f64; 3], dims: usize) -> bool {
+    /// Whether any of the first `dims` variables sits at a bound. A damping ratio at its lower
+    /// bound is not, when that bound lies below `xi_resolved`, the damping whose half-power width
+    /// `2ξf` is one line: such a mode is sharper than the lines can show, not a spurious one.
+    fn stuck(self, x: [f64; 3], dims: usize, xi_resolved: f64) -> bool {
         (0..dims).any(|i| {
             let u = (x[i] - self.lo[i]) / (self.hi[i] - self.lo[i]);
+            if i == 1 && u < STUCK && self.lo[1] < xi_resolved {
+                return false;
+            }
             !(STUCK..=1.0 - STUCK).contains(&u)
         })
     }
 }
 
-fn params_of(x: [f64; 3]) -> Mode {
-    Mode { freq_hz: x[0], damping_ratio: x[1], modal_mass: x[2].exp() }
+/// The mode at `x`; `sign` is the sign of its modal constant (−1: a transfer FRF's mode whose
+/// response and reference move in opposite senses), the search variable is `ln |M|`.
+fn params_of(x: [f64; 3], sign: f64) -> Mode {
+    Mode { freq_hz: x[0], damping_ratio: x[1], modal_mass: sign * x[2].exp() }
 }
 
 fn x_of(m: &Mode) -> [f64; 3] {
-    [m.freq_hz, m.damping_ratio, m.modal_mass.ln()]
+    [m.freq_hz, m.damping_ratio, m.modal_mass.abs().ln()]
 }
 
 /// One mode being fitted with its band data.
 struct Slot {
     mode: Mode,
+    /// Sign of the modal constant (+1 for every mode of a driving point).
+    sign: f64,
     /// Residue of the mode's pole pair (complex residues only; the Eq. 5.8 value otherwise).
     residue: Complex64,
     band: Band,
@@ -105,6 +114,7 @@ impl Slot {
         let n = fs.len();
         Slot {
             mode,
+            sign: if mode.modal_mass < 0.0 { -1.0 } else { 1.0 },
             residue: real_residue(&mode),
             band,
             bounds,
@@ -127,6 +137,8 @@ struct ModeCost<'a> {
     bounds: Bounds,
     imag_only: bool,
     scale: f64,
+    /// Sign of the modal constant.
+    sign: f64,
 }
 
 impl CostFunction for ModeCost<'_> {
@@ -135,7 +147,7 @@ impl CostFunction for ModeCost<'_> {
 
     fn cost(&self, z: &Self::Param) -> Result<f64, ArgminError> {
         let x = self.bounds.x_at(z);
-        let (wn, xi, m) = (TAU * x[0], x[1], x[2].exp());
+        let (wn, xi, m) = (TAU * x[0], x[1], self.sign * x[2].exp());
         let mut sum = 0.0;
         if self.imag_only {
             for (&w, hm) in self.w.iter().zip(self.hm) {
@@ -228,19 +240,25 @@ fn nelder_mead<C: CostFunction<Param = Vec<f64>, Output = f64>>(
 fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band: &Band) -> Mode {
     let i = peak.index - offset;
     let half = 0.5 * peak.im;
+    // The peak turned downwards whatever the sign of its modal constant.
+    let at = |k: usize| smooth[k] * peak.sign;
     let mut a = i;
-    while a > 0 && smooth[a - 1] < half && freqs[offset + a - 1] >= band.lo_hz {
+    while a > 0 && at(a - 1) < half && freqs[offset + a - 1] >= band.lo_hz {
         a -= 1;
     }
     let mut b = i;
-    while b + 1 < smooth.len() && smooth[b + 1] < half && freqs[offset + b + 1] <= band.hi_hz {
+    while b + 1 < smooth.len() && at(b + 1) < half && freqs[offset + b + 1] <= band.hi_hz {
         b += 1;
     }
     let width =
         (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
     let xi = (width / (2.0 * peak.freq_hz)).clamp(0.002, 0.2);
     let w = TAU * peak.freq_hz;
-    Mode { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: 1.0 / (2.0 * xi * w * w * peak.im.abs()) }
+    Mode {
+        freq_hz: peak.freq_hz,
+        damping_ratio: xi,
+        modal_mass: peak.sign / (2.0 * xi * w * w * peak.im.abs()),
+    }
 }
 
 fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
@@ -301,12 +319,19 @@ pub(super) fn fit_modes(
     let mut slots = Vec::with_capacity(peaks.len());
     for (peak, band) in peaks.iter().zip(&bands) {
         let m0 = initial_mode(peak, &smooth, range.start, freqs, band);
-        let bounds = bounds_for(band, m0.modal_mass, 1.0 / MASS_SPAN, MASS_SPAN);
+        let bounds = bounds_for(band, m0.modal_mass.abs(), 1.0 / MASS_SPAN, MASS_SPAN);
         let mut slot = Slot::new(m0, *band, bounds, freqs, h, opts.band_points);
-        let cost =
-            ModeCost { w: &slot.w, hm: &slot.hm, held: &slot.held, bounds, imag_only: true, scale: slot.scale_im };
+        let cost = ModeCost {
+            w: &slot.w,
+            hm: &slot.hm,
+            held: &slot.held,
+            bounds,
+            imag_only: true,
+            scale: slot.scale_im,
+            sign: slot.sign,
+        };
         let (z, _) = nelder_mead(cost, bounds.z_at(x_of(&m0)), 0.2, 400, m0.freq_hz)?;
-        slot.mode = params_of(bounds.x_at(&z));
+        slot.mode = params_of(bounds.x_at(&z), slot.sign);
         slot.residue = real_residue(&slot.mode);
         slots.push(slot);
     }
@@ -314,7 +339,7 @@ pub(super) fn fit_modes(
     // Step 3: floating modes, each on its own ±200 Hz band.
     if opts.floating_modes {
         let reference =
-            slots.iter().zip(peaks).min_by(|a, b| a.1.im.total_cmp(&b.1.im)).map_or(1.0, |(s, _)| s.mode.modal_mass);
+            slots.iter().zip(peaks).min_by(|a, b| a.1.im.total_cmp(&b.1.im)).map_or(1.0, |(s, _)| s.mode.modal_mass.abs());
         for m in floating(peaks, reference, lo, hi, opts.seed) {
             let band = mode_bands(&[m.freq_hz], lo, hi, df)[0];
             let bounds = bounds_for(&band, reference, 0.1, 1e4);
@@ -374,7 +399,11 @@ pub(super) fn fit_modes(
                 let cost = ComplexModeCost { w: &slot.w, r: &r, rr, bounds: slot.bounds, scale: slot.scale_l2 };
                 let (a, _) = cost.project(&z);
                 let x = slot.bounds.x_at(&[z[0], z[1], 0.0]);
-                slot.mode = super::lsfd::mode_of_residue(x[0], x[1], a);
+                slot.mode = if opts.signed {
+                    super::lsfd::signed_mode_of_residue(x[0], x[1], a)
+                } else {
+                    super::lsfd::mode_of_residue(x[0], x[1], a)
+                };
                 slot.residue = a;
                 c
             } else {
@@ -385,9 +414,10 @@ pub(super) fn fit_modes(
                     bounds: slot.bounds,
                     imag_only: false,
                     scale: slot.scale,
+                    sign: slot.sign,
                 };
                 let (z, c) = nelder_mead(cost, slot.bounds.z_at(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
-                slot.mode = params_of(slot.bounds.x_at(&z));
+                slot.mode = params_of(slot.bounds.x_at(&z), slot.sign);
                 slot.residue = real_residue(&slot.mode);
                 c
             };
@@ -402,7 +432,7 @@ pub(super) fn fit_modes(
             let before = slots.len();
             let mut kept = Vec::with_capacity(before);
             for s in slots.drain(..) {
-                if s.bounds.stuck(x_of(&s.mode), dims) {
+                if s.bounds.stuck(x_of(&s.mode), dims, df / (2.0 * s.mode.freq_hz)) {
                     deleted.push(s.mode);
                 } else {
                     kept.push(s);

@@ -75,6 +75,7 @@ impl Node for FrfCompare {
         let (Value::Frf(a), Value::Frf(b)) = (ctx.input("frf")?, ctx.input("reference")?) else {
             return Err(NodeError::input("frf", "expected FRFs"));
         };
+        super::convert::same_kind(b, "reference", a, "frf")?;
         let region = if ctx.params.text("region") == Some("all") { Region::All } else { Region::Modes };
         let min_coherence = ctx.params.f64("min_coherence").unwrap_or(0.9);
         let c = compare::compare(

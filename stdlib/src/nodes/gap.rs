@@ -132,6 +132,7 @@ impl Node for FrfGap {
         let (Value::Frf(model), Value::Frf(meas)) = (ctx.input("model")?, ctx.input("measured")?) else {
             return Err(NodeError::input("model", "expected FRFs"));
         };
+        super::convert::same_kind(meas, "measured", model, "model")?;
         let noise = declared(ctx.params)?.unwrap_or(NoiseModel::Coherence);
         let (lo, hi) = match ctx.params.list("band") {
             Some([a, b]) => (*a, *b),
@@ -252,6 +253,7 @@ impl Node for FrfGap {
             direction: meas.direction.clone(),
             speed_rpm: meas.speed_rpm,
             sensor: meas.sensor.clone(),
+            dofs: meas.dofs,
         };
         Ok([
             ("ratio".to_string(), Value::Scalar(Scalar::new(g.ratio, ""))),

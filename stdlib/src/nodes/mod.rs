@@ -1,6 +1,7 @@
 //! Node adapters: each wraps a physics kernel of this crate as a recipe node kind.
 
 mod compare;
+mod convert;
 mod error_motion;
 mod expr;
 mod frf;
@@ -19,6 +20,7 @@ mod table;
 mod transform;
 
 pub use compare::FrfCompare;
+pub use convert::FrfConvert;
 pub use error_motion::{ErrorsSeparate, LdvIntegrate, TachDecode};
 pub use expr::RhaiEval;
 pub use frf::FrfEstimate;

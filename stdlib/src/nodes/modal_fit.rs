@@ -1,10 +1,12 @@
-//! `modal.fit`: equivalent modes and fixed-free Euler–Bernoulli beams of a direct tip FRF (§5.2, Eqs. 5.7–5.12).
+//! `modal.fit`: equivalent modes and fixed-free Euler–Bernoulli beams of a direct tip FRF (§5.2, Eqs. 5.7–5.12),
+//! and the modes of a transfer FRF (signed modal constants, no beams).
 
 use crate::eb_modes::BeamMaterial;
-use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues};
+use super::convert::{self, ZeroLine};
+use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues, Weighting};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, Frf, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
+use spindlelab_engine::value::{Column, Frf, FrfKind, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct ModalFitNode {
@@ -22,9 +24,13 @@ impl ModalFitNode {
         ModalFitNode {
             spec: NodeSpec {
                 kind: "modal.fit",
-                version: 1,
-                description: "Equivalent modes of a direct tip FRF (§5.2 simplex, or LSCF) mapped to fixed-free Euler–Bernoulli beams (§5.2.5); fitted FRF (Eq. 5.7) and tip receptances G11 (Eqs. 5.10–5.12).",
-                inputs: vec![PortSpec::new("frf", PortType::Frf, "direct tip receptance (m/N)")],
+                version: 2,
+                description: "Modes of an FRF (§5.2 simplex, or LSCF); of a direct tip FRF mapped to fixed-free Euler–Bernoulli beams (§5.2.5) with the fitted FRF (Eq. 5.7) and tip receptances G11 (Eqs. 5.10–5.12). A transfer FRF's modal constants may be negative (then no beams). Receptance, mobility or accelerance: fitted as a receptance.",
+                inputs: vec![PortSpec::new(
+                    "frf",
+                    PortType::Frf,
+                    "the FRF: receptance (m/N), mobility (m/s/N) or accelerance (m/s^2/N), a driving point or a transfer FRF",
+                )],
                 outputs: vec![
                     PortSpec::new("modes", PortType::ModalModel, "identified modes (Eq. 5.8)"),
                     PortSpec::new(
@@ -37,7 +43,11 @@ impl ModalFitNode {
                         PortType::Table,
                         "equivalent beam per mode: frequency, diameter, loss factor, free length",
                     ),
-                    PortSpec::new("fitted", PortType::Frf, "sum of the beams' tip H (Eq. 5.7) on the input grid"),
+                    PortSpec::new(
+                        "fitted",
+                        PortType::Frf,
+                        "sum of the beams' tip H (Eq. 5.7), or the modal model where there are no beams, on the fit's grid (the input's without a 0 Hz line a conversion drops), in the input's kind",
+                    ),
                     PortSpec::new(
                         "tip",
                         PortType::ReceptanceSet,
@@ -56,7 +66,7 @@ impl ModalFitNode {
                     PortSpec::new(
                         "residual_terms",
                         PortType::Table,
-                        "one row: lower residual LR (term −LR/ω²), its mass 1/LR, upper residual UR and the relative L2 residual of the modal model on the fit band",
+                        "one row: lower residual LR (term −LR/ω²), its mass 1/LR, upper residual UR, the global relative L2 residual ‖H − H_fit‖/‖H‖ and the 1/|H|-weighted relative error (RMS of |H − H_fit|/|H|) of the modal model on the fit band",
                     ),
                 ],
                 params: vec![
@@ -128,6 +138,17 @@ impl ModalFitNode {
                         "refit the mapped beams jointly so that their sum reproduces the measured FRF (false: the plain per-mode mapping of §5.2.5)",
                     ),
                     Field::opt(
+                        "driving_point",
+                        T::Bool,
+                        "whether response and reference are the same point and direction (default: from the FRF's node and direction numbers, else unknown); a driving point's modal masses must be positive (modes that come out negative are rejected), a transfer FRF's modal constants carry signs",
+                    ),
+                    Field::def(
+                        "weighting",
+                        T::Choice(&["relative", "absolute"]),
+                        "relative",
+                        "line weights of the LSCF and LSFD least squares: 1/|H| (every line by its relative error) or none (the global L2 distance, which the peaks dominate)",
+                    ),
+                    Field::opt(
                         "order",
                         T::Integer { min: 4, max: 200 },
                         "LSCF model order (number of poles; default four per picked peak, at least 8, raised to six and eight while fewer poles than peaks are stable)",
@@ -188,16 +209,15 @@ impl Node for ModalFitNode {
         let Value::Frf(frf) = ctx.input("frf")? else {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
-        if !frf.unit.symbol.is_empty() && frf.unit.symbol != "m/N" {
-            return Err(NodeError::input(
-                "frf",
-                format!(
-                    "unit `{}`: the fit needs a receptance in m/N (convert mobility or accelerance first)",
-                    frf.unit.symbol
-                ),
-            ));
+        // A file without units is taken as a receptance, as before kinds were told apart.
+        let kind = if frf.unit.symbol.trim().is_empty() { FrfKind::Receptance } else { convert::kind_of(frf, "frf")? };
+        let (receptance, dropped) = convert::convert(frf, kind, FrfKind::Receptance, ZeroLine::Drop);
+        if dropped {
+            ctx.warn(format!("the {}'s 0 Hz line has no receptance (a division by iω there): left out of the fit", kind.name()));
         }
+        let labelled = frf.dofs.map(|d| d.driving_point());
         let p = ctx.params;
+        let stated = p.bool("driving_point");
         let material = match p.text("material") {
             Some(name) => {
                 let m = ctx
@@ -238,18 +258,45 @@ impl Node for ModalFitNode {
             band_points: int(p, "band_points", 200),
             material,
             beam_refit: p.bool("beam_refit").unwrap_or(true),
+            // Only a driving point stated as one is held to positive modal masses; node numbers may be
+            // placeholders, so a driving point by its numbers alone is checked after the fit instead.
+            signed: stated != Some(true),
+            kind_order: kind.order(),
+            weighting: match p.text("weighting") {
+                Some("absolute") => Weighting::Absolute,
+                _ => Weighting::Relative,
+            },
         };
-        let fit = modal_fit::fit(&frf.freq_hz, &frf.values, &opts).map_err(err)?;
-        report(ctx, &fit, method);
-        Ok(outputs(frf, fit))
+        let fit = modal_fit::fit(&receptance.freq_hz, &receptance.values, &opts).map_err(err)?;
+        report(ctx, &fit, method, &receptance.freq_hz);
+        let negative: Vec<String> =
+            fit.modes.iter().filter(|m| m.modal_mass < 0.0).map(|m| format!("{:.1} Hz", m.freq_hz)).collect();
+        if stated.is_none()
+            && labelled == Some(true)
+            && !negative.is_empty()
+            && let Some(d) = frf.dofs
+        {
+            ctx.warn(format!(
+                "the FRF is a driving point by its node numbers ({}), but the mode(s) at {} have negative modal constants, which a driving point cannot have: check the file's node numbers, or state `driving_point: false` (a transfer FRF) or `true` (to reject those modes)",
+                d.describe(),
+                negative.join(", ")
+            ));
+        }
+        if !negative.is_empty() {
+            ctx.warn(format!(
+                "mode(s) at {} have negative modal constants (a transfer FRF): no equivalent beams, `fitted` is the modal model and the tip blocks L, N, P are NaN",
+                negative.join(", ")
+            ));
+        }
+        Ok(outputs(&receptance, kind, fit))
     }
 }
 
-fn report(ctx: &NodeContext, fit: &ModalFit, method: Method) {
+fn report(ctx: &NodeContext, fit: &ModalFit, method: Method, freqs_hz: &[f64]) {
     if !fit.deleted.is_empty() {
         let what = match method {
             Method::Simplex => "deleted at their bounds (§5.2.4.1)",
-            Method::Lscf { .. } => "rejected (negative modal mass or below v_sens)",
+            Method::Lscf { .. } => "rejected (negative modal mass of a driving point, or below v_sens)",
         };
         let list: Vec<String> = fit.deleted.iter().map(|m| format!("{:.1} Hz", m.freq_hz)).collect();
         ctx.warn(format!("{} mode(s) {what}: {}", fit.deleted.len(), list.join(", ")));
@@ -264,14 +311,30 @@ fn report(ctx: &NodeContext, fit: &ModalFit, method: Method) {
     if !clipped.is_empty() {
         ctx.warn(format!("the fit band clips the band of the mode(s) at {}", clipped.join(", ")));
     }
+    let unresolved = modal_fit::unresolved_damping(&fit.modes, freqs_hz);
+    if !unresolved.is_empty() {
+        let df = modal_fit::line_spacing(freqs_hz);
+        let list: Vec<String> = unresolved.iter().map(|&i| format!("{:.1} Hz", fit.modes[i].freq_hz)).collect();
+        ctx.warn(format!(
+            "the damping of the mode(s) at {} is below the resolution of the {df:.3} Hz lines (half-power width 2ζf under one line): the table gives NaN; the model keeps the fitted value, an upper bound at best (measure with finer lines, a longer record, to know it)",
+            list.join(", ")
+        ));
+    }
 }
 
-fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
+fn outputs(frf: &Frf, kind: FrfKind, fit: ModalFit) -> Outputs {
     let modes = ModalModel { modes: fit.modes.clone() };
     let col = |f: &dyn Fn(&Mode) -> f64| fit.modes.iter().map(f).collect::<Vec<f64>>();
+    let unresolved = modal_fit::unresolved_damping(&fit.modes, &frf.freq_hz);
+    let damping: Vec<f64> = fit
+        .modes
+        .iter()
+        .enumerate()
+        .map(|(i, m)| if unresolved.contains(&i) { f64::NAN } else { m.damping_ratio })
+        .collect();
     let modal_table = table(vec![
         Column::new("frequency", "Hz", col(&|m| m.freq_hz)),
-        Column::new("damping_ratio", "", col(&|m| m.damping_ratio)),
+        Column::new("damping_ratio", "", damping),
         Column::new("modal_mass", "kg", col(&|m| m.modal_mass)),
         Column::new("stiffness", "N/m", col(&|m| m.stiffness())),
     ]);
@@ -302,8 +365,9 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
         Column::new("lower_mass", "kg", vec![if r.lower != 0.0 { 1.0 / r.lower } else { f64::INFINITY }]),
         Column::new("upper_residual", "m/N", vec![r.upper]),
         Column::new("relative_residual", "", vec![r.relative_residual]),
+        Column::new("weighted_residual", "", vec![r.weighted_residual]),
     ]);
-    let fitted = Frf {
+    let receptance = Frf {
         freq_hz: frf.freq_hz.clone(),
         values: fit.fitted,
         coherence: None,
@@ -311,7 +375,9 @@ fn outputs(frf: &Frf, fit: ModalFit) -> Outputs {
         direction: frf.direction.clone(),
         speed_rpm: frf.speed_rpm,
         sensor: frf.sensor.clone(),
+        dofs: frf.dofs,
     };
+    let (fitted, _) = convert::convert(&receptance, FrfKind::Receptance, kind, ZeroLine::Drop);
     let lines = &fit.tip.lines;
     let tip = ReceptanceSet {
         freq_hz: fit.tip.freqs_hz.clone(),
@@ -363,6 +429,7 @@ mod tests {
             direction: Some("x".into()),
             speed_rpm: Some(3000.0),
             sensor: None,
+            dofs: None,
         };
         let inputs = [(
             "frf".to_string(),
