@@ -141,7 +141,12 @@ pub fn interface_of(component: &[u8]) -> Option<String> {
     for payload in wasmparser::Parser::new(0).parse_all(component) {
         let Ok(wasmparser::Payload::ComponentExportSection(exports)) = payload else { continue };
         for export in exports.into_iter().flatten() {
-            let name = export.name.full_name();
+            // The name with its version suffix appended, when the encoder split them.
+            let n = export.name;
+            let name = match (n.implements, n.version_suffix) {
+                (None, Some(suffix)) => format!("{}{suffix}", n.name),
+                _ => n.name.to_string(),
+            };
             if let Some(v) = name.strip_prefix("spindlelab:plugin/node@")
                 && let Some(i) = INTERFACE_VERSIONS.iter().position(|k| *k == v)
             {
