@@ -566,11 +566,16 @@ fn command(cli: Cli) -> ExitCode {
             let threads = clamp_threads(threads);
             let mut c = match compile_with(&recipe, &set, &mut registry, &mut plugins) {
                 Ok(c) if c.recipe.library => {
-                    eoutln!(
-                        "error: {} is a library (entities only): nothing to run; `use` it from a recipe (`use: [{}]`), or `spindlelab check` it",
-                        esc(recipe.display()),
-                        esc(recipe.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default())
+                    let mut d = engine::diag::Diagnostics::new();
+                    d.error_help(
+                        Some(&c.raw.span),
+                        "the recipe has no `steps`: it holds entities only, which makes it a library, and a library has nothing to run",
+                        format!(
+                            "add `steps:` with at least one analysis step, or take its entities into a recipe with `use: [{}]`",
+                            recipe.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+                        ),
                     );
+                    eout!("{}", d.render(&c.sources, color()));
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
                 Ok(c) => c,

@@ -179,7 +179,7 @@ fn check_validates_a_library_on_its_own_and_run_refuses_one() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let o = spindlelab(&data(), [OsStr::new("run"), OsStr::new("lib/shop.yaml"), OsStr::new("-o"), out.as_os_str()]);
-    assert_rejected(&o, &["is a library", "nothing to run"]);
+    assert_rejected(&o, &["makes it a library", "nothing was run"]);
     assert!(!out.exists(), "nothing is written for a library");
 }
 

@@ -29,6 +29,7 @@ const TOP_KEYS: &[&str] = &[
     "fit",
     "measurements",
     "plugins",
+    "use",
     "exports",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
