@@ -295,3 +295,31 @@ fn every_library_and_procedure_of_the_examples_checks_on_its_own() {
         assert!(used.iter().any(|u| u.ends_with(f)), "{f} not in {used:?}");
     }
 }
+
+/// The worked example of docs/recipe-format.md (*Reuse*), written out file by file as its
+/// blocks name them, checks: the libraries on their own, the recipes with them.
+#[test]
+fn the_worked_example_in_the_recipe_format_checks() {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/recipe-format.md")).unwrap();
+    let section = doc.split("\n## Reuse\n").nth(1).expect("a Reuse section").split("\n## ").next().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for block in section.split("```yaml\n").skip(1) {
+        let text = block.split("```").next().unwrap();
+        let name = text.lines().next().and_then(|l| l.strip_prefix("# ")).unwrap();
+        let name = name.split([':', ' ']).next().unwrap();
+        let path = dir.path().join(name);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, text).unwrap();
+        files.push(name.to_string());
+    }
+    assert_eq!(files, ["lib/shop.yaml", "lib/holders.yaml", "study.yaml", "procedures/tap.yaml", "tap-study.yaml"]);
+    for f in &files {
+        let o = spindlelab(dir.path(), ["check", f]);
+        assert_ok(&o);
+    }
+    let o = spindlelab(dir.path(), ["check", "lib/holders.yaml"]);
+    assert!(o.stdout.contains("ok — library of 2 materials, 1 assembly"), "{}", o.stdout);
+    let o = spindlelab(dir.path(), ["plan", "tap-study.yaml", "-o", "out"]);
+    assert!(o.stdout.contains("tap/hit[hammer_mass=0.04 kg]"), "{}", o.stdout);
+}
