@@ -131,17 +131,31 @@ pub fn compile_raw(
     }
 }
 
-/// Refuses, for `--confine`, every data file named outside the recipe's folder: an absolute
-/// path or one that climbs out with `..` (by name; links inside the folder are followed as
-/// the system does). Without it, data files are read wherever they are named, and the
+/// Refuses, for `--confine`, every data file named outside the recipe's folder, and every
+/// library, recipe run as a step or module read from outside it: an absolute path or one
+/// that climbs out with `..` (by name; links inside the folder are followed as the system
+/// does). Without it, data files are read wherever they are named, and the
 /// manifest records each with its hash.
 pub fn check_confined(compiled: &Compiled) -> Result<(), CompileError> {
     let base = compiled.path.parent().unwrap_or(Path::new(""));
     let mut diags = Diagnostics::new();
-    for f in compiled.recipe.data_files() {
-        let inside = f.path.strip_prefix(base).is_ok_and(|rel| {
+    let inside = |p: &Path| {
+        p.strip_prefix(base).is_ok_and(|rel| {
             rel.components().all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir))
-        });
+        })
+    };
+    // The libraries, recipes run as steps and modules it took, by the name they were read under.
+    for used in compiled.used_files().keys() {
+        if !inside(Path::new(used)) {
+            diags.error_help(
+                Some(&diag::Span::file_only(compiled.sources[0].path.clone())),
+                format!("the recipe uses `{used}`, which lies outside its folder, which --confine refuses"),
+                "copy the library or recipe beside the recipe, or run without --confine",
+            );
+        }
+    }
+    for f in compiled.recipe.data_files() {
+        let inside = inside(f.path);
         if !inside {
             diags.error_help(
                 f.span,
