@@ -223,11 +223,22 @@ fn a_pipe_named_as_a_plugin_or_its_component_is_refused_not_waited_on() {
     }
 }
 
+/// `scripts/rotating-frf.yaml` as `r.yaml` in `dir`, with the libraries and the procedure it uses.
+fn copy_rotating_frf(dir: &Path) {
+    let scripts = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts");
+    std::fs::copy(scripts.join("rotating-frf.yaml"), dir.join("r.yaml")).unwrap();
+    for folder in ["lib", "procedures"] {
+        std::fs::create_dir_all(dir.join(folder)).unwrap();
+        for e in std::fs::read_dir(scripts.join(folder)).unwrap().flatten() {
+            std::fs::copy(e.path(), dir.join(folder).join(e.file_name())).unwrap();
+        }
+    }
+}
+
 #[test]
 fn plan_says_why_a_rerun_remakes_an_uncached_intermediate() {
     let tmp = tempfile::tempdir().unwrap();
-    let recipe = tmp.path().join("r.yaml");
-    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), &recipe).unwrap();
+    copy_rotating_frf(tmp.path());
     let o = run_in(tmp.path(), &["run", "r.yaml", "-o", "o", "-q"]);
     assert!(o.status.success(), "{}", text(&o));
     let o = run_in(tmp.path(), &["plan", "r.yaml", "-o", "o"]);
@@ -261,8 +272,7 @@ fn peak_kib(cwd: &Path, args: &[&str]) -> i64 {
 #[test]
 fn threads_beyond_the_cores_do_not_multiply_the_memory_of_large_intermediates() {
     let tmp = tempfile::tempdir().unwrap();
-    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/rotating-frf.yaml"), tmp.path().join("r.yaml"))
-        .unwrap();
+    copy_rotating_frf(tmp.path());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let at = |j: usize| {
         peak_kib(tmp.path(), &["run", "r.yaml", "-o", &format!("o{j}"), "-q", "--no-cache", "-j", &j.to_string()])
