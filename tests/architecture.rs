@@ -66,7 +66,10 @@ fn uses_unsafe(src: &Path) -> bool {
     files.iter().any(|f| {
         let text = std::fs::read_to_string(f).unwrap();
         text.lines().filter(|l| !l.trim_start().starts_with("//")).any(|l| {
-            l.contains("unsafe {") || l.contains("unsafe fn") || l.contains("unsafe impl") || l.contains("unsafe extern")
+            l.contains("unsafe {")
+                || l.contains("unsafe fn")
+                || l.contains("unsafe impl")
+                || l.contains("unsafe extern")
         })
     })
 }

@@ -96,7 +96,11 @@ fn default_fit_of_measured_beam_accelerances_matches_sdypy_ema() {
         assert_eq!(f.len(), 6, "reference {reference}: {f:?}");
         for j in 0..6 {
             let want = SDYPY_EMA_HZ[k][j];
-            assert!((f[j] / want - 1.0).abs() <= 1e-3, "reference {reference}: {} Hz against sdypy-EMA's {want} Hz", f[j]);
+            assert!(
+                (f[j] / want - 1.0).abs() <= 1e-3,
+                "reference {reference}: {} Hz against sdypy-EMA's {want} Hz",
+                f[j]
+            );
             assert_eq!(m[j].signum(), SDYPY_EMA_SIGNS[k][j], "reference {reference}, mode {j}: modal mass {}", m[j]);
         }
         // Half-power widths of 0.02–0.3 Hz on 1 Hz lines: no damping is reported, and the warning says why.

@@ -408,7 +408,9 @@ pub fn read_frf(path: &Path, format: FileFormat, select: &FrfSelect) -> Result<L
                     message: format!(
                         "{} was asked for, the file holds {}",
                         select.asked(),
-                        frf.dofs.map_or("an FRF without node numbers (`# response:`, `# reference:`)".to_string(), |d| d.describe())
+                        frf.dofs
+                            .map_or("an FRF without node numbers (`# response:`, `# reference:`)".to_string(), |d| d
+                                .describe())
                     ),
                 });
             }

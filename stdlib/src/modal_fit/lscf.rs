@@ -279,6 +279,7 @@ fn residues(d: &Data, poles: &[Pole]) -> Result<Vec<Complex64>, FitError> {
 
 /// LSCF modes on the fit band: returns the kept modes (by frequency), the rejected ones (negative mass or
 /// below the `v_sens` cut-off) and the number of model orders evaluated.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn fit_modes(
     freqs: &[f64],
     h: &[Complex64],
@@ -351,8 +352,7 @@ pub(super) fn fit_modes(
         if mass.is_finite() && mass != 0.0 && (signed || mass > 0.0) { kept.push(mode) } else { rejected.push(mode) }
     }
     let largest = kept.iter().fold(0.0_f64, |m, q| m.max(im_peak(q).abs()));
-    let (keep, drop): (Vec<Mode>, Vec<Mode>) =
-        kept.into_iter().partition(|q| im_peak(q).abs() >= v_sens * largest);
+    let (keep, drop): (Vec<Mode>, Vec<Mode>) = kept.into_iter().partition(|q| im_peak(q).abs() >= v_sens * largest);
     rejected.extend(drop);
     if keep.is_empty() {
         return Err(FitError::NothingLeft {

@@ -254,11 +254,7 @@ fn initial_mode(peak: &Peak, smooth: &[f64], offset: usize, freqs: &[f64], band:
         (freqs[offset + b] - freqs[offset + a]).max(freqs[offset + i.min(smooth.len() - 2) + 1] - freqs[offset + i]);
     let xi = (width / (2.0 * peak.freq_hz)).clamp(0.002, 0.2);
     let w = TAU * peak.freq_hz;
-    Mode {
-        freq_hz: peak.freq_hz,
-        damping_ratio: xi,
-        modal_mass: peak.sign / (2.0 * xi * w * w * peak.im.abs()),
-    }
+    Mode { freq_hz: peak.freq_hz, damping_ratio: xi, modal_mass: peak.sign / (2.0 * xi * w * w * peak.im.abs()) }
 }
 
 fn bounds_for(band: &Band, mass: f64, mass_lo: f64, mass_hi: f64) -> Bounds {
@@ -338,8 +334,11 @@ pub(super) fn fit_modes(
 
     // Step 3: floating modes, each on its own ±200 Hz band.
     if opts.floating_modes {
-        let reference =
-            slots.iter().zip(peaks).min_by(|a, b| a.1.im.total_cmp(&b.1.im)).map_or(1.0, |(s, _)| s.mode.modal_mass.abs());
+        let reference = slots
+            .iter()
+            .zip(peaks)
+            .min_by(|a, b| a.1.im.total_cmp(&b.1.im))
+            .map_or(1.0, |(s, _)| s.mode.modal_mass.abs());
         for m in floating(peaks, reference, lo, hi, opts.seed) {
             let band = mode_bands(&[m.freq_hz], lo, hi, df)[0];
             let bounds = bounds_for(&band, reference, 0.1, 1e4);

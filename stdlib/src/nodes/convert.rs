@@ -119,11 +119,7 @@ impl FrfConvert {
                 )],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF in the kind asked for")],
                 params: vec![
-                    Field::req(
-                        "to",
-                        T::Choice(&["receptance", "mobility", "accelerance"]),
-                        "the kind to convert to",
-                    ),
+                    Field::req("to", T::Choice(&["receptance", "mobility", "accelerance"]), "the kind to convert to"),
                     Field::def(
                         "zero_line",
                         T::Choice(&["drop", "nan"]),

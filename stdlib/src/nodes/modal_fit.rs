@@ -1,8 +1,8 @@
 //! `modal.fit`: equivalent modes and fixed-free Euler–Bernoulli beams of a direct tip FRF (§5.2, Eqs. 5.7–5.12),
 //! and the modes of a transfer FRF (signed modal constants, no beams).
 
-use crate::eb_modes::BeamMaterial;
 use super::convert::{self, ZeroLine};
+use crate::eb_modes::BeamMaterial;
 use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues, Weighting};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -213,7 +213,10 @@ impl Node for ModalFitNode {
         let kind = if frf.unit.symbol.trim().is_empty() { FrfKind::Receptance } else { convert::kind_of(frf, "frf")? };
         let (receptance, dropped) = convert::convert(frf, kind, FrfKind::Receptance, ZeroLine::Drop);
         if dropped {
-            ctx.warn(format!("the {}'s 0 Hz line has no receptance (a division by iω there): left out of the fit", kind.name()));
+            ctx.warn(format!(
+                "the {}'s 0 Hz line has no receptance (a division by iω there): left out of the fit",
+                kind.name()
+            ));
         }
         let labelled = frf.dofs.map(|d| d.driving_point());
         let p = ctx.params;
