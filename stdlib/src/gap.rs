@@ -111,27 +111,14 @@ fn variances(
     noise: NoiseModel,
 ) -> Result<Vec<f64>, GapError> {
     match noise {
-        NoiseModel::Coherence => {
+        NoiseModel::Coherence | NoiseModel::H1 { .. } => {
+            // σ²/|H|² from the coherence of each line, by the model's rule.
+            let relative = |c: f64| match noise {
+                NoiseModel::H1 { averages } => (1.0 - c) / (averages * c),
+                _ => (1.0 / c - 1.0) / 20.0,
+            };
             let g = coherence.ok_or(GapError::NoCoherence)?;
-            Ok(measured
-                .iter()
-                .zip(g)
-                .map(|(h, &c)| {
-                    let c = c.clamp(1e-12, 1.0);
-                    h.norm_sqr() * (1.0 / c - 1.0) / 20.0
-                })
-                .collect())
-        }
-        NoiseModel::H1 { averages } => {
-            let g = coherence.ok_or(GapError::NoCoherence)?;
-            Ok(measured
-                .iter()
-                .zip(g)
-                .map(|(h, &c)| {
-                    let c = c.clamp(1e-12, 1.0);
-                    h.norm_sqr() * (1.0 - c) / (averages * c)
-                })
-                .collect())
+            Ok(measured.iter().zip(g).map(|(h, &c)| h.norm_sqr() * relative(c.clamp(1e-12, 1.0))).collect())
         }
         NoiseModel::Declared { sigma_rel, floor_rel, rolloff_hz } => {
             let peak = measured.iter().map(|h| h.norm()).fold(0.0, f64::max);
