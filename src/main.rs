@@ -677,11 +677,23 @@ fn command(cli: Cli) -> ExitCode {
                             "{} instance(s) computed and cached; {}",
                             r.manifest.computed,
                             if r.written.is_empty() && keep_going {
-                                "no output was free of the failures, so none was written".to_string()
+                                "every output depended on the failures, so none was written".to_string()
                             } else if r.written.is_empty() {
                                 "no outputs written (use --keep-going to write those that succeeded)".to_string()
-                            } else {
+                            } else if r.manifest.partial.is_empty() {
                                 format!("wrote {} file(s) that did not depend on the failure", r.written.len())
+                            } else {
+                                let partial: Vec<String> = r
+                                    .manifest
+                                    .partial
+                                    .iter()
+                                    .map(|(file, m)| format!("{} (without {} sweep point(s))", esc(file), m.len()))
+                                    .collect();
+                                format!(
+                                    "wrote {} file(s); {} lack the failed sweep points, which they and manifest.json list",
+                                    r.written.len(),
+                                    partial.join(", ")
+                                )
                             }
                         );
                     }

@@ -322,3 +322,81 @@ fn a_full_disk_fails_the_run_cleanly_and_leaves_the_previous_run_whole() {
     assert!(!text(&o).contains("was not used"), "{}", text(&o));
     assert_ne!(std::fs::read(tmp.path().join("o/impulse.csv")).unwrap(), before[0]);
 }
+
+/// With `--keep-going`, a swept output keeps the sweep points that succeeded and marks the one
+/// that failed, in the file (`# missing:` in CSV, a `missing` item in JSON) and the manifest;
+/// an unswept output of the failed step is not written.
+#[test]
+fn keep_going_writes_the_sweep_points_that_succeeded_and_marks_the_failed_one() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("r.yaml"),
+        r#"spindlelab: 1
+name: partial
+steps:
+  divisor:
+    kind: rhai.eval
+    sweep: { expr: ["1.0", "0.0", "4.0"] }
+  ratio:
+    kind: rhai.eval
+    params: { expr: "2.0 / x", unit: m }
+    inputs: { x: "@divisor.value" }
+  scaled:
+    kind: rhai.eval
+    params: { expr: "x * 1000.0", unit: mm }
+    inputs: { x: "@ratio.value" }
+  first:
+    kind: rhai.eval
+    params: { expr: "1.0 / 0.0" }
+outputs:
+  - { from: "@ratio.value", file: ratio.csv }
+  - { from: "@scaled.value", file: scaled.csv }
+  - { from: "@ratio.value", file: ratio.json }
+  - { from: "@first.value", file: first.csv }
+"#,
+    )
+    .unwrap();
+    let o = run_in(dir.path(), &["run", "--no-cache", "-o", "out", "r.yaml"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let out = dir.path().join("out");
+    assert!(!out.join("ratio.csv").exists(), "without --keep-going nothing is written: {}", text(&o));
+
+    let o = run_in(dir.path(), &["run", "--no-cache", "--keep-going", "-o", "out", "r.yaml"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(2), "the run still fails: {}", text(&o));
+    let said = text(&o);
+    assert!(said.contains("ratio.csv (without 1 sweep point(s))"), "{said}");
+    assert!(!out.join("first.csv").exists(), "an unswept output of a failed step is not written");
+
+    // The CSV: the two good points read back through the table reader, the failed one listed.
+    let bytes = std::fs::read(out.join("ratio.csv")).unwrap();
+    let missing = spindlelab::engine::formats::csv::missing_points(&bytes);
+    assert_eq!(missing.len(), 1, "{}", String::from_utf8_lossy(&bytes));
+    assert!(missing[0].starts_with("expr=0.0 (failed: "), "{missing:?}");
+    assert!(missing[0].contains("gave inf"), "{missing:?}");
+    let downstream = spindlelab::engine::formats::csv::missing_points(&std::fs::read(out.join("scaled.csv")).unwrap());
+    assert_eq!(downstream, ["expr=0.0 (not run: its input `ratio[expr=0.0]` failed)"]);
+    let blocks = spindlelab::engine::formats::csv::read_tables(&bytes, "ratio.csv").unwrap();
+    let got: Vec<(String, f64)> =
+        blocks.iter().map(|b| (b.coords[0].1.clone(), b.table.columns[0].values[0])).collect();
+    assert_eq!(got, [("1.0".to_string(), 2.0), ("4.0".to_string(), 0.5)]);
+
+    // The JSON: the values, and an item saying which point is missing and why.
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("ratio.json")).unwrap()).unwrap();
+    let items = json.as_array().unwrap();
+    assert_eq!(items.len(), 3);
+    assert_eq!(items.iter().filter(|i| i.get("value").is_some()).count(), 2);
+    let gone = items.iter().find(|i| i.get("missing").is_some()).unwrap();
+    assert_eq!(gone["label"], "expr=0.0");
+
+    // The manifest: both partial files, the point, the instance and the reason.
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    for file in ["ratio.csv", "ratio.json"] {
+        let p = &m["partial"][file][0];
+        assert_eq!(p["label"], "expr=0.0", "{m:#}");
+        assert_eq!(p["instance"], "ratio[expr=0.0]");
+        assert!(p["reason"].as_str().unwrap().starts_with("failed: "), "{p}");
+    }
+    assert!(m["partial"].get("first.csv").is_none());
+}

@@ -200,9 +200,10 @@ pub struct RunReport {
 ///
 /// The run holds the output folder's lock throughout; its files and manifest go into a fresh
 /// run folder that replaces the previous run as one ([`exec::commit`]). With `keep_going`,
-/// outputs whose instances all succeeded are written even if others failed; a failed run
-/// otherwise commits only its manifest, so no earlier output stands beside it unmarked. The
-/// cache keeps every computed instance either way.
+/// outputs are written even if some instances failed, a swept one without its failed sweep
+/// points (the file and the manifest's `partial` list them); a failed run otherwise commits
+/// only its manifest, so no earlier output stands beside it unmarked. The cache keeps every
+/// computed instance either way.
 pub fn run(
     compiled: &Compiled,
     registry: &Registry,
@@ -223,17 +224,26 @@ pub fn run(
     let mut staged = dir.stage().map_err(RunError::Output)?;
     let mut written = Vec::new();
     let mut plot_notes = Vec::new();
+    let mut partial = indexmap::IndexMap::new();
     let mut contents: Vec<(String, Vec<u8>)> = Vec::new();
     for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
         let ids = &compiled.graph.by_step[&out.from.step];
         let mut rows = Vec::new();
+        let mut missing = Vec::new();
         for &i in ids {
-            let Some(outputs) = result.outcomes[i].outputs() else { break };
             let inst = &compiled.graph.instances[i];
-            let Some(value) = outputs.get(&out.from.port) else { break };
-            rows.push(exec::write::Row { label: &inst.label, value });
+            match result.outcomes[i].outputs().and_then(|o| o.get(&out.from.port)) {
+                Some(value) => rows.push(exec::write::Row { label: &inst.label, value }),
+                None => missing.push(exec::manifest::MissingPoint {
+                    label: inst.label.clone(),
+                    instance: inst.id.clone(),
+                    reason: missing_reason(&compiled.graph, &result, i),
+                }),
+            }
         }
-        if rows.len() != ids.len() {
+        // A swept output keeps the sweep points that succeeded and marks the others; an output
+        // with nothing to show, or an unswept one that failed, is not written.
+        if rows.is_empty() || (!missing.is_empty() && ids.len() == 1) {
             continue;
         }
         let bytes = match out.format {
@@ -244,10 +254,13 @@ pub fn run(
                     continue;
                 }
             },
-            format => exec::write::render(format, &rows).into_bytes(),
+            format => exec::write::render_partial(format, &rows, &missing).into_bytes(),
         };
         staged.write(&out.file, &bytes).map_err(RunError::Output)?;
         written.push(out.file.clone());
+        if !missing.is_empty() {
+            partial.insert(out.file.clone(), missing);
+        }
         if opts.report {
             contents.push((out.file.clone(), bytes));
         }
@@ -264,6 +277,7 @@ pub fn run(
     );
     manifest.notes.extend(dir.notes().iter().cloned());
     manifest.notes.extend(plot_notes);
+    manifest.partial = partial;
     manifest.recipe_text = compiled.sources.first().map(|s| s.text.to_string()).unwrap_or_default();
     manifest.recipe_files = compiled.used_files();
     manifest.files = staged.files().iter().cloned().collect();
@@ -278,6 +292,29 @@ pub fn run(
     staged.commit().map_err(RunError::Output)?;
     let report = RunReport { result, manifest, written };
     if failures.is_empty() { Ok(report) } else { Err(RunError::NodesFailed { failures, report: Box::new(report) }) }
+}
+
+/// Why instance `i` has no value: its own error, or the failed instance upstream that kept it
+/// from running.
+fn missing_reason(graph: &graph::Graph, result: &RunResult, i: usize) -> String {
+    match &result.outcomes[i] {
+        Outcome::Failed(e) => format!("failed: {e}"),
+        Outcome::Skipped => {
+            let mut stack = vec![i];
+            let mut seen = std::collections::HashSet::new();
+            while let Some(j) = stack.pop() {
+                if !seen.insert(j) {
+                    continue;
+                }
+                if matches!(result.outcomes[j], Outcome::Failed(_)) {
+                    return format!("not run: its input `{}` failed", graph.instances[j].id);
+                }
+                stack.extend(graph.instances[j].deps());
+            }
+            "not run: the run stopped before it".to_string()
+        }
+        _ => "no value on this port".to_string(),
+    }
 }
 
 /// An output's plot: the rows of its own port, each `with` reference's values over them.

@@ -67,6 +67,21 @@ pub struct Manifest {
     /// What the run noticed about itself (cache entries it could not use and recomputed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// Swept outputs written with `--keep-going` without some of their sweep points: per file,
+    /// the points missing and why. The files mark the same points (`# missing:` in CSV).
+    #[serde(default, skip_serializing_if = "IndexMap::is_empty")]
+    pub partial: IndexMap<String, Vec<MissingPoint>>,
+}
+
+/// A sweep point an output file lacks because its instance failed or did not run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MissingPoint {
+    /// The sweep label as the recipe wrote it, e.g. `speed=3000 rpm`.
+    pub label: String,
+    /// The instance that would have made it.
+    pub instance: String,
+    /// `failed: …` with the node's error, or `not run: its input `…` failed`.
+    pub reason: String,
 }
 
 pub const MANIFEST_FILE: &str = "manifest.json";
@@ -140,6 +155,7 @@ impl Manifest {
                 .map(|((kind, name), d)| (Recipe::entity_label(*kind, name), d.clone()))
                 .collect(),
             notes: result.notes.clone(),
+            partial: IndexMap::new(),
         }
     }
 

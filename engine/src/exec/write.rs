@@ -2,6 +2,7 @@
 //! into place only when every output of the run is ready. Time series and FRFs are written by
 //! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
+use super::manifest::MissingPoint;
 use crate::formats::{csv, uff};
 use crate::model::OutputFormat;
 use crate::value::{Table, Value};
@@ -16,9 +17,25 @@ pub struct Row<'a> {
 
 /// Renders the values of one output (several when its step is swept) in the given format.
 pub fn render(format: OutputFormat, rows: &[Row]) -> String {
+    render_partial(format, rows, &[])
+}
+
+/// Renders a swept output some of whose sweep points are `missing` (written with
+/// `--keep-going`): CSV lists them in `# missing:` lines before the header, JSON as items with
+/// a `missing` reason in place of a `value`. UFF has no place for them; the manifest lists
+/// them for every format.
+pub fn render_partial(format: OutputFormat, rows: &[Row], missing: &[MissingPoint]) -> String {
     match format {
-        OutputFormat::Json => render_json(rows),
-        OutputFormat::Csv => render_csv(rows),
+        OutputFormat::Json => render_json(rows, missing),
+        OutputFormat::Csv => {
+            let mut out = String::new();
+            for m in missing {
+                let reason = m.reason.split_whitespace().collect::<Vec<_>>().join(" ");
+                let _ = writeln!(out, "# missing: {} ({reason})", m.label);
+            }
+            out.push_str(&render_csv(rows));
+            out
+        }
         OutputFormat::Uff => render_uff(rows),
         // Drawn by `crate::plot` from the values, not rendered as text.
         OutputFormat::Plot(_) => String::new(),
@@ -50,23 +67,24 @@ fn render_uff(rows: &[Row]) -> String {
     out
 }
 
-fn render_json(rows: &[Row]) -> String {
-    if rows.len() == 1 && rows[0].label.is_empty() {
+fn render_json(rows: &[Row], missing: &[MissingPoint]) -> String {
+    if rows.len() == 1 && rows[0].label.is_empty() && missing.is_empty() {
         return serde_json::to_string_pretty(rows[0].value).unwrap_or_default() + "\n";
     }
+    let item = |label: &str, key: &str, v: serde_json::Value| {
+        let mut m = serde_json::Map::new();
+        m.insert("label".into(), label.into());
+        for (name, cell) in label_columns(label) {
+            let v = cell.parse::<f64>().map_or_else(|_| serde_json::Value::from(cell.clone()), serde_json::Value::from);
+            m.insert(name, v);
+        }
+        m.insert(key.into(), v);
+        serde_json::Value::Object(m)
+    };
     let items: Vec<serde_json::Value> = rows
         .iter()
-        .map(|r| {
-            let mut m = serde_json::Map::new();
-            m.insert("label".into(), r.label.into());
-            for (name, cell) in label_columns(r.label) {
-                let v =
-                    cell.parse::<f64>().map_or_else(|_| serde_json::Value::from(cell.clone()), serde_json::Value::from);
-                m.insert(name, v);
-            }
-            m.insert("value".into(), serde_json::to_value(r.value).unwrap_or_default());
-            serde_json::Value::Object(m)
-        })
+        .map(|r| item(r.label, "value", serde_json::to_value(r.value).unwrap_or_default()))
+        .chain(missing.iter().map(|m| item(&m.label, "missing", m.reason.clone().into())))
         .collect();
     serde_json::to_string_pretty(&items).unwrap_or_default() + "\n"
 }

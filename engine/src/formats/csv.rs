@@ -872,6 +872,16 @@ pub fn read_frf(bytes: &[u8], path: &str) -> Result<Frf, FormatError> {
 /// Sweep coordinates as written: `(column, value)` pairs.
 pub type Coords = Vec<(String, String)>;
 
+/// The sweep points a partial output lacks, as its `# missing:` lines give them (label and
+/// reason), in file order: a swept output written with `--keep-going` after some of its
+/// instances failed.
+pub fn missing_points(bytes: &[u8]) -> Vec<String> {
+    let text = String::from_utf8_lossy(bytes);
+    numbered(&text, 0, 1)
+        .filter_map(|(n, raw)| meta_line(raw, n).filter(|m| m.key == "missing").map(|m| m.value.to_string()))
+        .collect()
+}
+
 /// One sweep point of a numeric table file: the sweep coordinates as written, then the
 /// table's own columns.
 #[derive(Debug, Clone, PartialEq)]
