@@ -94,3 +94,30 @@ fn crates_without_unsafe_code_forbid_it() {
     let engine = std::fs::read_to_string(root().join("engine/src/lib.rs")).unwrap();
     assert!(engine.contains("#![cfg_attr(not(test), forbid(unsafe_code))]"), "the engine lost its forbid");
 }
+
+/// The engine compiles and runs any registry's kinds: none of the built-in kind names appears
+/// in its code as a string (the measurement reader, say, is the one the registry names).
+/// Comments and the engine's own unit tests, which register kinds of their own, are not code
+/// the engine runs.
+#[test]
+fn the_engine_names_no_built_in_node_kind() {
+    let kinds: Vec<String> = spindlelab::registry().names().map(|k| format!("\"{k}\"")).collect();
+    assert!(kinds.len() > 30, "{kinds:?}");
+    let mut files = Vec::new();
+    rust_files(&root().join("engine/src"), &mut files);
+    let mut found = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        // Unit tests sit at the end of a file, after `#[cfg(test)]`.
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        for (n, line) in code.lines().enumerate() {
+            if line.trim_start().starts_with("//") {
+                continue;
+            }
+            for k in kinds.iter().filter(|k| line.contains(k.as_str())) {
+                found.push(format!("{}:{}: {k}", f.strip_prefix(root()).unwrap().display(), n + 1));
+            }
+        }
+    }
+    assert!(found.is_empty(), "the engine names built-in kinds:\n{}", found.join("\n"));
+}

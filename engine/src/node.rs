@@ -218,10 +218,16 @@ pub struct EffectParam {
     pub log: bool,
 }
 
+/// The parameters through which a `measurements:` set hands one file to its reader kind, by
+/// the names the set uses: the file, and what the recipe states about it.
+pub const MEASUREMENT_PARAMS: &[&str] = &["file", "format", "direction", "speed", "units"];
+
 /// Every node kind the engine can compile, by kind name.
 #[derive(Default, Clone)]
 pub struct Registry {
     kinds: IndexMap<&'static str, Arc<dyn Node>>,
+    /// The kind that reads one file of a measurement set (see [`Registry::set_measurement_reader`]).
+    measurement_reader: Option<&'static str>,
 }
 
 impl Registry {
@@ -249,6 +255,27 @@ impl Registry {
 
     pub fn get(&self, kind: &str) -> Option<&Arc<dyn Node>> {
         self.kinds.get(kind)
+    }
+
+    /// Names the kind that reads one measured file of a `measurements:` set: the engine
+    /// expands each set into a step of this kind swept over its files. The kind must be
+    /// registered and take every parameter of [`MEASUREMENT_PARAMS`].
+    pub fn set_measurement_reader(&mut self, kind: &str) -> Result<(), String> {
+        let Some((&name, node)) = self.kinds.get_key_value(kind) else {
+            return Err(format!("the measurement reader `{kind}` is not a registered kind"));
+        };
+        let missing: Vec<&str> =
+            MEASUREMENT_PARAMS.iter().copied().filter(|p| node.spec().param(p).is_none()).collect();
+        if !missing.is_empty() {
+            return Err(format!("the measurement reader `{kind}` takes no parameter {}", missing.join(", ")));
+        }
+        self.measurement_reader = Some(name);
+        Ok(())
+    }
+
+    /// The kind that reads one file of a measurement set, when one is registered.
+    pub fn measurement_reader(&self) -> Option<&'static str> {
+        self.measurement_reader
     }
 
     pub fn kinds(&self) -> impl Iterator<Item = &Arc<dyn Node>> {

@@ -69,4 +69,5 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ReceptanceTipMass::new()));
     registry.register(Arc::new(nodes::FrfPhaseSlope::new()));
     registry.register(Arc::new(nodes::FrfAddMode::new()));
+    registry.set_measurement_reader(nodes::READ_FRF).expect("`read.frf` takes a measurement set's parameters");
 }

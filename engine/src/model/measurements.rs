@@ -1,14 +1,16 @@
 //! The `measurements:` section: measured FRF files named once, by list or glob, each with
 //! what the recipe states about them (direction, speed, units).
 //!
-//! A measurement set becomes a `read.frf` step of the same name swept over its files, so
+//! A measurement set becomes a step of the same name swept over its files, of the kind the
+//! registry names as the measurement reader (the built-in `read.frf`), so
 //! `@tool_tip.frf` is every measured FRF and any step fed by it runs once per file (the
 //! graph's fan-out). Model steps take direction and speed from the FRF they are fed (a
 //! spindle model on `grid: @tool_tip.frf`), which pairs each prediction with its
 //! measurement by construction. What a file's header says must agree with what the recipe
-//! states; `read.frf` checks that when it reads the file.
+//! states; the reader checks that when it reads the file.
 
 use crate::diag::{Diagnostics, Span};
+use crate::node::MEASUREMENT_PARAMS;
 use crate::spec::suggest;
 use crate::syntax::{Key, Raw, RawKind};
 
@@ -25,10 +27,18 @@ pub const MAX_GLOB_DEPTH: usize = 8;
 /// and stops with an error rather than walk a whole disk.
 pub const MAX_GLOB_ENTRIES: usize = 100_000;
 
-/// Rewrites `measurements:` into `read.frf` steps, appended to `steps:`. `base_dir` is the
-/// recipe's folder, against which file names and globs are resolved.
-pub fn desugar(raw: &Raw, base_dir: Option<&std::path::Path>, diags: &mut Diagnostics) -> Raw {
+/// Rewrites `measurements:` into steps of the `reader` kind, appended to `steps:`. `base_dir`
+/// is the recipe's folder, against which file names and globs are resolved.
+pub fn desugar(raw: &Raw, base_dir: Option<&std::path::Path>, reader: Option<&str>, diags: &mut Diagnostics) -> Raw {
     let Some(section) = raw.get("measurements") else { return raw.clone() };
+    let Some(reader) = reader else {
+        diags.error_help(
+            Some(&section.span),
+            "this program has no node kind that reads a measurement set's files",
+            "read the files with explicit steps instead of `measurements:`",
+        );
+        return raw.clone();
+    };
     let Some(sets) = section.as_map() else {
         diags.error_help(
             Some(&section.span),
@@ -49,7 +59,7 @@ pub fn desugar(raw: &Raw, base_dir: Option<&std::path::Path>, diags: &mut Diagno
             );
             continue;
         }
-        if let Some(step) = measurement_step(name, set, base_dir, diags) {
+        if let Some(step) = measurement_step(name, set, base_dir, reader, diags) {
             new_steps.push((name.clone(), step));
         }
     }
@@ -75,8 +85,14 @@ fn key(s: &str, span: &Span) -> Key {
     Key { name: s.to_string(), span: span.clone() }
 }
 
-/// The `read.frf` step of one measurement set.
-fn measurement_step(name: &Key, set: &Raw, base_dir: Option<&std::path::Path>, diags: &mut Diagnostics) -> Option<Raw> {
+/// The reader step of one measurement set.
+fn measurement_step(
+    name: &Key,
+    set: &Raw,
+    base_dir: Option<&std::path::Path>,
+    reader: &str,
+    diags: &mut Diagnostics,
+) -> Option<Raw> {
     // A bare file name or glob is a set of its own.
     let (files_raw, entries): (&Raw, &[(Key, Raw)]) = match &set.kind {
         RawKind::Str(_) | RawKind::Seq(_) => (set, &[]),
@@ -178,12 +194,12 @@ fn measurement_step(name: &Key, set: &Raw, base_dir: Option<&std::path::Path>, d
     }
     let span = &name.span;
     let mut params: Vec<(Key, Raw)> = Vec::new();
-    for k in ["format", "direction", "speed", "units"] {
+    for &k in MEASUREMENT_PARAMS.iter().filter(|&&k| k != "file") {
         if let Some((key_, v)) = entries.iter().find(|(kk, _)| kk.name == k) {
             params.push((key_.clone(), v.clone()));
         }
     }
-    let mut step = vec![(key("kind", span), text("read.frf", span))];
+    let mut step = vec![(key("kind", span), text(reader, span))];
     if files.len() == 1 {
         params.push((key("file", &files[0].span), files.remove(0)));
     } else {

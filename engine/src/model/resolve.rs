@@ -102,7 +102,7 @@ pub fn resolve(
     let errors_before = diags.error_count();
     let (substituted, params) = super::params::substitute(raw, overrides, diags);
     let base_dir = std::path::Path::new(&*raw.span.file).parent().map(std::path::Path::to_path_buf);
-    let desugared = super::measurements::desugar(&substituted, base_dir.as_deref(), diags);
+    let desugared = super::measurements::desugar(&substituted, base_dir.as_deref(), registry.measurement_reader(), diags);
     let raw = &desugared;
     let Some(_) = raw.as_map() else {
         diags.error_help(
@@ -990,7 +990,10 @@ fn resolve_outputs(
                     continue;
                 };
                 if format == OutputFormat::Uff
-                    && !matches!(port.ty, PortType::Frf | PortType::TimeSeries | PortType::ReceptanceSet)
+                    && !matches!(
+                        port.ty,
+                        PortType::Frf | PortType::TimeSeries | PortType::ReceptanceSet | PortType::FrfSet
+                    )
                 {
                     diags.error_help(
                         Some(&file.span),

@@ -286,6 +286,7 @@ fn port_type(text: &str) -> Option<PortType> {
         PortType::Lobes,
         PortType::Table,
         PortType::Scalar,
+        PortType::FrfSet,
     ]
     .into_iter()
     .find(|t| {
@@ -710,7 +711,7 @@ impl Expander<'_> {
         }
         // Measurement sets are read relative to the sub-recipe's own folder.
         let base = source_folder(&shown);
-        sub = measurements::desugar(&sub, Some(&base), self.diags);
+        sub = measurements::desugar(&sub, Some(&base), self.registry.measurement_reader(), self.diags);
         let own_steps: Vec<String> =
             sub.get("steps").and_then(Raw::as_map).unwrap_or(&[]).iter().map(|(s, _)| s.name.clone()).collect();
 
@@ -1086,6 +1087,7 @@ mod tests {
         assert_eq!(port_type("time series"), Some(PortType::TimeSeries));
         assert_eq!(port_type("receptance_set"), Some(PortType::ReceptanceSet));
         assert_eq!(port_type("2x2 receptance set"), Some(PortType::ReceptanceSet));
+        assert_eq!(port_type("frf_set"), Some(PortType::FrfSet));
         assert_eq!(port_type("frff"), None);
     }
 }

@@ -29,7 +29,7 @@ pub use impact::ImpactSimulate;
 pub use milling::{MillingSimulate, TrialsSimulate};
 pub use modal_fit::ModalFitNode;
 pub use phase::{PhaseCorrect, PhaseMeasure};
-pub use read::{ReadFrf, ReadReceptance, ReadTimeSeries};
+pub use read::{READ_FRF, ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;

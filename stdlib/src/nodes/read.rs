@@ -108,6 +108,9 @@ impl Node for ReadTimeSeries {
     }
 }
 
+/// The kind that reads one measured FRF file; measurement sets expand into it.
+pub const READ_FRF: &str = "read.frf";
+
 /// `read.frf`: an FRF from a CSV or UFF file.
 pub struct ReadFrf {
     spec: NodeSpec,
@@ -123,7 +126,7 @@ impl ReadFrf {
     pub fn new() -> Self {
         ReadFrf {
             spec: NodeSpec {
-                kind: "read.frf",
+                kind: READ_FRF,
                 version: 3,
                 description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4), with its response and reference nodes and directions; units to SI. Sweep `dataset`, `response` or `reference` to read a measurement set.",
                 inputs: vec![],
