@@ -317,7 +317,8 @@ fn missing_reason(graph: &graph::Graph, result: &RunResult, i: usize) -> String 
     }
 }
 
-/// An output's plot: the rows of its own port, each `with` reference's values over them.
+/// An output's plot: the rows of its own port, each `with` reference's values over them, each
+/// named by the output's or step's `label` (else its step) and its sweep point.
 fn plot_output(
     compiled: &Compiled,
     result: &RunResult,
@@ -325,31 +326,52 @@ fn plot_output(
     format: plot::PlotFormat,
     rows: &[exec::write::Row],
 ) -> Result<Vec<u8>, String> {
-    let swept = rows.len() > 1;
-    let name = |r: &model::PortRef, label: &str| {
-        if label.is_empty() { format!("{}.{}", r.step, r.port) } else { format!("{}.{} [{label}]", r.step, r.port) }
+    let name = |r: &model::PortRef| {
+        compiled.recipe.step(&r.step).and_then(|s| s.label.clone()).unwrap_or_else(|| default_label(r))
     };
-    let main: Vec<plot::Layer> = rows
-        .iter()
-        .map(|r| plot::Layer {
-            name: if swept { r.label.to_string() } else { name(&out.from, "") },
-            value: r.value,
-            coord: exec::write::first_coordinate(r.label),
-        })
-        .collect();
+    let main_name = out.label.clone().unwrap_or_else(|| name(&out.from));
+    let main: Vec<plot::Layer> = rows.iter().map(|r| plot::Layer::swept(main_name.clone(), r.value, r.label)).collect();
     let mut with = Vec::new();
-    for w in &out.with {
+    for (w, label) in out.with.iter().zip(&out.with_labels) {
         for &i in &compiled.graph.by_step[&w.step] {
             let inst = &compiled.graph.instances[i];
             let value = result.outcomes[i]
                 .outputs()
                 .and_then(|o| o.get(&w.port))
                 .ok_or_else(|| format!("`{}` did not run", inst.id))?;
-            with.push(plot::Layer { name: name(w, &inst.label), value, coord: None });
+            with.push(plot::Layer::swept(label.clone().unwrap_or_else(|| name(w)), value, &inst.label));
         }
     }
-    let title = format!("{}: {}.{}", compiled.recipe.name, out.from.step, out.from.port);
+    let mut title = format!("{}: {main_name}", compiled.recipe.name);
+    if let Some(cut) = cut_of(compiled, &out.from.step) {
+        title = format!("{title} ({cut})");
+    }
     plot::render(format, &title, out.plot.as_deref(), &main, &with).map_err(|e| e.to_string())
+}
+
+/// A reference's legend name without a `label`: its step, and its port unless that is the
+/// value's plain name (`corrected`, `rig truth frf`, `trials verdicts`).
+fn default_label(r: &model::PortRef) -> String {
+    const PLAIN: &[&str] = &["frf", "value", "lobes", "table", "signal", "model", "set", "receptance"];
+    let words = |s: &str| s.replace(['_', '-'], " ");
+    if PLAIN.contains(&r.port.as_str()) { words(&r.step) } else { format!("{} {}", words(&r.step), words(&r.port)) }
+}
+
+/// The cut a step's stability diagram is for, in the units a shop uses: `4 teeth, 50 %
+/// immersion, down milling, Ks 800 N/mm², β 68°`; `None` when the step names no cutting setup.
+fn cut_of(compiled: &Compiled, step: &str) -> Option<String> {
+    let name = compiled.recipe.step(step)?.params.text("cutting")?;
+    let c = compiled.recipe.cutting.get(name)?;
+    let ks = c.kt.hypot(c.kn);
+    let beta = c.kt.atan2(c.kn).to_degrees();
+    Some(format!(
+        "{} teeth, {} % immersion, {} milling, Ks {} N/mm², β {}°",
+        c.teeth,
+        round_sig(100.0 * c.radial_immersion, 3),
+        if c.up_milling { "up" } else { "down" },
+        round_sig(ks / 1e6, 4),
+        round_sig(beta, 3)
+    ))
 }
 
 /// Rounds to `digits` significant digits: snapshots and summaries state their precision.

@@ -149,6 +149,7 @@ pub fn recipe_schema(registry: &Registry) -> Value {
             "kind": {"enum": kinds, "description": "a node kind, or `recipe` to run another recipe as this step"},
             "file": {"type": "string", "description": "`kind: recipe`: the recipe to run, relative to this file"},
             "description": {"type": "string"},
+            "label": {"type": "string", "description": "what the step's values are called in a plot's legend"},
             "params": {"type": "object"},
             "inputs": {"type": "object"},
             "sweep": {"type": "object"}
@@ -228,10 +229,13 @@ pub fn recipe_schema(registry: &Registry) -> Value {
         "outputs".into(),
         json!({"type": "array", "items": {"type": "object", "required": ["from", "file"], "additionalProperties": false,
             "properties": {"from": {"type": "string"}, "file": {"type": "string", "pattern": "\\.(csv|json|uff|svg|png)$"},
-                "with": {"oneOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}],
+                "with": {"oneOf": [{"type": "string"}, {"type": "array", "items": {"oneOf": [{"type": "string"},
+                    {"type": "object", "required": ["from"], "additionalProperties": false,
+                     "properties": {"from": {"type": "string"}, "label": {"type": "string"}}}]}}],
                     "description": "values drawn over a plot (`@step.port`)"},
                 "plot": {"type": "string", "enum": ["bode", "real-imag", "blocks", "spectrum", "default"],
-                    "description": "the plot's view when its type has several"}}}}),
+                    "description": "the plot's view when its type has several"},
+                "label": {"type": "string", "description": "a plot's name for `from` in its legend and title"}}}}),
     );
     json!({
         "$schema": "http://json-schema.org/draft-07/schema#",

@@ -1147,7 +1147,7 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     for FilePicture { file, measured, before, after } in &d.pictures.files {
         fn layer<'a>(name: &str, v: &'a Arc<Value>) -> Layer<'a> {
-            Layer { name: name.to_string(), value: v.as_ref(), coord: None }
+            Layer::new(name, v.as_ref())
         }
         let main = [layer("measured", measured)];
         let mut with = vec![layer("model before", before)];
@@ -1159,13 +1159,13 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
         }
     }
     if let Some((lobes, verdicts)) = &d.pictures.lobes_before {
-        let mut main = vec![Layer { name: "model before".into(), value: lobes.as_ref(), coord: None }];
+        let mut main = vec![Layer::new("model before", lobes.as_ref())];
         let mut with = vec![];
         if let Some((after, _)) = &d.pictures.lobes_after {
-            main.push(Layer { name: "model after".into(), value: after.as_ref(), coord: None });
+            main.push(Layer::new("model after", after.as_ref()));
         }
         let trials = d.pictures.lobes_after.as_ref().map_or(verdicts, |(_, v)| v);
-        with.push(Layer { name: "trials".into(), value: trials.as_ref(), coord: None });
+        with.push(Layer::new("trials", trials.as_ref()));
         if let Ok(bytes) =
             plot::render(PlotFormat::Svg, "stability lobes before and after, with the trials", None, &main, &with)
         {

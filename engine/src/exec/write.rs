@@ -192,18 +192,6 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
     }
 }
 
-/// The first numeric sweep coordinate of a label as written (`speed=1500 rpm, direction=x` →
-/// `("speed [rpm]", 1500)`), for a plot's x axis.
-pub fn first_coordinate(label: &str) -> Option<(String, f64)> {
-    label.split(", ").find_map(|part| {
-        let (name, value) = part.split_once('=')?;
-        let mut words = value.split_whitespace();
-        let number: f64 = words.next()?.parse().ok()?;
-        let unit: Vec<&str> = words.collect();
-        Some((if unit.is_empty() { name.to_string() } else { format!("{name} [{}]", unit.join(" ")) }, number))
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

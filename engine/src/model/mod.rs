@@ -209,6 +209,9 @@ pub struct Step {
     pub sweep: Vec<SweepAxis>,
     /// Where each parameter (or sweep axis) was written, for messages about its value.
     pub param_spans: IndexMap<String, Span>,
+    /// What its values are called in a plot's legend (`measured`, `model`); the step's id when
+    /// not given.
+    pub label: Option<String>,
 }
 
 /// The file format of an output, from its extension.
@@ -232,8 +235,12 @@ pub struct Output {
     /// A plot's other values, drawn over `from` (the stationary lobes and the trials over the
     /// speed-dependent lobes, a measured FRF over a fitted one).
     pub with: Vec<PortRef>,
+    /// The legend name of each `with` value (`{ from: …, label: … }`), where one is given.
+    pub with_labels: Vec<Option<String>>,
     /// A plot's view when its type has several (`real-imag` for an FRF).
     pub plot: Option<String>,
+    /// A plot's name for `from` in its legend and title, over the step's own `label`.
+    pub label: Option<String>,
     pub span: Span,
 }
 

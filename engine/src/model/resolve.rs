@@ -32,8 +32,8 @@ const TOP_KEYS: &[&str] = &[
     "use",
     "exports",
 ];
-const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description"];
-const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot"];
+const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description", "label"];
+const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot", "label"];
 
 /// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
 const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml", "report.html"];
@@ -102,7 +102,8 @@ pub fn resolve(
     let errors_before = diags.error_count();
     let (substituted, params) = super::params::substitute(raw, overrides, diags);
     let base_dir = std::path::Path::new(&*raw.span.file).parent().map(std::path::Path::to_path_buf);
-    let desugared = super::measurements::desugar(&substituted, base_dir.as_deref(), registry.measurement_reader(), diags);
+    let desugared =
+        super::measurements::desugar(&substituted, base_dir.as_deref(), registry.measurement_reader(), diags);
     let raw = &desugared;
     let Some(_) = raw.as_map() else {
         diags.error_help(
@@ -844,8 +845,31 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         {
             super::report_invalid(diags, (&id, kind, &key.span), "", &e, spec, &param_spans);
         }
+        let label = match sraw.get("label") {
+            Some(l) => match l.as_str() {
+                Some(t) => Some(t.to_string()),
+                None => {
+                    diags.error_help(
+                        Some(&l.span),
+                        format!("`label` must be text, found {}", l.describe()),
+                        "write the name its curves get in a plot's legend, e.g. `label: measured`",
+                    );
+                    None
+                }
+            },
+            None => None,
+        };
         if let Some(params) = params {
-            steps.push(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep, param_spans });
+            steps.push(Step {
+                id,
+                kind: kind.to_string(),
+                span: key.span.clone(),
+                params,
+                inputs,
+                sweep,
+                param_spans,
+                label,
+            });
         }
     }
     steps
@@ -944,7 +968,7 @@ fn resolve_outputs(
             }
         };
         let is_plot = matches!(format, OutputFormat::Plot(_));
-        for key in ["with", "plot"] {
+        for key in ["with", "plot", "label"] {
             if let (Some(v), false) = (item.get(key), is_plot) {
                 diags.error_help(
                     Some(&v.span),
@@ -954,19 +978,56 @@ fn resolve_outputs(
             }
         }
         // References drawn over the plot: one `@step.port` or a list of them.
-        let mut with: Vec<(PortRef, Span)> = Vec::new();
+        let mut with: Vec<(PortRef, Span, Option<String>)> = Vec::new();
         if let Some(w) = item.get("with").filter(|_| is_plot) {
             let items: Vec<&Raw> = match &w.kind {
                 RawKind::Seq(items) => items.iter().collect(),
                 _ => vec![w],
             };
             for it in items {
-                match it.as_str().and_then(parse_port_ref) {
-                    Some(r) => with.push((r, it.span.clone())),
-                    None => diags.error_help(Some(&it.span), "`with` takes references", "write `@step.port`"),
+                // `@step.port`, or `{ from: "@step.port", label: measured }` to name it.
+                let (reference, label) = match &it.kind {
+                    RawKind::Map(_) => (it.get("from"), it.get("label")),
+                    _ => (Some(it), None),
+                };
+                if let RawKind::Map(entries) = &it.kind
+                    && let Some((k, _)) = entries.iter().find(|(k, _)| k.name != "from" && k.name != "label")
+                {
+                    diags.error_help(
+                        Some(&k.span),
+                        format!("unknown key `{}` in a `with` entry", k.name),
+                        "a `with` entry takes `from` and `label`",
+                    );
+                    continue;
+                }
+                let label = match label.map(|l| (l.as_str(), &l.span)) {
+                    Some((Some(t), _)) => Some(t.to_string()),
+                    Some((None, span)) => {
+                        diags.error_help(Some(span), "`label` takes text", "e.g. `label: measured`");
+                        continue;
+                    }
+                    None => None,
+                };
+                match reference.and_then(Raw::as_str).and_then(parse_port_ref) {
+                    Some(r) => with.push((r, it.span.clone(), label)),
+                    None => diags.error_help(
+                        Some(&it.span),
+                        "`with` takes references",
+                        "write `@step.port`, or `{ from: \"@step.port\", label: measured }`",
+                    ),
                 }
             }
         }
+        let label = match item.get("label").filter(|_| is_plot) {
+            Some(v) => match v.as_str() {
+                Some(t) => Some(t.to_string()),
+                None => {
+                    diags.error_help(Some(&v.span), "`label` takes text", "e.g. `label: model`");
+                    continue;
+                }
+            },
+            None => None,
+        };
         let plot = match item.get("plot").filter(|_| is_plot) {
             Some(v) => match v.as_str() {
                 Some(t) => Some((t.to_string(), v.span.clone())),
@@ -1051,7 +1112,7 @@ fn resolve_outputs(
         }
         // Every value drawn over the plot must exist and have a plot of its own kind.
         let mut with_ok = true;
-        for (w, span) in &with {
+        for (w, span, _) in &with {
             let Some(step) = steps.iter().find(|s| s.id == w.step) else {
                 if !step_names.contains(&w.step) {
                     let msg = format!("dangling reference `{w}`: there is no step `{}`", w.step);
@@ -1097,8 +1158,10 @@ fn resolve_outputs(
             from: r,
             file: fname.to_string(),
             format,
-            with: with.into_iter().map(|(r, _)| r).collect(),
+            with_labels: with.iter().map(|(_, _, l)| l.clone()).collect(),
+            with: with.into_iter().map(|(r, _, _)| r).collect(),
             plot: plot.map(|(v, _)| v),
+            label,
             span: item.span.clone(),
         });
     }

@@ -243,9 +243,22 @@ fn split_ref(text: &str) -> Option<(&str, &str)> {
 /// Applies `f` to every reference of a tree: step inputs, outputs (`from`, `with`), the fit's
 /// objective and a recipe's exports.
 fn for_each_ref(tree: &mut Raw, f: &mut dyn FnMut(&mut Raw)) {
+    // A reference, a list of them, or `{ from: reference, … }` entries of a plot's `with`.
     let visit = |v: &mut Raw, f: &mut dyn FnMut(&mut Raw)| match &mut v.kind {
         RawKind::Str(_) => f(v),
-        RawKind::Seq(items) => items.iter_mut().filter(|i| matches!(i.kind, RawKind::Str(_))).for_each(&mut *f),
+        RawKind::Seq(items) => {
+            for i in items.iter_mut() {
+                match i.kind {
+                    RawKind::Str(_) => f(i),
+                    RawKind::Map(_) => {
+                        if let Some(from) = get_mut(i, "from").filter(|r| matches!(r.kind, RawKind::Str(_))) {
+                            f(from)
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
         _ => {}
     };
     if let Some(steps) = get_mut(tree, "steps").and_then(map_mut) {

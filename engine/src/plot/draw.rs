@@ -2,7 +2,7 @@
 //! DejaVu Sans, so the bytes depend on the figure only (no system fonts, no timestamps).
 
 use super::PlotError;
-use super::figure::{Color as Shade, Figure, Panel, Style};
+use super::figure::{Color as Shade, ColorBar, Figure, Panel, Series, Style};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::sync::OnceLock;
@@ -107,8 +107,12 @@ pub fn png(fig: &Figure) -> Result<Vec<u8>, PlotError> {
 
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Result<(), PlotError> {
     root.fill(&WHITE).map_err(err)?;
-    let area = root.titled(&fig.title, (FAMILY, 20)).map_err(err)?;
+    // A long title (a diagram's cut) in a smaller font, so it fits the width.
+    let size = (1.75 * (WIDTH - 30) as f64 / fig.title.chars().count().max(1) as f64).clamp(12.0, 20.0);
+    let area = root.titled(&fig.title, (FAMILY, size)).map_err(err)?;
     let total: u32 = fig.panels.iter().map(|p| p.weight.max(1)).sum();
+    // Every panel keeps the legend column when one has a legend, so their axes line up.
+    let legend_column = fig.panels.iter().any(|p| p.color_bar.is_some() || p.series.iter().any(|s| !s.name.is_empty()));
     let (_, h) = area.dim_in_pixel();
     let mut rest = area;
     let mut used = 0u32;
@@ -123,7 +127,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Resu
             rest = bottom;
             top
         };
-        panel(&this, p)?;
+        panel(&this, p, legend_column)?;
     }
     Ok(())
 }
@@ -138,12 +142,17 @@ fn mapped(v: f64, log: bool) -> Option<f64> {
     }
 }
 
-/// The points as runs of finite, plottable points (a gap where a value is not).
-fn runs(points: &[(f64, f64)], p: &Panel) -> Vec<Vec<(f64, f64)>> {
+/// The points as runs of finite, plottable points inside the axes' ranges (a gap where a value
+/// is not, so a line never leaves its panel).
+fn runs(points: &[(f64, f64)], p: &Panel, xr: (f64, f64), yr: (f64, f64)) -> Vec<Vec<(f64, f64)>> {
+    let inside = |v: f64, (lo, hi): (f64, f64)| {
+        let tol = 1e-9 * (hi - lo).abs();
+        v >= lo - tol && v <= hi + tol
+    };
     let mut out: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
     for &(x, y) in points {
         match (mapped(x, p.x.log), mapped(y, p.y.log)) {
-            (Some(x), Some(y)) => out.last_mut().expect("one run").push((x, y)),
+            (Some(x), Some(y)) if inside(x, xr) && inside(y, yr) => out.last_mut().expect("one run").push((x, y)),
             _ if out.last().is_some_and(|r| !r.is_empty()) => out.push(Vec::new()),
             _ => {}
         }
@@ -191,7 +200,7 @@ fn decade(v: f64) -> String {
     tick(10f64.powi(v.round() as i32))
 }
 
-fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> Result<(), PlotError> {
+fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel, legend_column: bool) -> Result<(), PlotError> {
     let xs = p.series.iter().flat_map(|s| {
         let band = match &s.style {
             Style::Band(upper) => upper.clone(),
@@ -214,20 +223,39 @@ fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> Result
     if let Some(r) = p.y.fixed {
         yr = r;
     }
+    if let (Some(lo), false) = (p.y.start, p.y.log) {
+        yr.0 = lo;
+        yr.1 = yr.1.max(lo + f64::EPSILON);
+    }
     if p.equal_aspect {
         let half = 0.5 * (xr.1 - xr.0).max(yr.1 - yr.0);
         let (cx, cy) = (0.5 * (xr.0 + xr.1), 0.5 * (yr.0 + yr.1));
         xr = (cx - half, cx + half);
         yr = (cy - half, cy + half);
     }
-    let area = if p.equal_aspect {
-        // A square plotting region in the middle of the panel.
-        let (w, h) = area.dim_in_pixel();
-        let side = h.min(w);
-        let margin = (w.saturating_sub(side + 60)) / 2;
-        area.margin(0, 0, margin as i32, margin as i32)
+    // The legend in a column of its own beside the chart, never over the data.
+    let named: Vec<&Series> = p.series.iter().filter(|s| !s.name.is_empty()).collect();
+    let (area, legend_area) = if !legend_column {
+        (area.clone(), None)
     } else {
-        area.clone()
+        let (w, _) = area.dim_in_pixel();
+        let (chart, legend) = area.split_horizontally(w.saturating_sub(LEGEND_WIDTH) as i32);
+        (chart, Some(legend))
+    };
+    let area = if p.equal_aspect {
+        // A square plotting region in the middle of the panel: the chart's margins (12 each
+        // side) and label areas (72 left, 42 below) taken off first.
+        let (w, h) = area.dim_in_pixel();
+        let (pw, ph) = (w as i32 - 96, h as i32 - 66);
+        if pw > ph {
+            let m = (pw - ph) / 2;
+            area.margin(0, 0, m, m)
+        } else {
+            let m = (ph - pw) / 2;
+            area.margin(m, m, 0, 0)
+        }
+    } else {
+        area
     };
     let mut chart = ChartBuilder::on(&area)
         .margin(12)
@@ -252,25 +280,29 @@ fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> Result
         .bold_line_style(RGBColor(205, 205, 205))
         .draw()
         .map_err(err)?;
-    let mut labelled = false;
     for s in &p.series {
         let color = rgb(s.color);
         match &s.style {
             Style::Line | Style::Dashed => {
-                for run in runs(&s.points, p) {
+                for run in runs(&s.points, p, xr, yr) {
                     if s.style == Style::Dashed {
-                        chart.draw_series(DashedLineSeries::new(run, 6, 4, color.stroke_width(1))).map_err(err)?;
+                        chart.draw_series(DashedLineSeries::new(run, 7, 4, color.stroke_width(2))).map_err(err)?;
                     } else {
                         chart.draw_series(LineSeries::new(run, color.stroke_width(2))).map_err(err)?;
                     }
                 }
             }
-            Style::Circles | Style::Crosses | Style::Dots => {
-                let pts: Vec<(f64, f64)> = runs(&s.points, p).concat();
+            Style::Circles | Style::Crosses | Style::Squares | Style::Dots => {
+                let pts: Vec<(f64, f64)> = runs(&s.points, p, xr, yr).concat();
                 let style = color.stroke_width(2);
                 match s.style {
                     Style::Circles => chart.draw_series(pts.iter().map(|&q| Circle::new(q, 5, style))).map_err(err)?,
                     Style::Crosses => chart.draw_series(pts.iter().map(|&q| Cross::new(q, 5, style))).map_err(err)?,
+                    Style::Squares => chart
+                        .draw_series(
+                            pts.iter().map(|&q| EmptyElement::at(q) + Rectangle::new([(-4, -4), (4, 4)], style)),
+                        )
+                        .map_err(err)?,
                     _ => {
                         let r = if pts.len() > 200 { 2 } else { 4 };
                         chart.draw_series(pts.iter().map(|&q| Circle::new(q, r, color.filled()))).map_err(err)?
@@ -278,50 +310,138 @@ fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> Result
                 };
             }
             Style::Band(upper) => {
-                let lower: Vec<(f64, f64)> = runs(&s.points, p).concat();
-                let mut top: Vec<(f64, f64)> = runs(upper, p).concat();
+                let lower: Vec<(f64, f64)> = runs(&s.points, p, xr, yr).concat();
+                let mut top: Vec<(f64, f64)> = runs(upper, p, xr, yr).concat();
                 top.reverse();
                 let polygon: Vec<(f64, f64)> = lower.into_iter().chain(top).collect();
                 chart.draw_series(std::iter::once(Polygon::new(polygon, color.mix(0.25).filled()))).map_err(err)?;
+            }
+            Style::Stems => {
+                let base = if p.y.log { yr.0 } else { 0.0f64.clamp(yr.0, yr.1) };
+                let stems = runs(&s.points, p, xr, yr)
+                    .concat()
+                    .into_iter()
+                    .map(|(x, y)| PathElement::new(vec![(x, base), (x, y)], color.stroke_width(2)));
+                chart.draw_series(stems).map_err(err)?;
             }
             Style::VLines => {
                 let lines = s
                     .points
                     .iter()
                     .filter_map(|&(x, _)| mapped(x, p.x.log))
+                    .filter(|x| (xr.0..=xr.1).contains(x))
                     .map(|x| PathElement::new(vec![(x, yr.0), (x, yr.1)], color.mix(0.6).stroke_width(1)));
                 chart.draw_series(lines).map_err(err)?;
             }
         }
-        if !s.name.is_empty() {
-            labelled = true;
-            let legend = s.style.clone();
-            chart
-                .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-                .map_err(err)?
-                .label(s.name.as_str())
-                .legend(move |(x, y)| -> DynElement<'static, DB, (i32, i32)> {
-                    match legend {
-                        Style::Circles => Circle::new((x + 10, y), 5, color.stroke_width(2)).into_dyn(),
-                        Style::Crosses => Cross::new((x + 10, y), 5, color.stroke_width(2)).into_dyn(),
-                        Style::Dots => Circle::new((x + 10, y), 4, color.filled()).into_dyn(),
-                        Style::Band(_) => {
-                            Rectangle::new([(x, y - 5), (x + 20, y + 5)], color.mix(0.25).filled()).into_dyn()
-                        }
-                        _ => PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)).into_dyn(),
-                    }
-                });
+    }
+    if let Some(legend_area) = legend_area {
+        legend(&legend_area, &named, p.color_bar.as_ref())?;
+    }
+    Ok(())
+}
+
+/// Width of the legend column beside a chart, pixels.
+const LEGEND_WIDTH: u32 = 230;
+const LEGEND_LINE: i32 = 17;
+/// Characters of a legend line that fit the column at the legend's font size.
+const LEGEND_CHARS: usize = 27;
+
+/// A series' sample in the legend, centred vertically on `y` from `x` to `x + 22`.
+fn glyph<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    style: &Style,
+    color: RGBColor,
+    (x, y): (i32, i32),
+) -> Result<(), PlotError> {
+    let pen = color.stroke_width(2);
+    match style {
+        Style::Circles => area.draw(&Circle::new((x + 11, y), 5, pen)),
+        Style::Crosses => area.draw(&Cross::new((x + 11, y), 5, pen)),
+        Style::Squares => area.draw(&Rectangle::new([(x + 7, y - 4), (x + 15, y + 4)], pen)),
+        Style::Dots => area.draw(&Circle::new((x + 11, y), 4, color.filled())),
+        Style::Band(_) => area.draw(&Rectangle::new([(x, y - 5), (x + 22, y + 5)], color.mix(0.25).filled())),
+        Style::Dashed => {
+            area.draw(&PathElement::new(vec![(x, y), (x + 8, y)], pen)).map_err(err)?;
+            area.draw(&PathElement::new(vec![(x + 13, y), (x + 22, y)], pen))
+        }
+        Style::VLines => {
+            area.draw(&PathElement::new(vec![(x + 11, y - 6), (x + 11, y + 6)], color.mix(0.6).stroke_width(1)))
+        }
+        Style::Line => area.draw(&PathElement::new(vec![(x, y), (x + 22, y)], pen)),
+        Style::Stems => area.draw(&PathElement::new(vec![(x + 11, y + 6), (x + 11, y - 6)], pen)),
+    }
+    .map_err(err)
+}
+
+/// A legend name in lines of at most [`LEGEND_CHARS`] characters, broken at spaces (two lines
+/// at most, the second cut with `…`).
+fn legend_lines(name: &str) -> Vec<String> {
+    let mut lines: Vec<String> = vec![String::new()];
+    for word in name.split(' ') {
+        let line = lines.last_mut().expect("one line");
+        if !line.is_empty() && line.chars().count() + 1 + word.chars().count() > LEGEND_CHARS {
+            lines.push(String::new());
+        }
+        let line = lines.last_mut().expect("one line");
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(word);
+    }
+    if lines.len() > 2 {
+        let rest = lines.split_off(1).join(" ");
+        lines.push(rest);
+    }
+    for l in &mut lines {
+        if l.chars().count() > LEGEND_CHARS {
+            *l = l.chars().take(LEGEND_CHARS - 1).collect::<String>() + "…";
         }
     }
-    if labelled {
-        chart
-            .configure_series_labels()
-            .label_font((FAMILY, 13))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(err)?;
+    lines
+}
+
+/// The legend column: each named series' sample and name, as many as fit (then how many do
+/// not), and the colour bar of a long sweep.
+fn legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    named: &[&Series],
+    bar: Option<&ColorBar>,
+) -> Result<(), PlotError> {
+    let (_, h) = area.dim_in_pixel();
+    let h = h as i32;
+    let font = (FAMILY, 13).into_font().color(&BLACK);
+    let bar_height = if bar.is_some() { 3 * LEGEND_LINE + 8 } else { 0 };
+    let mut y = 22;
+    for (k, s) in named.iter().enumerate() {
+        let lines = legend_lines(&s.name);
+        let need = LEGEND_LINE * lines.len() as i32;
+        if y + need + bar_height > h - 8 {
+            let more = named.len() - k;
+            area.draw(&Text::new(format!("… and {more} more"), (38, y - 7), font.clone())).map_err(err)?;
+            y += LEGEND_LINE;
+            break;
+        }
+        glyph(area, &s.style, rgb(s.color), (8, y))?;
+        for (i, line) in lines.iter().enumerate() {
+            area.draw(&Text::new(line.clone(), (38, y - 7 + LEGEND_LINE * i as i32), font.clone())).map_err(err)?;
+        }
+        y += need;
+    }
+    if let Some(bar) = bar {
+        y += 6;
+        area.draw(&Text::new(bar.label.clone(), (8, y - 7), font.clone())).map_err(err)?;
+        y += LEGEND_LINE - 4;
+        let width = LEGEND_WIDTH as i32 - 40;
+        for i in 0..width {
+            let c = rgb(Shade::Ramp(i as f64 / (width - 1) as f64));
+            area.draw(&Rectangle::new([(8 + i, y), (9 + i, y + 12)], c.filled())).map_err(err)?;
+        }
+        y += 16;
+        area.draw(&Text::new(tick(bar.from), (8, y), font.clone())).map_err(err)?;
+        let to = tick(bar.to);
+        let x = 8 + width - 7 * to.chars().count() as i32;
+        area.draw(&Text::new(to, (x.max(60), y), font)).map_err(err)?;
     }
     Ok(())
 }

@@ -18,6 +18,17 @@ pub struct Panel {
     pub equal_aspect: bool,
     /// Relative height among the figure's panels.
     pub weight: u32,
+    /// A colour bar in the legend for a long sweep drawn on the ramp: what the colour means.
+    pub color_bar: Option<ColorBar>,
+}
+
+/// What the ramp colours of a long sweep stand for: the coordinate and its first and last
+/// values as written (`speed [rpm]`, 0 → 4000).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColorBar {
+    pub label: String,
+    pub from: f64,
+    pub to: f64,
 }
 
 /// An axis: its label (with the unit shown) and whether it is logarithmic.
@@ -27,17 +38,24 @@ pub struct Axis {
     pub log: bool,
     /// A fixed range instead of the data's (coherence from 0 to 1).
     pub fixed: Option<(f64, f64)>,
+    /// A fixed start with the data's end (a depth from 0).
+    pub start: Option<f64>,
 }
 
 impl Axis {
     pub fn linear(label: impl Into<String>) -> Axis {
-        Axis { label: label.into(), log: false, fixed: None }
+        Axis { label: label.into(), log: false, fixed: None, start: None }
     }
     pub fn log(label: impl Into<String>) -> Axis {
-        Axis { label: label.into(), log: true, fixed: None }
+        Axis { label: label.into(), log: true, fixed: None, start: None }
     }
     pub fn fixed(mut self, lo: f64, hi: f64) -> Axis {
         self.fixed = Some((lo, hi));
+        self
+    }
+    /// A linear axis that starts at zero whatever the data.
+    pub fn from_zero(mut self) -> Axis {
+        self.start = Some(0.0);
         self
     }
 }
@@ -46,18 +64,23 @@ impl Axis {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Style {
     Line,
-    /// A thinner, dashed line (a reference such as the stationary diagram or the 1× line).
+    /// A dashed line: a reference (the stationary diagram, the 1× line), or the second of two
+    /// kinds drawn together (a measurement over a model).
     Dashed,
     /// Open circles (stable trials).
     Circles,
     /// Crosses (chattering trials).
     Crosses,
+    /// Open squares (trials that no diagram scores: outside its speeds).
+    Squares,
     /// Filled dots (modes).
     Dots,
     /// A shaded band between the series' points (lower) and these (upper), same x.
     Band(Vec<(f64, f64)>),
     /// Vertical lines at the points' x (mode markers).
     VLines,
+    /// A vertical line from the axis to each point (the harmonics of a spectrum).
+    Stems,
 }
 
 /// A named set of points in display units.
@@ -102,6 +125,6 @@ pub fn sweep_labelled(i: usize, n: usize) -> bool {
 
 impl Panel {
     pub fn new(x: Axis, y: Axis) -> Panel {
-        Panel { x, y, series: Vec::new(), equal_aspect: false, weight: 1 }
+        Panel { x, y, series: Vec::new(), equal_aspect: false, weight: 1, color_bar: None }
     }
 }

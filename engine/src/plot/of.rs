@@ -1,17 +1,75 @@
 //! The default figure of each value type, in the units a person reads: rpm, mm, µm/N, Hz, deg.
 
 use super::PlotError;
-use super::figure::{Axis, Figure, Panel, Series, Style, sweep_color, sweep_labelled};
+use super::figure::{Axis, Color, ColorBar, Figure, Panel, Series, Style, sweep_color, sweep_labelled};
 use crate::value::{Frf, Lobes, ModalModel, Table, TimeSeries, Value};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
-/// One value to draw with its legend name and, when its step is swept, its first numeric
-/// sweep coordinate as written in the recipe (`speed=1500 rpm` → `("speed [rpm]", 1500)`).
+/// One value to draw: what it is called, and the sweep point that made it.
 pub struct Layer<'a> {
+    /// Its name in the legend: the output's or step's `label`, else the step.
     pub name: String,
     pub value: &'a Value,
-    pub coord: Option<(String, f64)>,
+    /// The sweep point as the recipe wrote it, `[("speed", "1500 rpm"), ("direction", "x")]`;
+    /// empty when its step is not swept.
+    pub sweep: Vec<(String, String)>,
+}
+
+impl<'a> Layer<'a> {
+    /// An unswept value.
+    pub fn new(name: impl Into<String>, value: &'a Value) -> Layer<'a> {
+        Layer { name: name.into(), value, sweep: Vec::new() }
+    }
+
+    /// A value of a swept step, with its sweep label (`speed=1500 rpm, direction=x`).
+    pub fn swept(name: impl Into<String>, value: &'a Value, label: &str) -> Layer<'a> {
+        let sweep = label
+            .split(", ")
+            .filter_map(|part| part.split_once('='))
+            .map(|(n, v)| (n.trim().to_string(), v.trim().to_string()))
+            .collect();
+        Layer { name: name.into(), value, sweep }
+    }
+
+    /// The direction of an FRF: its own, or the sweep's `direction`.
+    fn direction(&self) -> Option<String> {
+        let own = match self.value {
+            Value::Frf(f) => f.direction.clone(),
+            _ => None,
+        };
+        own.or_else(|| self.sweep.iter().find(|(n, _)| n == "direction").map(|(_, v)| v.clone()))
+    }
+
+    /// The first numeric sweep coordinate as written: `speed=1500 rpm` → `("speed [rpm]", 1500)`.
+    fn coord(&self) -> Option<(String, f64)> {
+        self.sweep.iter().find_map(|(name, v)| {
+            let mut words = v.split_whitespace();
+            let x: f64 = words.next()?.parse().ok()?;
+            let unit: Vec<&str> = words.collect();
+            let name = name.replace('_', " ");
+            Some((if unit.is_empty() { name } else { format!("{name} [{}]", unit.join(" ")) }, x))
+        })
+    }
+
+    /// The sweep point in words, without its direction when `no_direction` (the panel says
+    /// it): `1500 rpm, x`; a plain number keeps its name (`dataset 2`).
+    fn words(&self, no_direction: bool) -> String {
+        let parts: Vec<String> = self
+            .sweep
+            .iter()
+            .filter(|(n, _)| !(no_direction && n == "direction"))
+            .map(|(n, v)| {
+                let mut w = v.split_whitespace();
+                match (w.next().map(|x| x.parse::<f64>().is_ok()), w.next()) {
+                    (Some(true), Some(_)) => v.clone(),
+                    (Some(true), None) => format!("{} {v}", n.replace('_', " ")),
+                    _ => v.clone(),
+                }
+            })
+            .collect();
+        parts.join(", ")
+    }
 }
 
 /// The figure of `main` (one value, or one per sweep point) with the `with` values drawn over
@@ -98,6 +156,13 @@ fn blocks(v: &Value) -> Vec<Block> {
     }
 }
 
+/// A layer's legend entry among `n` values of one output: its sweep point in words when it
+/// has one and there are several, else its name.
+fn legend_name(l: &Layer, n: usize) -> String {
+    let words = l.words(false);
+    if n > 1 && !words.is_empty() { words } else { l.name.clone() }
+}
+
 /// Mode frequencies of the `with` modal models, as vertical markers.
 fn mode_markers(with: &[Layer]) -> Vec<Series> {
     let models: Vec<&Layer> = with.iter().filter(|l| matches!(l.value, Value::ModalModel(_))).collect();
@@ -116,51 +181,171 @@ fn mode_markers(with: &[Layer]) -> Vec<Series> {
         .collect()
 }
 
+/// The phase of `h` in degrees, unwrapped along frequency so a line never jumps by a turn,
+/// then moved by whole turns so that its median lies in (−360°, 0°] for a receptance (a
+/// displacement lags the force) and in (−180°, 180°] otherwise.
+fn phase_degrees(h: &[Complex64], receptance: bool) -> Vec<f64> {
+    let mut out = Vec::with_capacity(h.len());
+    let mut offset = 0.0;
+    let mut prev: Option<f64> = None;
+    for v in h {
+        let a = v.arg();
+        if !a.is_finite() || v.norm() == 0.0 {
+            out.push(f64::NAN);
+            continue;
+        }
+        if let Some(p) = prev {
+            let d = a + offset - p;
+            offset -= TAU * (d / TAU).round();
+        }
+        let u = a + offset;
+        out.push(u);
+        prev = Some(u);
+    }
+    let mut finite: Vec<f64> = out.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return out;
+    }
+    let mid = finite.len() / 2;
+    let median = *finite.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let top = if receptance { 0.0 } else { std::f64::consts::PI };
+    let shift = TAU * ((top - median) / TAU).floor();
+    out.iter().map(|v| (v + shift).to_degrees()).collect()
+}
+
+/// The colour of the `i`-th of `n` sweep points: along the ramp, in order, when the sweep has a
+/// numeric coordinate (a speed reads from dark to light); palette entries for a few unordered
+/// ones (files, directions).
+fn shade(layers: &[&Layer], i: usize) -> Color {
+    let n = layers.len();
+    if n > 1 && layers.iter().all(|l| l.coord().is_some()) {
+        Color::Ramp(i as f64 / (n - 1) as f64)
+    } else {
+        sweep_color(i, n)
+    }
+}
+
+/// The colour bar of a long sweep drawn on the ramp: its first coordinate from the first to
+/// the last layer.
+fn color_bar(layers: &[&Layer]) -> Option<ColorBar> {
+    let (label, from) = layers.first()?.coord()?;
+    let (_, to) = layers.last()?.coord()?;
+    Some(ColorBar { label, from, to })
+}
+
 /// Magnitude (log) and phase, or real and imaginary parts, of the H block of every FRF and
 /// receptance set; coherence beneath when any has it; modes of `with` modal models marked.
+///
+/// One pair of panels per direction when the values hold more than one. Within a panel the
+/// sweep of `main` is coloured in order (palette for a few points, a ramp with a colour bar
+/// for many); a `with` value of the same sweep point takes its colour, dashed (a measurement
+/// over a model), any other a palette colour of its own.
 fn frf(main: &[Layer], with: &[Layer], real_imag: bool) -> Result<Vec<Panel>, PlotError> {
-    let layers: Vec<&Layer> =
-        main.iter().chain(with.iter().filter(|l| !matches!(l.value, Value::ModalModel(_)))).collect();
+    let overlays: Vec<&Layer> = with.iter().filter(|l| !matches!(l.value, Value::ModalModel(_))).collect();
     let unit = blocks(main[0].value).first().map(|b| b.3.clone()).unwrap_or_default();
     let (scale, shown) = receptance_unit(&unit);
-    let f_axis = || Axis::linear("frequency [Hz]");
-    let (mut top, mut bottom) = if real_imag {
-        (
-            Panel::new(f_axis(), Axis::linear(format!("real [{shown}]"))),
-            Panel::new(f_axis(), Axis::linear(format!("imaginary [{shown}]"))),
-        )
-    } else {
-        (Panel::new(f_axis(), Axis::log(format!("|H| [{shown}]"))), Panel::new(f_axis(), Axis::linear("phase [deg]")))
-    };
-    top.weight = 3;
-    bottom.weight = 2;
-    let mut coherence = Panel::new(f_axis(), Axis::linear("coherence").fixed(0.0, 1.05));
-    for (i, l) in layers.iter().enumerate() {
-        let Some((_, freq, h, u, coh)) = blocks(l.value).into_iter().next() else {
-            return Err(PlotError::Mixed(format!("`{}` is not an FRF", l.name)));
-        };
-        if u != unit {
-            return Err(PlotError::Mixed(format!("`{}` is in {u}, the plot in {unit}", l.name)));
-        }
-        // The sweep of `main` on a ramp when long; `with` values in palette colours after it.
-        let color = if i < main.len() { sweep_color(i, main.len()) } else { (i - main.len() + 1).into() };
-        let named = layers.len() > 1 && (i >= main.len() || sweep_labelled(i, main.len()));
-        let name = if named { l.name.clone() } else { String::new() };
-        type Points = Vec<(f64, f64)>;
-        let (a, b): (Points, Points) = if real_imag {
-            freq.iter().zip(&h).map(|(f, v)| ((*f, v.re * scale), (*f, v.im * scale))).unzip()
-        } else {
-            freq.iter().zip(&h).map(|(f, v)| ((*f, v.norm() * scale), (*f, v.arg().to_degrees()))).unzip()
-        };
-        top.series.push(Series::new(name.clone(), a, Style::Line, color));
-        bottom.series.push(Series::new("", b, Style::Line, color));
-        if let Some(c) = coh {
-            coherence.series.push(Series::new("", freq.iter().copied().zip(c).collect(), Style::Line, color));
+    for l in main.iter().chain(overlays.iter().copied()) {
+        match blocks(l.value).first() {
+            None => return Err(PlotError::Mixed(format!("`{}` is not an FRF", l.name))),
+            Some(b) if b.3 != unit => {
+                return Err(PlotError::Mixed(format!("`{}` is in {}, the plot in {unit}", l.name, b.3)));
+            }
+            Some(_) => {}
         }
     }
-    let markers = mode_markers(with);
-    top.series.extend(markers.iter().cloned());
-    let mut panels = vec![top, bottom];
+    let mut directions: Vec<String> = Vec::new();
+    for d in main.iter().chain(overlays.iter().copied()).filter_map(Layer::direction) {
+        if !directions.contains(&d) {
+            directions.push(d);
+        }
+    }
+    let split = directions.len() > 1;
+    let groups: Vec<Option<String>> = if split { directions.into_iter().map(Some).collect() } else { vec![None] };
+    let in_group = |l: &Layer, g: &Option<String>| g.is_none() || l.direction().is_none() || l.direction() == *g;
+    let f_axis = || Axis::linear("frequency [Hz]");
+    let mut panels = Vec::new();
+    let mut coherence = Panel::new(f_axis(), Axis::linear("coherence").fixed(0.0, 1.05));
+    let receptance = unit == "m/N";
+    for g in &groups {
+        let dir = g.as_ref().map(|d| format!(" {d}")).unwrap_or_default();
+        let (mut top, mut bottom) = if real_imag {
+            (
+                Panel::new(f_axis(), Axis::linear(format!("real{dir} [{shown}]"))),
+                Panel::new(f_axis(), Axis::linear(format!("imaginary{dir} [{shown}]"))),
+            )
+        } else {
+            (
+                Panel::new(f_axis(), Axis::log(format!("|H|{dir} [{shown}]"))),
+                Panel::new(f_axis(), Axis::linear(format!("phase{dir} [deg]"))),
+            )
+        };
+        top.weight = 3;
+        bottom.weight = 2;
+        let members: Vec<&Layer> = main.iter().filter(|l| in_group(l, g)).collect();
+        let n = members.len();
+        let ramp = n > 10;
+        if ramp {
+            top.color_bar = color_bar(&members);
+        }
+        let others: Vec<&Layer> = overlays.iter().copied().filter(|l| in_group(l, g)).collect();
+        // Names: the sweep point in words; the value's name too when others share the plot.
+        let prefix = |l: &Layer| if others.is_empty() { String::new() } else { format!("{}, ", l.name) };
+        let mut curves: Vec<(&Layer, Color, Style, String)> = Vec::new();
+        for (i, l) in members.iter().enumerate() {
+            let words = l.words(split);
+            let name = match (n, ramp) {
+                (1, _) if others.is_empty() => String::new(),
+                (1, _) => l.name.clone(),
+                (_, true) if others.is_empty() => String::new(),
+                (_, true) if i == 0 => l.name.clone(),
+                (_, true) => String::new(),
+                _ if words.is_empty() => l.name.clone(),
+                _ => format!("{}{words}", prefix(l)),
+            };
+            curves.push((l, shade(&members, i), Style::Line, name));
+        }
+        let on_ramp = n > 1 && members.iter().all(|l| l.coord().is_some());
+        let mut next = if ramp || on_ramp { 0 } else { n };
+        for l in &others {
+            let words = l.words(split);
+            let twin = (!l.sweep.is_empty()).then(|| members.iter().position(|m| m.words(split) == words)).flatten();
+            match twin {
+                Some(i) => {
+                    let name = if ramp { String::new() } else { format!("{}, {words}", l.name) };
+                    curves.push((l, shade(&members, i), Style::Dashed, name));
+                }
+                None => {
+                    let name = if words.is_empty() { l.name.clone() } else { format!("{}, {words}", l.name) };
+                    curves.push((l, Color::Palette(next), Style::Line, name));
+                    next += 1;
+                }
+            }
+        }
+        // With a ramp the dashed twins need one legend entry saying what dashed means.
+        if ramp && curves.iter().any(|c| c.2 == Style::Dashed) {
+            let name = others.first().map(|l| l.name.clone()).unwrap_or_default();
+            top.series.push(Series::new(name, Vec::new(), Style::Dashed, Color::Palette(7)));
+        }
+        for (l, color, style, name) in curves {
+            let Some((_, freq, h, _, coh)) = blocks(l.value).into_iter().next() else { continue };
+            let (a, b): (Vec<(f64, f64)>, Vec<(f64, f64)>) = if real_imag {
+                freq.iter().zip(&h).map(|(f, v)| ((*f, v.re * scale), (*f, v.im * scale))).unzip()
+            } else {
+                let phase = phase_degrees(&h, receptance);
+                freq.iter().zip(&h).zip(phase).map(|((f, v), p)| ((*f, v.norm() * scale), (*f, p))).unzip()
+            };
+            top.series.push(Series::new(name, a, style.clone(), color));
+            bottom.series.push(Series::new("", b, style.clone(), color));
+            if let Some(c) = coh
+                && (g.is_none() || l.direction() == *g || (l.direction().is_none() && g == &groups[0]))
+            {
+                coherence.series.push(Series::new("", freq.iter().copied().zip(c).collect(), style, color));
+            }
+        }
+        top.series.extend(mode_markers(with));
+        panels.push(top);
+        panels.push(bottom);
+    }
     if !coherence.series.is_empty() {
         panels.push(coherence);
     }
@@ -177,7 +362,8 @@ fn receptance_blocks(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotE
                 panels.push(Panel::new(Axis::linear("frequency [Hz]"), Axis::log(format!("|{name}| [{shown}]"))));
             }
             let n = main.len() + with.len();
-            let label = if k == 0 && n > 1 && sweep_labelled(i, n) { l.name.clone() } else { String::new() };
+            let label =
+                if k == 0 && n > 1 && sweep_labelled(i, n) { legend_name(l, main.len()) } else { String::new() };
             let pts = freq.iter().zip(&h).map(|(f, v)| (*f, v.norm() * scale)).collect();
             panels[k].series.push(Series::new(label, pts, Style::Line, sweep_color(i, n)));
         }
@@ -217,7 +403,11 @@ fn time_series(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                 }
             }
             pts.dedup();
-            let name = if main.len() > 1 && sweep_labelled(i, main.len()) { l.name.clone() } else { String::new() };
+            let name = if main.len() > 1 && sweep_labelled(i, main.len()) {
+                legend_name(l, main.len())
+            } else {
+                String::new()
+            };
             panels[k].1.series.push(Series::new(name, pts, Style::Line, sweep_color(i, main.len())));
         }
     }
@@ -262,7 +452,11 @@ fn spectrum(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                     panels.len() - 1
                 }
             };
-            let name = if main.len() > 1 && sweep_labelled(i, main.len()) { l.name.clone() } else { String::new() };
+            let name = if main.len() > 1 && sweep_labelled(i, main.len()) {
+                legend_name(l, main.len())
+            } else {
+                String::new()
+            };
             panels[k].1.series.push(Series::new(name, pts, Style::Line, sweep_color(i, main.len())));
         }
     }
@@ -272,7 +466,7 @@ fn spectrum(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
 /// Depth limit (mm) over speed (rpm) for every diagram, trials as ○ stable and × chatter,
 /// and beneath, the chatter frequency of each diagram with the trials' observed ones.
 fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
-    let mut depth = Panel::new(Axis::linear("spindle speed [rpm]"), Axis::linear("depth limit [mm]"));
+    let mut depth = Panel::new(Axis::linear("spindle speed [rpm]"), Axis::linear("depth limit [mm]").from_zero());
     depth.weight = 3;
     let mut chatter = Panel::new(Axis::linear("spindle speed [rpm]"), Axis::linear("chatter frequency [Hz]"));
     chatter.weight = 2;
@@ -283,15 +477,16 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
             Value::Lobes(lobes) => {
                 let lobes: &Lobes = lobes;
                 let style = if k < main.len() { Style::Line } else { Style::Dashed };
+                let name = if l.sweep.is_empty() { l.name.clone() } else { format!("{}, {}", l.name, l.words(false)) };
                 let d = lobes.speed_rpm.iter().zip(&lobes.depth_limit).map(|(s, b)| (*s, b * 1e3)).collect();
-                depth.series.push(Series::new(l.name.clone(), d, style.clone(), color));
+                depth.series.push(Series::new(name.clone(), d, style.clone(), color));
                 let c = lobes.speed_rpm.iter().zip(&lobes.chatter_hz).map(|(s, f)| (*s, *f)).collect();
-                chatter.series.push(Series::new(l.name.clone(), c, Style::Dots, color));
+                chatter.series.push(Series::new(name, c, Style::Dots, color));
                 color += 1;
             }
             Value::Table(t) => {
                 // Trials of one reference (several tables when its step is swept) as one set.
-                let base = l.name.split(" [").next().unwrap_or(&l.name).to_string();
+                let base = l.name.clone();
                 let Some(rows) = trial_rows(t) else {
                     return Err(PlotError::Mixed(format!(
                         "`{}` has no speed, depth and outcome (or stable) columns to draw as trials",
@@ -313,11 +508,23 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         }
     }
     for (name, rows) in trials {
+        // Trials a diagram scored (or no score at all) by outcome; those outside every
+        // diagram's speeds, which none scored, apart.
+        let unscored = |r: &[f64; 5]| r[4] == -1.0;
         let pick = |chatter: bool| -> Vec<(f64, f64)> {
-            rows.iter().filter(|r| (r[2] == 1.0) == chatter).map(|r| (r[0], r[1] * 1e3)).collect()
+            rows.iter().filter(|r| !unscored(r) && (r[2] == 1.0) == chatter).map(|r| (r[0], r[1] * 1e3)).collect()
         };
-        depth.series.push(Series::new(format!("{name}: stable"), pick(false), Style::Circles, 2));
-        depth.series.push(Series::new(format!("{name}: chatter"), pick(true), Style::Crosses, 3));
+        let (stable, chattered) = (pick(false), pick(true));
+        if !stable.is_empty() {
+            depth.series.push(Series::new(format!("{name}: stable"), stable, Style::Circles, 2));
+        }
+        if !chattered.is_empty() {
+            depth.series.push(Series::new(format!("{name}: chatter"), chattered, Style::Crosses, 3));
+        }
+        let outside: Vec<(f64, f64)> = rows.iter().filter(|r| unscored(r)).map(|r| (r[0], r[1] * 1e3)).collect();
+        if !outside.is_empty() {
+            depth.series.push(Series::new(format!("{name}: not scored (outside)"), outside, Style::Squares, 7));
+        }
         // Scored trials the diagram classifies wrong, ringed.
         let wrong: Vec<(f64, f64)> = rows.iter().filter(|r| r[4] == 0.0).map(|r| (r[0], r[1] * 1e3)).collect();
         if !wrong.is_empty() {
@@ -332,7 +539,7 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
 }
 
 /// A trial table's rows as `[speed rpm, depth m, chatter 0/1, chatter frequency Hz or 0,
-/// right 1/0 (−1 where not scored)]`: the outcome from `outcome`, else from `simulated` or
+/// right 1/0 (−1 where not scored, NaN without a score)]`: the outcome from `outcome`, else from `simulated` or
 /// `stable`; rows with no outcome (−1, outside a diagram) are kept by what was recorded.
 fn trial_rows(t: &Table) -> Option<Vec<[f64; 5]>> {
     let (speed, depth) = (col(t, "speed")?, col(t, "depth")?);
@@ -345,7 +552,7 @@ fn trial_rows(t: &Table) -> Option<Vec<[f64; 5]>> {
     let right = col(t, "right");
     Some(
         (0..speed.len())
-            .map(|i| [speed[i], depth[i], chatter[i], freq.map_or(0.0, |f| f[i]), right.map_or(-1.0, |r| r[i])])
+            .map(|i| [speed[i], depth[i], chatter[i], freq.map_or(0.0, |f| f[i]), right.map_or(f64::NAN, |r| r[i])])
             .collect(),
     )
 }
@@ -356,75 +563,167 @@ fn col<'a>(t: &'a Table, name: &str) -> Option<&'a [f64]> {
 
 /// Tables by what their columns hold: a form or motion per angle as a polar plot (µm), a
 /// spectrum per undulation per revolution, a Campbell table; any other as its columns over
-/// the first, one panel per unit.
+/// the first, one panel per unit (one per column when the table is swept, coloured by its
+/// sweep point).
 fn table(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
-    let mut tables: Vec<(&str, &Table)> = Vec::new();
+    let mut layers: Vec<(&Layer, &Table)> = Vec::new();
     for l in main.iter().chain(with) {
         match l.value {
-            Value::Table(t) => tables.push((l.name.as_str(), t)),
+            Value::Table(t) => layers.push((l, t)),
             other => return Err(PlotError::Mixed(format!("`{}` is a {}, not a table", l.name, other.port_type()))),
         }
     }
-    let many = tables.len() > 1;
-    let t = tables[0].1;
+    let many = layers.len() > 1;
+    let t = layers[0].1;
     if col(t, "angle").is_some() {
-        return Ok(vec![polar(&tables)]);
+        return Ok(polar(&layers));
     }
     if let (Some(speed), Some(freq), Some(whirl), false) = (col(t, "speed"), col(t, "frequency"), col(t, "whirl"), many)
     {
         return Ok(vec![campbell(speed, freq, whirl)]);
     }
+    if t.columns.first().is_some_and(|c| c.name == "upr") {
+        return Ok(upr_spectrum(&layers));
+    }
     let mut panels: Vec<(String, Panel)> = Vec::new();
+    let n = layers.len();
+    let all: Vec<&Layer> = layers.iter().map(|(l, _)| *l).collect();
     let mut color = 0;
-    for (name, t) in &tables {
+    for (i, (l, t)) in layers.iter().enumerate() {
         let Some(x) = t.columns.first() else { return Err(PlotError::Empty) };
         let (xs, xu) = signal_unit(&x.unit.symbol);
         let x_label = if xu.is_empty() { x.name.clone() } else { format!("{} [{xu}]", x.name) };
         for c in t.columns.iter().skip(1) {
             let (s, u) = signal_unit(&c.unit.symbol);
-            let k = match panels.iter().position(|(unit, _)| *unit == u) {
+            let key = if many { c.name.clone() } else { u.clone() };
+            let k = match panels.iter().position(|(key_, _)| *key_ == key) {
                 Some(k) => k,
                 None => {
-                    let y = if u.is_empty() { "value".to_string() } else { format!("[{u}]") };
-                    panels.push((u.clone(), Panel::new(Axis::linear(x_label.clone()), Axis::linear(y))));
+                    let y = match (many, u.is_empty()) {
+                        (true, true) => c.name.replace('_', " "),
+                        (true, false) => format!("{} [{u}]", c.name.replace('_', " ")),
+                        (false, true) => "value".to_string(),
+                        (false, false) => format!("[{u}]"),
+                    };
+                    let mut p = Panel::new(Axis::linear(x_label.clone()), Axis::linear(y));
+                    if many && n > 10 {
+                        p.color_bar = color_bar(&layers.iter().map(|(l, _)| *l).collect::<Vec<_>>());
+                    }
+                    panels.push((key, p));
                     panels.len() - 1
                 }
             };
             let pts = x.values.iter().zip(&c.values).map(|(a, b)| (a * xs, b * s)).collect();
-            let style = Style::Line;
-            let label = if many { format!("{name}: {}", c.name) } else { c.name.clone() };
-            panels[k].1.series.push(Series::new(label, pts, style, color));
-            color += 1;
+            let (label, shade) = if many {
+                let named = k == 0 && sweep_labelled(i, n) && n <= 10;
+                (if named { legend_name(l, n) } else { String::new() }, shade(&all, i))
+            } else {
+                color += 1;
+                (c.name.clone(), Color::Palette(color - 1))
+            };
+            panels[k].1.series.push(Series::new(label, pts, Style::Line, shade));
         }
     }
     Ok(panels.into_iter().map(|(_, p)| p).collect())
 }
 
-/// Form or error motion around the circle: each radial column as `r0 + e(θ)` in x–y (µm), the
-/// ±3σ band of a form where the table gives its bounds, and the reference circle `r0`.
-fn polar(tables: &[(&str, &Table)]) -> Panel {
+/// Amplitudes per undulation per revolution (error motions, forms), one panel per quantity,
+/// the sweep points side by side at each harmonic: to the highest harmonic that carries at
+/// least 1 % of the largest amplitude, not to the end of the table.
+fn upr_spectrum(layers: &[(&Layer, &Table)]) -> Vec<Panel> {
+    let n = layers.len();
+    let peak = layers
+        .iter()
+        .flat_map(|(_, t)| t.columns.iter().skip(1).flat_map(|c| c.values.iter()))
+        .fold(0.0f64, |a, v| if v.is_finite() { a.max(v.abs()) } else { a });
+    let mut top = 0.0f64;
+    for (_, t) in layers {
+        let Some(upr) = col(t, "upr") else { continue };
+        for c in t.columns.iter().skip(1) {
+            for (u, v) in upr.iter().zip(&c.values) {
+                if v.abs() >= 0.01 * peak && *u > top {
+                    top = *u;
+                }
+            }
+        }
+    }
+    let end = (top * 1.1 + 1.0).max(10.0).ceil();
+    let all: Vec<&Layer> = layers.iter().map(|(l, _)| *l).collect();
+    let mut panels: Vec<(String, Panel)> = Vec::new();
+    for (i, (l, t)) in layers.iter().enumerate() {
+        let Some(upr) = col(t, "upr") else { continue };
+        for c in t.columns.iter().skip(1) {
+            let (scale, unit) = signal_unit(&c.unit.symbol);
+            let k = match panels.iter().position(|(name, _)| *name == c.name) {
+                Some(k) => k,
+                None => {
+                    let what = c.name.replace('_', " ");
+                    let y = if unit.is_empty() {
+                        format!("{what} amplitude")
+                    } else {
+                        format!("{what} amplitude [{unit}]")
+                    };
+                    let mut p = Panel::new(
+                        Axis::linear("undulations per revolution [UPR]").fixed(-0.5, end + 0.5),
+                        Axis::linear(y).from_zero(),
+                    );
+                    if n > 10 {
+                        p.color_bar = color_bar(&layers.iter().map(|(l, _)| *l).collect::<Vec<_>>());
+                    }
+                    panels.push((c.name.clone(), p));
+                    panels.len() - 1
+                }
+            };
+            // Side by side within ±0.35 UPR of the harmonic.
+            let shift = if n > 1 { 0.7 * (i as f64 / (n - 1) as f64 - 0.5) } else { 0.0 };
+            let pts = upr
+                .iter()
+                .zip(&c.values)
+                .filter(|(u, _)| **u <= end)
+                .map(|(u, v)| (u + shift, v.abs() * scale))
+                .collect();
+            let named = k == 0 && n > 1 && n <= 10 && sweep_labelled(i, n);
+            let name = if named { legend_name(l, n) } else { String::new() };
+            panels[k].1.series.push(Series::new(name, pts, Style::Stems, shade(&all, i)));
+        }
+    }
+    panels.into_iter().map(|(_, p)| p).collect()
+}
+
+/// Form or error motion around the circle: each radial quantity as `r0 + e(θ)` in x–y (µm),
+/// the ±3σ band of a form where the table gives its bounds, and the reference circle `r0`.
+/// A swept table gets one polar panel per quantity, its sweep points coloured in order.
+fn polar(layers: &[(&Layer, &Table)]) -> Vec<Panel> {
     let is_radial = |c: &&crate::value::Column| {
         c.unit.symbol == "m" && !c.name.contains("sigma") && !c.name.ends_with("lower") && !c.name.ends_with("upper")
     };
-    let peak = tables
+    let peak = layers
         .iter()
         .flat_map(|(_, t)| t.columns.iter().filter(|c| c.unit.symbol == "m").flat_map(|c| c.values.iter()))
         .fold(0.0f64, |a, v| a.max(v.abs() * 1e6));
     // The reference circle: twice the largest excursion, so the shape reads at a glance.
     let r0 = 2.0 * peak.max(1e-3);
-    let mut p = Panel::new(Axis::linear("x [µm]"), Axis::linear("y [µm]"));
-    p.equal_aspect = true;
-    p.weight = 4;
-    let circle: Vec<(f64, f64)> =
-        (0..=180).map(|k| (TAU * k as f64 / 180.0).sin_cos()).map(|(s, c)| (r0 * c, r0 * s)).collect();
-    p.series.push(Series::new(
-        format!("reference circle, r0 = {} µm", crate::round_sig(r0, 2)),
-        circle,
-        Style::Dashed,
-        7,
-    ));
-    let mut color = 0;
-    for (name, t) in tables {
+    let n = layers.len();
+    let all: Vec<&Layer> = layers.iter().map(|(l, _)| *l).collect();
+    let new_panel = |what: &str| {
+        let mut p = Panel::new(Axis::linear(format!("{what}x [µm]")), Axis::linear(format!("{what}y [µm]")));
+        p.equal_aspect = true;
+        p.weight = 4;
+        let circle: Vec<(f64, f64)> =
+            (0..=180).map(|k| (TAU * k as f64 / 180.0).sin_cos()).map(|(s, c)| (r0 * c, r0 * s)).collect();
+        p.series.push(Series::new(
+            format!("reference circle, r0 = {} µm", crate::round_sig(r0, 2)),
+            circle,
+            Style::Dashed,
+            7,
+        ));
+        if n > 10 {
+            p.color_bar = color_bar(&layers.iter().map(|(l, _)| *l).collect::<Vec<_>>());
+        }
+        p
+    };
+    let mut panels: Vec<(String, Panel)> = Vec::new();
+    for (i, (l, t)) in layers.iter().enumerate() {
         let Some(angle) = col(t, "angle") else { continue };
         let around = |e: &[f64]| -> Vec<(f64, f64)> {
             let mut pts: Vec<(f64, f64)> = angle
@@ -440,16 +739,34 @@ fn polar(tables: &[(&str, &Table)]) -> Panel {
             }
             pts
         };
-        let prefix = if tables.len() > 1 { format!("{name}: ") } else { String::new() };
-        if let (Some(lo), Some(hi)) = (col(t, "form_lower"), col(t, "form_upper")) {
-            p.series.push(Series::new(format!("{prefix}form ±3σ"), around(lo), Style::Band(around(hi)), color));
-        }
-        for c in t.columns.iter().filter(is_radial) {
-            p.series.push(Series::new(format!("{prefix}{}", c.name), around(&c.values), Style::Line, color));
-            color += 1;
+        let radial: Vec<&crate::value::Column> = t.columns.iter().filter(is_radial).collect();
+        for (j, c) in radial.iter().enumerate() {
+            // One panel for an unswept table's quantities; one per quantity when swept.
+            let key = if n > 1 { c.name.clone() } else { String::new() };
+            let k = match panels.iter().position(|(key_, _)| *key_ == key) {
+                Some(k) => k,
+                None => {
+                    let what = if n > 1 { format!("{}: ", c.name.replace('_', " ")) } else { String::new() };
+                    panels.push((key.clone(), new_panel(&what)));
+                    panels.len() - 1
+                }
+            };
+            let (name, color) = if n > 1 {
+                let named = n <= 10 && sweep_labelled(i, n);
+                (if named { legend_name(l, n) } else { String::new() }, shade(&all, i))
+            } else {
+                (c.name.replace('_', " "), Color::Palette(j))
+            };
+            if c.name == "form"
+                && let (Some(lo), Some(hi)) = (col(t, "form_lower"), col(t, "form_upper"))
+            {
+                let band = if n > 1 { String::new() } else { "form ±3σ".to_string() };
+                panels[k].1.series.push(Series::new(band, around(lo), Style::Band(around(hi)), color));
+            }
+            panels[k].1.series.push(Series::new(name, around(&c.values), Style::Line, color));
         }
     }
-    p
+    panels.into_iter().map(|(_, p)| p).collect()
 }
 
 /// Whirl frequencies over speed: forward and backward modes as lines by rank, and the 1×
@@ -491,10 +808,10 @@ fn scalar(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         let Value::Scalar(s) = l.value else { return Err(PlotError::Mixed(format!("`{}` is not a scalar", l.name))) };
         let (scale, u) = signal_unit(&s.unit.symbol);
         unit = u;
-        let x = match &l.coord {
+        let x = match l.coord() {
             Some((label, x)) => {
-                x_label = label.clone();
-                *x
+                x_label = label;
+                x
             }
             None => i as f64 + 1.0,
         };
@@ -530,9 +847,8 @@ fn modal(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         }));
     }
     let layers: Vec<Layer> =
-        main.iter().zip(&frfs).map(|(l, v)| Layer { name: l.name.clone(), value: v, coord: None }).collect();
-    let markers: Vec<Layer> =
-        main.iter().map(|l| Layer { name: l.name.clone(), value: l.value, coord: None }).collect();
+        main.iter().zip(&frfs).map(|(l, v)| Layer { name: l.name.clone(), value: v, sweep: l.sweep.clone() }).collect();
+    let markers: Vec<Layer> = main.iter().map(|l| Layer::new(l.name.clone(), l.value)).collect();
     frf(&layers, &markers, false)
 }
 
@@ -540,9 +856,10 @@ fn modal(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
 mod tests {
     use super::*;
     use crate::value::{Channel, Column, PortType, Table, UnitLabel};
+    use num_complex::Complex64;
 
     fn layer(v: &Value) -> Layer<'_> {
-        Layer { name: "t".into(), value: v, coord: None }
+        Layer::new("t", v)
     }
 
     /// A sine of 1 mm at 250 Hz: its spectrum peaks at 250 Hz at 1000 µm, the unit shown.
@@ -582,6 +899,82 @@ mod tests {
         assert_eq!(fig.panels[0].series[0].points, [(0.0, 500.0), (10_000.0, 520.0), (20_000.0, 540.0)]);
         assert_eq!(fig.panels[0].x.label, "spindle speed [rpm]");
         assert!(variants(&PortType::Table).contains(&"default"));
+    }
+
+    fn frf_of(direction: Option<&str>, values: Vec<Complex64>, freq_hz: Vec<f64>) -> Value {
+        Value::Frf(Frf {
+            freq_hz,
+            values,
+            coherence: None,
+            unit: UnitLabel::new("m/N"),
+            direction: direction.map(str::to_string),
+            speed_rpm: None,
+            sensor: None,
+            dofs: None,
+        })
+    }
+
+    /// A pure delay of 1 ms over 0–5 kHz turns by 5 whole turns: the drawn phase falls by
+    /// 1800° without a jump, and its median sits in (−360°, 0°].
+    #[test]
+    fn phase_is_unwrapped_and_never_jumps_a_turn() {
+        let f: Vec<f64> = (0..=500).map(|k| 10.0 * k as f64).collect();
+        let h = f.iter().map(|f| Complex64::from_polar(1e-6, -TAU * f * 1e-3)).collect();
+        let fig = figure("d", None, &[layer(&frf_of(None, h, f))], &[]).unwrap();
+        let phase: Vec<f64> = fig.panels[1].series[0].points.iter().map(|p| p.1).collect();
+        assert!(phase.windows(2).all(|w| (w[1] - w[0]).abs() < 180.0), "{phase:?}");
+        assert!((phase[0] - phase[500] - 1800.0).abs() < 1e-6, "{} → {}", phase[0], phase[500]);
+        assert!(phase[250] <= 0.0 && phase[250] > -360.0, "{}", phase[250]);
+    }
+
+    /// FRFs in x and y get a pair of panels each, named by direction; a `with` value of the
+    /// same sweep point takes the colour of its twin and is dashed.
+    #[test]
+    fn a_set_in_two_directions_gets_panels_per_direction_and_twins_share_a_colour() {
+        let f = vec![100.0, 200.0, 300.0];
+        let h = vec![Complex64::new(1e-7, -1e-7); 3];
+        let (x1, y1) = (frf_of(Some("x"), h.clone(), f.clone()), frf_of(Some("y"), h.clone(), f.clone()));
+        let (x2, y2) = (frf_of(Some("x"), h.clone(), f.clone()), frf_of(Some("y"), h, f));
+        let main = [
+            Layer::swept("model", &x1, "speed=0 rpm, direction=x"),
+            Layer::swept("model", &y1, "speed=0 rpm, direction=y"),
+        ];
+        let with = [
+            Layer::swept("measured", &x2, "speed=0 rpm, direction=x"),
+            Layer::swept("measured", &y2, "speed=0 rpm, direction=y"),
+        ];
+        let fig = figure("t", None, &main, &with).unwrap();
+        let labels: Vec<&str> = fig.panels.iter().map(|p| p.y.label.as_str()).collect();
+        assert_eq!(labels, ["|H| x [µm/N]", "phase x [deg]", "|H| y [µm/N]", "phase y [deg]"]);
+        let top = &fig.panels[0].series;
+        assert_eq!(top.len(), 2, "{top:?}");
+        assert_eq!((top[0].style.clone(), top[1].style.clone()), (Style::Line, Style::Dashed));
+        assert_eq!(top[0].color, top[1].color);
+        assert_eq!((top[0].name.as_str(), top[1].name.as_str()), ("model", "measured, 0 rpm"));
+    }
+
+    /// Depth from zero; trials outside every diagram's speeds apart from the scored ones.
+    #[test]
+    fn lobes_start_at_zero_depth_and_unscored_trials_are_drawn_apart() {
+        let l = Value::Lobes(crate::value::Lobes {
+            speed_rpm: vec![1000.0, 2000.0],
+            depth_limit: vec![2e-3, 3e-3],
+            chatter_hz: vec![900.0, 950.0],
+        });
+        let trials = Value::Table(Table {
+            columns: vec![
+                Column::new("speed", "rpm", vec![1500.0, 1500.0, 2500.0]),
+                Column::new("depth", "m", vec![1e-3, 4e-3, 1e-3]),
+                Column::new("outcome", "", vec![0.0, 1.0, 0.0]),
+                Column::new("right", "", vec![1.0, 1.0, -1.0]),
+            ],
+        });
+        let fig = figure("l", None, &[layer(&l)], &[Layer::new("trials", &trials)]).unwrap();
+        assert_eq!(fig.panels[0].y.start, Some(0.0));
+        let by_name = |n: &str| fig.panels[0].series.iter().find(|s| s.name == n).map(|s| s.points.clone());
+        assert_eq!(by_name("trials: stable"), Some(vec![(1500.0, 1.0)]));
+        assert_eq!(by_name("trials: chatter"), Some(vec![(1500.0, 4.0)]));
+        assert_eq!(by_name("trials: not scored (outside)"), Some(vec![(2500.0, 1.0)]));
     }
 
     /// The same figure gives the same bytes (SVG and PNG), and the PNG decodes to the size drawn.
