@@ -79,6 +79,17 @@ fn describe(v: &Value) -> String {
             format!("substructure of `{}`: {}", shown(&s.assembly), parts.join(", "))
         }
         Value::Lobes(l) => format!("lobes, {} speeds", l.speed_rpm.len()),
+        Value::FrfSet(s) => {
+            let f = s.freq_hz();
+            format!(
+                "FRF set, {} FRFs in {} on {} lines {}..{} Hz",
+                s.frfs.len(),
+                shown(s.unit()),
+                f.len(),
+                n(*f.first().unwrap_or(&0.0)),
+                n(*f.last().unwrap_or(&0.0))
+            )
+        }
     }
 }
 

@@ -19,6 +19,7 @@ pub enum PortType {
     Lobes,
     Table,
     Scalar,
+    FrfSet,
 }
 
 impl PortType {
@@ -33,6 +34,7 @@ impl PortType {
             PortType::Lobes => "stability lobes",
             PortType::Table => "table",
             PortType::Scalar => "scalar",
+            PortType::FrfSet => "FRF set",
         }
     }
 }
@@ -203,6 +205,100 @@ impl Frf {
     /// The FRF's kind by its unit label, when it is an SI label of one.
     pub fn kind(&self) -> Option<FrfKind> {
         FrfKind::of_label(&self.unit.symbol)
+    }
+}
+
+/// A measurement set: the FRFs of one structure (one per response and reference point, as a
+/// modal test gives them) on one common frequency grid and in one unit, each with its response
+/// and reference nodes and directions. Fitted together, they share their poles
+/// (`modal.fit_set`); written, each FRF is one UFF dataset 58 or one block of CSV rows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrfSet {
+    /// The FRFs, in the order they were read; every one on the same `freq_hz` and `unit`.
+    pub frfs: Vec<Frf>,
+}
+
+/// Frequency lines of two FRFs of a set agree when within this relative distance (a grid
+/// written with 6–7 digits reads back a few ulps off).
+pub const SET_GRID_TOLERANCE: f64 = 1e-9;
+
+/// Why FRFs do not make a set.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FrfSetError {
+    /// No FRF at all.
+    Empty,
+    /// FRF `index` (from 0) has another number of lines, or a line elsewhere, than the first.
+    Grid { index: usize, why: String },
+    /// FRF `index` (from 0) is in another unit than the first.
+    Unit { index: usize, unit: String, first: String },
+}
+
+impl fmt::Display for FrfSetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FrfSetError::Empty => f.write_str("a set needs at least one FRF"),
+            FrfSetError::Grid { why, .. } => f.write_str(why),
+            FrfSetError::Unit { unit, first, .. } => {
+                write!(f, "its values are in `{unit}`, the first FRF's in `{first}`")
+            }
+        }
+    }
+}
+
+impl FrfSet {
+    /// The set of `frfs`, checked: at least one, every one on the first one's lines (within
+    /// [`SET_GRID_TOLERANCE`]) and in its unit.
+    pub fn new(frfs: Vec<Frf>) -> Result<FrfSet, FrfSetError> {
+        let Some(first) = frfs.first() else {
+            return Err(FrfSetError::Empty);
+        };
+        for (index, f) in frfs.iter().enumerate().skip(1) {
+            if f.freq_hz.len() != first.freq_hz.len() {
+                return Err(FrfSetError::Grid {
+                    index,
+                    why: format!("it has {} lines, the first FRF {}", f.freq_hz.len(), first.freq_hz.len()),
+                });
+            }
+            if let Some(k) = f
+                .freq_hz
+                .iter()
+                .zip(&first.freq_hz)
+                .position(|(a, b)| !((a - b).abs() <= SET_GRID_TOLERANCE * a.abs().max(b.abs())))
+            {
+                return Err(FrfSetError::Grid {
+                    index,
+                    why: format!(
+                        "its line {} is at {} Hz, the first FRF's at {} Hz",
+                        k + 1,
+                        f.freq_hz[k],
+                        first.freq_hz[k]
+                    ),
+                });
+            }
+            if f.unit.symbol.trim() != first.unit.symbol.trim() {
+                return Err(FrfSetError::Unit { index, unit: f.unit.symbol.clone(), first: first.unit.symbol.clone() });
+            }
+        }
+        Ok(FrfSet { frfs })
+    }
+
+    /// The common frequency grid, Hz (the first FRF's).
+    pub fn freq_hz(&self) -> &[f64] {
+        self.frfs.first().map_or(&[], |f| f.freq_hz.as_slice())
+    }
+
+    /// The common unit label.
+    pub fn unit(&self) -> &str {
+        self.frfs.first().map_or("", |f| f.unit.symbol.as_str())
+    }
+
+    /// How FRF `i` (from 0) is named in legends and messages: by its nodes and directions
+    /// (`response 1 x / reference 3 x`), else by its place in the set (`FRF 2`).
+    pub fn name(&self, i: usize) -> String {
+        match self.frfs.get(i).and_then(|f| f.dofs) {
+            Some(d) => d.describe().replacen(", reference", " / reference", 1),
+            None => format!("FRF {}", i + 1),
+        }
     }
 }
 
@@ -378,6 +474,8 @@ pub enum Value {
     Lobes(Lobes),
     Table(Table),
     Scalar(Scalar),
+    /// Appended last: the cache codec numbers variants by position.
+    FrfSet(FrfSet),
 }
 
 impl Value {
@@ -392,6 +490,7 @@ impl Value {
             Value::Lobes(_) => PortType::Lobes,
             Value::Table(_) => PortType::Table,
             Value::Scalar(_) => PortType::Scalar,
+            Value::FrfSet(_) => PortType::FrfSet,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! the same functions as [`crate::formats`] uses, so the readers read back what is written here.
 
 use super::manifest::MissingPoint;
-use crate::formats::{csv, uff};
+use crate::formats::{csv, frf_set, uff};
 use crate::model::OutputFormat;
 use crate::value::{Table, Value};
 use std::fmt::Write as _;
@@ -61,6 +61,7 @@ fn render_uff(rows: &[Row]) -> String {
             Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
             Value::TimeSeries(ts) => uff::write_time_series(&mut out, ts, r.label),
             Value::ReceptanceSet(rs) => uff::write_receptance(&mut out, rs, r.label),
+            Value::FrfSet(set) => frf_set::write_uff(&mut out, set, r.label),
             other => debug_assert!(false, "no UFF form for a {}", other.port_type()),
         }
     }
@@ -149,6 +150,7 @@ fn render_csv(rows: &[Row]) -> String {
                 csv::receptance_rows(&mut out, rs, &prefix_header, &prefix(r), &mut header_done)
             }
             Value::Lobes(l) => csv::lobes_rows(&mut out, l, &prefix_header, &prefix(r), &mut header_done),
+            Value::FrfSet(set) => frf_set::csv_rows(&mut out, set, &prefix_header, &prefix(r), &mut header_done),
             other => {
                 // Structured values without a tabular form go out as one JSON cell per row.
                 if !header_done {

@@ -6,7 +6,10 @@
 //! describes the layouts as implemented.
 
 pub mod csv;
+pub mod frf_set;
 pub mod uff;
+
+pub use frf_set::read_frf_set;
 
 use crate::value::{Frf, ReceptanceSet, TimeSeries};
 use std::fmt;

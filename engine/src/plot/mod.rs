@@ -5,6 +5,7 @@
 pub mod draw;
 pub mod figure;
 pub mod of;
+pub mod sets;
 
 pub use figure::{Axis, Figure, Panel, Series, Style};
 pub use of::{Layer, accepts, figure, variants};

@@ -143,6 +143,8 @@ pub fn value(v: &ev::Value) -> Option<Value<'_>> {
                 .collect(),
         }),
         ev::Value::Scalar(s) => Value::Scalar(Scalar { value: s.value, unit: &s.unit.symbol }),
-        ev::Value::ReceptanceSet(_) | ev::Value::BeamModel(_) | ev::Value::Substructure(_) => return None,
+        ev::Value::ReceptanceSet(_) | ev::Value::BeamModel(_) | ev::Value::Substructure(_) | ev::Value::FrfSet(_) => {
+            return None;
+        }
     })
 }

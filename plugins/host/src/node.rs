@@ -307,7 +307,7 @@ pub(crate) fn first_non_finite(v: &Value) -> Option<String> {
             .iter()
             .find_map(|c| first(&c.values).map(|(i, w)| format!("row {i} of column `{}` is {w}", guest_text(&c.name)))),
         // Kinds a plugin cannot return.
-        Value::ReceptanceSet(_) | Value::BeamModel(_) | Value::Substructure(_) => None,
+        Value::ReceptanceSet(_) | Value::BeamModel(_) | Value::Substructure(_) | Value::FrfSet(_) => None,
     }
 }
 
