@@ -1,7 +1,9 @@
 //! Frequency response function estimation from impact records, dissertation §3.1.2–3.1.5.
 //!
 //! Each record (force and response sampled together) is cut into an analysis frame that
-//! starts at the record start or a pre-trigger before the force peak, windowed (§3.1.2:
+//! starts at the record start or a pre-trigger before the force peak, the levels both channels
+//! show at rest taken out (the response is measured from where the structure rests; see
+//! [`IMPACT_ONSET_FRACTION`]), windowed (§3.1.2:
 //! rectangular force window of 6.5 ms, exponential response window with a 0.113 s time
 //! constant whose decay begins at the end of the force window) and transformed with one
 //! complex FFT per record (the force is the real part and the response the imaginary part
@@ -363,11 +365,14 @@ impl Worker {
         };
         let avail = n - start;
         let nf = job.force_len.min(avail);
+        // The levels at rest (a probe's standoff, a form error seen at rest, an amplifier's
+        // offset) are no response to the force: taken out of both channels.
+        let (f_base, x_base) = rest_levels(&f[start..], &x[start..], nf);
         // Scale the response by a power of two to the force's level (judged over the force
         // window), so the rounding of the packed transform does not leak from the larger
         // channel into the smaller one.
-        let ef_window = sum_squares(&f[start..start + nf]);
-        let ex_window = sum_squares(&x[start..start + nf]);
+        let ef_window = sum_squares_about(&f[start..start + nf], f_base);
+        let ex_window = sum_squares_about(&x[start..start + nf], x_base);
         if !(ef_window.is_finite() && ex_window.is_finite()) {
             return Err(Fault::NonFinite);
         }
@@ -380,10 +385,10 @@ impl Worker {
         let window = job.response_window;
         let (head, tail) = self.buf.split_at_mut(nf);
         for (((z, &fv), &xv), &w) in head.iter_mut().zip(&f[start..]).zip(&x[start..]).zip(window) {
-            *z = Complex64::new(fv, xv * (w * scale));
+            *z = Complex64::new(fv - f_base, (xv - x_base) * (w * scale));
         }
         let (mid, zeros) = tail.split_at_mut(avail - nf);
-        let ex = ex_window + pack_response(mid, &x[start + nf..], &window[nf..], scale);
+        let ex = ex_window + pack_response(mid, &x[start + nf..], &window[nf..], x_base, scale);
         if !ex.is_finite() {
             return Err(Fault::NonFinite);
         }
@@ -440,10 +445,10 @@ struct Job<'a> {
     frame: FrameStart,
 }
 
-/// Writes `i·x·w·scale` into `out` and returns the sum of squares of `x` (non-finite if
-/// any sample is), in one vectorisable pass.
+/// Writes `i·(x − base)·w·scale` into `out` and returns the sum of squares of `x − base`
+/// (non-finite if any sample is), in one vectorisable pass.
 #[inline(always)]
-fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64 {
+fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], base: f64, scale: f64) -> f64 {
     let len = out.len();
     let (x, w) = (&x[..len], &w[..len]);
     let mut acc = [0.0f64; 4];
@@ -452,31 +457,71 @@ fn pack_response(out: &mut [Complex64], x: &[f64], w: &[f64], scale: f64) -> f64
     let mut wc = w.chunks_exact(4);
     for ((o, xv), wv) in (&mut oc).zip(&mut xc).zip(&mut wc) {
         for i in 0..4 {
-            acc[i] += xv[i] * xv[i];
-            o[i] = Complex64::new(0.0, xv[i] * (wv[i] * scale));
+            let d = xv[i] - base;
+            acc[i] += d * d;
+            o[i] = Complex64::new(0.0, d * (wv[i] * scale));
         }
     }
     let mut rest = 0.0;
     for ((o, &xv), &wv) in oc.into_remainder().iter_mut().zip(xc.remainder()).zip(wc.remainder()) {
-        rest += xv * xv;
-        *o = Complex64::new(0.0, xv * (wv * scale));
+        let d = xv - base;
+        rest += d * d;
+        *o = Complex64::new(0.0, d * (wv * scale));
     }
     acc.iter().sum::<f64>() + rest
 }
 
-/// Sum of squares with independent partial sums, so the loop vectorises; NaN or ±∞ in
-/// the input makes the result non-finite.
+/// Sum of squares of `v − base` with independent partial sums, so the loop vectorises; NaN
+/// or ±∞ in the input makes the result non-finite.
 #[inline(always)]
-fn sum_squares(v: &[f64]) -> f64 {
+fn sum_squares_about(v: &[f64], base: f64) -> f64 {
     let mut acc = [0.0f64; 8];
     let chunks = v.chunks_exact(8);
     let rest = chunks.remainder();
     for c in chunks {
         for i in 0..8 {
-            acc[i] += c[i] * c[i];
+            let d = c[i] - base;
+            acc[i] += d * d;
         }
     }
-    acc.iter().sum::<f64>() + rest.iter().map(|x| x * x).sum::<f64>()
+    acc.iter().sum::<f64>() + rest.iter().map(|x| (x - base) * (x - base)).sum::<f64>()
+}
+
+/// Fraction of the force window's largest `|force|` at which the impact is taken to begin.
+pub const IMPACT_ONSET_FRACTION: f64 = 0.05;
+
+/// The levels of force and response at rest: the force's mean over the frame's samples
+/// before the impact (before it first reaches [`IMPACT_ONSET_FRACTION`] of its largest value
+/// in the force window), the response's mean over those samples and the second half of the
+/// frame's recorded samples, where the structure has rung down. `(0, 0)` when the force window
+/// holds no force.
+///
+/// A displacement probe reads the structure's motion plus a level of its own: its standoff,
+/// and on a stationary spindle the form error and synchronous error motion at the angle where
+/// the spindle stopped (which runout removal passes unchanged at 0 rpm, §3.1.1). Left in the
+/// frame, that constant times the exponential response window (§3.1.2) is a spectrum
+/// `x₀ τ/(1 + i2πfτ)`, a Lorentzian about 0 Hz about 1/(2πτ) = 1.4 Hz wide: with a µm level it
+/// outweighs the static compliance by an order of magnitude at 0 Hz, and still by tens of per
+/// cent at 100 Hz. The FRF of Eq. 3.1 is the response *to the impact*, measured from where the
+/// structure rests. The few samples before the impact alone would measure that level with the
+/// noise of a fraction of a millisecond of asynchronous error motion; the second half of the
+/// frame adds hundreds of milliseconds of it (a mode rings down long before, and what rings on
+/// oscillates about the rest level). The force channel's level (an amplifier offset) is taken
+/// from before the impact only: after it the hammer may still touch the target.
+#[inline(always)]
+fn rest_levels(f: &[f64], x: &[f64], force_len: usize) -> (f64, f64) {
+    let window = &f[..force_len.min(f.len())];
+    let peak = window.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(peak.is_finite() && peak > 0.0) {
+        return (0.0, 0.0);
+    }
+    let threshold = IMPACT_ONSET_FRACTION * peak;
+    let onset = window.iter().position(|v| v.abs() >= threshold).unwrap_or(0);
+    let f_base = if onset > 0 { f[..onset].iter().sum::<f64>() / onset as f64 } else { 0.0 };
+    let tail_from = (x.len() / 2).max(onset);
+    let count = onset + (x.len() - tail_from);
+    let sum = x[..onset].iter().sum::<f64>() + x[tail_from..].iter().sum::<f64>();
+    (f_base, if count > 0 { sum / count as f64 } else { 0.0 })
 }
 
 /// Sum of squares of the force (non-finite if any sample is) and index of its largest
@@ -942,6 +987,36 @@ mod tests {
             }
             assert!((est.coherence[k] - 1.0).abs() < 1e-9);
         }
+    }
+
+    /// Validation against the closed-form receptance: a probe that stands 1 µm off (and a force
+    /// amplifier 0.2 N off) shifts nothing. Left in, the 1 µm times the §3.1.2 response window
+    /// would read as µm/N at 0 Hz, two orders of magnitude above the static compliance.
+    #[test]
+    fn levels_at_rest_are_not_response_and_the_static_compliance_is_kept() {
+        let c = damping();
+        let f = pulse(100, 10, 500.0);
+        let x = response(&f, c);
+        let windows = Windows::default();
+        let clean = estimate(&[ImpactRecord { force: &f, response: &x }], FS, &windows, Trigger::default()).unwrap();
+        let f_off: Vec<f64> = f.iter().map(|v| v + 0.2).collect();
+        let x_off: Vec<f64> = x.iter().map(|v| v + 1.0e-6).collect();
+        let est =
+            estimate(&[ImpactRecord { force: &f_off, response: &x_off }], FS, &windows, Trigger::default()).unwrap();
+        for (k, &fk) in est.freq.iter().enumerate().take_while(|(_, f)| **f < 20.0e3) {
+            let scale = clean.h[k].norm().max(1e-3 / K);
+            assert!((est.h[k] - clean.h[k]).norm() < 1e-9 * scale, "{fk} Hz: {} vs {}", est.h[k], clean.h[k]);
+        }
+        // This mode rings down within the 6.5 ms force window, where the response window is 1:
+        // below a tenth of the natural frequency the estimate is the receptance, 0 Hz included.
+        for (k, &fk) in est.freq.iter().enumerate().take_while(|(_, f)| **f < 0.1 * fn_hz()) {
+            let h = sdof_receptance(M, K, c, fk);
+            assert!((est.h[k] - h).norm() < 0.01 * h.norm(), "{fk} Hz: {} vs {h}", est.h[k]);
+        }
+        // The level is what the probe reads at rest, before the impact and after the ring-down.
+        let (f0, x0) = rest_levels(&f_off, &x_off, 650);
+        assert!((f0 - 0.2).abs() < 1e-12 && (x0 - 1.0e-6).abs() < 1e-15, "{f0} N, {x0} m");
+        assert_eq!(rest_levels(&[0.0; 100], &[1.0; 100], 50), (0.0, 0.0), "no force: nothing to measure from");
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! `frf.estimate`: FRF and coherence from impact records (§3.1.2–3.1.5, Eqs. 3.1–3.3).
+//! `frf.estimate`: FRF and coherence from impact records (§3.1.2–3.1.5, Eqs. 3.1–3.3), measured
+//! from the levels the channels show at rest ([`crate::frf::IMPACT_ONSET_FRACTION`]).
 
 use crate::frf::{Averaging, DecayStart, FrfError, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
@@ -21,8 +22,10 @@ impl FrfEstimate {
         FrfEstimate {
             spec: NodeSpec {
                 kind: "frf.estimate",
-                version: 1,
-                description: "H = X/F with a rectangular force window and an exponential response window (§3.1.2), averaged over records, with coherence (Eqs. 3.1–3.2).",
+                // 2: the levels at rest (a probe's standoff, an amplifier offset) are taken out
+                // of each record before the windows, so they no longer read as a 0 Hz peak.
+                version: 2,
+                description: "H = X/F with a rectangular force window and an exponential response window (§3.1.2), averaged over records, with coherence (Eqs. 3.1–3.2); each record's force and response are measured from their levels at rest (before the impact, and the response's second half), so a probe's standoff is no 0 Hz response.",
                 inputs: vec![
                     PortSpec::new("force", PortType::TimeSeries, "force records (N), one channel per impact"),
                     PortSpec::new(
