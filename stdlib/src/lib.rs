@@ -43,6 +43,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::RhaiEval::new()));
     registry.register(Arc::new(nodes::ReadTimeSeries::new()));
     registry.register(Arc::new(nodes::ReadFrf::new()));
+    registry.register(Arc::new(nodes::ReadFrfSet::new()));
     registry.register(Arc::new(nodes::TachDecode::new()));
     registry.register(Arc::new(nodes::ErrorsSeparate::new()));
     registry.register(Arc::new(nodes::LdvIntegrate::new()));
@@ -56,6 +57,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::RcsaCouple::new()));
     registry.register(Arc::new(nodes::RcsaDecouple::new()));
     registry.register(Arc::new(nodes::ModalFitNode::new()));
+    registry.register(Arc::new(nodes::ModalFitSetNode::new()));
     registry.register(Arc::new(nodes::StabilityLobes::new()));
     registry.register(Arc::new(nodes::StabilitySd::new()));
     registry.register(Arc::new(nodes::MillingSimulate::new()));

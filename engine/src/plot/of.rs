@@ -78,7 +78,17 @@ pub fn figure(title: &str, variant: Option<&str>, main: &[Layer], with: &[Layer]
     let Some(first) = main.first() else {
         return Err(PlotError::Empty);
     };
+    // An FRF set is drawn as its FRFs, one curve each named by its nodes.
+    if !matches!(first.value, Value::Table(_)) && main.iter().chain(with).any(|l| matches!(l.value, Value::FrfSet(_))) {
+        let (owned_main, owned_with) = (set_members(main, false), set_members(with, true));
+        let (m, w) = (unpacked(main, &owned_main), unpacked(with, &owned_with));
+        return figure(title, variant, &m, &w);
+    }
     let panels = match first.value {
+        Value::Table(t) if main.len() == 1 && super::sets::is_stabilisation(t) => {
+            let behind: Vec<&Value> = with.iter().map(|l| l.value).collect();
+            super::sets::stabilisation(t, &behind)?
+        }
         Value::Frf(_) | Value::ReceptanceSet(_) if variant == Some("blocks") => receptance_blocks(main, with)?,
         Value::Frf(_) | Value::ReceptanceSet(_) => frf(main, with, variant == Some("real-imag"))?,
         Value::TimeSeries(_) if variant == Some("spectrum") => spectrum(main)?,
@@ -92,11 +102,40 @@ pub fn figure(title: &str, variant: Option<&str>, main: &[Layer], with: &[Layer]
     Ok(Figure { title: title.to_string(), panels })
 }
 
+/// The FRFs of each FRF set among `layers` with their legend names (nothing for other values):
+/// a swept set's FRFs are prefixed by the sweep point, a set drawn `over` another by its name.
+fn set_members(layers: &[Layer], over: bool) -> Vec<Vec<(String, Value)>> {
+    layers
+        .iter()
+        .map(|l| match l.value {
+            Value::FrfSet(_) => {
+                let words = l.words(false);
+                let prefix = if words.is_empty() && over { l.name.clone() } else { words };
+                super::sets::members(l.value, &prefix)
+            }
+            _ => Vec::new(),
+        })
+        .collect()
+}
+
+/// `layers` with each FRF set replaced by its FRFs (`owned`, from [`set_members`]).
+fn unpacked<'a>(layers: &[Layer<'a>], owned: &'a [Vec<(String, Value)>]) -> Vec<Layer<'a>> {
+    let mut out = Vec::new();
+    for (l, o) in layers.iter().zip(owned) {
+        if matches!(l.value, Value::FrfSet(_)) {
+            out.extend(o.iter().map(|(n, v)| Layer::new(n.clone(), v)));
+        } else {
+            out.push(Layer { name: l.name.clone(), value: l.value, sweep: l.sweep.clone() });
+        }
+    }
+    out
+}
+
 /// Views a port type can be drawn in; the first is the default.
 pub fn variants(ty: &crate::value::PortType) -> &'static [&'static str] {
     use crate::value::PortType as P;
     match ty {
-        P::Frf => &["bode", "real-imag"],
+        P::Frf | P::FrfSet => &["bode", "real-imag"],
         P::ReceptanceSet => &["bode", "real-imag", "blocks"],
         P::TimeSeries => &["default", "spectrum"],
         P::Lobes | P::Table | P::Scalar | P::ModalModel => &["default"],
@@ -108,9 +147,12 @@ pub fn variants(ty: &crate::value::PortType) -> &'static [&'static str] {
 pub fn accepts(main: &crate::value::PortType, with: &crate::value::PortType) -> bool {
     use crate::value::PortType as P;
     match main {
-        P::Frf | P::ReceptanceSet => matches!(with, P::Frf | P::ReceptanceSet | P::ModalModel),
+        P::Frf | P::ReceptanceSet | P::FrfSet => {
+            matches!(with, P::Frf | P::ReceptanceSet | P::ModalModel | P::FrfSet)
+        }
         P::Lobes => matches!(with, P::Lobes | P::Table),
-        P::Table => matches!(with, P::Table),
+        // A stabilisation diagram takes the FRFs it was fitted to behind it.
+        P::Table => matches!(with, P::Table | P::Frf | P::FrfSet),
         _ => false,
     }
 }

@@ -36,8 +36,8 @@ pub fn is_stabilisation(t: &Table) -> bool {
 }
 
 /// The stabilisation diagram: every pole at its frequency (x) and model order (y), a dot when
-/// it is new at its order, a circle when stable in frequency, a cross when stable in frequency
-/// and damping, the selected poles as vertical lines; behind them the summed `|H|` of the
+/// it is new at its order, a circle when stable in frequency (`f`), a cross when stable in
+/// frequency and damping (`f and ζ`), the selected poles as vertical lines; behind them the summed `|H|` of the
 /// `behind` FRFs and sets (log scale, stretched over the order axis).
 pub fn stabilisation(t: &Table, behind: &[&Value]) -> Result<Vec<Panel>, PlotError> {
     let get = |name: &str| col(t, name).ok_or(PlotError::Empty);
@@ -81,7 +81,7 @@ pub fn stabilisation(t: &Table, behind: &[&Value]) -> Result<Vec<Panel>, PlotErr
         });
         let span = (b - a).max(1e-12);
         let line = shown.iter().map(|(x, y)| (*x, (y.log10() - a) / span * top)).collect();
-        p.series.push(Series::new("summed |H| (log, scaled to the orders)", line, Style::Line, 7));
+        p.series.push(Series::new("Σ|H| (log scale)", line, Style::Line, 7));
     }
     let pick = |keep: &dyn Fn(usize) -> bool| -> Vec<(f64, f64)> {
         (0..order.len()).filter(|&i| keep(i)).map(|i| (freq[i], order[i])).collect()
@@ -91,8 +91,8 @@ pub fn stabilisation(t: &Table, behind: &[&Value]) -> Result<Vec<Panel>, PlotErr
     let damping = pick(&|i| sd[i] == 1.0);
     let selected = pick(&|i| sel[i] == 1.0);
     p.series.push(Series::new("new", new, Style::Dots, 8));
-    p.series.push(Series::new("stable in frequency", frequency, Style::Circles, 1));
-    p.series.push(Series::new("stable in frequency and damping", damping, Style::Crosses, 2));
+    p.series.push(Series::new("stable in f", frequency, Style::Circles, 1));
+    p.series.push(Series::new("stable in f and ζ", damping, Style::Crosses, 2));
     if !selected.is_empty() {
         p.series.push(Series::new("selected", selected.clone(), Style::VLines, 3));
         p.series.push(Series::new("", selected, Style::Circles, 3));
@@ -146,10 +146,10 @@ mod tests {
         assert_eq!(
             names,
             [
-                "summed |H| (log, scaled to the orders)",
+                "Σ|H| (log scale)",
                 "new",
-                "stable in frequency",
-                "stable in frequency and damping",
+                "stable in f",
+                "stable in f and ζ",
                 "selected",
                 ""
             ]

@@ -19,7 +19,7 @@ const MAX_XI: f64 = 0.3;
 
 /// Gaussian elimination with partial pivoting: solves `A X = B` in place (`a` is `n×n` row-major, `b` is `n×k`
 /// row-major). `None` when a pivot vanishes relative to the matrix's scale.
-fn solve(a: &mut [f64], b: &mut [f64], n: usize, k: usize) -> Option<()> {
+pub(super) fn solve(a: &mut [f64], b: &mut [f64], n: usize, k: usize) -> Option<()> {
     let scale = a.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     if scale == 0.0 || !scale.is_finite() {
         return None;
@@ -65,7 +65,7 @@ fn solve(a: &mut [f64], b: &mut [f64], n: usize, k: usize) -> Option<()> {
 }
 
 /// Roots of the real polynomial `Σ c_j z^j` (`c[n] ≠ 0`) by the Aberth–Ehrlich iteration.
-fn roots(c: &[f64]) -> Vec<Complex64> {
+pub(super) fn roots(c: &[f64]) -> Vec<Complex64> {
     let n = c.len() - 1;
     let lead = c[n];
     let mono: Vec<f64> = c.iter().map(|v| v / lead).collect();

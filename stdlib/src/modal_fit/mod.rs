@@ -15,11 +15,15 @@
 //! - [`Method::Lscf`], a least-squares complex frequency-domain (z-domain common-denominator) estimate of the
 //!   poles with a frequency/damping stabilisation check, and residues by least squares with lower and upper
 //!   residual terms.
+//!
+//! The FRFs of a measurement set are fitted together by [`fit_set`] (`polyref`): one set of poles for all,
+//! from the poly-reference LSCF and its stabilisation diagram, and residues per FRF by LSFD.
 
 mod lscf;
 mod lsfd;
 mod map;
 mod pick;
+mod polyref;
 mod refit;
 mod simplex;
 #[cfg(test)]
@@ -28,6 +32,7 @@ mod tests;
 pub use lsfd::{ResidueFit, lsfd, lsfd_weighted, mode_of_residue, pair_h, pole, real_residue, signed_mode_of_residue};
 pub use map::{beam_for_mode, closed_form_diameter};
 pub use pick::{Peak, moving_average, pick_modes, pick_modes_signed};
+pub use polyref::{DiagramPole, SetFit, SetOptions, SharedPole, Stability, Targets, fit_set};
 pub use refit::REFIT_ITERATIONS;
 
 use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};

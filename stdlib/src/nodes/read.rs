@@ -14,11 +14,11 @@ use std::path::Path;
 
 const FORMATS: &[&str] = &["auto", "csv", "uff"];
 
-fn file_param() -> Field {
+pub(super) fn file_param() -> Field {
     Field::req("file", T::File, "the data file, relative to the recipe's folder")
 }
 
-fn format_param() -> Field {
+pub(super) fn format_param() -> Field {
     Field::def(
         "format",
         T::Choice(FORMATS),
@@ -54,7 +54,7 @@ fn source(params: &Params, frfs: bool) -> Result<(&Path, FileFormat), NodeError>
     Ok((path, format))
 }
 
-fn read_error(e: FormatError) -> NodeError {
+pub(super) fn read_error(e: FormatError) -> NodeError {
     NodeError::param("file", e.to_string())
 }
 
