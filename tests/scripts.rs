@@ -1,4 +1,5 @@
-//! Runs every recipe in `scripts/` and snapshots a stable summary of its outputs.
+//! Runs every recipe in `scripts/` and snapshots a stable summary of its outputs, and holds
+//! every plot against a reviewed reference image (`tests/figures/`).
 //!
 //! Numbers are rounded to `summary::SIGNIFICANT_DIGITS` significant digits; timings and
 //! paths are left out of the summary, so snapshots change only when results do.
@@ -39,7 +40,70 @@ fn every_recipe_in_scripts() {
         insta::assert_snapshot!(summary);
         // What `spindlelab run` prints by default.
         insta::assert_snapshot!("short", spindlelab::summary::short(&compiled, &report.result));
+        // Every plot, drawn as PNG, against its reviewed reference image.
+        for o in &compiled.recipe.outputs {
+            if let Some(png) = engine::plot_of_output(&compiled, &report.result, o, engine::plot::PlotFormat::Png) {
+                let png = png.unwrap_or_else(|e| panic!("{}: {}: {e}", path.display(), o.file));
+                check_figure(path, &o.file, &png);
+            }
+        }
     });
+}
+
+/// Compares a plot with `tests/figures/RECIPE/FILE.png`, the image a person reviewed: the
+/// same size, and at most 0.5 % of the pixels off by more than a faint shade (so a change of
+/// font hinting passes and a moved curve, axis or legend fails). With
+/// `SPINDLELAB_UPDATE_FIGURES=1` the references are rewritten for review instead; a failing
+/// figure is saved beside the test's temporary files to look at.
+fn check_figure(recipe: &std::path::Path, file: &str, png: &[u8]) {
+    let stem = recipe.file_stem().unwrap().to_string_lossy().to_string();
+    let name = std::path::Path::new(file).with_extension("png");
+    let reference = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/figures").join(&stem).join(&name);
+    if std::env::var_os("SPINDLELAB_UPDATE_FIGURES").is_some() {
+        std::fs::create_dir_all(reference.parent().unwrap()).unwrap();
+        std::fs::write(&reference, png).unwrap();
+        return;
+    }
+    let actual = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("figures").join(&stem).join(&name);
+    let keep = || {
+        std::fs::create_dir_all(actual.parent().unwrap()).unwrap();
+        std::fs::write(&actual, png).unwrap();
+    };
+    let Ok(want) = std::fs::read(&reference) else {
+        keep();
+        panic!(
+            "{stem}: no reference image {}; review {} and run with SPINDLELAB_UPDATE_FIGURES=1 to keep it",
+            reference.display(),
+            actual.display()
+        );
+    };
+    let (a, b) = (pixels(png), pixels(&want));
+    if a.0 != b.0 {
+        keep();
+        panic!("{stem}/{file}: {:?} pixels, the reference {:?}; see {}", a.0, b.0, actual.display());
+    }
+    let off =
+        a.1.chunks(3).zip(b.1.chunks(3)).filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > 48)).count();
+    let fraction = off as f64 / (a.0.0 * a.0.1) as f64;
+    if fraction > 0.005 {
+        keep();
+        panic!(
+            "{stem}/{file}: {:.2} % of the pixels differ from the reference; see {} against {}",
+            100.0 * fraction,
+            actual.display(),
+            reference.display()
+        );
+    }
+}
+
+/// A PNG's size and RGB bytes.
+fn pixels(png: &[u8]) -> ((u32, u32), Vec<u8>) {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(png)).read_info().expect("a PNG");
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).expect("a PNG frame");
+    assert_eq!(info.color_type, png::ColorType::Rgb, "plots are RGB");
+    buf.truncate(info.buffer_size());
+    ((info.width, info.height), buf)
 }
 
 /// A plot in a normalised form: how many of each drawing element, and every text it shows

@@ -317,6 +317,27 @@ fn missing_reason(graph: &graph::Graph, result: &RunResult, i: usize) -> String 
     }
 }
 
+/// The plot an output names, drawn from a finished run in `format` (a figure test draws every
+/// example's plots as PNG); `None` when the output is not a plot or its step has no values.
+pub fn plot_of_output(
+    compiled: &Compiled,
+    result: &RunResult,
+    out: &model::Output,
+    format: plot::PlotFormat,
+) -> Option<Result<Vec<u8>, String>> {
+    if !matches!(out.format, model::OutputFormat::Plot(_)) {
+        return None;
+    }
+    let rows: Vec<exec::write::Row> = compiled.graph.by_step[&out.from.step]
+        .iter()
+        .filter_map(|&i| {
+            let value = result.outcomes[i].outputs()?.get(&out.from.port)?;
+            Some(exec::write::Row { label: &compiled.graph.instances[i].label, value })
+        })
+        .collect();
+    (!rows.is_empty()).then(|| plot_output(compiled, result, out, format, &rows))
+}
+
 /// An output's plot: the rows of its own port, each `with` reference's values over them, each
 /// named by the output's or step's `label` (else its step) and its sweep point.
 fn plot_output(

@@ -404,7 +404,7 @@ fn evaluate(
                 rel_l2: table_value(t, "rel_l2"),
                 ratio: table_value(t, "ratio"),
                 n_eff: table_value(t, "n_eff"),
-                max_discrepancy_hz: table_value(t, "max_discrepancy_hz"),
+                max_discrepancy_hz: table_value(t, "max_discrepancy"),
                 band_hz: band,
                 span_hz,
                 frfs,

@@ -70,7 +70,7 @@ fn render_uff(rows: &[Row]) -> String {
 
 fn render_json(rows: &[Row], missing: &[MissingPoint]) -> String {
     if rows.len() == 1 && rows[0].label.is_empty() && missing.is_empty() {
-        return serde_json::to_string_pretty(rows[0].value).unwrap_or_default() + "\n";
+        return serde_json::to_string_pretty(&plain(rows[0].value)).unwrap_or_default() + "\n";
     }
     let item = |label: &str, key: &str, v: serde_json::Value| {
         let mut m = serde_json::Map::new();
@@ -84,10 +84,21 @@ fn render_json(rows: &[Row], missing: &[MissingPoint]) -> String {
     };
     let items: Vec<serde_json::Value> = rows
         .iter()
-        .map(|r| item(r.label, "value", serde_json::to_value(r.value).unwrap_or_default()))
+        .map(|r| item(r.label, "value", plain(r.value)))
         .chain(missing.iter().map(|m| item(&m.label, "missing", m.reason.clone().into())))
         .collect();
     serde_json::to_string_pretty(&items).unwrap_or_default() + "\n"
+}
+
+/// A value as a plain JSON object (`{"speed_rpm": […], …}`), without the name of its type
+/// around it.
+fn plain(v: &Value) -> serde_json::Value {
+    match serde_json::to_value(v).unwrap_or_default() {
+        serde_json::Value::Object(mut m) if m.len() == 1 => {
+            m.values_mut().next().map(std::mem::take).unwrap_or_default()
+        }
+        other => other,
+    }
 }
 
 fn num(v: f64) -> String {
@@ -136,9 +147,13 @@ fn render_csv(rows: &[Row]) -> String {
         match r.value {
             Value::Scalar(s) => {
                 if !header_done {
-                    let tag = unit_tag(&s.unit.symbol);
-                    let _ = writeln!(out, "# units: value_{tag}={}", s.unit.symbol);
-                    let _ = writeln!(out, "{prefix_header}value_{tag}");
+                    // `value_m`, or `value` for a plain number.
+                    let name = match unit_tag(&s.unit.symbol) {
+                        tag if tag.is_empty() => "value".to_string(),
+                        tag => format!("value_{tag}"),
+                    };
+                    let _ = writeln!(out, "# units: {name}={}", s.unit.symbol);
+                    let _ = writeln!(out, "{prefix_header}{name}");
                     header_done = true;
                 }
                 let _ = writeln!(out, "{}{}", prefix(r), num(s.value));
@@ -165,8 +180,9 @@ fn render_csv(rows: &[Row]) -> String {
     out
 }
 
+/// A unit as a column-name suffix: `m/N` → `m_per_N`, `rad*s` → `rad_s`, `m/s^2` → `m_per_s2`.
 fn unit_tag(symbol: &str) -> String {
-    symbol.replace('/', "_per_").replace(['*', '^'], "")
+    symbol.replace('/', "_per_").replace(['*', '·', ' '], "_").replace('^', "")
 }
 
 fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut bool) {
@@ -259,7 +275,7 @@ mod tests {
             assert!((a - b).norm() <= 1e-12 * b.norm(), "{a} vs {b}");
         }
         let json = render(OutputFormat::Json, &rows);
-        assert_eq!(serde_json::from_str::<Value>(&json).unwrap(), v);
+        assert_eq!(formats::read_json_value(&json, v.port_type()).unwrap(), v);
     }
 
     #[test]
@@ -343,7 +359,10 @@ mod tests {
         });
         let json = render(OutputFormat::Json, &[Row { label: "", value: &lobes }]);
         assert!(json.contains("\"inf\"") && json.contains("\"NaN\"") && !json.contains("null"), "{json}");
-        let Value::Lobes(back) = serde_json::from_str::<Value>(&json).unwrap() else { panic!("not lobes") };
+        let Value::Lobes(back) = formats::read_json_value(&json, lobes.port_type()).unwrap() else {
+            panic!("not lobes")
+        };
+        assert!(!json.contains("\"Lobes\""), "a plain object: {json}");
         assert_eq!(back.depth_limit, [f64::INFINITY, 1e-3]);
         assert!(back.chatter_hz[0].is_nan() && back.chatter_hz[1] == 900.0);
         // The cache's binary form keeps the numbers themselves.

@@ -657,6 +657,14 @@ pub(crate) fn unit_to_si(label: &str, expected: Option<spindlelab_grammar::Dimen
     }
 }
 
+/// Reads a value of type `ty` as a `.json` output writes it: the value's own object (the
+/// output writer leaves out the name of its type), non-finite numbers as `"inf"`/`"NaN"`.
+pub fn read_json_value(text: &str, ty: crate::value::PortType) -> Result<crate::value::Value, serde_json::Error> {
+    let inner: serde_json::Value = serde_json::from_str(text)?;
+    // The type's name as the value enum spells its variant (`Lobes`, `Table`, `FrfSet`).
+    serde_json::from_value(serde_json::json!({ format!("{ty:?}"): inner }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

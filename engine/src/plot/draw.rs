@@ -99,6 +99,9 @@ pub fn png(fig: &Figure) -> Result<Vec<u8>, PlotError> {
         let mut enc = png::Encoder::new(&mut bytes, w, h);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        // Line art: the adaptive filter and full compression make files a fraction the size.
+        enc.set_compression(png::Compression::Best);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
         let mut writer = enc.write_header().map_err(err)?;
         writer.write_image_data(&rgb).map_err(err)?;
     }

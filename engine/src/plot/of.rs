@@ -223,36 +223,34 @@ fn mode_markers(with: &[Layer]) -> Vec<Series> {
         .collect()
 }
 
-/// The phase of `h` in degrees, unwrapped along frequency so a line never jumps by a turn,
-/// then moved by whole turns so that its median lies in (−360°, 0°] for a receptance (a
-/// displacement lags the force) and in (−180°, 180°] otherwise.
-fn phase_degrees(h: &[Complex64], receptance: bool) -> Vec<f64> {
-    let mut out = Vec::with_capacity(h.len());
-    let mut offset = 0.0;
+/// The phase of `h` over `freq` in degrees, in the turn centred on its circular mean (a
+/// receptance near 0° stays near 0°, one that lags by 250° stays at −250°), with a gap (a NaN
+/// point) wherever it wraps, so a line never jumps across the plot. Unwrapping along
+/// frequency would be the other way, but it drifts by whole turns on measured noise.
+fn phase_points(freq: &[f64], h: &[Complex64]) -> Vec<(f64, f64)> {
+    let valid = |v: &Complex64| v.norm() > 0.0 && v.is_finite();
+    let centre = h.iter().filter(|v| valid(v)).map(|v| v / v.norm()).sum::<Complex64>().arg();
+    let mut out = Vec::with_capacity(h.len() + 8);
     let mut prev: Option<f64> = None;
-    for v in h {
-        let a = v.arg();
-        if !a.is_finite() || v.norm() == 0.0 {
-            out.push(f64::NAN);
+    for (f, v) in freq.iter().zip(h) {
+        if !valid(v) {
+            out.push((*f, f64::NAN));
+            prev = None;
             continue;
         }
-        if let Some(p) = prev {
-            let d = a + offset - p;
-            offset -= TAU * (d / TAU).round();
+        // In (centre − π, centre + π].
+        let mut a = v.arg();
+        a -= TAU * ((a - centre) / TAU).round();
+        if a <= centre - std::f64::consts::PI {
+            a += TAU;
         }
-        let u = a + offset;
-        out.push(u);
-        prev = Some(u);
+        if prev.is_some_and(|p| (a - p).abs() > std::f64::consts::PI) {
+            out.push((*f, f64::NAN));
+        }
+        out.push((*f, a.to_degrees()));
+        prev = Some(a);
     }
-    let mut finite: Vec<f64> = out.iter().copied().filter(|v| v.is_finite()).collect();
-    if finite.is_empty() {
-        return out;
-    }
-    let mid = finite.len() / 2;
-    let median = *finite.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let top = if receptance { 0.0 } else { std::f64::consts::PI };
-    let shift = TAU * ((top - median) / TAU).floor();
-    out.iter().map(|v| (v + shift).to_degrees()).collect()
+    out
 }
 
 /// The colour of the `i`-th of `n` sweep points: along the ramp, in order, when the sweep has a
@@ -307,7 +305,6 @@ fn frf(main: &[Layer], with: &[Layer], real_imag: bool) -> Result<Vec<Panel>, Pl
     let f_axis = || Axis::linear("frequency [Hz]");
     let mut panels = Vec::new();
     let mut coherence = Panel::new(f_axis(), Axis::linear("coherence").fixed(0.0, 1.05));
-    let receptance = unit == "m/N";
     for g in &groups {
         let dir = g.as_ref().map(|d| format!(" {d}")).unwrap_or_default();
         let (mut top, mut bottom) = if real_imag {
@@ -373,8 +370,9 @@ fn frf(main: &[Layer], with: &[Layer], real_imag: bool) -> Result<Vec<Panel>, Pl
             let (a, b): (Vec<(f64, f64)>, Vec<(f64, f64)>) = if real_imag {
                 freq.iter().zip(&h).map(|(f, v)| ((*f, v.re * scale), (*f, v.im * scale))).unzip()
             } else {
-                let phase = phase_degrees(&h, receptance);
-                freq.iter().zip(&h).zip(phase).map(|((f, v), p)| ((*f, v.norm() * scale), (*f, p))).unzip()
+                let magnitude = freq.iter().zip(&h).map(|(f, v)| (*f, v.norm() * scale)).collect();
+                let phase = phase_points(&freq, &h);
+                (magnitude, phase)
             };
             top.series.push(Series::new(name, a, style.clone(), color));
             bottom.series.push(Series::new("", b, style.clone(), color));
@@ -956,17 +954,23 @@ mod tests {
         })
     }
 
-    /// A pure delay of 1 ms over 0–5 kHz turns by 5 whole turns: the drawn phase falls by
-    /// 1800° without a jump, and its median sits in (−360°, 0°].
+    /// A pure delay of 1 ms over 0–5 kHz turns five times: the drawn phase stays within one
+    /// turn, breaks where it wraps (never a line across the plot), and a receptance that
+    /// lags a little stays just below 0°.
     #[test]
-    fn phase_is_unwrapped_and_never_jumps_a_turn() {
+    fn phase_breaks_where_it_wraps_and_stays_in_the_turn_of_its_mean() {
         let f: Vec<f64> = (0..=500).map(|k| 10.0 * k as f64).collect();
         let h = f.iter().map(|f| Complex64::from_polar(1e-6, -TAU * f * 1e-3)).collect();
-        let fig = figure("d", None, &[layer(&frf_of(None, h, f))], &[]).unwrap();
+        let fig = figure("d", None, &[layer(&frf_of(None, h, f.clone()))], &[]).unwrap();
         let phase: Vec<f64> = fig.panels[1].series[0].points.iter().map(|p| p.1).collect();
-        assert!(phase.windows(2).all(|w| (w[1] - w[0]).abs() < 180.0), "{phase:?}");
-        assert!((phase[0] - phase[500] - 1800.0).abs() < 1e-6, "{} → {}", phase[0], phase[500]);
-        assert!(phase[250] <= 0.0 && phase[250] > -360.0, "{}", phase[250]);
+        let gaps = phase.iter().filter(|p| p.is_nan()).count();
+        assert_eq!(gaps, 5, "{phase:?}");
+        assert!(phase.windows(2).all(|w| w[0].is_nan() || w[1].is_nan() || (w[1] - w[0]).abs() < 180.0));
+        let spread = phase.iter().filter(|p| !p.is_nan()).fold((f64::MAX, f64::MIN), |a, p| (a.0.min(*p), a.1.max(*p)));
+        assert!(spread.1 - spread.0 <= 360.0, "{spread:?}");
+        let lag = f.iter().map(|f| Complex64::from_polar(1e-6, -0.01 * (f / 5000.0))).collect();
+        let fig = figure("d", None, &[layer(&frf_of(None, lag, f))], &[]).unwrap();
+        assert!(fig.panels[1].series[0].points.iter().all(|p| p.1 <= 0.0 && p.1 > -1.0));
     }
 
     /// FRFs in x and y get a pair of panels each, named by direction; a `with` value of the

@@ -158,7 +158,7 @@ impl ErrorsSeparate {
         ErrorsSeparate {
             spec: NodeSpec {
                 kind: "errors.separate",
-                version: 1,
+                version: 2,
                 description: "Three-probe error separation (§3.2, Eqs. 3.4–3.15): artifact form, synchronous and asynchronous spindle error motions, spectra and segment uncertainty (§3.2.2).",
                 inputs: vec![PortSpec::new(
                     "signal",
@@ -443,7 +443,7 @@ fn outputs(sep: &Separation, async_max: Option<f64>) -> Outputs {
     let one = |v: f64| vec![v];
     let summary = Table {
         columns: vec![
-            Column::new("speed", "rpm", one(sep.mean_speed_rpm)),
+            Column::new("measured_speed", "rpm", one(sep.mean_speed_rpm)),
             Column::new("revolutions", "", one(sep.revolutions as f64)),
             Column::new("samples_per_rev", "", one(sep.samples_per_rev as f64)),
             Column::new("nyquist_upr", "", one(sep.nyquist_upr)),
@@ -694,7 +694,7 @@ mod tests {
         assert_eq!(column(spectrum, "upr").values[44], 44.0);
         let summary = table(&out, "summary");
         assert_eq!(summary.rows(), 1);
-        assert!((column(summary, "speed").values[0] - 3000.0).abs() < 1e-3);
+        assert!((column(summary, "measured_speed").values[0] - 3000.0).abs() < 1e-3);
         assert!((column(summary, "nyquist_upr").values[0] - 1000.0).abs() < 1e-3);
         let motion = table(&out, "motion");
         assert_eq!(motion.rows(), n);

@@ -21,7 +21,7 @@ impl FrfGap {
         FrfGap {
             spec: NodeSpec {
                 kind: "frf.gap",
-                version: 2,
+                version: 3,
                 description: "The gap between a model FRF and a measured one: relative complex L2, the noise floor (from the coherence or a declared noise model) and their ratio (about 1 for a model that explains the data), peak-frequency error, where the discrepancy is largest, a per-band table, and the noise-weighted residual a fit minimises.",
                 inputs: vec![
                     PortSpec::new(
@@ -40,7 +40,7 @@ impl FrfGap {
                     PortSpec::new(
                         "summary",
                         PortType::Table,
-                        "one row: rel_l2, noise_floor, ratio, peak_hz_model, peak_hz_measured, peak_freq_error, max_discrepancy_hz, max_discrepancy_rel, lines, n_eff (effective independent lines: at the floor ratio² is 1 ± 1/√n_eff), speed (rpm), direction (0 x, 1 y, 2 z, −1 unknown)",
+                        "one row: rel_l2, noise_floor, ratio, peak_model, peak_measured (Hz), peak_freq_error, max_discrepancy (Hz), max_discrepancy_rel, lines, n_eff (effective independent lines: at the floor ratio² is 1 ± 1/√n_eff), speed (rpm), direction (0 x, 1 y, 2 z, −1 unknown)",
                     ),
                     PortSpec::new("bands", PortType::Table, "per band: lo, hi (Hz), rel_l2, noise_floor, ratio, lines"),
                     PortSpec::new(
@@ -221,10 +221,10 @@ impl Node for FrfGap {
                 one("rel_l2", "", g.rel_l2),
                 one("noise_floor", "", g.noise_floor),
                 one("ratio", "", g.ratio),
-                one("peak_hz_model", "Hz", g.peak_hz_model),
-                one("peak_hz_measured", "Hz", g.peak_hz_measured),
+                one("peak_model", "Hz", g.peak_hz_model),
+                one("peak_measured", "Hz", g.peak_hz_measured),
                 one("peak_freq_error", "", g.peak_freq_error),
-                one("max_discrepancy_hz", "Hz", g.max_discrepancy_hz),
+                one("max_discrepancy", "Hz", g.max_discrepancy_hz),
                 one("max_discrepancy_rel", "", g.max_discrepancy_rel),
                 one("lines", "", g.freq_hz.len() as f64),
                 one("n_eff", "", g.n_eff),

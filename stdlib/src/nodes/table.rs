@@ -1,5 +1,5 @@
 //! `table.collect`: gathers a scalar over every point of a sweep into one table, with the
-//! sweep coordinates as leading columns.
+//! sweep coordinates as leading columns in the units the recipe wrote them.
 
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType};
@@ -14,7 +14,7 @@ impl TableCollect {
         TableCollect {
             spec: NodeSpec {
                 kind: "table.collect",
-                version: 1,
+                version: 2,
                 description: "Collects a swept scalar into a table: one row per sweep point, sweep values first.",
                 inputs: vec![
                     PortSpec::new("values", PortType::Scalar, "the scalar to collect, from a swept step").collecting(),
@@ -51,6 +51,25 @@ impl Node for TableCollect {
             .iter()
             .map(|a| Column { name: a.name.clone(), unit: UnitLabel::new(a.unit.clone()), values: Vec::new() })
             .collect();
+        // Each axis in the unit the recipe wrote it (`6000 rpm`, `1 mm`) where every sweep point
+        // writes it in the same unit; in SI otherwise.
+        let points: Vec<Vec<(String, f64, String)>> = items.iter().map(|i| written(&i.label)).collect();
+        let as_written: Vec<Option<String>> = axes
+            .iter()
+            .map(|a| {
+                let units: Vec<Option<&str>> = points
+                    .iter()
+                    .map(|w| w.iter().find(|(n, _, u)| *n == a.name && !u.is_empty()).map(|(_, _, u)| u.as_str()))
+                    .collect();
+                let first = units.first().copied().flatten()?;
+                units.iter().all(|u| *u == Some(first)).then(|| first.to_string())
+            })
+            .collect();
+        for (col, unit) in columns.iter_mut().zip(&as_written) {
+            if let Some(u) = unit {
+                col.unit = UnitLabel::new(u.clone());
+            }
+        }
         let mut unit = String::new();
         let mut values = Vec::new();
         for item in items {
@@ -60,8 +79,13 @@ impl Node for TableCollect {
             if item.coords.len() != axes.len() {
                 return Err(NodeError::input("values", "values come from different sweeps"));
             }
-            for (col, c) in columns.iter_mut().zip(&item.coords) {
-                col.values.push(c.value);
+            let w = written(&item.label);
+            for ((col, c), unit) in columns.iter_mut().zip(&item.coords).zip(&as_written) {
+                let v = match unit {
+                    Some(_) => w.iter().find(|(n, _, _)| *n == c.name).map_or(c.value, |(_, v, _)| *v),
+                    None => c.value,
+                };
+                col.values.push(v);
             }
             unit = s.unit.symbol.clone();
             values.push(s.value);
@@ -70,4 +94,18 @@ impl Node for TableCollect {
         columns.push(Column { name, unit: UnitLabel::new(unit), values });
         Ok([("table".to_string(), Value::Table(Table { columns }))].into_iter().collect())
     }
+}
+
+/// The numeric sweep coordinates of a label as the recipe wrote them: `speed=6000 rpm,
+/// depth=1 mm` → `[("speed", 6000, "rpm"), ("depth", 1, "mm")]`.
+fn written(label: &str) -> Vec<(String, f64, String)> {
+    label
+        .split(", ")
+        .filter_map(|part| {
+            let (name, value) = part.split_once('=')?;
+            let mut words = value.split_whitespace();
+            let v: f64 = words.next()?.parse().ok()?;
+            Some((name.to_string(), v, words.collect::<Vec<_>>().join(" ")))
+        })
+        .collect()
 }
