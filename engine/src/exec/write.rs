@@ -129,14 +129,26 @@ pub fn label_columns(label: &str) -> Vec<(String, String)> {
 fn render_csv(rows: &[Row]) -> String {
     let mut out = String::new();
     let swept = rows.len() > 1 || rows.first().is_some_and(|r| !r.label.is_empty());
+    // A sweep coordinate a table holds as a column of its own (a simulated cut's speed and
+    // depth) is written once, in the table.
+    let own: Vec<&str> = match rows.first().map(|r| r.value) {
+        Some(Value::Table(t)) => t.columns.iter().map(|c| c.name.as_str()).collect(),
+        _ => Vec::new(),
+    };
+    let label_columns = |label: &str| -> Vec<(String, String)> {
+        let coords = label.split(", ").filter_map(|p| p.split_once('=')).map(|(n, _)| n);
+        label_columns(label).into_iter().zip(coords).filter(|(_, n)| !own.contains(n)).map(|(c, _)| c).collect()
+    };
     let named = rows.first().map(|r| label_columns(r.label)).unwrap_or_default();
-    let prefix_header: String = if swept && named.is_empty() {
+    // A label without `name=value` coordinates goes out whole, as one text column.
+    let bare = swept && rows.first().is_some_and(|r| !r.label.contains('='));
+    let prefix_header: String = if bare {
         "label,".to_string()
     } else {
         named.iter().map(|(n, _)| format!("{n},")).collect()
     };
     let prefix = |r: &Row| -> String {
-        if swept && named.is_empty() {
+        if bare {
             format!("\"{}\",", r.label.replace('"', "'"))
         } else {
             label_columns(r.label).into_iter().map(|(_, v)| format!("{v},")).collect()
@@ -417,5 +429,30 @@ mod tests {
         assert_eq!((back[0].1, back[0].2.as_str()), (0.25e-3, "s"));
         assert_eq!(back[1].1, f64::INFINITY);
         assert_eq!(back[1].0, [("hammer_mass_kg".to_string(), "0.04".to_string())]);
+    }
+
+    /// A swept table that holds its sweep coordinates as columns (a simulated cut's speed and
+    /// depth) writes each once, and reads back with them.
+    #[test]
+    fn a_sweep_coordinate_the_table_holds_is_written_once() {
+        let cut = |speed: f64, depth: f64| {
+            Value::Table(Table {
+                columns: vec![
+                    crate::value::Column::new("speed", "rpm", vec![speed]),
+                    crate::value::Column::new("depth", "m", vec![depth]),
+                    crate::value::Column::new("stable", "", vec![1.0]),
+                ],
+            })
+        };
+        let (a, b) = (cut(6000.0, 1e-3), cut(9000.0, 4e-3));
+        let rows = [
+            Row { label: "speed=6000 rpm, depth=1 mm, tool=a", value: &a },
+            Row { label: "speed=9000 rpm, depth=4 mm, tool=a", value: &b },
+        ];
+        let text = render(OutputFormat::Csv, &rows);
+        assert!(text.contains("\ntool,speed_rpm,depth_m,stable\n"), "{text}");
+        let blocks = formats::csv::read_tables(text.as_bytes(), "cuts.csv").unwrap();
+        let speeds: Vec<f64> = blocks.iter().flat_map(|b| b.table.columns[0].values.clone()).collect();
+        assert_eq!(speeds, [6000.0, 9000.0]);
     }
 }
