@@ -66,6 +66,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));
     registry.register(Arc::new(nodes::ModalModelNode::new()));
+    registry.register(Arc::new(nodes::ModalFrf::new()));
     registry.register(Arc::new(nodes::FrfGap::new()));
     registry.register(Arc::new(nodes::SubstructureJoint::new()));
     registry.register(Arc::new(nodes::ReceptanceTipMass::new()));
