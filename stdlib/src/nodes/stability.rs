@@ -249,7 +249,9 @@ impl StabilitySd {
         StabilitySd {
             spec: NodeSpec {
                 kind: "stability.sd",
-                version: 2,
+                // 3: the chatter frequency is the physical one (the harmonic of the Floquet solution with the
+                // largest amplitude), no longer |arg μ|/2π × the tooth frequency folded into [0, f_tooth/2].
+                version: 3,
                 description: "Limiting depth per speed by first-order semi-discretization (Insperger & Stépán) of tool-point modal models in x (feed) and y, with the kind of chatter (Hopf or flip); spectral radii on a speed × depth grid.",
                 inputs: vec![
                     PortSpec::new("modes_x", PortType::ModalModel, "tool-point modes along x, the feed direction"),
@@ -260,7 +262,8 @@ impl StabilitySd {
                         "lobes",
                         PortType::Lobes,
                         "lowest unstable depth per speed (m; +∞ if stable up to max_depth) and the chatter frequency \
-                         of the dominant multiplier, modulo the tooth-passing frequency (Hz)",
+                         (Hz): of the frequencies ±arg μ/(2πτ) + k/τ the dominant multiplier μ allows, the one the \
+                         tool vibrates at most, as a time-domain simulation and the ZOA find it",
                     ),
                     PortSpec::new(
                         "table",
@@ -337,11 +340,7 @@ impl Node for StabilitySd {
         };
         let limits =
             stability::sd_depth_limits(&model, &mill, &speeds, max_depth, &opts).map_err(|e| stab_err(e, "modes_x"))?;
-        let tooth_hz = |s: f64| s * mill.teeth as f64 / 60.0;
-        let chatter: Vec<f64> = limits
-            .iter()
-            .map(|d| if d.kind.is_some() { d.multiplier.arg().abs() / TAU * tooth_hz(d.speed_rpm) } else { 0.0 })
-            .collect();
+        let chatter: Vec<f64> = limits.iter().map(|d| if d.kind.is_some() { d.chatter_hz } else { 0.0 }).collect();
         let unlimited = limits.iter().filter(|d| d.depth_m.is_infinite()).count();
         if unlimited > 0 {
             ctx.warn(format!(

@@ -220,6 +220,12 @@ pub struct DepthLimit {
     pub multiplier: Complex64,
     /// Its type.
     pub kind: Option<Bifurcation>,
+    /// Chatter frequency at the limit, Hz (0 where there is none): of the frequencies
+    /// `±arg μ/(2πτ) + k/τ` the multiplier `μ` leaves open, the one at which the tool moves most in
+    /// its Floquet solution (see [`Sd::chatter_frequency`]), the frequency a time-domain
+    /// simulation or a microphone hears; `|arg μ|/(2πτ)` alone is that frequency folded into
+    /// `[0, f_tooth/2]`.
+    pub chatter_hz: f64,
     /// True if a larger scanned depth (≤ the maximum) is stable again: the stable depths at this speed are not
     /// one interval, and `depth_m` is the lower end of the first unstable one.
     pub restabilises: bool,
@@ -647,6 +653,210 @@ impl Sd {
         };
         Ok(SdPoint { spectral_radius: multiplier.norm(), multiplier, kind })
     }
+
+    /// The chatter frequency of the multiplier `mu` of the step operators at the current depth, Hz.
+    ///
+    /// The multiplier fixes the chatter frequency only modulo the tooth frequency: the Floquet solution is
+    /// `q(t) = e^{λt} p(t)` with `e^{λτ} = μ` and `p` τ-periodic, so it holds the frequencies
+    /// `arg μ/(2πτ) + k/τ` (and their negatives) at once, with the amplitudes of the Fourier series of `p`. The
+    /// one with the largest amplitude is what the tool does, what a time-domain simulation finds and what the
+    /// zero-order approximation predicts (its `ω_c`, Altintas & Budak 1995). The solution over one period comes
+    /// from the step recurrence with the delayed positions `q_{i−m} = q_i/μ` (an eigenvector `z` of the
+    /// monodromy matrix has `M z = μ z`): on each step `(I − Rb_i T/μ) y_{i+1} = (Φ_i + Ra_i T/μ) y_i`, so
+    /// `y_0` is the null vector of `P(μ) − μ I` with `P(μ)` the product of those step maps (found by inverse
+    /// iteration). `p_i = q_i μ^{−i/m}` is then transformed over the `m` steps; the x and y amplitudes of each
+    /// harmonic are added, as `|A| = |A_x| + |A_y|` of §6.4 adds the spectra of a cut. `None` if the solve
+    /// breaks down.
+    fn chatter_frequency(&self, mu: Complex64) -> Option<f64> {
+        let (n, d, nq, m) = (self.steps.n, self.steps.d, self.steps.nq, self.steps.m);
+        if !(mu.norm() > 0.0 && mu.is_finite()) {
+            return None;
+        }
+        let zero = Complex64::new(0.0, 0.0);
+        let inv_mu = 1.0 / mu;
+        // Step maps P_i (d × d, row-major), and their product P = P_{m−1} ⋯ P_0.
+        let mut maps = vec![zero; m * d * d];
+        let mut product = vec![zero; d * d];
+        for i in 0..d {
+            product[i * d + i] = Complex64::new(1.0, 0.0);
+        }
+        let mut lhs = vec![zero; d * d];
+        let mut rhs = vec![zero; d * d];
+        let mut next = vec![zero; d * d];
+        for i in 0..m {
+            let phi = &self.steps.phis[i * d * d..(i + 1) * d * d];
+            for (r, c) in rhs.iter_mut().zip(phi) {
+                *r = Complex64::new(*c, 0.0);
+            }
+            lhs.fill(zero);
+            for r in 0..d {
+                lhs[r * d + r] = Complex64::new(1.0, 0.0);
+            }
+            if !self.steps.free[i] {
+                let (ra, rb) =
+                    (&self.steps.ra[i * d * nq..(i + 1) * d * nq], &self.steps.rb[i * d * nq..(i + 1) * d * nq]);
+                // R T: column r of T is the unit vector of mode r's direction (r < n), zero for velocities.
+                for row in 0..d {
+                    for r in 0..n {
+                        let c = self.steps.qcol[r];
+                        rhs[row * d + r] += ra[row * nq + c] * inv_mu;
+                        lhs[row * d + r] -= rb[row * nq + c] * inv_mu;
+                    }
+                }
+            }
+            let map = &mut maps[i * d * d..(i + 1) * d * d];
+            map.copy_from_slice(&rhs);
+            solve_in_place(&mut lhs, map, d)?;
+            cmatmul(map, &product, &mut next, d);
+            std::mem::swap(&mut product, &mut next);
+        }
+        // y_0: the null vector of P − μ I, by two steps of inverse iteration.
+        for r in 0..d {
+            product[r * d + r] -= mu;
+        }
+        let scale = product.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let mut y = vec![Complex64::new(1.0, 0.0); d];
+        for _ in 0..2 {
+            let mut a = product.clone();
+            let mut b = y.clone();
+            solve_regularised(&mut a, &mut b, d, scale)?;
+            let norm = b.iter().map(|v| v.norm_sqr()).sum::<f64>().sqrt();
+            if !(norm.is_finite() && norm > 0.0) {
+                return None;
+            }
+            y = b.into_iter().map(|v| v / norm).collect();
+        }
+        // Positions over one period, the e^{λt} growth taken out: p_i = q_i μ^{−i/m}.
+        let step = (-mu.ln() / m as f64).exp();
+        let mut growth = Complex64::new(1.0, 0.0);
+        let mut p = vec![zero; m * nq];
+        let mut y_next = vec![zero; d];
+        for i in 0..m {
+            for r in 0..n {
+                p[i * nq + self.steps.qcol[r]] += y[r] * growth;
+            }
+            let map = &maps[i * d * d..(i + 1) * d * d];
+            for (row, o) in y_next.iter_mut().enumerate() {
+                *o = map[row * d..(row + 1) * d].iter().zip(&y).map(|(a, b)| a * b).sum();
+            }
+            std::mem::swap(&mut y, &mut y_next);
+            growth *= step;
+        }
+        // Harmonic k of p (k from −m/2 to m/2) is at arg μ/(2πτ) + k/τ.
+        let tau = self.dt * m as f64;
+        let base = mu.arg() / (TAU * tau);
+        let mut best = (f64::NEG_INFINITY, 0.0);
+        for k in 0..m {
+            let signed = if k <= m / 2 { k as f64 } else { k as f64 - m as f64 };
+            let w = Complex64::from_polar(1.0, -TAU * k as f64 / m as f64);
+            let mut amplitude = 0.0;
+            for c in 0..nq {
+                let mut acc = zero;
+                let mut rot = Complex64::new(1.0, 0.0);
+                for i in 0..m {
+                    acc += p[i * nq + c] * rot;
+                    rot *= w;
+                }
+                amplitude += acc.norm();
+            }
+            if amplitude > best.0 {
+                best = (amplitude, (base + signed / tau).abs());
+            }
+        }
+        best.0.is_finite().then_some(best.1)
+    }
+}
+
+/// Solves `A X = B` in place for `X` (`A` d × d, `B` d × d, row-major) by Gaussian elimination with partial
+/// pivoting; `None` if `A` is singular.
+fn solve_in_place(a: &mut [Complex64], b: &mut [Complex64], d: usize) -> Option<()> {
+    for c in 0..d {
+        let pivot = (c..d).max_by(|&i, &j| a[i * d + c].norm().total_cmp(&a[j * d + c].norm()))?;
+        if a[pivot * d + c].norm() == 0.0 || !a[pivot * d + c].is_finite() {
+            return None;
+        }
+        if pivot != c {
+            for j in 0..d {
+                a.swap(c * d + j, pivot * d + j);
+                b.swap(c * d + j, pivot * d + j);
+            }
+        }
+        let inv = 1.0 / a[c * d + c];
+        for r in (c + 1)..d {
+            let l = a[r * d + c] * inv;
+            if l == Complex64::new(0.0, 0.0) {
+                continue;
+            }
+            for j in c..d {
+                let u = a[c * d + j];
+                a[r * d + j] -= l * u;
+            }
+            for j in 0..d {
+                let u = b[c * d + j];
+                b[r * d + j] -= l * u;
+            }
+        }
+    }
+    for c in (0..d).rev() {
+        let inv = 1.0 / a[c * d + c];
+        for j in 0..d {
+            let mut s = b[c * d + j];
+            for k in (c + 1)..d {
+                s -= a[c * d + k] * b[k * d + j];
+            }
+            b[c * d + j] = s * inv;
+        }
+    }
+    Some(())
+}
+
+/// Solves the nearly singular `A x = b` of inverse iteration (`A` d × d row-major, `b` of length d) in place,
+/// pivots smaller than `ε·scale` replaced by that size so the solve returns the null direction, hugely amplified.
+fn solve_regularised(a: &mut [Complex64], b: &mut [Complex64], d: usize, scale: f64) -> Option<()> {
+    let tiny = f64::EPSILON * scale.max(f64::MIN_POSITIVE);
+    for c in 0..d {
+        let pivot = (c..d).max_by(|&i, &j| a[i * d + c].norm().total_cmp(&a[j * d + c].norm()))?;
+        if pivot != c {
+            for j in 0..d {
+                a.swap(c * d + j, pivot * d + j);
+            }
+            b.swap(c, pivot);
+        }
+        if a[c * d + c].norm() < tiny {
+            a[c * d + c] = Complex64::new(tiny, 0.0);
+        }
+        let inv = 1.0 / a[c * d + c];
+        for r in (c + 1)..d {
+            let l = a[r * d + c] * inv;
+            for j in c..d {
+                let u = a[c * d + j];
+                a[r * d + j] -= l * u;
+            }
+            let u = b[c];
+            b[r] -= l * u;
+        }
+    }
+    for c in (0..d).rev() {
+        let mut s = b[c];
+        for k in (c + 1)..d {
+            s -= a[c * d + k] * b[k];
+        }
+        b[c] = s / a[c * d + c];
+    }
+    b.iter().all(|v| v.is_finite()).then_some(())
+}
+
+/// `c = a b` for row-major complex `d × d` matrices.
+fn cmatmul(a: &[Complex64], b: &[Complex64], c: &mut [Complex64], d: usize) {
+    c.fill(Complex64::new(0.0, 0.0));
+    for i in 0..d {
+        for k in 0..d {
+            let aik = a[i * d + k];
+            for j in 0..d {
+                c[i * d + j] += aik * b[k * d + j];
+            }
+        }
+    }
 }
 
 /// The eigenvalue of largest modulus (the first of equal ones).
@@ -870,6 +1080,7 @@ pub fn sd_depth_limit(
             depth_m: f64::INFINITY,
             multiplier: Complex64::new(0.0, 0.0),
             kind: None,
+            chatter_hz: 0.0,
             restabilises: false,
             steps,
         });
@@ -892,11 +1103,15 @@ pub fn sd_depth_limit(
             break;
         }
     }
+    sd.set_depth(hi);
+    let tau = milling.tooth_period(speed_rpm);
+    let chatter_hz = sd.chatter_frequency(p_hi.multiplier).unwrap_or(p_hi.multiplier.arg().abs() / (TAU * tau));
     Ok(DepthLimit {
         speed_rpm,
         depth_m: 0.5 * (lo + hi),
         multiplier: p_hi.multiplier,
         kind: Some(p_hi.kind),
+        chatter_hz,
         restabilises,
         steps,
     })

@@ -289,6 +289,65 @@ fn chatter_frequency_speed_mapping_agrees_with_sd() {
     assert!(best < 0.02 * fc, "ZOA {fc} Hz vs SD {candidates:?}");
 }
 
+/// Validation of the chatter frequency at the limit against two other methods: the ZOA's `ω_c` on the same
+/// modes, and the strongest non-harmonic frequency of the time-domain simulation ([`crate::milling`]) 5 % above
+/// the limit. The multiplier alone gives the frequency folded into `[0, f_tooth/2]`; the Floquet solution picks
+/// the physical alias. Cases: the Insperger–Stépán benchmark at 16,000 rpm (slotting, one mode) and a 25 %
+/// up-milling cut on a tool with a mode in x and one in y at 6,000 and 12,000 rpm.
+#[test]
+fn sd_chatter_frequency_is_the_physical_alias() {
+    let two = ModalModel::new(
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
+    )
+    .unwrap();
+    let quarter =
+        Milling::new(4, 0.25, MillingDirection::Up, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let cases = [
+        (benchmark_model(), benchmark_milling(1.0), 16_000.0),
+        (two.clone(), quarter, 6000.0),
+        (two, quarter, 12_000.0),
+    ];
+    for (model, mill, speed) in cases {
+        let sd = sd_depth_limit(&model, &mill, speed, 20e-3, &SdOptions::default()).unwrap();
+        let tau = mill.tooth_period(speed);
+        let folded = sd.multiplier.arg().abs() / (TAU * tau);
+        assert!(sd.chatter_hz > 0.5 / tau, "{speed} rpm: {} Hz is still folded into [0, f_tooth/2]", sd.chatter_hz);
+        // An alias the multiplier allows: ±arg μ/(2πτ) + k/τ.
+        let k = (sd.chatter_hz * tau).round();
+        assert!(
+            ((sd.chatter_hz - k / tau).abs() - folded).abs() < 1e-6 * sd.chatter_hz,
+            "{speed} rpm: {} Hz is no alias of {folded} Hz",
+            sd.chatter_hz
+        );
+        let zoa = zoa_lobes(
+            &model.receptance(&fine_grid()).unwrap(),
+            &mill,
+            &ZoaOptions { speeds_rpm: vec![speed], keep_lobes: false, ..ZoaOptions::default() },
+        )
+        .unwrap();
+        let fc = zoa.limit.chatter_hz[0];
+        assert!((sd.chatter_hz / fc - 1.0).abs() < 0.03, "{speed} rpm: SD {} Hz vs ZOA {fc} Hz", sd.chatter_hz);
+        let sim = crate::milling::simulate(&crate::milling::MillingSimulation {
+            cut: mill,
+            depth: 1.05 * sd.depth_m,
+            feed_per_tooth: 0.1e-3,
+            speed_rpm: speed,
+            modes: model.clone(),
+            runout: vec![],
+            revolutions: 400,
+            steps_per_tooth: None,
+        })
+        .unwrap();
+        let heard = sim.chatter_frequency_hz.expect("chatter 5 % above the limit");
+        assert!(
+            (sd.chatter_hz / heard - 1.0).abs() < 0.02,
+            "{speed} rpm: SD {} Hz vs simulation {heard} Hz",
+            sd.chatter_hz
+        );
+    }
+}
+
 /// The Krylov (Arnoldi) dominant multiplier equals the one of the dense QR eigen-solve of the formed monodromy
 /// matrix, to 1e-9, on the two-mode map of the benchmark (Hopf lobes and the stable region), across the slotting
 /// benchmark's Hopf and flip lobes, and on low-immersion flip lobes; the type of the multiplier agrees too.
