@@ -464,9 +464,10 @@ fn command(cli: Cli) -> ExitCode {
         }
         Command::Diagnose { recipe, out, quiet } => {
             // Loads the plugins the recipe names, so the diagnosis compiles it with them.
-            if let Err(code) = compile(&recipe, &mut registry, &mut plugins) {
-                return code;
-            }
+            let compiled = match compile(&recipe, &mut registry, &mut plugins) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
             let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
                 Ok(d) => d,
                 Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
@@ -478,10 +479,8 @@ fn command(cli: Cli) -> ExitCode {
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
-            let out = out.unwrap_or_else(|| {
-                let stem = recipe.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-                Path::new("out").join(stem).join("diagnosis")
-            });
+            // Beside the run's outputs: `out/<recipe name>/diagnosis`, as `run` names its folder.
+            let out = out.unwrap_or_else(|| default_out(&compiled).join("diagnosis"));
             if let Err(e) = spindlelab::diagnose::write(&d, &out) {
                 eoutln!("error: {}", esc(&e));
                 let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
@@ -724,16 +723,7 @@ fn relative_to(path: &Path, dir: &Path) -> String {
 /// `spindlelab report RUN_DIR`: the HTML report of a finished run, from its manifest and the
 /// files the manifest lists (each read through the data-file cap).
 fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
-    let target_for = |out: Option<PathBuf>| {
-        out.unwrap_or_else(|| {
-            let name = run_dir
-                .canonicalize()
-                .ok()
-                .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-                .unwrap_or_else(|| "run".into());
-            run_dir.join("..").join(format!("{name}.report.html"))
-        })
-    };
+    let target_for = |out: Option<PathBuf>| out.unwrap_or_else(|| report_beside(run_dir));
     // A diagnosis folder: its page and pictures.
     if run_dir.join("diagnosis.md").is_file() && run_dir.join("diagnosis.json").is_file() {
         return match spindlelab::diagnose::report_html(run_dir) {
@@ -770,6 +760,19 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
     let text = (!manifest.recipe_text.is_empty()).then_some(manifest.recipe_text.as_str());
     let html = engine::report::html(&manifest, text, &files);
     write_report(&target_for(out), html)
+}
+
+/// Where `report DIR` writes by default: `DIR.report.html` beside the folder, as a plain path
+/// (`out/x` gives `out/x.report.html`); a folder named `.` or `..` is resolved first.
+fn report_beside(run_dir: &Path) -> PathBuf {
+    let dir = match run_dir.file_name() {
+        Some(_) => Some(run_dir.to_path_buf()),
+        None => run_dir.canonicalize().ok(),
+    };
+    match dir.as_deref().and_then(|d| Some((d.parent()?, d.file_name()?))) {
+        Some((parent, name)) => parent.join(format!("{}.report.html", name.to_string_lossy())),
+        None => run_dir.join("..").join("run.report.html"),
+    }
 }
 
 /// Writes a report page whole (a temporary file renamed into place).

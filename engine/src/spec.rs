@@ -488,11 +488,66 @@ fn parse_scalar(raw: &Raw, what: &str, diags: &mut Diagnostics) -> Option<(Strin
 fn dim_error(raw: &Raw, text: &str, expected: Dimension, found: Dimension, what: &str, diags: &mut Diagnostics) {
     let err = grammar::DimensionError { expected, found };
     let help = if found == Dimension::DIMENSIONLESS {
-        format!("write the number with a unit of {}, e.g. `{text} {}`", dim_name(expected), example_unit(expected))
+        let unit = field_name(what).map_or(example_unit(expected), |name| unit_for_number(name, expected, text));
+        format!("write the number with a unit of {}, e.g. `{text} {unit}`", dim_name(expected))
     } else {
         format!("use a unit of {} such as `{}`", dim_name(expected), example_unit(expected))
     };
     diags.error_help(Some(&raw.span), format!("wrong unit for {what}: `{text}`: {err}"), help);
+}
+
+/// The field a description such as ``"`Ks` of cutting `al`"`` names: its first backquoted word.
+fn field_name(what: &str) -> Option<&str> {
+    what.strip_prefix('`').and_then(|rest| rest.split('`').next())
+}
+
+/// The unit to suggest for a bare number given to field `name`: the first of the dimension's
+/// usual units that puts the number where such a field usually lies, else the dimension's
+/// example unit. A cutting coefficient (`Ks`, `Kt`, `Kn`, …) is a pressure of hundreds to
+/// thousands of N/mm²: `Ks: 800` means `800 N/mm^2`, never 800 GPa.
+fn unit_for_number(name: &str, dim: Dimension, text: &str) -> &'static str {
+    if dim == Dimension::PRESSURE && is_cutting_coefficient(name) {
+        return "N/mm^2";
+    }
+    let number = text.trim().parse::<f64>().ok();
+    let fits = |unit: &'static str, factor: f64| -> Option<&'static str> {
+        number
+            .is_some_and(|x| plausible_range(name, dim).is_some_and(|(lo, hi)| (lo..=hi).contains(&(x * factor).abs())))
+            .then_some(unit)
+    };
+    let choices: &[(&'static str, f64)] = match dim {
+        d if d == Dimension::PRESSURE => &[("GPa", 1e9), ("MPa", 1e6)],
+        d if d == Dimension::LENGTH => &[("mm", 1e-3), ("m", 1.0)],
+        _ => &[],
+    };
+    choices.iter().find_map(|(unit, factor)| fits(unit, *factor)).unwrap_or(example_unit(dim))
+}
+
+/// Whether `name` is a specific cutting force coefficient (`Ks`, `Kt`, `Kn`, `Kr`, `Ktc`, …): a `K`
+/// and at most three more letters, as the milling literature writes them.
+fn is_cutting_coefficient(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars.next().is_some_and(|c| c == 'K' || c == 'k')
+        && name.len() <= 4
+        && chars.all(|c| c.is_ascii_alphabetic())
+        && name.len() >= 2
+}
+
+/// Spellings of the unit *per minute*, a rotational speed in revolutions per minute as drawings
+/// and machine controls write it (`12000 1/min`), which the grammar reads as a frequency.
+const PER_MINUTE: &[&str] = &["1/min", "/min", "min^-1"];
+
+/// `q` as a quantity of dimension `dim`: itself when it has that dimension, a count per minute
+/// taken as revolutions per minute where a rotational speed is expected (`1000 1/min` is
+/// `1000 rpm`), else `None`.
+fn as_dimension(q: grammar::Quantity, dim: Dimension, text: &str) -> Option<grammar::Quantity> {
+    if q.dim == dim {
+        return Some(q);
+    }
+    let unit: String = text.chars().filter(|c| !c.is_whitespace()).collect();
+    let per_minute = PER_MINUTE.iter().any(|u| unit.ends_with(u));
+    (dim == Dimension::ROTATIONAL_SPEED && q.dim == Dimension::FREQUENCY && per_minute)
+        .then(|| grammar::Quantity { value: q.value * std::f64::consts::TAU, dim })
 }
 
 /// The unit a description shows: the one recipes write (`rpm`, `mm`), else SI.
@@ -552,10 +607,10 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
             let (text, v) = parse_scalar(raw, what, diags)?;
             match v {
                 grammar::Value::Quantity(q) => {
-                    if q.dim != *dim {
+                    let Some(q) = as_dimension(q, *dim, &text) else {
                         dim_error(raw, &text, *dim, q.dim, what, diags);
                         return None;
-                    }
+                    };
                     Some(ParamValue::Quantity { value: q.value, dim: q.dim })
                 }
                 _ => {
@@ -570,13 +625,16 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
         }
         FieldType::QuantityList(dim) => {
             let mut values = Vec::new();
-            let mut push = |raw: &Raw, q: grammar::Quantity, text: &str, diags: &mut Diagnostics| {
-                if q.dim != *dim {
-                    dim_error(raw, text, *dim, q.dim, what, diags);
-                    false
-                } else {
+            let mut push = |raw: &Raw, q: grammar::Quantity, text: &str, diags: &mut Diagnostics| match as_dimension(
+                q, *dim, text,
+            ) {
+                Some(q) => {
                     values.push(q.value);
                     true
+                }
+                None => {
+                    dim_error(raw, text, *dim, q.dim, what, diags);
+                    false
                 }
             };
             match &raw.kind {

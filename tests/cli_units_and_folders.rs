@@ -1,0 +1,125 @@
+//! Small things a new user meets first, through the binary: a speed written `1/min` as drawings
+//! and machine controls write it, the unit suggested for a bare cutting coefficient, where
+//! `diagnose` writes by default, and the path `report` prints.
+
+use std::path::Path;
+use std::process::Command;
+
+fn spindlelab(cwd: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(args)
+        .current_dir(cwd)
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned());
+    assert!(!err.contains("panicked"), "{err}");
+    (o.status.code(), out, err)
+}
+
+fn recipe(speeds: &str, ks: &str) -> String {
+    format!(
+        "spindlelab: 1
+name: speeds
+cutting:
+  c: {{ teeth: 4, radial_immersion: 25 %, milling: up, Ks: {ks}, beta: 68 deg }}
+steps:
+  tool:
+    kind: modal.model
+    params:
+      x: [{{ frequency: 600 Hz, damping: 0.04, mass: 0.4 kg }}]
+      y: [{{ frequency: 650 Hz, damping: 0.03, mass: 0.3 kg }}]
+  sd:
+    kind: stability.sd
+    params: {{ cutting: c, speeds: \"{speeds}\", max_depth: 20 mm }}
+    inputs: {{ modes_x: \"@tool.modes_x\", modes_y: \"@tool.modes_y\" }}
+outputs:
+  - {{ from: \"@sd.table\", file: sd.csv }}
+"
+    )
+}
+
+/// `1/min` (and `min^-1`) is a spindle speed in revolutions per minute: the same numbers as rpm,
+/// as a list and as a range.
+#[test]
+fn one_per_minute_is_a_spindle_speed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut written = Vec::new();
+    for (i, speeds) in [
+        "[6000, 9000, 12000] rpm",
+        "[6000, 9000, 12000] 1/min",
+        "6000..12000 step 3000 1/min",
+        "[6000, 9000, 12000] min^-1",
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let path = dir.path().join(format!("r{i}.yaml"));
+        std::fs::write(&path, recipe(speeds, "800 N/mm^2")).unwrap();
+        let out = dir.path().join(format!("out{i}"));
+        let (code, stdout, err) =
+            spindlelab(dir.path(), &["run", path.to_str().unwrap(), "-o", out.to_str().unwrap(), "--no-cache"]);
+        assert_eq!(code, Some(0), "{speeds}: {err}{stdout}");
+        written.push(std::fs::read_to_string(out.join("sd.csv")).unwrap());
+    }
+    assert!(written[0].contains("\n6000.0,") && written[0].contains("\n12000.0,"), "{}", written[0]);
+    for w in &written[1..] {
+        assert_eq!(w, &written[0]);
+    }
+}
+
+/// A bare number for a cutting coefficient is refused (exit 2) with the unit such numbers are
+/// written in, N/mm²; a bare Young's modulus still gets GPa.
+#[test]
+fn a_bare_cutting_coefficient_is_asked_for_in_newtons_per_square_millimetre() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ks.yaml");
+    std::fs::write(&path, recipe("[6000] rpm", "800")).unwrap();
+    let (code, _, err) = spindlelab(dir.path(), &["check", "ks.yaml"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("ks.yaml:4:") && err.contains("e.g. `800 N/mm^2`") && !err.contains("GPa"), "{err}");
+    std::fs::write(
+        &path,
+        recipe("[6000] rpm", "800 N/mm^2") + "materials:\n  steel: { E: 200, rho: 7850 kg/m^3, nu: 0.29, eta: 0 }\n",
+    )
+    .unwrap();
+    let (code, _, err) = spindlelab(dir.path(), &["check", "ks.yaml"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("e.g. `200 GPa`"), "{err}");
+}
+
+/// `report out/x` writes `out/x.report.html` and says so in those words (no `out/x/../`).
+#[test]
+fn report_prints_a_plain_path_beside_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("r.yaml"), recipe("[6000] rpm", "800 N/mm^2")).unwrap();
+    let (code, _, err) = spindlelab(dir.path(), &["run", "r.yaml", "-o", "out/x", "-q"]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, out, err) = spindlelab(dir.path(), &["report", "out/x"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(out.trim(), "wrote out/x.report.html");
+    assert!(dir.path().join("out/x.report.html").is_file());
+    let (code, out, err) = spindlelab(&dir.path().join("out/x"), &["report", "."]);
+    assert_eq!(code, Some(0), "{err}");
+    let canonical = dir.path().canonicalize().unwrap().join("out/x.report.html");
+    assert_eq!(out.trim(), format!("wrote {}", canonical.display()));
+}
+
+/// `diagnose` writes beside the run's outputs, `out/<recipe name>/diagnosis`, whatever the file
+/// is called (here `my-recipe.yaml` for the case `train_02`).
+#[test]
+fn diagnose_writes_under_the_recipe_name_like_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/train-02");
+    for f in ["case.json", "frf_x_0rpm.csv", "frf_y_0rpm.csv", "trials.csv"] {
+        std::fs::copy(case.join(f), dir.path().join(f)).unwrap();
+    }
+    let (code, _, err) = spindlelab(dir.path(), &["import", "case.json", "-o", "my-recipe.yaml"]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, out, err) = spindlelab(dir.path(), &["diagnose", "my-recipe.yaml"]);
+    assert_eq!(code, Some(0), "{err}{out}");
+    let folder = dir.path().join("out/train_02/diagnosis");
+    assert!(folder.join("diagnosis.md").is_file(), "{out}");
+    assert!(!dir.path().join("out/my-recipe").exists());
+    assert!(out.contains("to out/train_02/diagnosis"), "{out}");
+}
