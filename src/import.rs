@@ -5,7 +5,10 @@
 //! cutting configuration (without it) giving the stability lobes that score the trials.
 //!
 //! The case format is described with the training data; the recipe it gives compiles on
-//! its own (`spindlelab check`), with the data files beside it.
+//! its own (`spindlelab check`) wherever it is written: the case names its data files from
+//! its own folder, the recipe names them from the recipe's ([`Placement`]). Its outputs are the
+//! gap table, the measured configuration drawn over the measurements and the lobes with the
+//! trials, so `run --report` shows the case's results.
 
 use crate::engine::grammar::parse_unit;
 use crate::engine::model::entity_fields;
@@ -13,6 +16,7 @@ use crate::engine::spec::{EntityKind, FieldType};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt::Write;
+use std::path::Path;
 
 /// Why a case file could not be imported.
 #[derive(Debug, thiserror::Error)]
@@ -358,18 +362,91 @@ fn check_strings(case: &Case) -> Result<(), String> {
     Ok(())
 }
 
-/// Writes the recipe for the case in `json` (its file name `path` is for messages).
+/// Where the case and the recipe written from it lie, so the recipe names the case's data
+/// files from its own folder (a recipe's file names are relative to the recipe).
+#[derive(Debug, Clone, Copy)]
+pub struct Placement<'a> {
+    /// The folder of the case file: the case names its data files relative to it.
+    pub case_dir: &'a Path,
+    /// The folder the recipe is written to (the current folder when it is printed).
+    pub recipe_dir: &'a Path,
+}
+
+impl Placement<'_> {
+    /// How the recipe names the case's data file `file`: relative to the recipe's folder, or
+    /// absolute when the two folders share nothing but the root. A file that is not beside the
+    /// case is written as the case gives it (then the recipe's check names it as missing).
+    pub fn data_path(&self, file: &str) -> Result<String, String> {
+        let beside_case = self.case_dir.join(file);
+        let (Some(dir), Some(name)) = (beside_case.parent(), beside_case.file_name()) else {
+            return Ok(file.to_string());
+        };
+        let (Ok(dir), Ok(from)) = (dir.canonicalize(), self.recipe_dir.canonicalize()) else {
+            return Ok(file.to_string());
+        };
+        if !dir.join(name).is_file() {
+            return Ok(file.to_string());
+        }
+        let target = dir.join(name);
+        let common = from.components().zip(target.components()).take_while(|(a, b)| a == b).count();
+        let parts: Vec<std::path::Component<'_>> = if common <= 1 {
+            target.components().collect()
+        } else {
+            let ups = from.components().count() - common;
+            std::iter::repeat_n(std::path::Component::ParentDir, ups).chain(target.components().skip(common)).collect()
+        };
+        let mut written = String::new();
+        for (i, c) in parts.iter().enumerate() {
+            let text = c.as_os_str().to_str().ok_or_else(|| {
+                format!(
+                    "the path of `{file}` from the recipe's folder is not UTF-8 text; write the recipe beside the case"
+                )
+            })?;
+            match c {
+                std::path::Component::RootDir => written.push('/'),
+                _ => {
+                    if i > 0 && !written.ends_with('/') {
+                        written.push('/');
+                    }
+                    written.push_str(text);
+                }
+            }
+        }
+        if written.contains(['*', '?', '[']) {
+            return Err(format!(
+                "`{file}` is reached from the recipe's folder as `{written}`, whose `*`, `?` or `[` a measurement \
+                 set reads as a glob; write the recipe beside the case, or rename the folders"
+            ));
+        }
+        Ok(written)
+    }
+}
+
+/// Writes the recipe for the case in `json` (its file name `path` is for messages), naming
+/// the data files as the case does (for a recipe written beside the case).
 pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
-    let parts = import_parts(json, path)?;
+    let parts = import_parts(json, path, None)?;
+    Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
+}
+
+/// [`recipe_from_case`] for a recipe written where `placement` says: its data files named
+/// from the recipe's folder.
+pub fn recipe_from_case_at(json: &str, path: &str, placement: Placement<'_>) -> Result<String, ImportError> {
+    let parts = import_parts(json, path, Some(placement))?;
     Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
 }
 
 /// The case in `json` as a library of its entities and a short recipe that uses it:
 /// `(library, recipe)`. `use_path` is how the recipe names the library (relative to the
 /// recipe's folder); like every foreign string it is written as a YAML scalar that reads back
-/// exactly.
-pub fn library_from_case(json: &str, path: &str, use_path: &str) -> Result<(String, String), ImportError> {
-    let parts = import_parts(json, path)?;
+/// exactly. With a `placement`, the recipe names the data files from its own folder.
+pub fn library_from_case(
+    json: &str,
+    path: &str,
+    use_path: &str,
+    placement: Option<Placement<'_>>,
+) -> Result<(String, String), ImportError> {
+    let parts = import_parts(json, path, placement)?;
     let file_name = path.rsplit('/').next().unwrap_or(path);
     let library = format!(
         "# Entities of case {}, imported from {}: materials, the spindle, the holder and tool,\n\
@@ -396,10 +473,14 @@ struct Parts {
     rest: String,
 }
 
-fn import_parts(json: &str, path: &str) -> Result<Parts, ImportError> {
+fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Result<Parts, ImportError> {
     let case: Case = serde_json::from_str(json).map_err(|source| ImportError::Json { path: path.into(), source })?;
     let invalid = |message: String| ImportError::Invalid { path: path.into(), message };
     check_strings(&case).map_err(invalid)?;
+    let data_path = |file: &str| match placement {
+        Some(p) => p.data_path(file).map_err(|m| ImportError::Invalid { path: path.into(), message: m }),
+        None => Ok(file.to_string()),
+    };
     let id = case.case_id.clone().unwrap_or_else(|| "case".into());
     let mut y = String::new();
     let w = &mut y;
@@ -549,7 +630,13 @@ fn import_parts(json: &str, path: &str) -> Result<Parts, ImportError> {
         let _ = writeln!(w, "  tool_tip:");
         let _ = writeln!(w, "    files:");
         for f in frfs {
-            let _ = writeln!(w, "      - {}   # {}, {} rpm", yaml_quoted(&f.file), f.direction, num(f.speed_rpm));
+            let _ = writeln!(
+                w,
+                "      - {}   # {}, {} rpm",
+                yaml_quoted(&data_path(&f.file)?),
+                f.direction,
+                num(f.speed_rpm)
+            );
         }
         let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
         if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
@@ -633,8 +720,41 @@ fn import_parts(json: &str, path: &str) -> Result<Parts, ImportError> {
         if let Some(t) = meas.and_then(|m| m.trials.as_deref()) {
             let _ = writeln!(w, "  trials:");
             let _ = writeln!(w, "    kind: trials.score");
-            let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(t));
+            let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(&data_path(t)?));
             let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
+        }
+    }
+    let trials = cutting.is_some() && meas.and_then(|m| m.trials.as_deref()).is_some();
+    if !frfs.is_empty() || cutting.is_some() {
+        let _ = writeln!(w);
+        let _ = writeln!(w, "outputs:");
+        if !frfs.is_empty() {
+            let _ = writeln!(w, "  # The gap per measured file, and the measured configuration over each measurement.");
+            let _ = writeln!(w, "  - {{ from: \"@gap.summary\", file: gap.csv }}");
+            let _ = writeln!(
+                w,
+                "  - {{ from: \"@measured_model.frf\", label: model, with: [{{ from: \"@tool_tip.frf\", label: measured }}], \
+                 file: model-vs-measured.svg }}"
+            );
+        }
+        if cutting.is_some() {
+            if trials {
+                let _ = writeln!(
+                    w,
+                    "  # The lobes of the cutting configuration with the trials on them, and the verdicts."
+                );
+                let _ = writeln!(
+                    w,
+                    "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, with: [{{ from: \"@trials.verdicts\", \
+                     label: cutting trials }}], file: lobes.svg }}"
+                );
+                let _ = writeln!(w, "  - {{ from: \"@trials.verdicts\", file: trial-verdicts.csv }}");
+            } else {
+                let _ = writeln!(w, "  # The lobes of the cutting configuration.");
+                let _ =
+                    writeln!(w, "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, file: lobes.svg }}");
+            }
+            let _ = writeln!(w, "  - {{ from: \"@lobes.table\", file: lobes.csv }}");
         }
     }
     if let Some(m) = meas {

@@ -197,7 +197,8 @@ enum Command {
     Import {
         /// The case file.
         case: PathBuf,
-        /// Where to write the recipe (default: print it). Put it beside the case's data files.
+        /// Where to write the recipe (default: print it); it names the case's data files from
+        /// its own folder (from the current folder when printed).
         #[arg(short, long)]
         out: Option<PathBuf>,
         /// Write the case's entities (materials, spindle, holder and tool, sensor, cutting
@@ -505,12 +506,19 @@ fn command(cli: Cli) -> ExitCode {
                     return ExitCode::from(EXIT_BAD_INPUT);
                 }
             };
+            // The recipe names the case's data files from its own folder (the current one when
+            // it is printed).
+            let recipe_dir = out.as_deref().and_then(Path::parent).unwrap_or(Path::new(""));
+            let folder =
+                |p: &'_ Path| if p.as_os_str().is_empty() { Path::new(".").to_path_buf() } else { p.to_path_buf() };
+            let (case_dir, recipe_folder) = (folder(case.parent().unwrap_or(Path::new(""))), folder(recipe_dir));
+            let placement = spindlelab::import::Placement { case_dir: &case_dir, recipe_dir: &recipe_folder };
             let imported = match &library {
-                None => spindlelab::import::recipe_from_case(&text, &shown).map(|r| (None, r)),
+                None => spindlelab::import::recipe_from_case_at(&text, &shown, placement).map(|r| (None, r)),
                 Some(lib) => {
-                    let recipe_dir = out.as_deref().and_then(Path::parent).unwrap_or(Path::new(""));
                     let use_path = relative_to(lib, recipe_dir);
-                    spindlelab::import::library_from_case(&text, &shown, &use_path).map(|(l, r)| (Some(l), r))
+                    spindlelab::import::library_from_case(&text, &shown, &use_path, Some(placement))
+                        .map(|(l, r)| (Some(l), r))
                 }
             };
             let (library_text, recipe) = match imported {

@@ -304,6 +304,11 @@ fn no_string_of_a_case_can_change_the_structure_of_its_recipe() {
     let base_raw = parse_yaml(&base_dir.path().join("recipe.yaml"), "the case");
     let base = compile(&base_dir.path().join("recipe.yaml"));
     let base_steps: Vec<String> = base.recipe.steps.iter().map(|s| s.id.clone()).collect();
+    let outputs = |c: &spindlelab::engine::Compiled| -> Vec<(String, String)> {
+        c.recipe.outputs.iter().map(|o| (o.from.step.clone(), o.file.clone())).collect()
+    };
+    let base_outputs = outputs(&base);
+    assert_eq!(base_outputs.len(), 5, "gap table, model over measurement, lobes with trials, verdicts, lobes table");
     let mut base_shape = Vec::new();
     shape(&base_raw, "", &mut base_shape);
 
@@ -372,7 +377,7 @@ fn no_string_of_a_case_can_change_the_structure_of_its_recipe() {
             }
             let c = spindlelab::engine::compile_file(&recipe, &registry)
                 .unwrap_or_else(|e| panic!("{what}: the recipe does not compile:\n{}\n{text}", e.render(false)));
-            assert!(c.recipe.outputs.is_empty(), "{what}: outputs appeared");
+            assert_eq!(outputs(&c), base_outputs, "{what}: the outputs changed");
             let steps: Vec<String> = c.recipe.steps.iter().map(|s| s.id.clone()).collect();
             assert_eq!(steps, base_steps, "{what}");
         }
@@ -395,7 +400,7 @@ fn spindlelab_in(dir: &Path, args: &[&str]) -> (Option<i32>, String, String) {
 }
 
 /// Through the command line: a case name that breaks lines to add an output gives a recipe
-/// that `check` passes with no output, and a value the recipe cannot take (with escape
+/// that `check` passes with only the import's own outputs, and a value the recipe cannot take (with escape
 /// sequences and a line break in it) is refused with exit code 2 on one escaped line.
 #[test]
 fn the_import_command_writes_hostile_names_as_text_and_refuses_what_a_recipe_cannot_take() {
@@ -411,7 +416,7 @@ fn the_import_command_writes_hostile_names_as_text_and_refuses_what_a_recipe_can
     assert_eq!(code, Some(0), "{err}");
     let (code, out, err) = spindlelab_in(dir.path(), &["check", "recipe.yaml"]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(out.contains(", 0 outputs"), "{out}");
+    assert!(out.contains(", 5 outputs"), "{out}");
     let c = compile(&dir.path().join("recipe.yaml"));
     assert_eq!(c.recipe.name, id);
 
