@@ -222,6 +222,11 @@ pub struct FrfSet {
 /// written with 6–7 digits reads back a few ulps off).
 pub const SET_GRID_TOLERANCE: f64 = 1e-9;
 
+/// Whether two frequency lines agree within [`SET_GRID_TOLERANCE`] (a NaN agrees with nothing).
+fn same_line(a: f64, b: f64) -> bool {
+    (a - b).abs() <= SET_GRID_TOLERANCE * a.abs().max(b.abs())
+}
+
 /// Why FRFs do not make a set.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FrfSetError {
@@ -259,12 +264,7 @@ impl FrfSet {
                     why: format!("it has {} lines, the first FRF {}", f.freq_hz.len(), first.freq_hz.len()),
                 });
             }
-            if let Some(k) = f
-                .freq_hz
-                .iter()
-                .zip(&first.freq_hz)
-                .position(|(a, b)| !((a - b).abs() <= SET_GRID_TOLERANCE * a.abs().max(b.abs())))
-            {
+            if let Some(k) = f.freq_hz.iter().zip(&first.freq_hz).position(|(&a, &b)| !same_line(a, b)) {
                 return Err(FrfSetError::Grid {
                     index,
                     why: format!(

@@ -212,7 +212,7 @@ pub fn csv_rows(out: &mut String, set: &FrfSet, prefix_header: &str, prefix: &st
             out.push_str(buf.format(v.im));
             if coherence && let Some(c) = &f.coherence {
                 out.push(',');
-                out.push_str(buf.format(c[k]));
+                out.push_str(buf.format(c.get(k).copied().unwrap_or(f64::NAN)));
             }
             out.push('\n');
         }

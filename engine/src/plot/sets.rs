@@ -83,8 +83,10 @@ pub fn stabilisation(t: &Table, behind: &[&Value]) -> Result<Vec<Panel>, PlotErr
         let line = shown.iter().map(|(x, y)| (*x, (y.log10() - a) / span * top)).collect();
         p.series.push(Series::new("Σ|H| (log scale)", line, Style::Line, 7));
     }
+    // Columns of one table have one length; a shorter one (a table made elsewhere) bounds the rows.
+    let rows = [order.len(), freq.len(), sf.len(), sd.len(), sel.len()].into_iter().min().unwrap_or(0);
     let pick = |keep: &dyn Fn(usize) -> bool| -> Vec<(f64, f64)> {
-        (0..order.len()).filter(|&i| keep(i)).map(|i| (freq[i], order[i])).collect()
+        (0..rows).filter(|&i| keep(i)).map(|i| (freq[i], order[i])).collect()
     };
     let new = pick(&|i| sf[i] == 0.0);
     let frequency = pick(&|i| sf[i] == 1.0 && sd[i] == 0.0);
@@ -143,17 +145,7 @@ mod tests {
         let panels = stabilisation(&t, &[&set]).unwrap();
         let s = &panels[0].series;
         let names: Vec<&str> = s.iter().map(|x| x.name.as_str()).collect();
-        assert_eq!(
-            names,
-            [
-                "Σ|H| (log scale)",
-                "new",
-                "stable in f",
-                "stable in f and ζ",
-                "selected",
-                ""
-            ]
-        );
+        assert_eq!(names, ["Σ|H| (log scale)", "new", "stable in f", "stable in f and ζ", "selected", ""]);
         // The summed |H| peaks at 100 Hz, drawn at the top order; its lowest line at order 0.
         let sum = &s[0].points;
         assert_eq!(sum.iter().map(|p| p.0).collect::<Vec<_>>(), [100.0, 150.0, 300.0]);

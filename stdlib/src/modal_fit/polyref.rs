@@ -191,7 +191,7 @@ fn check(freqs_hz: &[f64], frfs: &[&[Complex64]], o: &SetOptions) -> Result<(), 
     if o.max_frequency_hz.is_nan() || o.max_frequency_hz <= o.min_frequency_hz {
         return Err(bad("max_frequency", o.max_frequency_hz, "must be above min_frequency"));
     }
-    if !(4..=300).contains(&o.max_order) || o.max_order % 2 != 0 {
+    if !(4..=300).contains(&o.max_order) || !o.max_order.is_multiple_of(2) {
         return Err(bad("max_order", o.max_order as f64, "must be even and between 4 and 300"));
     }
     if !(o.stable_frequency > 0.0 && o.stable_frequency < 1.0) {
@@ -348,8 +348,7 @@ fn stabilisation(
         for ((hk, w), s) in used.zip(seqs.iter_mut()) {
             let hw = -w * hk;
             let th = w * hk.norm_sqr();
-            for q in 0..m {
-                let z = zq[q];
+            for (q, &z) in zq.iter().enumerate() {
                 s.r[q] += w * z.re;
                 s.t[q] += th * z.re;
                 s.sp[q] += hw * z;
@@ -553,7 +552,7 @@ fn select(
     df: f64,
     targets: &Targets,
 ) -> (Vec<SharedPole>, Vec<f64>, Vec<f64>) {
-    let (mut chosen, looked, mut unmatched) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut chosen, mut looked, mut unmatched) = (Vec::new(), Vec::new(), Vec::new());
     match targets {
         Targets::Frequencies(given) => {
             let mut t = given.clone();
@@ -566,7 +565,7 @@ fn select(
                 }
             }
             dedup(&mut chosen);
-            return (chosen, t, unmatched);
+            (chosen, t, unmatched)
         }
         Targets::Peaks { count, prominence_db } => {
             let mut candidates: Vec<(f64, f64)> =
@@ -574,7 +573,6 @@ fn select(
             let all: Vec<f64> = candidates.iter().map(|c| c.0).collect();
             // Most prominent first; windows from every candidate so that neighbours split the axis.
             candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.total_cmp(&b.0)));
-            let mut looked = looked;
             for (fp, _) in candidates {
                 if count.is_some_and(|c| chosen.len() >= c) {
                     break;
@@ -589,10 +587,6 @@ fn select(
             }
             chosen.sort_by(|a, b| a.f_hz.total_cmp(&b.f_hz));
             looked.sort_by(f64::total_cmp);
-            // Peaks without a pole matter only when fewer modes than asked were found.
-            if count.is_none_or(|c| chosen.len() >= c) {
-                unmatched.clear();
-            }
             unmatched.sort_by(f64::total_cmp);
             (chosen, looked, unmatched)
         }

@@ -217,7 +217,9 @@ fn report(ctx: &NodeContext, set: &FrfSet, fit: &SetFit, opts: &SetOptions) {
     let hz = |f: &[f64]| f.iter().map(|v| format!("{v:.1} Hz")).collect::<Vec<_>>().join(", ");
     if !fit.unmatched_hz.is_empty() {
         let asked = match &opts.targets {
-            Targets::Peaks { count: Some(n), .. } => format!("{n} mode(s) were asked for, {} found; ", fit.poles.len()),
+            Targets::Peaks { count: Some(n), .. } if fit.poles.len() < *n => {
+                format!("{n} mode(s) were asked for, {} found; ", fit.poles.len())
+            }
             _ => String::new(),
         };
         ctx.warn(format!(
