@@ -547,7 +547,7 @@ fn as_dimension(q: grammar::Quantity, dim: Dimension, text: &str) -> Option<gram
     let unit: String = text.chars().filter(|c| !c.is_whitespace()).collect();
     let per_minute = PER_MINUTE.iter().any(|u| unit.ends_with(u));
     (dim == Dimension::ROTATIONAL_SPEED && q.dim == Dimension::FREQUENCY && per_minute)
-        .then(|| grammar::Quantity { value: q.value * std::f64::consts::TAU, dim })
+        .then_some(grammar::Quantity { value: q.value * std::f64::consts::TAU, dim })
 }
 
 /// The unit a description shows: the one recipes write (`rpm`, `mm`), else SI.
