@@ -25,9 +25,11 @@
 //!    with the nearest pole of order `n − 2`: stable in frequency within `stable_frequency`
 //!    (relative), and in damping too within `stable_damping` (relative).
 //! 3. **Pole selection.** Around each peak of the summed `|H|` (or each frequency given), the
-//!    poles stable in frequency and damping within the peak's window form a column of the
-//!    diagram; the one nearest the column's median frequency is chosen (ties: the higher order),
-//!    as sdypy-EMA's `select_closest_poles` takes the stable pole nearest the windowed mean.
+//!    poles stable in frequency and damping within the peak's window are searched for the
+//!    densest column of the diagram (a physical mode is found again at order after order, within
+//!    a line or a tenth of the frequency tolerance, where spurious poles wander); of that column
+//!    the pole nearest its median frequency is chosen (ties: the higher order), as sdypy-EMA's
+//!    `select_closest_poles` takes the stable pole nearest the mean of its narrowing windows.
 //! 4. **Residues (LSFD).** With the poles fixed, each FRF is linear in its residues and in
 //!    complex lower and upper residual terms,
 //!    `H_o(ω) = (iω)^k [Σ_r A_or/(iω − λ_r) + Ā_or/(iω − λ̄_r) − LR_o/ω² + UR_o]`,
@@ -238,7 +240,7 @@ pub fn fit_set(freqs_hz: &[f64], frfs: &[&[Complex64]], opts: &SetOptions) -> Re
     let (diagram, orders) = stabilisation(&f, &h, dt, opts)?;
     let summed: Vec<f64> = (0..f.len()).map(|k| h.iter().map(|v| v[k].norm()).sum()).collect();
     let df = (hi - lo) / (f.len() - 1) as f64;
-    let (poles, targets_hz, unmatched_hz) = select(&f, &summed, &diagram, df, &opts.targets);
+    let (poles, targets_hz, unmatched_hz) = select(&f, &summed, &diagram, df, &opts.targets, opts.stable_frequency);
     if poles.is_empty() {
         return Err(FitError::NothingLeft {
             method: "poly-reference LSCF",
@@ -517,21 +519,45 @@ pub fn peaks(f: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
     out
 }
 
-/// Poles of the diagram stable in frequency and damping within `[lo, hi]`, and the one nearest
-/// their median frequency (ties: the higher order).
-fn pick_in(diagram: &[DiagramPole], lo: f64, hi: f64) -> Option<DiagramPole> {
+/// The pole of the diagram's column at a target: among the poles stable in frequency and damping
+/// within `[lo, hi]`, the densest cluster (the most poles within `radius` Hz of one, ties: the one
+/// nearer `target`), a physical mode being found again at order after order where spurious poles
+/// wander; of that cluster, the pole nearest its median frequency (ties: the higher order).
+fn pick_in(diagram: &[DiagramPole], lo: f64, hi: f64, target: f64, radius: f64) -> Option<DiagramPole> {
     let mut column: Vec<&DiagramPole> =
         diagram.iter().filter(|p| p.stability == Stability::Damping && p.f_hz >= lo && p.f_hz <= hi).collect();
-    if column.is_empty() {
-        return None;
+    column.sort_by(|a, b| a.f_hz.total_cmp(&b.f_hz).then(a.order.cmp(&b.order)));
+    // Poles within `radius` of each, by a window sliding over the sorted frequencies.
+    let (mut first, mut last) = (0, 0);
+    let mut best: Option<(usize, usize, usize)> = None;
+    for (i, p) in column.iter().enumerate() {
+        while column[first].f_hz < p.f_hz - radius {
+            first += 1;
+        }
+        last = last.max(i);
+        while last + 1 < column.len() && column[last + 1].f_hz <= p.f_hz + radius {
+            last += 1;
+        }
+        let count = last + 1 - first;
+        let better = match best {
+            None => true,
+            Some((b, bf, bl)) => {
+                let held = bl + 1 - bf;
+                count > held || (count == held && (p.f_hz - target).abs() < (column[b].f_hz - target).abs())
+            }
+        };
+        if better {
+            best = Some((i, first, last));
+        }
     }
-    column.sort_by(|a, b| a.f_hz.total_cmp(&b.f_hz));
-    let c = column.len();
-    let median = if c % 2 == 1 { column[c / 2].f_hz } else { 0.5 * (column[c / 2 - 1].f_hz + column[c / 2].f_hz) };
-    column
-        .into_iter()
+    let (_, first, last) = best?;
+    let cluster = &column[first..=last];
+    let c = cluster.len();
+    let median = if c % 2 == 1 { cluster[c / 2].f_hz } else { 0.5 * (cluster[c / 2 - 1].f_hz + cluster[c / 2].f_hz) };
+    cluster
+        .iter()
         .min_by(|a, b| (a.f_hz - median).abs().total_cmp(&(b.f_hz - median).abs()).then(b.order.cmp(&a.order)))
-        .copied()
+        .map(|p| **p)
 }
 
 /// The window of target `j` among the sorted `targets`: half-way to each neighbour, at most 10 %
@@ -551,7 +577,10 @@ fn select(
     diagram: &[DiagramPole],
     df: f64,
     targets: &Targets,
+    stable_frequency: f64,
 ) -> (Vec<SharedPole>, Vec<f64>, Vec<f64>) {
+    // A mode's poles over the orders cluster within a line, or a tenth of the stability tolerance.
+    let radius = |f: f64| df.max(0.1 * stable_frequency * f);
     let (mut chosen, mut looked, mut unmatched) = (Vec::new(), Vec::new(), Vec::new());
     match targets {
         Targets::Frequencies(given) => {
@@ -559,7 +588,7 @@ fn select(
             t.sort_by(f64::total_cmp);
             for j in 0..t.len() {
                 let (a, b) = window(&t, j, df);
-                match pick_in(diagram, a, b) {
+                match pick_in(diagram, a, b, t[j], radius(t[j])) {
                     Some(p) => chosen.push(shared(p, t[j])),
                     None => unmatched.push(t[j]),
                 }
@@ -580,7 +609,7 @@ fn select(
                 let j = all.iter().position(|v| *v == fp).unwrap_or(0);
                 let (a, b) = window(&all, j, df);
                 looked.push(fp);
-                match pick_in(diagram, a, b) {
+                match pick_in(diagram, a, b, fp, radius(fp)) {
                     Some(p) if !chosen.iter().any(|c: &SharedPole| c.lambda == p.lambda) => chosen.push(shared(p, fp)),
                     _ => unmatched.push(fp),
                 }

@@ -230,6 +230,15 @@ fn report(ctx: &NodeContext, set: &FrfSet, fit: &SetFit, opts: &SetOptions) {
             opts.max_order
         ));
     }
+    let wanted = opts.max_order / 2;
+    if fit.orders.len() < wanted {
+        ctx.warn(format!(
+            "{} of the {wanted} model orders up to {} have singular normal equations and are left out of the diagram (the highest solved is {}): a band narrow against its upper frequency leaves the high orders undetermined; widen the band or lower `max_order`",
+            wanted - fit.orders.len(),
+            opts.max_order,
+            fit.orders.last().copied().unwrap_or(0)
+        ));
+    }
     let grid = set.freq_hz();
     let band: Vec<f64> = fit.lines.iter().map(|&k| grid[k]).collect();
     let modes = modes(fit);
