@@ -367,7 +367,8 @@ fn frf(main: &[Layer], with: &[Layer], real_imag: bool) -> Result<Vec<Panel>, Pl
         }
         for (l, color, style, name) in curves {
             let Some((_, freq, h, _, coh)) = blocks(l.value).into_iter().next() else { continue };
-            let (a, b): (Vec<(f64, f64)>, Vec<(f64, f64)>) = if real_imag {
+            type Points = Vec<(f64, f64)>;
+            let (a, b): (Points, Points) = if real_imag {
                 freq.iter().zip(&h).map(|(f, v)| ((*f, v.re * scale), (*f, v.im * scale))).unzip()
             } else {
                 let magnitude = freq.iter().zip(&h).map(|(f, v)| (*f, v.norm() * scale)).collect();
