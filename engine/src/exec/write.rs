@@ -142,11 +142,8 @@ fn render_csv(rows: &[Row]) -> String {
     let named = rows.first().map(|r| label_columns(r.label)).unwrap_or_default();
     // A label without `name=value` coordinates goes out whole, as one text column.
     let bare = swept && rows.first().is_some_and(|r| !r.label.contains('='));
-    let prefix_header: String = if bare {
-        "label,".to_string()
-    } else {
-        named.iter().map(|(n, _)| format!("{n},")).collect()
-    };
+    let prefix_header: String =
+        if bare { "label,".to_string() } else { named.iter().map(|(n, _)| format!("{n},")).collect() };
     let prefix = |r: &Row| -> String {
         if bare {
             format!("\"{}\",", r.label.replace('"', "'"))
