@@ -6,7 +6,7 @@ use super::convert;
 use crate::modal_fit::{self, FitError, SetFit, SetOptions, Stability, Targets, Weighting, signed_mode_of_residue};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, Frf, FrfKind, FrfSet, Mode, PortType, Table, Value};
+use spindlelab_engine::value::{Column, Frf, FrfKind, FrfSet, ModalModel, Mode, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct ModalFitSetNode {
@@ -62,6 +62,11 @@ impl ModalFitSetNode {
                         PortType::FrfSet,
                         "the modal model of each FRF on the lines of the fit band, in the set's kind",
                     ),
+                    PortSpec::new(
+                        "modes",
+                        PortType::ModalModel,
+                        "the modes as the FRF `point` sees them (Eq. 5.8: frequency, damping ratio, signed modal mass 1/(2ω_d|A|)), for the nodes that take a modal model",
+                    ),
                 ],
                 params: vec![
                     Field::def("min_frequency", T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
@@ -109,6 +114,11 @@ impl ModalFitSetNode {
                         T::Choice(&["absolute", "relative"]),
                         "absolute",
                         "line weights of the LSCF and LSFD least squares: none, each FRF scaled to unit RMS (the peaks lead; the global L2 distance) or 1/|H| (every line by its relative error)",
+                    ),
+                    Field::opt(
+                        "point",
+                        T::Integer { min: 1, max: 1_000_000 },
+                        "which FRF of the set (its place, from 1) the `modes` output describes (default: the first driving point by its node numbers, else the first FRF)",
                     ),
                 ],
             },
@@ -181,6 +191,19 @@ impl Node for ModalFitSetNode {
         let kind =
             if first.unit.symbol.trim().is_empty() { FrfKind::Receptance } else { convert::kind_of(first, "set")? };
         let p = ctx.params;
+        let point = match p.int("point") {
+            Some(k) => {
+                let k = usize::try_from(k).unwrap_or(0);
+                if k == 0 || k > set.frfs.len() {
+                    return Err(NodeError::param(
+                        "point",
+                        format!("FRF {k} was asked for; the set holds {} FRF(s), numbered from 1", set.frfs.len()),
+                    ));
+                }
+                k - 1
+            }
+            None => set.frfs.iter().position(|f| f.dofs.is_some_and(|d| d.driving_point())).unwrap_or(0),
+        };
         let targets = match p.list("frequencies") {
             Some(f) => Targets::Frequencies(f.to_vec()),
             None => Targets::Peaks {
@@ -204,7 +227,7 @@ impl Node for ModalFitSetNode {
         let values: Vec<&[num_complex::Complex64]> = set.frfs.iter().map(|f| f.values.as_slice()).collect();
         let fit = modal_fit::fit_set(set.freq_hz(), &values, &opts).map_err(err)?;
         report(ctx, set, &fit, &opts);
-        Ok(outputs(set, &fit))
+        Ok(outputs(set, &fit, point))
     }
 }
 
@@ -292,7 +315,7 @@ fn place_columns(rows: &[[f64; 5]]) -> Vec<Column> {
     PLACE.iter().enumerate().map(|(i, n)| Column::new(*n, "", rows.iter().map(|r| r[i]).collect())).collect()
 }
 
-fn outputs(set: &FrfSet, fit: &SetFit) -> Outputs {
+fn outputs(set: &FrfSet, fit: &SetFit, point: usize) -> Outputs {
     let grid = set.freq_hz();
     let band: Vec<f64> = fit.lines.iter().map(|&k| grid[k]).collect();
     let modes = modes(fit);
@@ -363,6 +386,11 @@ fn outputs(set: &FrfSet, fit: &SetFit) -> Outputs {
         Column::new("modes", "", vec![fit.poles.len() as f64]),
         Column::new("orders", "", vec![fit.orders.len() as f64]),
     ]);
+    let point_modes: Vec<Mode> = fit.residues[point]
+        .iter()
+        .zip(&modes)
+        .map(|(a, m)| signed_mode_of_residue(m.freq_hz, m.damping_ratio, *a))
+        .collect();
     let fitted = FrfSet {
         frfs: set
             .frfs
@@ -387,6 +415,7 @@ fn outputs(set: &FrfSet, fit: &SetFit) -> Outputs {
         ("residual_terms", table(terms)),
         ("quality", quality),
         ("fitted", Value::FrfSet(fitted)),
+        ("modes", Value::ModalModel(ModalModel { modes: point_modes })),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
@@ -457,6 +486,18 @@ mod tests {
         for (m, w) in mass.iter().zip(want) {
             assert!((m / w - 1.0).abs() < 1e-4, "{mass:?}");
         }
+        // The modal model of the driving point (FRF 1 by its nodes), and of FRF 2 when asked.
+        let Value::ModalModel(m) = &out["modes"] else { panic!() };
+        assert!(m.modes.iter().all(|m| (m.modal_mass - 1.0).abs() < 1e-4), "{m:?}");
+        let second = params(&node, "min_frequency: 20 Hz\nmax_order: 30\npoint: 2");
+        let out2 = node.run(&NodeContext::new("fit", &second, &inputs, &recipe)).unwrap();
+        let Value::ModalModel(m) = &out2["modes"] else { panic!() };
+        assert!((m.modes[1].modal_mass * 0.6 + 1.0).abs() < 1e-4, "{m:?}");
+        let third = params(&node, "point: 3");
+        assert!(matches!(
+            node.run(&NodeContext::new("fit", &third, &inputs, &recipe)),
+            Err(NodeError::InvalidParam { .. })
+        ));
         let Value::FrfSet(fitted) = &out["fitted"] else { panic!() };
         assert_eq!(fitted.frfs[1].dofs.map(|d| d.response_node), Some(2));
         let both = params(&node, "modes: 2\nfrequencies: [300 Hz, 780 Hz]");
