@@ -858,7 +858,9 @@ fn scalar(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         };
         pts.push((x, s.value * scale));
     }
-    let y = if unit.is_empty() { "value".to_string() } else { format!("value [{unit}]") };
+    // The value's name on its axis: `impulse duration [ms]`.
+    let name = &main[0].name;
+    let y = if unit.is_empty() { name.clone() } else { format!("{name} [{unit}]") };
     let mut p = Panel::new(Axis::linear(x_label), Axis::linear(y));
     p.series.push(Series::new("", pts.clone(), Style::Line, 0));
     p.series.push(Series::new("", pts, Style::Dots, 0));
