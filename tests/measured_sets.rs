@@ -4,31 +4,12 @@
 
 mod common;
 
-use common::{Ran, assert_has, run_at};
+use common::measured::{data, recipe_file, run_recipe};
+use common::{Ran, assert_has};
 use spindlelab::engine::formats::{self, FileFormat, FrfSelect};
 use spindlelab::engine::value::{Frf, FrfDofs, Table};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
-
-fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/measured").join(name)
-}
-
-/// Writes `recipe` (with `BEAM` standing for the measured file) into a temporary folder.
-fn recipe_file(recipe: &str) -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let text = recipe.replace("BEAM", &data("beam-accelerance.uff").display().to_string());
-    let path = dir.path().join("recipe.yaml");
-    std::fs::write(&path, text).unwrap();
-    (dir, path)
-}
-
-/// Runs `recipe` in the library (no cache).
-fn run_recipe(recipe: &str) -> (tempfile::TempDir, Ran) {
-    let (dir, path) = recipe_file(recipe);
-    let ran = run_at(&path, &dir.path().join("out"));
-    (dir, ran)
-}
 
 /// Runs `recipe` through the binary into `DIR/out`; returns the folder and the process output.
 fn run_binary(recipe: &str) -> (tempfile::TempDir, Output) {

@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each test crate uses a different part
 
 pub mod case;
+pub mod measured;
 pub mod synthetic;
 
 use spindlelab::engine::exec::RunOptions;
