@@ -9,12 +9,12 @@
 //! Slow (about half a minute of diagnosis per case on one core): run with
 //! `cargo test --test diagnose_out_of_sample -- --ignored --nocapture` for the table.
 //!
-//! A regression test: it holds today's numbers (identification 85 % of 27, no false alarm
-//! on the six controls, the main parameter of every effect the FRFs carry within 15 %), not
-//! yet the 95 % the diagnosis aims at. Every miss is a speed law of the cutting
-//! coefficients (two alone, two beside a tip mass), which only the trials carry; in the one
-//! examined three trials lie across the boundary and the law wins by ΔBIC 9.7, just under
-//! the 10 that names an effect. The law's parameters are reported beside.
+//! It asks what the diagnosis aims at: identification ≥ 95 % of the cases with an effect, no
+//! false alarm on the controls, and the main parameter within 15 % in ≥ 90 % of the effects
+//! named. The one miss today carries no evidence: a cutting-coefficient speed law on a base
+//! calibrated at 4,000 rpm with trials from 2,000 to 9,000 rpm, where the law moves the limit
+//! by less than the 8 % the trials keep from it, so the baseline misclassifies none of the
+//! sixty trials and "no significant discrepancy" is the only answer the data allow.
 
 mod common;
 
@@ -123,7 +123,7 @@ fn cases() -> Vec<Case> {
 
 #[test]
 #[ignore = "slow: about forty diagnoses of new cases, several minutes on two cores"]
-fn out_of_sample_matrix_regression() {
+fn out_of_sample_matrix_meets_the_diagnosis_aims() {
     let only = std::env::var("SPINDLELAB_MATRIX_ONLY").unwrap_or_default();
     let cases: Vec<Case> = cases().into_iter().filter(|c| c.name.contains(&only)).collect();
     assert!(!cases.is_empty(), "SPINDLELAB_MATRIX_ONLY={only:?} matches no case: nothing would be checked");
@@ -150,11 +150,7 @@ fn out_of_sample_matrix_regression() {
         trials.len()
     );
     assert_eq!(false_alarms, 0);
-    assert!(identified >= 0.85, "identification {identified}");
-    assert!(
-        within(&frf) as f64 >= 0.9 * frf.len() as f64,
-        "FRF parameters within 15 %: {} of {}",
-        within(&frf),
-        frf.len()
-    );
+    assert!(identified >= 0.95, "identification {identified}");
+    let (good, all) = (within(&frf) + within(&trials), frf.len() + trials.len());
+    assert!(good as f64 >= 0.9 * all as f64, "main parameters within 15 %: {good} of {all}");
 }

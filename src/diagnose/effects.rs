@@ -62,6 +62,12 @@ pub trait Effect: Sync + Send {
         let _ = free;
         0
     }
+    /// Simpler forms of the effect, each as the parameters it holds at their starts (the
+    /// effect absent in them): nested models BIC prefers when the data do not resolve the
+    /// held parameters.
+    fn nested(&self) -> Vec<Vec<&'static str>> {
+        vec![]
+    }
     /// The fitted values in the vocabulary's parameter names and units (SI, `_deg`, …).
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json>;
 }
@@ -595,6 +601,12 @@ impl Effect for SpeedDependentCuttingCoefficients {
     /// the well. Four times as many samples found the same ends on every case tried.
     fn starts(&self, free: &[Free]) -> usize {
         8 * free.len()
+    }
+    /// A change of Ks and one of β move the boundary alike at most speeds, so the trials
+    /// often fix the law's effect on the lobes better than its split: Ks alone is the
+    /// simpler law, named when the split is not resolved.
+    fn nested(&self) -> Vec<Vec<&'static str>> {
+        vec![vec!["cutting_beta_change"]]
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let reference = roles

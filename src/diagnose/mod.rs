@@ -598,7 +598,6 @@ fn try_candidate(
         (true, Some(t)) => (vec![format!("@{t}.deviance")], "nelder-mead"),
         _ => (ctx.roles.gaps.iter().map(|g| format!("@{}.residual", g.step)).collect(), "least-squares"),
     };
-    let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(&mine)).max().unwrap_or(0) } else { 0 };
     let text = match at_trial_speeds(&text, ctx.roles, &ctx.baseline.trial_speeds_rpm) {
         Ok(t) => t,
         Err(e) => {
@@ -606,51 +605,78 @@ fn try_candidate(
             return c;
         }
     };
-    let mut fitting = text.clone();
-    if let Err(e) = fitting.append(&fit_block(&mine, &objective, method, starts)) {
-        c.skipped = Some(e.to_string());
-        return c;
+    // A cutting effect is informed by the trials alone; the rest by the FRFs and trials.
+    let observations = |after: &Evaluation| {
+        if cutting { after.trials.map_or(2.0, |t| t.0.max(2) as f64) } else { after.observations() }
+    };
+    // Fits the parameters `free` (the rest held where they start) and scores the result.
+    let attempt = |free: &[Free]| -> Result<(FitReport, Evaluation, f64), String> {
+        let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(free)).max().unwrap_or(0) } else { 0 };
+        let mut fitting = text.clone();
+        fitting.append(&fit_block(free, &objective, method, starts)).map_err(|e| e.to_string())?;
+        let compiled = compile_text(&fitting, ctx.path, &[], ctx.registry)
+            .map_err(|e| format!("the augmented recipe does not compile: {e}"))?;
+        let report =
+            crate::fit::fit(&compiled, &[], ctx.registry, Some(1)).map_err(|e| format!("the fit failed: {e}"))?;
+        let after = compile_text(&text, ctx.path, &report.overrides(), ctx.registry)
+            .and_then(|x| evaluate(&x, ctx.roles, ctx.registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0))
+            .map_err(|e| format!("the fitted model cannot be evaluated: {e}"))?;
+        let bic = after.deviance() + after.trial_cost() + free.len() as f64 * observations(&after).ln();
+        Ok((report, after, bic))
+    };
+    // The full effect, and each nested form with fewer parameters (the rest held absent),
+    // which BIC prefers when the data do not resolve the extra parameters.
+    let mut forms = vec![mine.clone()];
+    for e in effects {
+        for held in e.nested() {
+            let form: Vec<Free> = mine.iter().filter(|f| !held.contains(&f.name.as_str())).cloned().collect();
+            if !form.is_empty() && form.len() < mine.len() {
+                forms.push(form);
+            }
+        }
     }
-    let compiled = match compile_text(&fitting, ctx.path, &[], ctx.registry) {
-        Ok(x) => x,
-        Err(e) => {
-            c.skipped = Some(format!("the augmented recipe does not compile: {e}"));
-            return c;
+    // The full form when the data name it (its parameters are then the unbiased ones);
+    // otherwise the form with the lowest BIC, so a law the data support only in its
+    // simpler form is still found.
+    let reference_bic = reference.deviance() + reference.trial_cost();
+    let mut best: Option<(FitReport, Evaluation, f64, Vec<Free>)> = None;
+    let mut evaluations = 0;
+    for form in forms {
+        if best.as_ref().is_some_and(|b| b.3.len() == mine.len() && reference_bic - b.2 > BIC_STRONG) {
+            break;
         }
-    };
-    let report: FitReport = match crate::fit::fit(&compiled, &[], ctx.registry, Some(1)) {
-        Ok(r) => r,
-        Err(e) => {
-            c.skipped = Some(format!("the fit failed: {e}"));
-            return c;
+        match attempt(&form) {
+            Ok((report, after, bic)) => {
+                evaluations += report.evaluations;
+                if best.as_ref().is_none_or(|b| bic < b.2) {
+                    best = Some((report, after, bic, form));
+                }
+            }
+            Err(e) if best.is_none() => {
+                c.skipped = Some(e);
+                return c;
+            }
+            Err(_) => {}
         }
+    }
+    let Some((report, after, bic, form)) = best else {
+        c.skipped = Some("no form of the effect could be fitted".into());
+        return c;
     };
-    let overrides = report.overrides();
-    let after = compile_text(&text, ctx.path, &overrides, ctx.registry)
-        .and_then(|x| evaluate(&x, ctx.roles, ctx.registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0));
-    let after = match after {
-        Ok(a) => a,
-        Err(e) => {
-            c.skipped = Some(format!("the fitted model cannot be evaluated: {e}"));
-            return c;
-        }
-    };
+    // Parameters a nested form holds stay at their starts (the effect absent).
+    let held = mine.iter().filter(|f| !form.iter().any(|g| g.name == f.name)).map(|f| (f.name.clone(), f.start));
     let values: Vec<(String, f64)> =
-        on_values.iter().cloned().chain(report.params.iter().map(|p| (p.name.clone(), p.value))).collect();
+        on_values.iter().cloned().chain(report.params.iter().map(|p| (p.name.clone(), p.value))).chain(held).collect();
     for e in effects {
         c.params.insert(e.name().to_string(), Json::Object(e.report(&values, ctx.roles, ctx.compiled)));
     }
-    // A cutting effect is informed by the trials alone; the rest by the FRFs and trials.
-    let k = mine.len() as f64;
-    let n = if cutting { after.trials.map_or(2.0, |t| t.0.max(2) as f64) } else { after.observations() };
-    c.bic = after.deviance() + after.trial_cost() + k * n.ln();
-    let reference_bic = reference.deviance() + reference.trial_cost();
+    c.bic = bic;
     c.delta_bic = reference_bic - c.bic;
     c.explains = after.at_floor();
     c.ratios_after = after.files.iter().map(|f| f.ratio).collect();
     c.trials_misclassified_after = after.trials.map(|t| t.1);
     c.fitted = report.params;
-    c.evaluations = report.evaluations;
+    c.evaluations = evaluations;
     c.converged = report.converged;
     c.seconds = t0.elapsed().as_secs_f64();
     c.evaluation = Some(after);
