@@ -58,7 +58,9 @@ fn describe(v: &Value) -> String {
         Value::Table(t) => {
             let mut s = format!("table, {} rows", t.rows());
             for c in &t.columns {
-                let vals: Vec<String> = c.values.iter().take(12).map(|x| n(*x)).collect();
+                let vals: Vec<String> = (0..c.values.len().min(12))
+                    .map(|i| c.word(i).map_or_else(|| n(c.values[i]), |w| shown(w).to_string()))
+                    .collect();
                 let more = if c.values.len() > 12 { ", …" } else { "" };
                 let _ = write!(s, "\n      {} [{}]: {}{more}", shown(&c.name), shown(&c.unit.symbol), vals.join(", "));
             }
@@ -233,7 +235,10 @@ fn headline(values: &[&Value]) -> String {
             .columns
             .iter()
             .take(6)
-            .map(|c| format!("{} {}", shown(&c.name), eng(c.values[0], &shown(&c.unit.symbol))))
+            .map(|c| match c.word(0) {
+                Some(w) => format!("{} {}", shown(&c.name), shown(w)),
+                None => format!("{} {}", shown(&c.name), eng(c.values[0], &shown(&c.unit.symbol))),
+            })
             .collect::<Vec<_>>()
             .join(", "),
         Value::Table(_) => {

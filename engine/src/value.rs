@@ -129,7 +129,21 @@ impl FrfDofs {
         self.response_node == self.reference_node && self.response_direction == self.reference_direction
     }
 
-    /// `response 3 +x, reference 1 +x`, for messages.
+    /// A UFF direction code as a word: `x`, `-y`, `rz`, `scalar`.
+    pub fn axis_word(code: i32) -> String {
+        let axis = match code.abs() {
+            1 => "x",
+            2 => "y",
+            3 => "z",
+            4 => "rx",
+            5 => "ry",
+            6 => "rz",
+            _ => return "scalar".into(),
+        };
+        if code < 0 { format!("-{axis}") } else { axis.into() }
+    }
+
+    /// `response 3 x, reference 1 x`, for messages.
     pub fn describe(&self) -> String {
         let axis = |c: i32| match c {
             1 => "x",
@@ -421,24 +435,62 @@ pub struct Lobes {
     pub chatter_hz: Vec<f64>,
 }
 
-/// A table of named numeric columns with units, e.g. figures of merit over a sweep.
+/// A table of named columns with units, e.g. figures of merit over a sweep: numbers, or
+/// words (a direction, a node's label) where a column names things.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Table {
     pub columns: Vec<Column>,
 }
 
-/// One column of a [`Table`].
+/// One column of a [`Table`]. A text column holds each row as an index into `levels` (as
+/// a categorical does), so every column stays a vector of numbers for the nodes and plots
+/// that compute with them, and is written and read as the words.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Column {
     pub name: String,
     pub unit: UnitLabel,
     #[serde(with = "nonfinite::seq")]
     pub values: Vec<f64>,
+    /// The words of a text column, indexed by `values`; empty for a numeric column. Always
+    /// serialised (the cache's binary form has no optional fields).
+    #[serde(default)]
+    pub levels: Vec<String>,
 }
 
 impl Column {
     pub fn new(name: impl Into<String>, unit: &str, values: Vec<f64>) -> Self {
-        Column { name: name.into(), unit: UnitLabel::new(unit), values }
+        Column { name: name.into(), unit: UnitLabel::new(unit), values, levels: Vec::new() }
+    }
+
+    /// A text column of `cells`, its levels in order of first appearance.
+    pub fn text<S: AsRef<str>>(name: impl Into<String>, cells: &[S]) -> Self {
+        let mut levels: Vec<String> = Vec::new();
+        let values = cells
+            .iter()
+            .map(|c| {
+                let c = c.as_ref();
+                let i = levels.iter().position(|l| l == c).unwrap_or_else(|| {
+                    levels.push(c.to_string());
+                    levels.len() - 1
+                });
+                i as f64
+            })
+            .collect();
+        Column { name: name.into(), unit: UnitLabel::new(""), values, levels }
+    }
+
+    pub fn is_text(&self) -> bool {
+        !self.levels.is_empty()
+    }
+
+    /// Row `i` of a text column as its word (`None` for a numeric column or an index
+    /// outside the levels).
+    pub fn word(&self, i: usize) -> Option<&str> {
+        let v = *self.values.get(i)?;
+        if !self.is_text() || v.is_nan() || v < 0.0 || v.fract() != 0.0 {
+            return None;
+        }
+        self.levels.get(v as usize).map(String::as_str)
     }
 }
 

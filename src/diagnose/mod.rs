@@ -390,12 +390,13 @@ fn evaluate(
                 .split(", ")
                 .find_map(|a| a.strip_prefix("file="))
                 .map_or_else(|| c.graph.instances[i].id.clone(), str::to_string);
-            let direction = match table_value(t, "direction") as i64 {
-                0 => "x",
-                1 => "y",
-                2 => "z",
-                _ => "?",
-            };
+            let direction = t
+                .columns
+                .iter()
+                .find(|c| c.name == "direction")
+                .and_then(|c| c.word(0))
+                .filter(|d| !d.is_empty())
+                .unwrap_or("?");
             files.push(FileGap {
                 file,
                 direction: direction.to_string(),

@@ -93,12 +93,27 @@ fn render_json(rows: &[Row], missing: &[MissingPoint]) -> String {
 /// A value as a plain JSON object (`{"speed_rpm": […], …}`), without the name of its type
 /// around it.
 fn plain(v: &Value) -> serde_json::Value {
-    match serde_json::to_value(v).unwrap_or_default() {
+    let mut j = match serde_json::to_value(v).unwrap_or_default() {
         serde_json::Value::Object(mut m) if m.len() == 1 => {
             m.values_mut().next().map(std::mem::take).unwrap_or_default()
         }
         other => other,
+    };
+    // A numeric column's empty `levels` says nothing; the reader defaults it.
+    if let (Value::Table(_), Some(columns)) = (v, j.get_mut("columns").and_then(|c| c.as_array_mut())) {
+        for c in columns.iter_mut().filter_map(|c| c.as_object_mut()) {
+            if c.get("levels").and_then(|l| l.as_array()).is_some_and(|l| l.is_empty()) {
+                c.remove("levels");
+            }
+        }
     }
+    j
+}
+
+/// A text cell: a comma would split it and a quote or line break end it, so those become
+/// `;` and a space.
+fn word(w: &str) -> String {
+    w.replace(',', ";").replace(['"', '\n', '\r'], " ")
 }
 
 fn num(v: f64) -> String {
@@ -199,6 +214,10 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
         // The units exactly as the values hold them, for the reader (a header tag is lossy).
         let units: Vec<String> = t.columns.iter().map(|c| format!("{}={}", c.name, c.unit.symbol)).collect();
         let _ = writeln!(out, "# units: {}", units.join(", "));
+        let text: Vec<&str> = t.columns.iter().filter(|c| c.is_text()).map(|c| c.name.as_str()).collect();
+        if !text.is_empty() {
+            let _ = writeln!(out, "# text: {}", text.join(", "));
+        }
         let cols: Vec<String> = t
             .columns
             .iter()
@@ -214,7 +233,11 @@ fn table_rows(out: &mut String, t: &Table, ph: &str, p: &str, header_done: &mut 
         *header_done = true;
     }
     for i in 0..t.rows() {
-        let cells: Vec<String> = t.columns.iter().map(|c| num(c.values[i])).collect();
+        let cells: Vec<String> = t
+            .columns
+            .iter()
+            .map(|c| if c.is_text() { word(c.word(i).unwrap_or("")) } else { num(c.values[i]) })
+            .collect();
         let _ = writeln!(out, "{p}{}", cells.join(","));
     }
 }
@@ -426,6 +449,40 @@ mod tests {
         assert_eq!((back[0].1, back[0].2.as_str()), (0.25e-3, "s"));
         assert_eq!(back[1].1, f64::INFINITY);
         assert_eq!(back[1].0, [("hammer_mass_kg".to_string(), "0.04".to_string())]);
+    }
+
+    /// Text columns are written as their words and read back as the same words, in CSV (named
+    /// by `# text:`) and in JSON; a word with a comma comes back with `;`.
+    #[test]
+    fn text_columns_read_back_as_words() {
+        use crate::value::{Column, PortType, Table};
+        let t = Value::Table(Table {
+            columns: vec![
+                Column::new("ratio", "", vec![1.5, 0.9, 1.0]),
+                Column::text("direction", &["x", "y", "x"]),
+                Column::text("node", &["3", "tip, left", ""]),
+            ],
+        });
+        let text = render(OutputFormat::Csv, &[Row { label: "speed=3000 rpm", value: &t }]);
+        assert!(text.contains("# text: direction, node\n") && text.contains(",1.5,x,3\n"), "{text}");
+        let back = formats::csv::read_tables(text.as_bytes(), "t.csv").unwrap();
+        let words = |c: &Column| (0..c.values.len()).map(|i| c.word(i).unwrap().to_string()).collect::<Vec<_>>();
+        let cols = &back[0].table.columns;
+        assert_eq!(cols[0].values, [1.5, 0.9, 1.0]);
+        assert!(!cols[0].is_text());
+        assert_eq!(words(&cols[1]), ["x", "y", "x"]);
+        assert_eq!(words(&cols[2]), ["3", "tip; left", ""]);
+        let json = render(OutputFormat::Json, &[Row { label: "", value: &t }]);
+        let Value::Table(j) = formats::read_json_value(&json, PortType::Table).unwrap() else { panic!() };
+        assert_eq!(Value::Table(j), t);
+        assert!(!json.contains("\"levels\": []"), "{json}");
+        // The cache's binary form keeps them too.
+        let bytes = postcard::to_stdvec(&t).unwrap();
+        assert_eq!(postcard::from_bytes::<Value>(&bytes).unwrap(), t);
+        // A `# text:` naming no column of the table is refused at its line.
+        let bad = "# units: a=\n# text: b\na\n1\n";
+        let e = formats::csv::read_tables(bad.as_bytes(), "bad.csv").unwrap_err().to_string();
+        assert!(e.starts_with("bad.csv:2") && e.contains("`b`"), "{e}");
     }
 
     /// A swept table that holds its sweep coordinates as columns (a simulated cut's speed and

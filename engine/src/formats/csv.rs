@@ -892,8 +892,8 @@ pub struct TableBlock {
 
 /// Reads a table as a table output writes it: `# units: name=unit, …`, a header whose last
 /// columns are the table's (led by sweep columns in a swept file), numeric rows (`NaN`,
-/// `inf` allowed: a trial outside a diagram, a lobe that limits nothing). Without a units
-/// line every column is the table's, with no unit.
+/// `inf` allowed: a trial outside a diagram, a lobe that limits nothing), words in the
+/// columns `# text:` names. Without a units line every column is the table's, with no unit.
 pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatError> {
     let sheet = Sheet::open(bytes, path, Forms::Plain)?;
     let mut units: Vec<(&str, &str)> = Vec::new();
@@ -954,14 +954,32 @@ pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatEr
         });
     }
     let names: Vec<&str> = units.iter().map(|(n, _)| *n).collect();
+    // Text columns, as `# text:` names them: their cells are words, not numbers.
+    let mut text = vec![false; names.len()];
+    for m in sheet.meta().filter(|m| m.key == "text") {
+        for name in m.value.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            let Some(k) = names.iter().position(|n| *n == name) else {
+                return Err(FormatError::Expected {
+                    at: Loc::new(path, m.line, m.column),
+                    expected: "the names of columns `# units:` lists after `# text:`".into(),
+                    found: format!("`{}`", shown_cell(name)),
+                });
+            };
+            text[k] = true;
+        }
+    }
     let columns = super::listed(&header[lead..], ",");
     let mut blocks: Vec<TableBlock> = Vec::new();
     let mut row = vec![0.0; names.len()];
+    let mut words: Vec<String> = vec![String::new(); names.len()];
     for (line, raw) in sheet.rows() {
         // Cells of the table itself; non-finite numbers are values here.
         let mut k = 0;
         for (_, cell) in cells(&raw).skip(lead).take(MAX_COLUMNS + 1) {
-            if k < names.len() {
+            if k < names.len() && text[k] {
+                words[k].clear();
+                words[k].push_str(cell);
+            } else if k < names.len() {
                 row[k] = cell.parse::<f64>().map_err(|_| FormatError::Expected {
                     at: Loc::new(path, line, 0),
                     expected: format!("a number in column `{}`", names[k]),
@@ -996,8 +1014,16 @@ pub fn read_tables(bytes: &[u8], path: &str) -> Result<Vec<TableBlock>, FormatEr
             blocks.push(TableBlock { coords, table });
         }
         let t = &mut blocks.last_mut().expect("pushed").table;
-        for (c, v) in t.columns.iter_mut().zip(&row) {
-            c.values.push(*v);
+        for (k, c) in t.columns.iter_mut().enumerate() {
+            if text[k] {
+                let i = c.levels.iter().position(|l| *l == words[k]).unwrap_or_else(|| {
+                    c.levels.push(words[k].clone());
+                    c.levels.len() - 1
+                });
+                c.values.push(i as f64);
+            } else {
+                c.values.push(row[k]);
+            }
         }
     }
     Ok(blocks)

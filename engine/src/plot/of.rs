@@ -634,7 +634,8 @@ fn table(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
         let Some(x) = t.columns.first() else { return Err(PlotError::Empty) };
         let (xs, xu) = signal_unit(&x.unit.symbol);
         let x_label = if xu.is_empty() { x.name.clone() } else { format!("{} [{xu}]", x.name) };
-        for c in t.columns.iter().skip(1) {
+        // Text columns name rows; they are not drawn.
+        for c in t.columns.iter().skip(1).filter(|c| !c.is_text()) {
             let (s, u) = signal_unit(&c.unit.symbol);
             let key = if many { c.name.clone() } else { u.clone() };
             let k = match panels.iter().position(|(key_, _)| *key_ == key) {

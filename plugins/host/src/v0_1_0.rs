@@ -95,7 +95,12 @@ pub fn from_wit(v: wit::Value) -> Result<ev::Value, String> {
                 columns: t
                     .columns
                     .into_iter()
-                    .map(|c| ev::Column { name: c.name, unit: UnitLabel::new(c.unit), values: c.values })
+                    .map(|c| ev::Column {
+                        name: c.name,
+                        unit: UnitLabel::new(c.unit),
+                        values: c.values,
+                        levels: Vec::new(),
+                    })
                     .collect(),
             })
         }

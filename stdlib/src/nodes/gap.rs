@@ -40,7 +40,7 @@ impl FrfGap {
                     PortSpec::new(
                         "summary",
                         PortType::Table,
-                        "one row: rel_l2, noise_floor, ratio, peak_model, peak_measured (Hz), peak_freq_error, max_discrepancy (Hz), max_discrepancy_rel, lines, n_eff (effective independent lines: at the floor ratio² is 1 ± 1/√n_eff), speed (rpm), direction (0 x, 1 y, 2 z, −1 unknown)",
+                        "one row: rel_l2, noise_floor, ratio, peak_model, peak_measured (Hz), peak_freq_error, max_discrepancy (Hz), max_discrepancy_rel, lines, n_eff (effective independent lines: at the floor ratio² is 1 ± 1/√n_eff), speed (rpm), direction (text: x, y, z; empty when unknown)",
                     ),
                     PortSpec::new("bands", PortType::Table, "per band: lo, hi (Hz), rel_l2, noise_floor, ratio, lines"),
                     PortSpec::new(
@@ -208,12 +208,7 @@ impl Node for FrfGap {
         let coherence = meas.coherence.as_ref().map(|_| coh.as_slice());
         let g =
             gap::gap(&f, &hm, &hx, coherence, noise, bands).map_err(|e| NodeError::input("measured", e.to_string()))?;
-        let direction = match meas.direction.as_deref().or(model.direction.as_deref()) {
-            Some("x") => 0.0,
-            Some("y") => 1.0,
-            Some("z") => 2.0,
-            _ => -1.0,
-        };
+        let direction = meas.direction.as_deref().or(model.direction.as_deref()).unwrap_or("");
         let speed = meas.speed_rpm.or(model.speed_rpm).unwrap_or(f64::NAN);
         let one = |name: &str, unit: &str, v: f64| Column::new(name, unit, vec![v]);
         let summary = Table {
@@ -229,7 +224,7 @@ impl Node for FrfGap {
                 one("lines", "", g.freq_hz.len() as f64),
                 one("n_eff", "", g.n_eff),
                 one("speed", "rpm", speed),
-                one("direction", "", direction),
+                Column::text("direction", &[direction]),
             ],
         };
         let col = |name: &str, unit: &str, get: &dyn Fn(&gap::BandGap) -> f64| {

@@ -6,7 +6,7 @@ use super::convert;
 use crate::modal_fit::{self, FitError, SetFit, SetOptions, Stability, Targets, Weighting, signed_mode_of_residue};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, Frf, FrfKind, FrfSet, ModalModel, Mode, PortType, Table, Value};
+use spindlelab_engine::value::{Column, Frf, FrfDofs, FrfKind, FrfSet, ModalModel, Mode, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 pub struct ModalFitSetNode {
@@ -40,7 +40,7 @@ impl ModalFitSetNode {
                     PortSpec::new(
                         "residues",
                         PortType::Table,
-                        "per FRF and mode: the FRF's place in the set (from 1) and its response and reference node and direction code (NaN without), the mode, its frequency, the complex residue A (H = Σ A/(iω − λ) + conj, as a receptance) and the signed modal mass 1/(2ω_d|A|)",
+                        "per FRF and mode: the FRF's place in the set (from 1) and its response and reference node (NaN without) and direction (`x`, `-y`; empty without), the mode, its frequency, the complex residue A (H = Σ A/(iω − λ) + conj, as a receptance) and the signed modal mass 1/(2ω_d|A|)",
                     ),
                     PortSpec::new(
                         "stabilisation",
@@ -294,25 +294,36 @@ fn report(ctx: &NodeContext, set: &FrfSet, fit: &SetFit, opts: &SetOptions) {
     }
 }
 
-/// The FRF's place and nodes as table cells: place from 1, node numbers and direction codes (NaN
-/// when the FRF has none).
-fn place(o: usize, f: &Frf) -> [f64; 5] {
+/// Where an FRF sits in the set: its place (from 1), and its response and reference node
+/// and direction when the file numbers them.
+struct Place {
+    frf: f64,
+    nodes: [f64; 2],
+    directions: [String; 2],
+}
+
+fn place(o: usize, f: &Frf) -> Place {
     match f.dofs {
-        Some(d) => [
-            (o + 1) as f64,
-            d.response_node as f64,
-            d.response_direction as f64,
-            d.reference_node as f64,
-            d.reference_direction as f64,
-        ],
-        None => [(o + 1) as f64, f64::NAN, f64::NAN, f64::NAN, f64::NAN],
+        Some(d) => Place {
+            frf: (o + 1) as f64,
+            nodes: [d.response_node as f64, d.reference_node as f64],
+            directions: [FrfDofs::axis_word(d.response_direction), FrfDofs::axis_word(d.reference_direction)],
+        },
+        None => Place { frf: (o + 1) as f64, nodes: [f64::NAN; 2], directions: [String::new(), String::new()] },
     }
 }
 
-const PLACE: [&str; 5] = ["frf", "response_node", "response_direction", "reference_node", "reference_direction"];
-
-fn place_columns(rows: &[[f64; 5]]) -> Vec<Column> {
-    PLACE.iter().enumerate().map(|(i, n)| Column::new(*n, "", rows.iter().map(|r| r[i]).collect())).collect()
+/// The place columns: `frf`, `response_node`, `response_direction` (a word: `x`, `-y`),
+/// `reference_node`, `reference_direction`.
+fn place_columns(rows: &[Place]) -> Vec<Column> {
+    let words = |i: usize| rows.iter().map(|r| r.directions[i].as_str()).collect::<Vec<_>>();
+    vec![
+        Column::new("frf", "", rows.iter().map(|r| r.frf).collect()),
+        Column::new("response_node", "", rows.iter().map(|r| r.nodes[0]).collect()),
+        Column::text("response_direction", &words(0)),
+        Column::new("reference_node", "", rows.iter().map(|r| r.nodes[1]).collect()),
+        Column::text("reference_direction", &words(1)),
+    ]
 }
 
 fn outputs(set: &FrfSet, fit: &SetFit, point: usize) -> Outputs {
@@ -370,7 +381,7 @@ fn outputs(set: &FrfSet, fit: &SetFit, point: usize) -> Outputs {
             d.iter().map(|p| f64::from(u8::from(selected.contains(&(p.order, p.f_hz))))).collect(),
         ),
     ]);
-    let places: Vec<[f64; 5]> = set.frfs.iter().enumerate().map(|(o, f)| place(o, f)).collect();
+    let places: Vec<Place> = set.frfs.iter().enumerate().map(|(o, f)| place(o, f)).collect();
     let mut terms = place_columns(&places);
     terms.extend([
         Column::new("lower_residual_re", "m/(N s^2)", fit.lower.iter().map(|v| v.re).collect()),

@@ -170,7 +170,12 @@ impl Node for RunoutRemove {
                 columns.push(Column::new("angle", "rad", angle));
             }
             if opr.profile.len() == columns[0].values.len() {
-                columns.push(Column { name: ch.name.clone(), unit: ch.unit.clone(), values: opr.profile });
+                columns.push(Column {
+                    name: ch.name.clone(),
+                    unit: ch.unit.clone(),
+                    values: opr.profile,
+                    levels: Vec::new(),
+                });
             }
             if opr.revolutions < 3 {
                 ctx.warn(format!(

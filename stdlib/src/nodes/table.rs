@@ -49,7 +49,12 @@ impl Node for TableCollect {
         let axes = &items[0].coords;
         let mut columns: Vec<Column> = axes
             .iter()
-            .map(|a| Column { name: a.name.clone(), unit: UnitLabel::new(a.unit.clone()), values: Vec::new() })
+            .map(|a| Column {
+                name: a.name.clone(),
+                unit: UnitLabel::new(a.unit.clone()),
+                values: Vec::new(),
+                levels: Vec::new(),
+            })
             .collect();
         // Each axis in the unit the recipe wrote it (`6000 rpm`, `1 mm`) where every sweep point
         // writes it in the same unit; in SI otherwise.
@@ -91,7 +96,7 @@ impl Node for TableCollect {
             values.push(s.value);
         }
         let name = ctx.params.text("name").unwrap_or("value").to_string();
-        columns.push(Column { name, unit: UnitLabel::new(unit), values });
+        columns.push(Column { name, unit: UnitLabel::new(unit), values, levels: Vec::new() });
         Ok([("table".to_string(), Value::Table(Table { columns }))].into_iter().collect())
     }
 }
