@@ -1,7 +1,7 @@
 //! A recipe can say everything a training `case.json` says: the resolved recipe of
 //! `tests/data/train-07-case.yaml` holds the same numbers as `tests/data/train_07-case.json`.
 
-mod common;
+use crate::common;
 
 use serde_json::Value as Json;
 use std::path::Path;

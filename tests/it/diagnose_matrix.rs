@@ -7,7 +7,7 @@
 //! identification rate (≥ 95 %) and the false alarms on the controls (none). The verdicts
 //! that leave something unexplained are checked in the default tier.
 
-mod common;
+use crate::common;
 
 use common::synthetic::{Case, Effects, diagnose_case, score, summarise};
 use rayon::prelude::*;

@@ -7,7 +7,7 @@
 //! (0.5 mm elements against 2 mm).
 //!
 //! Slow (about half a minute of diagnosis per case on one core): run with
-//! `cargo test --test diagnose_out_of_sample -- --ignored --nocapture` for the table.
+//! `cargo test --test it diagnose_out_of_sample -- --ignored --nocapture` for the table.
 //!
 //! It asks what the diagnosis aims at: identification ≥ 95 % of the cases with an effect, no
 //! false alarm on the controls, and the main parameter within 15 % in ≥ 90 % of the effects
@@ -16,7 +16,7 @@
 //! by less than the 8 % the trials keep from it, so the baseline misclassifies none of the
 //! sixty trials and "no significant discrepancy" is the only answer the data allow.
 
-mod common;
+use crate::common;
 
 use common::synthetic::{Case, Effects, score, summarise, training_dir};
 use rand::{RngExt, SeedableRng};

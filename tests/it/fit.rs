@@ -1,7 +1,5 @@
 //! Fits: a recipe's free parameters moved to bring its model to the measurements.
 
-mod common;
-
 use serde_json::Value as Json;
 use spindlelab::engine::exec::RunOptions;
 use spindlelab::engine::value::Value;

@@ -2,7 +2,7 @@
 //! numbers exactly, compiles beside the case's data, and reproduces the truth simulator's
 //! baseline (FRF gaps and misclassified trials from `truth.json`).
 
-mod common;
+use crate::common;
 
 use serde_json::Value as Json;
 use spindlelab::engine::exec::RunOptions;

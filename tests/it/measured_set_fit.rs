@@ -3,7 +3,7 @@
 //! shared (`modal.fit_set`), validated against sdypy-EMA's joint fit; the set written as UFF and
 //! CSV and read back with its node numbers; FRFs on different grids refused.
 
-mod common;
+use crate::common;
 
 use common::measured::{data, recipe_file, run_recipe};
 use common::{Ran, assert_has, run_at};

@@ -2,7 +2,7 @@
 //! (`tests/data/measured/`, source and licence in its README), node and direction numbers,
 //! FRF kinds and cross FRFs in the modal fit.
 
-mod common;
+use crate::common;
 
 use common::measured::{data, recipe_file, run_recipe};
 use common::{Ran, assert_has};

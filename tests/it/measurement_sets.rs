@@ -1,7 +1,7 @@
 //! Measurement sets: files named once (list or glob) become one `read.frf` per file, and
 //! model steps fed by them fan out, each taking its direction and speed from its file.
 
-mod common;
+use crate::common;
 
 use common::{assert_has, rejected, run};
 use spindlelab::engine::value::Value;

@@ -691,7 +691,7 @@ fn the_spectrum_plugin_names_a_sample_that_is_not_a_number_and_a_sum_that_overfl
 }
 
 /// The SDK's paired `sin` and `cos`, compiled natively.
-#[path = "../plugins/guest/sdk/src/trig.rs"]
+#[path = "../../plugins/guest/sdk/src/trig.rs"]
 mod trig;
 
 /// The plugin SDK's `sin` and `cos` (one argument reduction for an angle's cosine and sine)

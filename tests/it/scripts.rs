@@ -14,7 +14,7 @@ fn every_recipe_in_scripts() {
         Default::default(),
         Some(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plugin-cache")),
     );
-    insta::glob!("../scripts", "*.{yaml,rhai}", |path| {
+    insta::glob!("../../scripts", "*.{yaml,rhai}", |path| {
         let mut registry = spindlelab::registry();
         let compiled = match spindlelab::plugins::compile_file(path, &[], &mut registry, &mut plugins) {
             Ok(c) => c,

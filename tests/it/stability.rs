@@ -3,7 +3,7 @@
 //! lobes of FRFs that do not change with speed equal the stationary lobes, the speed-dependent-sld recipe shows
 //! the §6.4 result near 3800 rpm, and bad input is refused with its place and what to do.
 
-mod common;
+use crate::common;
 
 use common::{Ran, assert_has, rejected, run};
 use spindlelab::engine::formats::{csv, uff};

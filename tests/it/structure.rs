@@ -4,7 +4,7 @@
 //! a soft one lowers the tool mode, and receptance files read back what was written. Recipes
 //! live in `tests/data/structure/`, bad ones in `tests/bad/`.
 
-mod common;
+use crate::common;
 
 use common::{Ran, assert_has, rejected, run_at};
 use spindlelab::engine;
