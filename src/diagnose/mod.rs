@@ -463,6 +463,28 @@ fn at_trial_speeds(r: &RecipeText, roles: &Roles, trial_speeds: &[f64]) -> Resul
     Ok(r)
 }
 
+/// The most speeds a picture's diagram is drawn at, besides the trials' own.
+const PICTURE_SPEEDS: usize = 1001;
+
+/// The recipe with its lobes at no more than [`PICTURE_SPEEDS`] of its own speeds, evenly
+/// spread over them, and at every trial's speed (so a trial is judged where it was cut): a
+/// picture does not need a diagram at every rpm step, and a fine grid over a wide range costs
+/// seconds. A recipe with fewer speeds, or one that cannot be edited, is drawn as written.
+fn at_picture_speeds(r: &RecipeText, roles: &Roles, c: &Compiled, trial_speeds: &[f64]) -> RecipeText {
+    let Some(lobes) = &roles.lobes else { return r.clone() };
+    let Some(own) = c.recipe.step(lobes).and_then(|s| s.params.list("speeds")) else { return r.clone() };
+    if own.len() <= PICTURE_SPEEDS {
+        return r.clone();
+    }
+    let rpm = |w: f64| w * 30.0 / std::f64::consts::PI;
+    let last = own.len() - 1;
+    let mut speeds: Vec<f64> = (0..PICTURE_SPEEDS).map(|i| rpm(own[i * last / (PICTURE_SPEEDS - 1)])).collect();
+    speeds.extend(trial_speeds.iter().copied());
+    speeds.sort_by(f64::total_cmp);
+    speeds.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * b.abs());
+    at_trial_speeds(r, roles, &speeds).unwrap_or_else(|_| r.clone())
+}
+
 /// The distinct speeds (rpm) of the scored trials, read from the trials file; empty when
 /// the recipe scores none or the file cannot be read (the run then says why).
 fn trial_speeds(c: &Compiled, roles: &Roles) -> Vec<f64> {
@@ -610,6 +632,9 @@ fn try_candidate(
     let observations = |after: &Evaluation| {
         if cutting { after.trials.map_or(2.0, |t| t.0.max(2) as f64) } else { after.observations() }
     };
+    // The FRF candidates are fitted side by side, one thread each; a cutting effect is fitted
+    // alone, after them, and its lobes take every core.
+    let threads = if cutting { None } else { Some(1) };
     // Fits the parameters `free` (the rest held where they start) and scores the result.
     let attempt = |free: &[Free]| -> Result<(FitReport, Evaluation, f64), String> {
         let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(free)).max().unwrap_or(0) } else { 0 };
@@ -618,7 +643,7 @@ fn try_candidate(
         let compiled = compile_text(&fitting, ctx.path, &[], ctx.registry)
             .map_err(|e| format!("the augmented recipe does not compile: {e}"))?;
         let report =
-            crate::fit::fit(&compiled, &[], ctx.registry, Some(1)).map_err(|e| format!("the fit failed: {e}"))?;
+            crate::fit::fit(&compiled, &[], ctx.registry, threads).map_err(|e| format!("the fit failed: {e}"))?;
         let after = compile_text(&text, ctx.path, &report.overrides(), ctx.registry)
             .and_then(|x| evaluate(&x, ctx.roles, ctx.registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0))
             .map_err(|e| format!("the fitted model cannot be evaluated: {e}"))?;
@@ -967,9 +992,13 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
             .collect(),
         ..Pictures::default()
     };
-    pictures.lobes_before = diagram(&base, path, &roles, registry, Arc::clone(&ctx.memo));
+    let drawn = |r: &RecipeText| {
+        let r = at_picture_speeds(r, &roles, &compiled, &baseline.trial_speeds_rpm);
+        diagram(&r, path, &roles, registry, Arc::clone(&ctx.memo))
+    };
+    pictures.lobes_before = drawn(&base);
     if !named.is_empty() {
-        pictures.lobes_after = diagram(&diagnosed, path, &roles, registry, Arc::clone(&ctx.memo));
+        pictures.lobes_after = drawn(&diagnosed);
     }
     let header = diagnosed_header(&named, &named_values, &roles, &compiled, verdict, &effects);
     Ok(Diagnosis {
