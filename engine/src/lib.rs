@@ -246,6 +246,20 @@ pub fn run(
         if rows.is_empty() || (!missing.is_empty() && ids.len() == 1) {
             continue;
         }
+        // Scalars in the unit the output asks for.
+        let converted: Vec<value::Value>;
+        if let Some(unit) = &out.unit {
+            match rows.iter().map(|r| in_unit(r.value, unit)).collect::<Result<Vec<_>, _>>() {
+                Ok(v) => converted = v,
+                Err(message) => {
+                    plot_notes.push(format!("{}: not written: {message}", out.file));
+                    continue;
+                }
+            }
+            for (r, v) in rows.iter_mut().zip(&converted) {
+                r.value = v;
+            }
+        }
         let bytes = match out.format {
             model::OutputFormat::Plot(format) => match plot_output(compiled, &result, out, format, &rows) {
                 Ok(bytes) => bytes,
@@ -296,6 +310,26 @@ pub fn run(
 
 /// Why instance `i` has no value: its own error, or the failed instance upstream that kept it
 /// from running.
+/// A scalar in `unit` as the recipe wrote it (`deg/kHz`): its SI value over the unit's scale,
+/// when the two measure the same quantity.
+fn in_unit(v: &value::Value, unit: &str) -> Result<value::Value, String> {
+    use spindlelab_grammar::{Unit, parse_unit};
+    let value::Value::Scalar(s) = v else {
+        return Err(format!("`unit` is for a scalar; this is a {}", v.port_type()));
+    };
+    let to = parse_unit(unit).map_err(|e| format!("`{unit}` is not a unit: {e}"))?;
+    let from = match s.unit.symbol.as_str() {
+        "" => Unit::ONE,
+        symbol => parse_unit(symbol).map_err(|_| format!("the value's unit `{symbol}` cannot be converted"))?,
+    };
+    if from.dim != to.dim {
+        let held =
+            if s.unit.symbol.is_empty() { "a plain number".to_string() } else { format!("in {}", s.unit.symbol) };
+        return Err(format!("the value is {held}, which `{unit}` does not measure"));
+    }
+    Ok(value::Value::Scalar(value::Scalar::new(s.value * from.scale / to.scale, unit)))
+}
+
 fn missing_reason(graph: &graph::Graph, result: &RunResult, i: usize) -> String {
     match &result.outcomes[i] {
         Outcome::Failed(e) => format!("failed: {e}"),

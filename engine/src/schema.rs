@@ -235,7 +235,8 @@ pub fn recipe_schema(registry: &Registry) -> Value {
                     "description": "values drawn over a plot (`@step.port`)"},
                 "plot": {"type": "string", "enum": ["bode", "real-imag", "blocks", "spectrum", "default"],
                     "description": "the plot's view when its type has several"},
-                "label": {"type": "string", "description": "a plot's name for `from` in its legend and title"}}}}),
+                "label": {"type": "string", "description": "a plot's name for `from` in its legend and title"},
+                "unit": {"type": "string", "description": "the unit a scalar is written in (`deg/kHz`), SI without"}}}}),
     );
     json!({
         "$schema": "http://json-schema.org/draft-07/schema#",

@@ -123,3 +123,63 @@ fn diagnose_writes_under_the_recipe_name_like_run() {
     assert!(!dir.path().join("out/my-recipe").exists());
     assert!(out.contains("to out/train_02/diagnosis"), "{out}");
 }
+
+/// A scalar output written in the unit the output names (`unit: deg/kHz`), read back through
+/// the scalar reader in that unit; a unit of another quantity is reported and that file alone
+/// is not written; a unit that is none, or one on a plot, is refused at its place (exit 2).
+#[test]
+fn a_scalar_output_is_written_in_the_unit_it_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = |outputs: &str| {
+        format!(
+            "spindlelab: 1
+name: slope
+steps:
+  slope:
+    kind: rhai.eval
+    params: {{ expr: \"-13.84 * 3.141592653589793 / 180.0 / 1000.0\", unit: \"rad*s\" }}
+outputs:
+{outputs}"
+        )
+    };
+    std::fs::write(
+        dir.path().join("r.yaml"),
+        recipe(
+            "  - { from: \"@slope.value\", file: slope.csv, unit: deg/kHz }
+  - { from: \"@slope.value\", file: slope.json, unit: deg/kHz }
+  - { from: \"@slope.value\", file: si.csv }
+  - { from: \"@slope.value\", file: wrong.csv, unit: mm }
+",
+        ),
+    )
+    .unwrap();
+    let (code, _, err) = spindlelab(dir.path(), &["run", "r.yaml", "-o", "out", "-q"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("wrong.csv: not written: the value is in rad*s, which `mm` does not measure"), "{err}");
+    assert!(!dir.path().join("out/wrong.csv").exists());
+    let csv = std::fs::read(dir.path().join("out/slope.csv")).unwrap();
+    let back = spindlelab::engine::formats::csv::read_scalars(&csv, "slope.csv").unwrap();
+    assert_eq!(back[0].2, "deg/kHz");
+    assert!((back[0].1 + 13.84).abs() < 1e-12, "{}", back[0].1);
+    assert!(String::from_utf8_lossy(&csv).contains("value_deg_per_kHz"));
+    let si = std::fs::read(dir.path().join("out/si.csv")).unwrap();
+    let back = spindlelab::engine::formats::csv::read_scalars(&si, "si.csv").unwrap();
+    assert_eq!(back[0].2, "rad*s");
+    let json = std::fs::read_to_string(dir.path().join("out/slope.json")).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert!((j["value"].as_f64().unwrap() + 13.84).abs() < 1e-12 && json.contains("deg/kHz"), "{json}");
+
+    for (outputs, said) in [
+        ("  - { from: \"@slope.value\", file: a.csv, unit: furlongs }\n", "bad.yaml:8:48"),
+        (
+            "  - { from: \"@slope.value\", file: a.svg, unit: deg/kHz }\n",
+            "is for a scalar written to `.csv` or `.json`",
+        ),
+    ] {
+        std::fs::write(dir.path().join("bad.yaml"), recipe(outputs)).unwrap();
+        let (code, _, err) = spindlelab(dir.path(), &["run", "bad.yaml", "-o", "bad", "-q"]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(said), "{err}");
+        assert!(!dir.path().join("bad").exists());
+    }
+}

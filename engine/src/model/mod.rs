@@ -241,6 +241,8 @@ pub struct Output {
     pub plot: Option<String>,
     /// A plot's name for `from` in its legend and title, over the step's own `label`.
     pub label: Option<String>,
+    /// The unit a scalar output is written in, as the recipe wrote it (`deg/kHz`); SI without.
+    pub unit: Option<String>,
     pub span: Span,
 }
 

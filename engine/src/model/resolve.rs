@@ -33,7 +33,7 @@ const TOP_KEYS: &[&str] = &[
     "exports",
 ];
 const STEP_KEYS: &[&str] = &["kind", "params", "inputs", "sweep", "description", "label"];
-const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot", "label"];
+const OUTPUT_KEYS: &[&str] = &["from", "file", "with", "plot", "label", "unit"];
 
 /// Files a run writes itself beside its outputs: the manifest, and a fit's report and recipe.
 const RESERVED_OUTPUTS: &[&str] = &["manifest.json", "fit.json", "fitted.yaml", "report.html"];
@@ -968,6 +968,35 @@ fn resolve_outputs(
             }
         };
         let is_plot = matches!(format, OutputFormat::Plot(_));
+        // The unit a scalar is written in (`unit: deg/kHz`), as the recipe's people read it.
+        let unit = match item.get("unit") {
+            None => None,
+            Some(u) if matches!(format, OutputFormat::Csv | OutputFormat::Json) => {
+                match u.as_str().map(|t| (t, spindlelab_grammar::parse_unit(t))) {
+                    Some((t, Ok(_))) => Some((t.to_string(), u.span.clone())),
+                    Some((t, Err(e))) => {
+                        diags.error_help(
+                            Some(&u.span),
+                            format!("`unit: {t}` is not a unit: {e}"),
+                            "e.g. `unit: deg/kHz`",
+                        );
+                        continue;
+                    }
+                    None => {
+                        diags.error_help(Some(&u.span), "`unit` takes a unit", "e.g. `unit: deg/kHz`");
+                        continue;
+                    }
+                }
+            }
+            Some(u) => {
+                diags.error_help(
+                    Some(&u.span),
+                    format!("`unit` is for a scalar written to `.csv` or `.json`; `{fname}` is not one"),
+                    "leave `unit` out",
+                );
+                continue;
+            }
+        };
         for key in ["with", "plot", "label"] {
             if let (Some(v), false) = (item.get(key), is_plot) {
                 diags.error_help(
@@ -1050,6 +1079,16 @@ fn resolve_outputs(
                     }
                     continue;
                 };
+                if let Some((_, span)) = &unit
+                    && port.ty != PortType::Scalar
+                {
+                    diags.error_help(
+                        Some(span),
+                        format!("`unit` is for a scalar output; `{r}` is a {}", port.ty),
+                        "leave `unit` out",
+                    );
+                    continue;
+                }
                 if format == OutputFormat::Uff
                     && !matches!(
                         port.ty,
@@ -1162,6 +1201,7 @@ fn resolve_outputs(
             with: with.into_iter().map(|(r, _, _)| r).collect(),
             plot: plot.map(|(v, _)| v),
             label,
+            unit: unit.map(|(t, _)| t),
             span: item.span.clone(),
         });
     }
