@@ -3,27 +3,9 @@
 //! not drive the terminal. Each through the binary.
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::Stdio;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_spindlelab"));
-    c.env("NO_COLOR", "1").env_remove("RUST_BACKTRACE");
-    c
-}
-
-fn run_in(cwd: &Path, args: &[&str]) -> Output {
-    bin().args(args).current_dir(cwd).output().expect("the binary starts")
-}
-
-fn text(o: &Output) -> String {
-    format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn no_panic(o: &Output) {
-    let t = text(o);
-    assert!(!t.contains("panicked"), "the binary panicked:\n{t}");
-    assert_ne!(o.status.code(), Some(101), "{t}");
-}
+use crate::common::binary::{bin, no_panic, run_in, text};
 
 /// No character of the output may drive a terminal: no control character but the line break.
 fn no_raw_controls(s: &str) {

@@ -8,29 +8,10 @@ use spindlelab::engine::formats::{self, FileFormat, FrfSelect};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
-use std::process::{Command, Output};
 
 // ---------------------------------------------------------------- the binary
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_spindlelab"));
-    c.env("NO_COLOR", "1").env_remove("RUST_BACKTRACE");
-    c
-}
-
-fn run_in(cwd: &Path, args: &[&str]) -> Output {
-    bin().args(args).current_dir(cwd).output().expect("the binary starts")
-}
-
-fn text(o: &Output) -> String {
-    format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn no_panic(o: &Output) {
-    let t = text(o);
-    assert!(!t.contains("panicked"), "the binary panicked:\n{t}");
-    assert_ne!(o.status.code(), Some(101), "{t}");
-}
+use crate::common::binary::{no_panic, run_in, text};
 
 /// Runs `args` in `dir` and expects bad input: exit code 2 and no panic; returns what it said.
 fn refused(dir: &Path, args: &[&str]) -> String {

@@ -2,28 +2,10 @@
 //! data file (docs/guarantees.md), each reproduced through the binary.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Stdio;
 use std::time::Duration;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_spindlelab"));
-    c.env("NO_COLOR", "1").env_remove("RUST_BACKTRACE");
-    c
-}
-
-fn run_in(cwd: &Path, args: &[&str]) -> Output {
-    bin().args(args).current_dir(cwd).output().expect("the binary starts")
-}
-
-fn text(o: &Output) -> String {
-    format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn no_panic(o: &Output) {
-    let t = text(o);
-    assert!(!t.contains("panicked"), "the binary panicked:\n{t}");
-    assert_ne!(o.status.code(), Some(101), "{t}");
-}
+use crate::common::binary::{bin, no_panic, run_in, text};
 
 /// A small recipe with a sweep: a few files, a few hundred milliseconds.
 fn write_recipe(dir: &Path, name: &str, hammer_stiffness: &str) -> PathBuf {

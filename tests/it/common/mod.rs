@@ -2,6 +2,7 @@
 //! port, and run the binary on a bad fixture of `tests/bad/`.
 #![allow(dead_code)] // each test crate uses a different part
 
+pub mod binary;
 pub mod case;
 pub mod measured;
 pub mod synthetic;
