@@ -5,7 +5,9 @@
 mod alloc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use spindlelab_stdlib::eb_modes::{BeamMaterial, EquivalentMode, spindle_receptance};
+use spindlelab_domain::entity::SpindleMode;
+use spindlelab_domain::{Material, Speed};
+use spindlelab_stdlib::eb_modes::spindle_receptance;
 use spindlelab_stdlib::rcsa::{Complex64, Interface, RcsaOptions, Receptance, TwoPort, couple, decouple};
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -35,11 +37,12 @@ fn rigid_body(freqs: &[f64], m: f64, j: f64, x1: f64, xg: f64) -> TwoPort {
 fn bench_rcsa(c: &mut Criterion) {
     let freqs: Vec<f64> = (1..=LINES).map(|i| i as f64).collect();
     let modes = [
-        EquivalentMode::new(700.0, 0.11, 0.05),
-        EquivalentMode::new(1900.0, 0.07, 0.04),
-        EquivalentMode::new(3300.0, 0.05, 0.03),
+        SpindleMode::new(700.0, 0.11, 0.05),
+        SpindleMode::new(1900.0, 0.07, 0.04),
+        SpindleMode::new(3300.0, 0.05, 0.03),
     ];
-    let spindle = spindle_receptance(&modes, &BeamMaterial::STEEL, 0.0, 10_000.0, &freqs).expect("valid modes");
+    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
+        .expect("valid modes");
     let artifact = rigid_body(&freqs, 1.2, 1.5e-3, 0.08, 0.03);
     let tool = rigid_body(&freqs, 0.3, 1e-4, 0.1, 0.04);
     let options = RcsaOptions::default();
@@ -52,7 +55,10 @@ fn bench_rcsa(c: &mut Criterion) {
         })
     });
     c.bench_function("eb_modes/3 modes/10000", |b| {
-        b.iter(|| spindle_receptance(black_box(&modes), &BeamMaterial::STEEL, 0.0, 10_000.0, &freqs).expect("ok"))
+        b.iter(|| {
+            spindle_receptance(black_box(&modes), &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
+                .expect("ok")
+        })
     });
 }
 

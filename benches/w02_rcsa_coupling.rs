@@ -10,9 +10,11 @@
 mod alloc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use spindlelab_domain::entity::SpindleMode;
+use spindlelab_domain::{Material, Speed};
 use spindlelab_stdlib::beam::table::{tool_holder_sections, w01_segments};
 use spindlelab_stdlib::beam::{BeamModel, MeshOptions};
-use spindlelab_stdlib::eb_modes::{BeamMaterial, EquivalentMode, spindle_receptance};
+use spindlelab_stdlib::eb_modes::spindle_receptance;
 use spindlelab_stdlib::rcsa::{Interface, RcsaOptions, Receptance, TwoPort, couple};
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -39,8 +41,9 @@ fn bench(c: &mut Criterion) {
     let f1 = [500.0, 900.0, 1300.0, 1900.0, 2500.0, 3200.0, 4100.0, 5000.0];
     let d = [0.110, 0.100, 0.095, 0.090, 0.085, 0.080, 0.075, 0.070];
     let eta = [0.05, 0.045, 0.04, 0.035, 0.03, 0.025, 0.022, 0.02];
-    let modes: Vec<EquivalentMode> = (0..8).map(|i| EquivalentMode::new(f1[i], d[i], eta[i])).collect();
-    let spindle = spindle_receptance(&modes, &BeamMaterial::STEEL, 0.0, 10_000.0, &freqs).expect("valid modes");
+    let modes: Vec<SpindleMode> = (0..8).map(|i| SpindleMode::new(f1[i], d[i], eta[i])).collect();
+    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
+        .expect("valid modes");
     let w_ref = TAU * 1000.0;
     let joint = Interface::diagonal(2e8, 0.05 * 2e8 / w_ref, 1e6, 0.05 * 1e6 / w_ref);
     let options = RcsaOptions::default();

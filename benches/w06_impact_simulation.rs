@@ -9,7 +9,8 @@
 mod alloc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use spindlelab_stdlib::impact::{Hammer, ImpactSetup, ModalTarget, Mode, first_contact, simulate_from_contact};
+use spindlelab_domain::Mode;
+use spindlelab_stdlib::impact::{Hammer, ImpactSetup, ModalTarget, first_contact, simulate_from_contact};
 use std::f64::consts::TAU;
 use std::hint::black_box;
 
@@ -28,7 +29,7 @@ fn ten_modes() -> ModalTarget {
     let modes = (0..10)
         .map(|r| {
             let w = TAU * f[r];
-            Mode { mass: m[r], stiffness: m[r] * w * w, damping: 2.0 * 0.01 * m[r] * w }
+            Mode::from_mass_stiffness_damping(m[r], m[r] * w * w, 2.0 * 0.01 * m[r] * w)
         })
         .collect();
     ModalTarget { modes }

@@ -14,6 +14,9 @@ use crate::engine::grammar::parse_unit;
 use crate::engine::model::entity_fields;
 use crate::engine::spec::{EntityKind, FieldType};
 use serde::Deserialize;
+use spindlelab_stdlib::nodes::kinds::{
+    BEAM_SUBSTRUCTURE, FRF_GAP, RCSA_COUPLE, SPINDLE_RECEPTANCE, STABILITY_SPEED_DEPENDENT, TRIALS_SCORE,
+};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::Path;
@@ -648,17 +651,17 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
     let _ = writeln!(w, "steps:");
     let _ = writeln!(w, "  # The holder and tool reduced once to their tip and spindle end.");
     let _ = writeln!(w, "  holder_tool_model:");
-    let _ = writeln!(w, "    kind: beam.substructure");
+    let _ = writeln!(w, "    kind: {BEAM_SUBSTRUCTURE}");
     let _ = writeln!(w, "    params: {{ assembly: holder_tool, max_element: 2 mm }}");
     if !frfs.is_empty() {
         let _ = writeln!(w);
         let _ = writeln!(w, "  # Measured configuration: on each file's lines, direction and speed.");
         let _ = writeln!(w, "  spindle:");
-        let _ = writeln!(w, "    kind: spindle.receptance");
+        let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
         let _ = writeln!(w, "    params: {{ machine: test_spindle }}");
         let _ = writeln!(w, "    inputs: {{ grid: \"@tool_tip.frf\" }}");
         let _ = writeln!(w, "  measured_model:");
-        let _ = writeln!(w, "    kind: rcsa.couple");
+        let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
         if sensor.is_some() {
             let _ = writeln!(
                 w,
@@ -672,7 +675,7 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         let _ =
             writeln!(w, "  # Model against measurement, in units of the measurement's noise (about 1 at the floor).");
         let _ = writeln!(w, "  gap:");
-        let _ = writeln!(w, "    kind: frf.gap");
+        let _ = writeln!(w, "    kind: {FRF_GAP}");
         let _ = writeln!(w, "    inputs: {{ model: \"@measured_model.frf\", measured: \"@tool_tip.frf\" }}");
     }
     if let Some(c) = cutting {
@@ -694,20 +697,20 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         let _ = writeln!(w);
         let _ = writeln!(w, "  # Cutting configuration: no sensor; x and y over the speeds of the trials.");
         let _ = writeln!(w, "  spindle_cutting:");
-        let _ = writeln!(w, "    kind: spindle.receptance");
+        let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
         let _ = writeln!(w, "    params: {{ machine: test_spindle, max_frequency: 10 kHz, resolution: 2.5 Hz }}");
         let _ = writeln!(w, "    sweep:");
         let _ = writeln!(w, "      direction: [x, y]");
         let _ = writeln!(w, "      speed: {}..{} step {} rpm", num(lo), num(hi), num(step));
         let _ = writeln!(w, "  cutting_model:");
-        let _ = writeln!(w, "    kind: rcsa.couple");
+        let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
         let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
         let _ = writeln!(
             w,
             "    inputs: {{ spindle: \"@spindle_cutting.receptance\", structure: \"@holder_tool_model.model\" }}"
         );
         let _ = writeln!(w, "  lobes:");
-        let _ = writeln!(w, "    kind: stability.speed_dependent");
+        let _ = writeln!(w, "    kind: {STABILITY_SPEED_DEPENDENT}");
         match c.trial_rpm_range {
             Some([a, b]) => {
                 let _ = writeln!(w, "    params: {{ cutting: trials, speeds: {}..{} step 5 rpm }}", num(a), num(b));
@@ -719,7 +722,7 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         let _ = writeln!(w, "    inputs: {{ frfs: \"@cutting_model.frf\" }}");
         if let Some(t) = meas.and_then(|m| m.trials.as_deref()) {
             let _ = writeln!(w, "  trials:");
-            let _ = writeln!(w, "    kind: trials.score");
+            let _ = writeln!(w, "    kind: {TRIALS_SCORE}");
             let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(&data_path(t)?));
             let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
         }

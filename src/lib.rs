@@ -9,6 +9,7 @@ pub mod import;
 pub mod plugins;
 pub mod summary;
 
+pub use spindlelab_domain as domain;
 pub use spindlelab_engine as engine;
 pub use spindlelab_stdlib as stdlib;
 

@@ -1,9 +1,9 @@
 //! A stable, human-readable summary of a run: every output of every instance, numbers
 //! rounded to a stated number of significant digits, no timings and no paths.
 
+use spindlelab_domain::round_sig;
 use spindlelab_engine::diag::{escape_controls, escape_message};
 use spindlelab_engine::exec::{Outcome, RunResult};
-use spindlelab_engine::round_sig;
 use spindlelab_engine::value::Value;
 use spindlelab_engine::{Compiled, graph::Graph};
 use std::fmt::Write as _;

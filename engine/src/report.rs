@@ -23,7 +23,7 @@ fn esc(s: &str) -> String {
 fn cell(text: &str) -> String {
     match text.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => {
-            let r = crate::round_sig(v, 4);
+            let r = spindlelab_domain::round_sig(v, 4);
             if r != 0.0 && !(1e-3..1e6).contains(&r.abs()) { format!("{r:.3e}") } else { format!("{r}") }
         }
         _ => esc(text.trim().trim_matches('"')),

@@ -6,6 +6,7 @@
 use crate::diag::{Diagnostic, Diagnostics, Span};
 use crate::syntax::{Raw, RawKind};
 use indexmap::IndexMap;
+use spindlelab_domain::Speed;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -248,12 +249,12 @@ impl ParamValue {
 /// shown in rpm, the unit every spindle speed is written in, and a frequency in Hz.
 pub fn fmt_quantity(value: f64, dim: Dimension) -> String {
     if dim == Dimension::ROTATIONAL_SPEED {
-        return format!("{} rpm", crate::round_sig(value * 60.0 / std::f64::consts::TAU, 6));
+        return Speed::from_rad_s(value).to_string();
     }
     if dim == Dimension::FREQUENCY {
-        return format!("{} Hz", crate::round_sig(value, 6));
+        return format!("{} Hz", spindlelab_domain::round_sig(value, 6));
     }
-    let num = format!("{}", crate::round_sig(value, 6));
+    let num = format!("{}", spindlelab_domain::round_sig(value, 6));
     if dim == Dimension::DIMENSIONLESS { num } else { format!("{num} {}", dim.si_unit()) }
 }
 
@@ -890,7 +891,7 @@ fn check_plausible(name: &str, value: f64, dim: Dimension, raw: &Raw, diags: &mu
         d if d == Dimension::MASS => &[("g", 1e-3), ("kg", 1.0)],
         d if d == Dimension::PRESSURE => &[("GPa", 1e9), ("MPa", 1e6), ("N/mm^2", 1e6)],
         d if d == Dimension::FREQUENCY => &[("Hz", 1.0), ("kHz", 1e3)],
-        d if d == Dimension::ROTATIONAL_SPEED => &[("rpm", std::f64::consts::TAU / 60.0)],
+        d if d == Dimension::ROTATIONAL_SPEED => &[("rpm", Speed::from_rpm(1.0).rad_s())],
         d if d == Dimension::TIME => &[("ms", 1e-3), ("s", 1.0)],
         _ => &[],
     };

@@ -8,9 +8,8 @@ use super::roles::Roles;
 use crate::engine::Compiled;
 use crate::engine::node::{EffectSpec, Registry};
 use serde_json::{Map, Value as Json, json};
-use std::f64::consts::PI;
-
-const RPM: f64 = PI / 30.0;
+use spindlelab_domain::{Speed, SpeedLaw};
+use spindlelab_stdlib::nodes::kinds::{FRF_ADD_MODE, FRF_PHASE_SLOPE, RECEPTANCE_TIP_MASS, SUBSTRUCTURE_JOINT};
 
 /// Where an effect acts; a measurement-only effect leaves the cutting configuration alone,
 /// which is how the trials tell it from a structural one.
@@ -261,7 +260,7 @@ impl Effect for UnknownResonance {
         let direction = self.direction.clone();
         wrap_gap_models(roles, r, "unknown_resonance", &|src| {
             Ok(format!(
-                "# Diagnosed: a resonance outside the library along {direction}, located, not named.\nunknown_resonance:\n  kind: frf.add_mode\n  params: {{ f: $unknown_f, zeta: $unknown_zeta, stiffness: $unknown_k, direction: {direction} }}\n  inputs: {{ frf: \"{src}\" }}"
+                "# Diagnosed: a resonance outside the library along {direction}, located, not named.\nunknown_resonance:\n  kind: {FRF_ADD_MODE}\n  params: {{ f: $unknown_f, zeta: $unknown_zeta, stiffness: $unknown_k, direction: {direction} }}\n  inputs: {{ frf: \"{src}\" }}"
             ))
         })?;
         Ok(free)
@@ -301,7 +300,7 @@ impl Effect for SensorDelay {
         declare(r, &free)?;
         wrap_gap_models(roles, r, "sensor_delay", &|src| {
             Ok(format!(
-                "# Diagnosed: the sensor's phase lag (sensor_delay), measured configuration only.\nsensor_delay:\n  kind: frf.phase_slope\n  params: {{ slope: $sensor_phase_slope }}\n  inputs: {{ frf: \"{src}\" }}"
+                "# Diagnosed: the sensor's phase lag (sensor_delay), measured configuration only.\nsensor_delay:\n  kind: {FRF_PHASE_SLOPE}\n  params: {{ slope: $sensor_phase_slope }}\n  inputs: {{ frf: \"{src}\" }}"
             ))
         })?;
         Ok(free)
@@ -340,7 +339,7 @@ impl Effect for MassLoading {
         wrap_gap_models(roles, r, "added_mass", &|src| {
             let coupling = src.trim_start_matches('@').split('.').next().unwrap_or_default();
             Ok(format!(
-                "# Diagnosed: a mass on the tip beyond the declared sensor's (mass_loading), measured configuration only.\nadded_mass:\n  kind: receptance.tip_mass\n  params: {{ mass: $added_tip_mass }}\n  inputs: {{ tip: \"@{coupling}.tip\" }}"
+                "# Diagnosed: a mass on the tip beyond the declared sensor's (mass_loading), measured configuration only.\nadded_mass:\n  kind: {RECEPTANCE_TIP_MASS}\n  params: {{ mass: $added_tip_mass }}\n  inputs: {{ tip: \"@{coupling}.tip\" }}"
             ))
         })?;
         Ok(free)
@@ -393,7 +392,7 @@ impl Effect for InterfaceCompliance {
         r.insert_step_before(
             &first,
             &format!(
-                "# Diagnosed: a compliant tool–holder joint at the holder face (interface_compliance).\nholder_face_joint:\n  kind: substructure.joint\n  params: {{ kt: $joint_kt, ct: $joint_ct, kr: $joint_kr, cr: $joint_cr }}\n  inputs: {{ structure: \"@{sub}.model\" }}"
+                "# Diagnosed: a compliant tool–holder joint at the holder face (interface_compliance).\nholder_face_joint:\n  kind: {SUBSTRUCTURE_JOINT}\n  params: {{ kt: $joint_kt, ct: $joint_ct, kr: $joint_kr, cr: $joint_cr }}\n  inputs: {{ structure: \"@{sub}.model\" }}"
             ),
         )
         .map_err(e)?;
@@ -494,7 +493,7 @@ impl SpindleSpeedStiffening {
         s.modes
             .iter()
             .filter(|(d, _)| roles.directions.contains(d))
-            .flat_map(|(d, modes)| modes.iter().enumerate().map(move |(i, m)| (d.clone(), i, m.kf, m.keta)))
+            .flat_map(|(d, modes)| modes.iter().enumerate().map(move |(i, m)| (d.clone(), i, m.law.kf, m.law.kd)))
             .collect()
     }
 }
@@ -528,8 +527,8 @@ impl Effect for SpindleSpeedStiffening {
         // At the fastest measured speed a mode moves by at most ±30 % in frequency and its
         // loss factor by at most ±80 %; at the fastest speed the recipe uses (the cutting
         // configuration's) a mode keeps at least half its frequency and a tenth of its loss.
-        let s2 = (top * RPM / spindle.ref_speed).powi(2);
-        let s2_all = (roles.top_speed_rpm.max(top) * RPM / spindle.ref_speed).powi(2);
+        let s2 = SpeedLaw::ratio_squared(Speed::from_rpm(top), spindle.ref_speed);
+        let s2_all = SpeedLaw::ratio_squared(Speed::from_rpm(roles.top_speed_rpm.max(top)), spindle.ref_speed);
         let mut free = Vec::new();
         for (d, i, kf, keta) in &modes {
             let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
@@ -614,7 +613,7 @@ impl Effect for SpeedDependentCuttingCoefficients {
             .as_ref()
             .and_then(|n| c.recipe.cutting.get(n))
             .and_then(|c| c.calibrated_at)
-            .map_or(f64::NAN, |w| w / RPM);
+            .map_or(f64::NAN, Speed::rpm);
         let mut m = Map::new();
         m.insert("reference_rpm".into(), json!(reference));
         m.insert("ks_relative_change_per_10000_rpm".into(), json!(value(values, "cutting_ks_change")));

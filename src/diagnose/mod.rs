@@ -36,6 +36,7 @@ use rayon::prelude::*;
 use roles::Roles;
 use serde::Serialize;
 use serde_json::{Map, Value as Json};
+use spindlelab_domain::Speed;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -476,7 +477,7 @@ fn at_picture_speeds(r: &RecipeText, roles: &Roles, c: &Compiled, trial_speeds: 
     if own.len() <= PICTURE_SPEEDS {
         return r.clone();
     }
-    let rpm = |w: f64| w * 30.0 / std::f64::consts::PI;
+    let rpm = |w: f64| Speed::from_rad_s(w).rpm();
     let last = own.len() - 1;
     let mut speeds: Vec<f64> = (0..PICTURE_SPEEDS).map(|i| rpm(own[i * last / (PICTURE_SPEEDS - 1)])).collect();
     speeds.extend(trial_speeds.iter().copied());

@@ -5,6 +5,8 @@
 
 use crate::engine::Compiled;
 use crate::engine::model::{PortRef, Step};
+use spindlelab_domain::Speed;
+use spindlelab_stdlib::nodes::kinds;
 
 /// A gap step and the model port it compares.
 #[derive(Debug, Clone)]
@@ -60,33 +62,33 @@ impl Roles {
         let r = &c.recipe;
         let kind = |id: &str| r.step(id).map(|s| s.kind.as_str());
         let mut roles = Roles::default();
-        for s in r.steps.iter().filter(|s| s.kind == "frf.gap") {
+        for s in r.steps.iter().filter(|s| s.kind == kinds::FRF_GAP) {
             if let Some(m) = input(s, "model") {
                 roles.gaps.push(GapRole { step: s.id.clone(), model: m.clone() });
-                if kind(&m.step) == Some("rcsa.couple") && !roles.measured_couplings.contains(&m.step) {
+                if kind(&m.step) == Some(kinds::RCSA_COUPLE) && !roles.measured_couplings.contains(&m.step) {
                     roles.measured_couplings.push(m.step.clone());
                 }
             }
         }
-        roles.trials = r.steps.iter().find(|s| s.kind == "trials.score").map(|s| s.id.clone());
+        roles.trials = r.steps.iter().find(|s| s.kind == kinds::TRIALS_SCORE).map(|s| s.id.clone());
         let lobes = roles
             .trials
             .as_ref()
             .and_then(|t| r.step(t))
             .and_then(|t| input(t, "lobes"))
             .and_then(|l| r.step(&l.step))
-            .filter(|l| l.kind == "stability.speed_dependent");
+            .filter(|l| l.kind == kinds::STABILITY_SPEED_DEPENDENT);
         if let Some(l) = lobes {
             roles.lobes = Some(l.id.clone());
             roles.cutting = l.params.text("cutting").map(str::to_string);
-            if let Some(f) = input(l, "frfs").filter(|f| kind(&f.step) == Some("rcsa.couple")) {
+            if let Some(f) = input(l, "frfs").filter(|f| kind(&f.step) == Some(kinds::RCSA_COUPLE)) {
                 roles.cutting_couplings.push(f.step.clone());
             }
         }
         for c in roles.measured_couplings.iter().chain(&roles.cutting_couplings) {
             let Some(step) = r.step(c) else { continue };
             if let Some(sub) =
-                input(step, "structure").and_then(|p| r.step(&p.step)).filter(|s| s.kind == "beam.substructure")
+                input(step, "structure").and_then(|p| r.step(&p.step)).filter(|s| s.kind == kinds::BEAM_SUBSTRUCTURE)
             {
                 roles.substructure.get_or_insert_with(|| sub.id.clone());
                 if roles.assembly.is_none() {
@@ -96,12 +98,12 @@ impl Roles {
             if roles.machine.is_none() {
                 roles.machine = input(step, "spindle")
                     .and_then(|p| r.step(&p.step))
-                    .filter(|s| s.kind == "spindle.receptance")
+                    .filter(|s| s.kind == kinds::SPINDLE_RECEPTANCE)
                     .and_then(|s| s.params.text("machine"))
                     .map(str::to_string);
             }
         }
-        for s in r.steps.iter().filter(|s| s.kind == "spindle.receptance") {
+        for s in r.steps.iter().filter(|s| s.kind == kinds::SPINDLE_RECEPTANCE) {
             let mut speeds: Vec<f64> = s.params.f64("speed").into_iter().collect();
             for axis in s.sweep.iter().filter(|a| a.param == "speed") {
                 for v in &axis.values {
@@ -111,7 +113,7 @@ impl Roles {
                 }
             }
             for w in speeds {
-                roles.top_speed_rpm = roles.top_speed_rpm.max(w * 30.0 / std::f64::consts::PI);
+                roles.top_speed_rpm = roles.top_speed_rpm.max(Speed::from_rad_s(w).rpm());
             }
         }
         if let Some(s) = roles.measured_couplings.first().and_then(|c| r.step(c)).and_then(|s| s.params.text("sensor"))

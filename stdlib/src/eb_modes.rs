@@ -13,6 +13,8 @@
 
 use crate::rcsa::{Receptance, ReceptanceFrf};
 use num_complex::Complex64;
+use spindlelab_domain::entity::SpindleMode;
+use spindlelab_domain::{Material, Speed};
 use std::f64::consts::{PI, TAU};
 use thiserror::Error;
 
@@ -44,12 +46,12 @@ pub enum EbError {
         value: f64,
     },
     /// A mode's speed law gives a non-positive frequency or a negative loss factor at the requested speed.
-    #[error("mode {mode} at {speed_rpm} rpm: {what} = {value} (speed law out of range; check kf / keta)")]
+    #[error("mode {mode} at {speed}: {what} = {value} (speed law out of range; check kf / keta)")]
     SpeedLaw {
         /// Index of the mode.
         mode: usize,
-        /// Spindle speed, rpm.
-        speed_rpm: f64,
+        /// Spindle speed.
+        speed: Speed,
         /// `frequency` or `loss factor`.
         what: &'static str,
         /// The resulting value.
@@ -57,23 +59,10 @@ pub enum EbError {
     },
 }
 
-/// Isotropic beam material (SI).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BeamMaterial {
-    /// Young's modulus, Pa.
-    pub e_pa: f64,
-    /// Density, kg/m³.
-    pub rho_kg_m3: f64,
-}
-
-impl BeamMaterial {
-    /// Steel as used for the equivalent modes in §5.1: E = 200 GPa, ρ = 7800 kg/m³.
-    pub const STEEL: BeamMaterial = BeamMaterial { e_pa: 200e9, rho_kg_m3: 7800.0 };
-
-    fn check(&self) -> Result<(), EbError> {
-        positive("E", self.e_pa)?;
-        positive("rho", self.rho_kg_m3)
-    }
+/// The properties an Euler–Bernoulli beam needs of a material: E and ρ.
+fn check_material(m: &Material) -> Result<(), EbError> {
+    positive("E", m.youngs_modulus)?;
+    positive("rho", m.density)
 }
 
 fn positive(name: &'static str, value: f64) -> Result<(), EbError> {
@@ -94,12 +83,12 @@ fn non_negative(name: &'static str, value: f64) -> Result<(), EbError> {
 
 /// Free length of a solid fixed-free steel-like beam of diameter `d_m` whose first mode is at `f_hz`
 /// (Eq. 5.6): `L = sqrt(1.87510407² d / (2π f) · sqrt(E / (16ρ)))`.
-pub fn free_length(f_hz: f64, d_m: f64, material: &BeamMaterial) -> Result<f64, EbError> {
+pub fn free_length(f_hz: f64, d_m: f64, material: &Material) -> Result<f64, EbError> {
     positive("f_hz", f_hz)?;
     positive("d_m", d_m)?;
-    material.check()?;
+    check_material(&material)?;
     Ok((FIXED_FREE_ROOT_1 * FIXED_FREE_ROOT_1 * d_m / (TAU * f_hz)
-        * (material.e_pa / (16.0 * material.rho_kg_m3)).sqrt())
+        * (material.youngs_modulus / (16.0 * material.density)).sqrt())
     .sqrt())
 }
 
@@ -113,21 +102,21 @@ pub struct FixedFreeBeam {
     /// Structural loss factor η (≥ 0).
     pub eta: f64,
     /// Material.
-    pub material: BeamMaterial,
+    pub material: Material,
 }
 
 impl FixedFreeBeam {
     /// Checks the parameters.
-    pub fn new(length_m: f64, d_m: f64, eta: f64, material: BeamMaterial) -> Result<Self, EbError> {
+    pub fn new(length_m: f64, d_m: f64, eta: f64, material: Material) -> Result<Self, EbError> {
         positive("length_m", length_m)?;
         positive("d_m", d_m)?;
         non_negative("eta", eta)?;
-        material.check()?;
+        check_material(&material)?;
         Ok(FixedFreeBeam { length_m, d_m, eta, material })
     }
 
     /// The beam of Eq. 5.6 whose first mode is at `f_hz`.
-    pub fn equivalent(f_hz: f64, d_m: f64, eta: f64, material: BeamMaterial) -> Result<Self, EbError> {
+    pub fn equivalent(f_hz: f64, d_m: f64, eta: f64, material: Material) -> Result<Self, EbError> {
         let length_m = free_length(f_hz, d_m, &material)?;
         Self::new(length_m, d_m, eta, material)
     }
@@ -144,7 +133,7 @@ impl FixedFreeBeam {
 
     /// Complex bending stiffness `E I (1 + iη)`, N m².
     pub fn ei_complex(&self) -> Complex64 {
-        Complex64::new(1.0, self.eta) * (self.material.e_pa * self.second_moment())
+        Complex64::new(1.0, self.eta) * (self.material.youngs_modulus * self.second_moment())
     }
 
     /// Free-end receptance `[[H, L], [N, P]]` at angular frequency `omega` (rad/s, ≥ 0), Eqs. 5.5, 5.10,
@@ -163,7 +152,7 @@ impl FixedFreeBeam {
     pub fn tip(&self) -> TipReceptance {
         let ei = self.ei_complex();
         // Principal fourth root: Re k > 0, small negative Im k for η > 0; λ = √ω k.
-        let k = (Complex64::from(self.material.rho_kg_m3 * self.area()) / ei).powf(0.25);
+        let k = (Complex64::from(self.material.density * self.area()) / ei).powf(0.25);
         TipReceptance { ei, len: self.length_m, k, inv_k: k.inv() }
     }
 }
@@ -260,52 +249,22 @@ fn series(x: Complex64) -> (Complex64, Complex64, Complex64, Complex64) {
     (gh, gl, gp, d)
 }
 
-/// One equivalent spindle mode: natural frequency, beam diameter, loss factor and speed law coefficients.
-///
-/// At spindle speed `n`: `f(n) = f_hz (1 + kf (n/n_ref)²)`, `η(n) = η (1 + keta (n/n_ref)²)`, `d` constant.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EquivalentMode {
-    /// Natural frequency at rest, Hz.
-    pub f_hz: f64,
-    /// Equivalent beam diameter, m.
-    pub d_m: f64,
-    /// Structural loss factor at rest.
-    pub eta: f64,
-    /// Frequency speed-law coefficient.
-    pub kf: f64,
-    /// Loss-factor speed-law coefficient.
-    pub keta: f64,
-}
-
-impl EquivalentMode {
-    /// A mode with no speed dependence.
-    pub fn new(f_hz: f64, d_m: f64, eta: f64) -> Self {
-        EquivalentMode { f_hz, d_m, eta, kf: 0.0, keta: 0.0 }
-    }
-
-    /// Natural frequency and loss factor at `speed_rpm`, from the speed laws about `ref_speed_rpm`.
-    pub fn at_speed(&self, speed_rpm: f64, ref_speed_rpm: f64) -> (f64, f64) {
-        let r = if speed_rpm == 0.0 { 0.0 } else { speed_rpm / ref_speed_rpm };
-        let r2 = r * r;
-        (self.f_hz * (1.0 + self.kf * r2), self.eta * (1.0 + self.keta * r2))
-    }
-}
-
-/// Free-end receptances of one spindle direction at `speed_rpm`: the sum over the equivalent modes of the
-/// fixed-free beam receptances (Eqs. 5.5–5.7, 5.10–5.12), on the grid `freqs_hz`.
+/// Free-end receptances of one spindle direction at `speed`: the sum over the equivalent modes of the
+/// fixed-free beam receptances (Eqs. 5.5–5.7, 5.10–5.12), each mode at `speed` by its speed law
+/// about `reference`, on the grid `freqs_hz`.
 pub fn spindle_receptance(
-    modes: &[EquivalentMode],
-    material: &BeamMaterial,
-    speed_rpm: f64,
-    ref_speed_rpm: f64,
+    modes: &[SpindleMode],
+    material: &Material,
+    speed: Speed,
+    reference: Speed,
     freqs_hz: &[f64],
 ) -> Result<ReceptanceFrf, EbError> {
-    material.check()?;
-    if !speed_rpm.is_finite() {
-        return Err(EbError::InvalidParameter { name: "speed_rpm", value: speed_rpm, requirement: "must be finite" });
+    check_material(material)?;
+    if !speed.rad_s().is_finite() {
+        return Err(EbError::InvalidParameter { name: "speed", value: speed.rpm(), requirement: "must be finite" });
     }
-    if speed_rpm != 0.0 {
-        positive("ref_speed_rpm", ref_speed_rpm)?;
+    if !speed.is_rest() {
+        positive("ref_speed", reference.rpm())?;
     }
     for (index, &f) in freqs_hz.iter().enumerate() {
         if !(f.is_finite() && f >= 0.0) {
@@ -314,14 +273,14 @@ pub fn spindle_receptance(
     }
     let mut beams = Vec::with_capacity(modes.len());
     for (i, m) in modes.iter().enumerate() {
-        let (f, eta) = m.at_speed(speed_rpm, ref_speed_rpm);
+        let (f, eta) = m.at_speed(speed, reference);
         if !(f.is_finite() && f > 0.0) {
-            return Err(EbError::SpeedLaw { mode: i, speed_rpm, what: "frequency", value: f });
+            return Err(EbError::SpeedLaw { mode: i, speed, what: "frequency", value: f });
         }
         if !(eta.is_finite() && eta >= 0.0) {
-            return Err(EbError::SpeedLaw { mode: i, speed_rpm, what: "loss factor", value: eta });
+            return Err(EbError::SpeedLaw { mode: i, speed, what: "loss factor", value: eta });
         }
-        beams.push(FixedFreeBeam::equivalent(f, m.d_m, eta, *material)?.tip());
+        beams.push(FixedFreeBeam::equivalent(f, m.diameter, eta, *material)?.tip());
     }
     let lines = freqs_hz
         .iter()
@@ -336,6 +295,7 @@ pub fn spindle_receptance(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use spindlelab_domain::SpeedLaw;
 
     fn rel(a: Complex64, b: Complex64) -> f64 {
         (a - b).norm() / b.norm()
@@ -345,12 +305,12 @@ mod tests {
     /// and cosh (where they do not overflow), from below the series switch to λL ≈ 30.
     #[test]
     fn tip_receptance_equals_the_textbook_formulas() {
-        let beam = FixedFreeBeam::new(0.25, 0.06, 0.05, BeamMaterial::STEEL).unwrap();
+        let beam = FixedFreeBeam::new(0.25, 0.06, 0.05, Material::STEEL).unwrap();
         let (ei, len) = (beam.ei_complex(), beam.length_m);
         let mut checked = 0;
         for k in 1..400 {
             let omega = 40.0 * k as f64 * k as f64;
-            let lam = (Complex64::from(omega * omega * beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25);
+            let lam = (Complex64::from(omega * omega * beam.material.density * beam.area()) / ei).powf(0.25);
             let x = lam * len;
             if x.norm() < SERIES_LIMIT {
                 continue;
@@ -373,7 +333,7 @@ mod tests {
 
     #[test]
     fn static_limits_match_cantilever_flexibility() {
-        let beam = FixedFreeBeam::new(0.3, 0.05, 0.02, BeamMaterial::STEEL).unwrap();
+        let beam = FixedFreeBeam::new(0.3, 0.05, 0.02, Material::STEEL).unwrap();
         let ei = beam.ei_complex();
         let l = beam.length_m;
         let h0 = Complex64::from(l.powi(3) / 3.0) / ei;
@@ -383,7 +343,7 @@ mod tests {
         let r = beam.tip_receptance(0.0);
         assert!(rel(r.h, h0) < 1e-14 && rel(r.l, l0) < 1e-14 && rel(r.n, l0) < 1e-14 && rel(r.p, p0) < 1e-14);
         let f1 = FIXED_FREE_ROOT_1.powi(2) / l.powi(2)
-            * (beam.material.e_pa * beam.second_moment() / (beam.material.rho_kg_m3 * beam.area())).sqrt();
+            * (beam.material.youngs_modulus * beam.second_moment() / (beam.material.density * beam.area())).sqrt();
         for frac in [1e-4, 1e-3] {
             let r = beam.tip_receptance(frac * f1);
             assert!(rel(r.h, h0) < 1e-5, "h at {frac}: {}", rel(r.h, h0));
@@ -394,16 +354,16 @@ mod tests {
 
     #[test]
     fn series_and_closed_form_agree_at_the_switch() {
-        let beam = FixedFreeBeam::new(0.2, 0.04, 0.05, BeamMaterial::STEEL).unwrap();
+        let beam = FixedFreeBeam::new(0.2, 0.04, 0.05, Material::STEEL).unwrap();
         // Find ω where |x| = 1 and compare just below (series) with just above (closed form).
         let ei = beam.ei_complex();
-        let c = (Complex64::from(beam.material.rho_kg_m3 * beam.area()) / ei).norm().powf(0.25) * beam.length_m;
+        let c = (Complex64::from(beam.material.density * beam.area()) / ei).norm().powf(0.25) * beam.length_m;
         let w = (1.0 / c).powi(2);
         let a = beam.tip_receptance(w * (1.0 - 1e-9));
         let b = beam.tip_receptance(w * (1.0 + 1e-9));
         assert!(rel(a.h, b.h) < 1e-8 && rel(a.l, b.l) < 1e-8 && rel(a.p, b.p) < 1e-8);
         // Direct evaluation with cosh at the same point (no overflow there) as an independent check.
-        let lam = (Complex64::from(w * w * beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25);
+        let lam = (Complex64::from(w * w * beam.material.density * beam.area()) / ei).powf(0.25);
         let x = lam * beam.length_m;
         let d = Complex64::from(1.0) + x.cos() * x.cosh();
         let h = (x.sin() * x.cosh() - x.cos() * x.sinh()) / (lam * lam * lam * ei * d);
@@ -414,12 +374,12 @@ mod tests {
 
     #[test]
     fn free_length_puts_first_peak_at_mode_frequency() {
-        let mat = BeamMaterial::STEEL;
+        let mat = Material::STEEL;
         for (f, d) in [(650.0, 0.12), (1800.0, 0.06), (4200.0, 0.03)] {
             let beam = FixedFreeBeam::equivalent(f, d, 0.01, mat).unwrap();
             // Eq. 5.6 inverts the fixed-free first-mode frequency.
             let fn1 = FIXED_FREE_ROOT_1.powi(2) / (TAU * beam.length_m.powi(2))
-                * (mat.e_pa * beam.second_moment() / (mat.rho_kg_m3 * beam.area())).sqrt();
+                * (mat.youngs_modulus * beam.second_moment() / (mat.density * beam.area())).sqrt();
             assert!((fn1 / f - 1.0).abs() < 1e-12);
             // Peak of |H| on a 0.1 Hz grid over ±20 %: within 0.05 % of f (η shifts it slightly).
             let mut best = (0.0, 0.0);
@@ -437,7 +397,7 @@ mod tests {
 
     #[test]
     fn cross_receptances_are_equal_and_stable_at_high_lambda_l() {
-        let beam = FixedFreeBeam::equivalent(300.0, 0.1, 0.03, BeamMaterial::STEEL).unwrap();
+        let beam = FixedFreeBeam::equivalent(300.0, 0.1, 0.03, Material::STEEL).unwrap();
         for f in [10.0, 299.0, 1e3, 1e4, 1e5, 1e6, 1e8] {
             let r = beam.tip_receptance(TAU * f);
             assert_eq!(r.l, r.n);
@@ -455,8 +415,8 @@ mod tests {
     #[test]
     fn undamped_limit_diverges_only_at_resonance() {
         let f = 1200.0;
-        let undamped = FixedFreeBeam::equivalent(f, 0.05, 0.0, BeamMaterial::STEEL).unwrap();
-        let light = FixedFreeBeam::equivalent(f, 0.05, 1e-9, BeamMaterial::STEEL).unwrap();
+        let undamped = FixedFreeBeam::equivalent(f, 0.05, 0.0, Material::STEEL).unwrap();
+        let light = FixedFreeBeam::equivalent(f, 0.05, 1e-9, Material::STEEL).unwrap();
         let stat = undamped.tip_receptance(0.0).h.norm();
         assert!(light.tip_receptance(TAU * f).h.norm() > 1e6 * stat);
         assert!(undamped.tip_receptance(TAU * f).h.norm() > 1e6 * stat);
@@ -470,11 +430,12 @@ mod tests {
 
     #[test]
     fn spindle_sums_modes_and_follows_speed_laws() {
-        let mat = BeamMaterial::STEEL;
-        let mut m0 = EquivalentMode::new(900.0, 0.09, 0.04);
-        let m1 = EquivalentMode::new(2500.0, 0.05, 0.03);
+        let mat = Material::STEEL;
+        let rpm = Speed::from_rpm;
+        let mut m0 = SpindleMode::new(900.0, 0.09, 0.04);
+        let m1 = SpindleMode::new(2500.0, 0.05, 0.03);
         let grid: Vec<f64> = (0..200).map(|i| 20.0 * i as f64).collect();
-        let s = spindle_receptance(&[m0, m1], &mat, 0.0, 10000.0, &grid).unwrap();
+        let s = spindle_receptance(&[m0, m1], &mat, Speed::ZERO, rpm(10000.0), &grid).unwrap();
         let b0 = FixedFreeBeam::equivalent(900.0, 0.09, 0.04, mat).unwrap();
         let b1 = FixedFreeBeam::equivalent(2500.0, 0.05, 0.03, mat).unwrap();
         for (i, &f) in grid.iter().enumerate() {
@@ -484,20 +445,19 @@ mod tests {
             // there grows to ~1e-13.
             assert!((s.lines[i] - want).max_norm() <= 1e-12 * want.max_norm(), "{f} Hz: {:?} vs {want:?}", s.lines[i]);
         }
-        m0.kf = 0.02;
-        m0.keta = -0.05;
-        let (f, eta) = m0.at_speed(20000.0, 10000.0);
+        m0.law = SpeedLaw { kf: 0.02, kd: -0.05 };
+        let (f, eta) = m0.at_speed(rpm(20000.0), rpm(10000.0));
         assert!((f - 900.0 * 1.08).abs() < 1e-9 && (eta - 0.04 * 0.8).abs() < 1e-12);
-        let fast = spindle_receptance(&[m0], &mat, 20000.0, 10000.0, &[f]).unwrap();
+        let fast = spindle_receptance(&[m0], &mat, rpm(20000.0), rpm(10000.0), &[f]).unwrap();
         let want = FixedFreeBeam::equivalent(f, 0.09, eta, mat).unwrap().tip_receptance(TAU * f);
         assert_eq!(fast.lines[0], want);
-        m0.kf = -2.0;
+        m0.law.kf = -2.0;
         assert!(matches!(
-            spindle_receptance(&[m0], &mat, 10000.0, 10000.0, &grid),
+            spindle_receptance(&[m0], &mat, rpm(10000.0), rpm(10000.0), &grid),
             Err(EbError::SpeedLaw { mode: 0, .. })
         ));
         assert!(matches!(
-            spindle_receptance(&[m1], &mat, 0.0, 1.0, &[-1.0]),
+            spindle_receptance(&[m1], &mat, Speed::ZERO, rpm(1.0), &[-1.0]),
             Err(EbError::InvalidFrequency { index: 0, .. })
         ));
     }

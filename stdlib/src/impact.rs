@@ -34,6 +34,7 @@ use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use spindlelab_domain::Mode;
 use std::f64::consts::{PI, TAU};
 use thiserror::Error;
 
@@ -162,47 +163,43 @@ pub struct Hammer {
     pub damping: f64,
 }
 
-/// One target mode in modal coordinates (unit mode shape at the impact point).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Mode {
-    /// Modal mass, kg (> 0).
-    pub mass: f64,
-    /// Modal stiffness, N/m (≥ 0).
-    pub stiffness: f64,
-    /// Modal viscous damping, N·s/m (≥ 0).
-    pub damping: f64,
-}
-
-impl Mode {
-    /// Undamped natural frequency `sqrt(k/m)/2π`, Hz.
-    pub fn natural_frequency(&self) -> f64 {
-        (self.stiffness / self.mass).sqrt() / TAU
-    }
-
-    /// Viscous damping ratio `c / (2 sqrt(k m))` (infinite for a zero-stiffness mode with
-    /// damping, zero when undamped).
-    pub fn damping_ratio(&self) -> f64 {
-        if self.damping == 0.0 { 0.0 } else { self.damping / (2.0 * (self.stiffness * self.mass).sqrt()) }
-    }
-}
-
 /// Target described by independent modes in modal space (Table 2.1); the impact-point
 /// displacement is the sum of the modal displacements.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalTarget {
-    /// Modes; at least one.
+    /// Modes in modal coordinates (unit mode shape at the impact point), each of modal
+    /// mass m > 0, stiffness k ≥ 0 and viscous damping c ≥ 0; at least one.
     pub modes: Vec<Mode>,
 }
 
 impl ModalTarget {
     /// Single-degree-of-freedom target.
     pub fn single(mass: f64, stiffness: f64, damping: f64) -> Self {
-        ModalTarget { modes: vec![Mode { mass, stiffness, damping }] }
+        ModalTarget { modes: vec![Mode::from_mass_stiffness_damping(mass, stiffness, damping)] }
+    }
+
+    /// A target of modes given by modal mass (kg), stiffness (N/m) and viscous damping
+    /// (N·s/m), each checked before it becomes a [`Mode`] so an error names the value given.
+    pub fn from_mass_stiffness_damping(rows: &[(f64, f64, f64)]) -> Result<Self, ImpactError> {
+        for &(m, k, c) in rows {
+            positive("target mode", "mass", m)?;
+            non_negative("target mode", "stiffness", k)?;
+            non_negative("target mode", "damping", c)?;
+            if k == 0.0 && c > 0.0 {
+                return Err(ImpactError::InvalidParameter {
+                    name: "target mode",
+                    field: "stiffness",
+                    value: k,
+                    requirement: "must be positive for a damped mode",
+                });
+            }
+        }
+        Ok(ModalTarget { modes: rows.iter().map(|&(m, k, c)| Mode::from_mass_stiffness_damping(m, k, c)).collect() })
     }
 
     /// Mode with the lowest undamped natural frequency, used for the response magnitude.
     pub fn fundamental(&self) -> Option<&Mode> {
-        self.modes.iter().min_by(|a, b| a.natural_frequency().total_cmp(&b.natural_frequency()))
+        self.modes.iter().min_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz))
     }
 }
 
@@ -247,7 +244,7 @@ pub fn table_2_1_target(which: Table21Target) -> ModalTarget {
         Table21Target::Target2 => &TARGET_2,
     };
     ModalTarget {
-        modes: rows.iter().map(|&(m, k, c)| Mode { mass: m, stiffness: k * 1.0e6, damping: c * 1.0e3 }).collect(),
+        modes: rows.iter().map(|&(m, k, c)| Mode::from_mass_stiffness_damping(m, k * 1.0e6, c * 1.0e3)).collect(),
     }
 }
 
@@ -325,9 +322,9 @@ impl ImpactSetup {
             return Err(ImpactError::EmptyTarget);
         }
         for mode in &self.target.modes {
-            positive("target mode", "mass", mode.mass)?;
-            non_negative("target mode", "stiffness", mode.stiffness)?;
-            non_negative("target mode", "damping", mode.damping)?;
+            positive("target mode", "mass", mode.modal_mass)?;
+            non_negative("target mode", "stiffness", mode.stiffness())?;
+            non_negative("target mode", "damping", mode.damping())?;
         }
         self.contact.validate()?;
         finite("setup", "release_position", self.release_position)?;
@@ -344,7 +341,7 @@ impl ImpactSetup {
         positive("setup", "dt", self.dt)?;
         // Eq. 2.7 must resolve every linear time scale (stability needs ω·dt < 2).
         let rates = std::iter::once(Body::new(self.hammer.mass, self.hammer.stiffness, self.hammer.damping))
-            .chain(self.target.modes.iter().map(|m| Body::new(m.mass, m.stiffness, m.damping)))
+            .chain(self.target.modes.iter().map(|m| Body::new(m.modal_mass, m.stiffness(), m.damping())))
             .map(|b| b.rate);
         for rate in rates {
             if rate * self.dt > MAX_RATE_TIMES_DT {
@@ -1215,7 +1212,7 @@ fn run(
         spectral_stride,
         bodies: Bodies::new(
             &std::iter::once((hm.mass, hm.damping, hm.stiffness))
-                .chain(modes.iter().map(|m| (m.mass, m.damping, m.stiffness)))
+                .chain(modes.iter().map(|m| (m.modal_mass, m.damping(), m.stiffness())))
                 .map(|(m, c, k)| EulerMap::new(m, c, k, dt))
                 .collect::<Vec<_>>(),
         ),
@@ -1230,7 +1227,7 @@ fn run(
     };
 
     let hammer_body = Body::new(hm.mass, hm.stiffness, hm.damping);
-    let mode_bodies: Vec<Body> = modes.iter().map(|m| Body::new(m.mass, m.stiffness, m.damping)).collect();
+    let mode_bodies: Vec<Body> = modes.iter().map(|m| Body::new(m.modal_mass, m.stiffness(), m.damping())).collect();
     let max_rate = mode_bodies.iter().map(|b| b.rate).fold(hammer_body.rate, f64::max);
     let substeps = ((ts * max_rate / FREE_FLIGHT_MAX_PHASE).ceil() as usize).max(1);
     let h = ts / substeps as f64;
@@ -1288,7 +1285,7 @@ fn run(
     let excited_bandwidth =
         if bandwidth { excited_bandwidth(&sim.spectral, spectral_stride as f64 * dt) } else { f64::NAN };
 
-    let response_frequency = setup.target.fundamental().map(|m| m.natural_frequency()).unwrap_or(0.0);
+    let response_frequency = setup.target.fundamental().map(|m| m.freq_hz).unwrap_or(0.0);
     let response_magnitude = amplitude_at(&target[n_pre..], fs, response_frequency);
 
     if let Some(noise) = setup.noise.filter(|n| n.std_dev > 0.0) {
@@ -1550,11 +1547,13 @@ mod tests {
         let t2 = table_2_1_target(Table21Target::Target2);
         assert_eq!(t1.modes.len(), 10);
         assert_eq!(t2.modes.len(), 10);
-        assert_eq!(t1.modes[3], Mode { mass: 125.99, stiffness: 813.04e6, damping: 27.07e3 });
-        assert_eq!(t2.modes[9], Mode { mass: 0.54, stiffness: 1488.68e6, damping: 0.99e3 });
+        let mkc = |m: &Mode| [m.modal_mass, m.stiffness(), m.damping()];
+        let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x / y - 1.0).abs() < 1e-14);
+        assert!(close(mkc(&t1.modes[3]), [125.99, 813.04e6, 27.07e3]), "{:?}", t1.modes[3]);
+        assert!(close(mkc(&t2.modes[9]), [0.54, 1488.68e6, 0.99e3]), "{:?}", t2.modes[9]);
         // Lowest natural frequencies: mode 6 of target 1 (332 Hz), mode 5 of target 2 (608 Hz).
         for (target, lowest) in [(t1, 5), (t2, 4)] {
-            let f_low = target.modes[lowest].natural_frequency();
+            let f_low = target.modes[lowest].freq_hz;
             let mut previous: Option<(f64, f64)> = None;
             for mh in [0.001, 0.01, 0.1] {
                 let mut s = ImpactSetup::new(Hammer { mass: mh, stiffness: 100.0, damping: 0.0 }, target.clone());
@@ -1605,7 +1604,8 @@ mod tests {
         // Single hit, and a stiff hammer that swings back for a second hit.
         let mut single = ImpactSetup::dissertation_example();
         single.duration = 3.0e-3;
-        single.target.modes[0].damping = 20.0;
+        let m = single.target.modes[0];
+        single.target.modes[0] = Mode::from_mass_stiffness_damping(m.modal_mass, m.stiffness(), 20.0);
         let mut double = sweep_setup(0.03);
         double.hammer.stiffness = 3.0e5;
         double.release_position = 0.2e-3;
@@ -1642,7 +1642,7 @@ mod tests {
         s.hammer.mass = 0.0;
         cases.push(s);
         let mut s = base.clone();
-        s.target.modes[0].mass = -1.0;
+        s.target.modes[0].modal_mass = -1.0;
         cases.push(s);
         let mut s = base.clone();
         s.dt = 0.0;

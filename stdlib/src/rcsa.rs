@@ -757,7 +757,8 @@ mod tests {
     /// receptances of one FE model of the whole assembly.
     #[test]
     fn two_fe_beams_coupled_equal_one_fe_model_of_the_assembly() {
-        use crate::beam::{BeamMaterial as Fe, BeamModel, BeamSegment, CrossSection, MeshOptions};
+        use crate::beam::{BeamModel, BeamSegment, CrossSection, MeshOptions};
+        use spindlelab_domain::Material as Fe;
         let holder = BeamSegment::uniform(CrossSection::solid(0.05, Fe::STEEL), 0.06);
         let tool = BeamSegment::uniform(CrossSection::solid(0.0127, Fe::CARBIDE), 0.07);
         let mesh = MeshOptions::default();
@@ -789,7 +790,9 @@ mod tests {
             }
         }
     }
-    use crate::eb_modes::{BeamMaterial, EquivalentMode, FixedFreeBeam, spindle_receptance};
+    use crate::eb_modes::{FixedFreeBeam, spindle_receptance};
+    use spindlelab_domain::entity::SpindleMode;
+    use spindlelab_domain::{Material, Speed};
 
     /// Free-free rigid body (mass `m`, inertia `j` about its centre of mass) with free end 1 at `x1` and joint
     /// 2 at `x2`, centre of mass at `xg`: `R_PQ = −ω⁻² T_P diag(1/m, 1/j) T_Qᵀ`, `T_P = [[1, x_P − x_G], [0, 1]]`.
@@ -874,14 +877,14 @@ mod tests {
     /// beam's axis points the other way, so it enters mirrored (the sign of L and N is thus tested).
     #[test]
     fn two_cantilevers_join_into_a_clamped_clamped_beam() {
-        let mat = BeamMaterial::STEEL;
+        let mat = Material::STEEL;
         let (l1, l2, d) = (0.35, 0.2, 0.03);
         let eta = 1e-6;
         let a = FixedFreeBeam::new(l1, d, eta, mat).unwrap();
         let b = FixedFreeBeam::new(l2, d, eta, mat).unwrap();
         let total = l1 + l2;
         let f_cc = 4.730_040_744_862_704f64.powi(2) / (TAU * total * total)
-            * (mat.e_pa * a.second_moment() / (mat.rho_kg_m3 * a.area())).sqrt();
+            * (mat.youngs_modulus * a.second_moment() / (mat.density * a.area())).sqrt();
         let g = |f: f64| {
             let grid = [f];
             let sub = TwoPort::single_point(&beam_frf(&a, &grid));
@@ -906,9 +909,9 @@ mod tests {
     ///  + μ j x⁴ (1 − cos x cosh x) = 0`, `μ = M/(ρAL)`, `j = J/(ρAL³)`.
     #[test]
     fn cantilever_with_tip_body_matches_frequency_equation() {
-        let mat = BeamMaterial::STEEL;
+        let mat = Material::STEEL;
         let beam = FixedFreeBeam::new(0.25, 0.04, 1e-7, mat).unwrap();
-        let mbeam = mat.rho_kg_m3 * beam.area() * beam.length_m;
+        let mbeam = mat.density * beam.area() * beam.length_m;
         let (mu, jr) = (0.8, 0.05);
         let (m, j) = (mu * mbeam, jr * mbeam * beam.length_m.powi(2));
         let freq_eq = |x: f64| {
@@ -918,7 +921,7 @@ mod tests {
         };
         let x1 = root(0.3, 1.875, freq_eq);
         let f1 = x1 * x1 / (TAU * beam.length_m.powi(2))
-            * (mat.e_pa * beam.second_moment() / (mat.rho_kg_m3 * beam.area())).sqrt();
+            * (mat.youngs_modulus * beam.second_moment() / (mat.density * beam.area())).sqrt();
         let g = |f: f64| {
             let grid = [f];
             let body = rigid_body(&grid, m, j, 0.0, 0.0, 0.0);
@@ -931,8 +934,8 @@ mod tests {
     }
 
     fn spindle(freqs: &[f64]) -> ReceptanceFrf {
-        let modes = [EquivalentMode::new(700.0, 0.11, 0.05), EquivalentMode::new(1900.0, 0.07, 0.04)];
-        spindle_receptance(&modes, &BeamMaterial::STEEL, 0.0, 10000.0, freqs).unwrap()
+        let modes = [SpindleMode::new(700.0, 0.11, 0.05), SpindleMode::new(1900.0, 0.07, 0.04)];
+        spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10000.0), freqs).unwrap()
     }
 
     /// The four-line kernels give every line the bits of the scalar formulas, on groups that

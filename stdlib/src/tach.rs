@@ -51,8 +51,8 @@ pub enum TachError {
     /// The signal does not switch between two levels.
     #[error(
         "the tachometer signal is flat (between {} and {}, no level stands out of the noise): no once-per-revolution pulse",
-        spindlelab_engine::round_sig(*min, 4),
-        spindlelab_engine::round_sig(*max, 4)
+        spindlelab_domain::round_sig(*min, 4),
+        spindlelab_domain::round_sig(*max, 4)
     )]
     Flat {
         /// Smallest sample.

@@ -10,8 +10,9 @@ fn root() -> PathBuf {
 /// The workspace's crates: name, folder, and the workspace crates it may depend on.
 const CRATES: &[(&str, &str, &[&str])] = &[
     ("spindlelab-grammar", "grammar", &[]),
-    ("spindlelab-engine", "engine", &["spindlelab-grammar"]),
-    ("spindlelab-stdlib", "stdlib", &["spindlelab-engine", "spindlelab-grammar"]),
+    ("spindlelab-domain", "domain", &[]),
+    ("spindlelab-engine", "engine", &["spindlelab-grammar", "spindlelab-domain"]),
+    ("spindlelab-stdlib", "stdlib", &["spindlelab-engine", "spindlelab-grammar", "spindlelab-domain"]),
     ("spindlelab-plugin-pack", "plugins/pack", &[]),
     ("spindlelab-plugin-host", "plugins/host", &["spindlelab-engine", "spindlelab-plugin-pack"]),
     ("spindlelab-plugin-examples", "plugins/examples", &["spindlelab-plugin-pack"]),
@@ -120,4 +121,102 @@ fn the_engine_names_no_built_in_node_kind() {
         }
     }
     assert!(found.is_empty(), "the engine names built-in kinds:\n{}", found.join("\n"));
+}
+
+/// The code lines of a source file: comments and the unit tests at its end left out.
+fn code_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    code.lines().enumerate().filter(|(_, l)| !l.trim_start().starts_with("//")).map(|(n, l)| (n + 1, l))
+}
+
+/// The physics kernels (every stdlib module but the node adapters in `nodes/` and the
+/// registry in `lib.rs`) speak the domain floor only: no kernel imports the engine, so a
+/// kernel can be used, tested and benchmarked without the recipe model.
+#[test]
+fn no_kernel_imports_the_engine() {
+    let src = root().join("stdlib/src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    files.retain(|f| !f.starts_with(src.join("nodes")) && *f != src.join("lib.rs"));
+    assert!(files.len() > 40, "{} kernel files", files.len());
+    let mut found = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        // Unit tests included: a kernel's tests need no engine either.
+        for (n, line) in text.lines().enumerate() {
+            if !line.trim_start().starts_with("//") && line.contains("spindlelab_engine") {
+                found.push(format!("{}:{}: {}", f.strip_prefix(root()).unwrap().display(), n + 1, line.trim()));
+            }
+        }
+    }
+    assert!(found.is_empty(), "kernels import the engine:\n{}", found.join("\n"));
+}
+
+/// Every Rust source of the workspace's crates (not the tests, benches or the guest plugins).
+fn crate_sources() -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for (_, dir, _) in CRATES {
+        rust_files(&root().join(dir).join("src"), &mut files);
+    }
+    rust_files(&root().join("src"), &mut files);
+    // A module's unit tests in a file of their own (`mod tests;`) are not its code.
+    files.retain(|f| f.file_name().is_none_or(|n| n != "tests.rs"));
+    files
+}
+
+/// One concept, one type: a mode is `domain::Mode` (an equivalent spindle beam mode and a
+/// rig mode with its speed law are built on it), a material is `domain::Material`, a
+/// spindle speed is `domain::Speed`, and the speed law of a mode is written once, in
+/// `domain::SpeedLaw`.
+#[test]
+fn one_mode_one_material_one_speed_one_speed_law() {
+    let mut modes = Vec::new();
+    let mut materials = Vec::new();
+    let mut speeds = Vec::new();
+    let mut laws = Vec::new();
+    for f in crate_sources() {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let at = |n: usize| format!("{}:{n}", f.strip_prefix(root()).unwrap().display());
+        for (n, line) in code_lines(&text) {
+            let Some(rest) = line
+                .split("struct ")
+                .nth(1)
+                .filter(|_| line.trim_start().starts_with("pub") || line.trim_start().starts_with("struct"))
+            else {
+                // The speed law applied outside its one home: a law's coefficient scaling
+                // something.
+                if (line.contains(".kf *") || line.contains(".kd *") || line.contains(".keta *"))
+                    && !f.ends_with("domain/src/speed.rs")
+                {
+                    laws.push(at(n));
+                }
+                continue;
+            };
+            let name: String = rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+            if name.ends_with("Mode") {
+                modes.push((name.clone(), at(n)));
+            }
+            if name.ends_with("Material") {
+                materials.push((name.clone(), at(n)));
+            }
+            if name == "Speed" || name.ends_with("Speed") {
+                speeds.push((name, at(n)));
+            }
+        }
+    }
+    fn names(v: &[(String, String)]) -> Vec<&str> {
+        v.iter().map(|(n, _)| n.as_str()).collect()
+    }
+    let mut mode_names = names(&modes);
+    mode_names.sort_unstable();
+    assert_eq!(mode_names, ["Mode", "RigMode", "SpindleMode"], "{modes:?}");
+    assert!(modes.iter().any(|(n, at)| n == "Mode" && at.starts_with("domain/")), "{modes:?}");
+    assert_eq!(names(&materials), ["Material"], "{materials:?}");
+    assert!(materials[0].1.starts_with("domain/"), "{materials:?}");
+    assert_eq!(names(&speeds), ["Speed"], "{speeds:?}");
+    assert!(speeds[0].1.starts_with("domain/"), "{speeds:?}");
+    assert!(laws.is_empty(), "the speed law is written outside domain::SpeedLaw at {laws:?}");
+    // And that law is where the check looks for it.
+    let law = std::fs::read_to_string(root().join("domain/src/speed.rs")).unwrap();
+    assert!(law.contains("pub struct SpeedLaw") && law.contains("self.kf * Self::ratio_squared"));
 }

@@ -7,9 +7,10 @@
 use crate::common;
 
 use common::{Ran, assert_has, rejected, run_at};
+use spindlelab::domain::Material;
 use spindlelab::engine;
 use spindlelab::engine::value::{ReceptanceSet, Value};
-use spindlelab::stdlib::beam::{BeamMaterial, BeamModel, BeamSegment, CrossSection, MeshOptions, NodeSpring};
+use spindlelab::stdlib::beam::{BeamModel, BeamSegment, CrossSection, MeshOptions, NodeSpring};
 use spindlelab::stdlib::rcsa::Complex64;
 use std::path::{Path, PathBuf};
 
@@ -49,7 +50,7 @@ fn coupling_then_decoupling_the_artifact_returns_the_spindle() {
 /// An FE spindle shaft on stiff bearings at node 0: its free-end receptances on `freqs`, and the
 /// model itself, for the monolithic comparison.
 fn spindle_shaft() -> (BeamSegment, NodeSpring) {
-    let steel = BeamMaterial { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
+    let steel = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
     let shaft = BeamSegment::uniform(CrossSection { d_out: 0.07, d_in: 0.02, outer: steel, inner: None }, 0.25);
     (shaft, NodeSpring { kt: 1e9, ct: 0.0, kr: 2e7, cr: 0.0 })
 }
@@ -315,8 +316,10 @@ fn training_case_02_gaps_match_the_truth_simulator() {
 /// of one holder section.
 #[test]
 fn w02_rigid_coupling_peak_matches_the_numpy_peer() {
+    use spindlelab::domain::entity::SpindleMode;
+    use spindlelab::domain::{Material as EbMaterial, Speed};
     use spindlelab::stdlib::beam::table::{tool_holder_sections, w01_segments};
-    use spindlelab::stdlib::eb_modes::{BeamMaterial as EbMaterial, EquivalentMode, spindle_receptance};
+    use spindlelab::stdlib::eb_modes::spindle_receptance;
     use spindlelab::stdlib::rcsa::{Interface, RcsaOptions, Receptance, TwoPort, couple};
     let freqs: Vec<f64> = (0..10_000).map(|k| 1.0 + 9999.0 * k as f64 / 9999.0).collect();
     let mesh = MeshOptions { max_element_length: 1.0, min_taper_elements: 1, ..MeshOptions::default() };
@@ -336,8 +339,9 @@ fn w02_rigid_coupling_peak_matches_the_numpy_peer() {
     let f1 = [500.0, 900.0, 1300.0, 1900.0, 2500.0, 3200.0, 4100.0, 5000.0];
     let d = [0.110, 0.100, 0.095, 0.090, 0.085, 0.080, 0.075, 0.070];
     let eta = [0.05, 0.045, 0.04, 0.035, 0.03, 0.025, 0.022, 0.02];
-    let spindle_modes: Vec<EquivalentMode> = (0..8).map(|i| EquivalentMode::new(f1[i], d[i], eta[i])).collect();
-    let spindle = spindle_receptance(&spindle_modes, &EbMaterial::STEEL, 0.0, 10_000.0, &freqs).unwrap();
+    let spindle_modes: Vec<SpindleMode> = (0..8).map(|i| SpindleMode::new(f1[i], d[i], eta[i])).collect();
+    let spindle =
+        spindle_receptance(&spindle_modes, &EbMaterial::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs).unwrap();
     let g = couple(&holder, &spindle, &Interface::Rigid, &RcsaOptions::default()).unwrap();
     let (k, peak) =
         g.lines.iter().map(|b| b.h.norm()).enumerate().fold((0, 0.0), |a, (k, v)| if v > a.1 { (k, v) } else { a });

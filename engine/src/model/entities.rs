@@ -5,8 +5,11 @@
 //! spindle modes with speed laws, sensor mass and the cutting setup.
 
 use crate::spec::{EntityKind, Field, FieldType as T, Params};
-use serde::{Deserialize, Serialize};
 use spindlelab_grammar::Dimension as D;
+
+pub use spindlelab_domain::entity::{
+    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
+};
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
 
@@ -126,144 +129,26 @@ pub fn fields(kind: EntityKind) -> &'static [Field] {
     }
 }
 
-/// Elastic and damping properties of a material (SI).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Material {
-    pub youngs_modulus: f64,
-    pub density: f64,
-    pub poisson: f64,
-    pub loss_factor: f64,
-}
-
-impl Material {
-    pub fn from_params(p: &Params) -> Material {
-        Material {
-            youngs_modulus: p.f64("E").unwrap_or(f64::NAN),
-            density: p.f64("rho").unwrap_or(f64::NAN),
-            poisson: p.f64("nu").unwrap_or(f64::NAN),
-            loss_factor: p.f64("eta").unwrap_or(0.0),
-        }
+/// The material a checked `materials:` entry describes.
+pub fn material(p: &Params) -> Material {
+    Material {
+        youngs_modulus: p.f64("E").unwrap_or(f64::NAN),
+        density: p.f64("rho").unwrap_or(f64::NAN),
+        poisson: p.f64("nu").unwrap_or(f64::NAN),
+        loss_factor: p.f64("eta").unwrap_or(0.0),
     }
 }
 
-/// Which part of the assembly a section belongs to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Component {
-    Holder,
-    HolderAndTool,
-    Tool,
-}
-
-/// One Timoshenko section of a tool/holder assembly, lengths in metres.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Section {
-    pub name: String,
-    pub component: Component,
-    pub fluted: bool,
-    pub d_out_spindle_end: f64,
-    pub d_out_tip_end: f64,
-    pub d_in: f64,
-    pub length: f64,
-    pub outer: Material,
-    pub inner: Option<Material>,
-    pub d_equivalent: Option<f64>,
-}
-
-/// A joint between substructures: rigid, or stiffness and damping per direction.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum Joint {
-    Rigid,
-    Compliant { kt: f64, ct: f64, kr: f64, cr: f64 },
-}
-
-impl Joint {
-    pub fn from_params(p: &Params) -> Joint {
-        if p.bool("rigid").unwrap_or(false) {
-            return Joint::Rigid;
-        }
-        Joint::Compliant {
-            kt: p.f64("kt").unwrap_or(f64::INFINITY),
-            ct: p.f64("ct").unwrap_or(0.0),
-            kr: p.f64("kr").unwrap_or(f64::INFINITY),
-            cr: p.f64("cr").unwrap_or(0.0),
-        }
+/// The joint a checked `holder_interface:` or `tool_joint:` object describes: rigid, or
+/// compliant with an unset stiffness infinite and an unset damping zero.
+pub fn joint(p: &Params) -> Joint {
+    if p.bool("rigid").unwrap_or(false) {
+        return Joint::Rigid;
     }
-}
-
-/// One equivalent fixed-free Euler–Bernoulli spindle mode with its speed law.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct SpindleMode {
-    pub freq_hz: f64,
-    pub diameter: f64,
-    pub loss_factor: f64,
-    pub kf: f64,
-    pub keta: f64,
-}
-
-impl SpindleMode {
-    /// Natural frequency (Hz) at spindle speed `n` (same unit as `ref_speed`).
-    pub fn freq_at(&self, n: f64, ref_speed: f64) -> f64 {
-        self.freq_hz * (1.0 + self.kf * (n / ref_speed).powi(2))
+    Joint::Compliant {
+        kt: p.f64("kt").unwrap_or(f64::INFINITY),
+        ct: p.f64("ct").unwrap_or(0.0),
+        kr: p.f64("kr").unwrap_or(f64::INFINITY),
+        cr: p.f64("cr").unwrap_or(0.0),
     }
-    /// Loss factor at spindle speed `n`.
-    pub fn loss_at(&self, n: f64, ref_speed: f64) -> f64 {
-        self.loss_factor * (1.0 + self.keta * (n / ref_speed).powi(2))
-    }
-}
-
-/// The spindle-machine receptance at the holder base as equivalent modes per direction.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Spindle {
-    pub material: Material,
-    /// Reference speed of the speed law (rad/s).
-    pub ref_speed: f64,
-    pub modes: Vec<(String, Vec<SpindleMode>)>,
-}
-
-/// A machine: directions, speeds, spindle model and holder joint.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Machine {
-    pub directions: Vec<String>,
-    /// Spindle speeds of interest (rad/s).
-    pub speeds: Vec<f64>,
-    pub max_speed: Option<f64>,
-    pub spindle: Option<Spindle>,
-    pub holder_interface: Joint,
-}
-
-/// A tool/holder assembly of sections from the spindle end to the tip.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Assembly {
-    pub sections: Vec<Section>,
-    pub tool_joint: Joint,
-}
-
-/// A response sensor and what it does to a measurement.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Sensor {
-    pub kind: String,
-    /// Phase slope of the chain (rad per Hz, i.e. seconds × 2π); Eq. 2.11.
-    pub phase_slope: f64,
-    pub mass: f64,
-    pub location: String,
-    pub noise: Option<f64>,
-}
-
-/// A milling setup, with coefficients in the tangential/normal convention `Kt = Ks sin β`, `Kn = Ks cos β`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Cutting {
-    pub teeth: u32,
-    pub radial_immersion: f64,
-    pub up_milling: bool,
-    pub kt: f64,
-    pub kn: f64,
-    pub calibrated_at: Option<f64>,
-    /// Linear speed law about `calibrated_at`: relative change of Ks and change of β (rad)
-    /// per `change_per` (rad/s) of speed; zero for speed-independent coefficients.
-    pub ks_change: f64,
-    pub beta_change: f64,
-    pub change_per: f64,
-    pub feed_per_tooth: Option<f64>,
-    pub workpiece: Option<String>,
-    pub trial_speeds: Vec<f64>,
 }

@@ -11,6 +11,7 @@ use crate::spec::{self, Ctx, EntityKind, EntityNames, Field, FieldType, ParamVal
 use crate::syntax::{Raw, RawKind};
 use crate::value::PortType;
 use indexmap::IndexMap;
+use spindlelab_domain::{Speed, SpeedLaw};
 use spindlelab_grammar::Dimension;
 
 const TOP_KEYS: &[&str] = &[
@@ -177,7 +178,7 @@ pub fn resolve(
         }
     }
     let materials: IndexMap<String, Material> =
-        checked[&EntityKind::Material].iter().map(|(n, p)| (n.clone(), Material::from_params(p))).collect();
+        checked[&EntityKind::Material].iter().map(|(n, p)| (n.clone(), entities::material(p))).collect();
 
     let speeds = match raw.get("speeds") {
         Some(v) => {
@@ -474,10 +475,15 @@ fn material(p: &Params, field: &str, materials: &IndexMap<String, Material>) -> 
     p.text(field).and_then(|n| materials.get(n)).copied()
 }
 
+/// Spindle speeds as checked (rad/s).
+fn speeds(list: &[f64]) -> Vec<Speed> {
+    list.iter().copied().map(Speed::from_rad_s).collect()
+}
+
 fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine {
     let spindle = p.object("spindle").map(|s| Spindle {
         material: material(s, "material", materials).expect("checked material"),
-        ref_speed: s.f64("ref_speed").unwrap_or(0.0),
+        ref_speed: Speed::from_rad_s(s.f64("ref_speed").unwrap_or(0.0)),
         modes: match s.get("modes") {
             Some(ParamValue::Map(m)) => m
                 .iter()
@@ -489,8 +495,7 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                                 freq_hz: m.f64("f").unwrap_or(0.0),
                                 diameter: m.f64("d").unwrap_or(0.0),
                                 loss_factor: m.f64("eta").unwrap_or(0.0),
-                                kf: m.f64("kf").unwrap_or(0.0),
-                                keta: m.f64("keta").unwrap_or(0.0),
+                                law: SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("keta").unwrap_or(0.0) },
                             })
                             .collect(),
                         _ => Vec::new(),
@@ -507,10 +512,10 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
     };
     Machine {
         directions,
-        speeds: p.list("speeds").map(<[f64]>::to_vec).unwrap_or_default(),
-        max_speed: p.f64("max_speed"),
+        speeds: p.list("speeds").map(speeds).unwrap_or_default(),
+        max_speed: p.f64("max_speed").map(Speed::from_rad_s),
         spindle,
-        holder_interface: p.object("holder_interface").map(Joint::from_params).unwrap_or(Joint::Rigid),
+        holder_interface: p.object("holder_interface").map(entities::joint).unwrap_or(Joint::Rigid),
     }
 }
 
@@ -539,7 +544,7 @@ fn build_assembly(p: &Params, materials: &IndexMap<String, Material>) -> Assembl
             }
         })
         .collect();
-    Assembly { sections, tool_joint: p.object("tool_joint").map(Joint::from_params).unwrap_or(Joint::Rigid) }
+    Assembly { sections, tool_joint: p.object("tool_joint").map(entities::joint).unwrap_or(Joint::Rigid) }
 }
 
 fn build_sensor(p: &Params) -> Sensor {
@@ -563,13 +568,13 @@ fn build_cutting(p: &Params) -> Cutting {
         up_milling: p.text("milling") == Some("up"),
         kt,
         kn,
-        calibrated_at: p.f64("calibrated_at"),
+        calibrated_at: p.f64("calibrated_at").map(Speed::from_rad_s),
         ks_change: p.f64("Ks_change").unwrap_or(0.0),
         beta_change: p.f64("beta_change").unwrap_or(0.0),
-        change_per: p.f64("change_per").unwrap_or(f64::NAN),
+        change_per: Speed::from_rad_s(p.f64("change_per").unwrap_or(f64::NAN)),
         feed_per_tooth: p.f64("feed_per_tooth"),
         workpiece: p.text("workpiece").map(str::to_string),
-        trial_speeds: p.list("trial_speeds").map(<[f64]>::to_vec).unwrap_or_default(),
+        trial_speeds: p.list("trial_speeds").map(speeds).unwrap_or_default(),
     }
 }
 

@@ -4,6 +4,7 @@ use super::PlotError;
 use super::figure::{Axis, Color, ColorBar, Figure, Panel, Series, Style, sweep_color, sweep_labelled};
 use crate::value::{Frf, Lobes, ModalModel, Table, TimeSeries, Value};
 use num_complex::Complex64;
+use spindlelab_domain::Speed;
 use std::f64::consts::TAU;
 
 /// One value to draw: what it is called, and the sweep point that made it.
@@ -175,7 +176,7 @@ fn signal_unit(symbol: &str) -> (f64, String) {
         "m" => (1e6, "µm".into()),
         "m/s" => (1e3, "mm/s".into()),
         "s" => (1e3, "ms".into()),
-        "rad/s" => (60.0 / TAU, "rpm".into()),
+        "rad/s" => (Speed::from_rad_s(1.0).rpm(), "rpm".into()),
         "" => (1.0, String::new()),
         s => (1.0, s.to_string()),
     }
@@ -754,7 +755,7 @@ fn polar(layers: &[(&Layer, &Table)]) -> Vec<Panel> {
         let circle: Vec<(f64, f64)> =
             (0..=180).map(|k| (TAU * k as f64 / 180.0).sin_cos()).map(|(s, c)| (r0 * c, r0 * s)).collect();
         p.series.push(Series::new(
-            format!("reference circle, r0 = {} µm", crate::round_sig(r0, 2)),
+            format!("reference circle, r0 = {} µm", spindlelab_domain::round_sig(r0, 2)),
             circle,
             Style::Dashed,
             7,

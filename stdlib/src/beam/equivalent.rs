@@ -5,7 +5,8 @@
 
 use super::BeamError;
 use super::model::{BeamModel, MeshOptions};
-use super::section::{BeamMaterial, BeamSegment, CrossSection};
+use super::section::{BeamSegment, CrossSection};
+use spindlelab_domain::Material;
 
 /// A solid tool of one material: a cylindrical shank of the tool diameter and, at the tip, the
 /// cylinder standing for the fluted part (lengths and diameters in m).
@@ -18,7 +19,7 @@ pub struct FlutedTool {
     /// Fluted length, m.
     pub fluted_length: f64,
     /// Tool material.
-    pub material: BeamMaterial,
+    pub material: Material,
 }
 
 /// Smallest equivalent diameter searched, as a fraction of the tool diameter. The flutes of an
@@ -141,12 +142,7 @@ mod tests {
 
     /// §5.3: 12.7 mm solid carbide end mill, 76.2 mm long, 25.4 mm fluted.
     fn tool() -> FlutedTool {
-        FlutedTool {
-            diameter: 12.7e-3,
-            overall_length: 76.2e-3,
-            fluted_length: 25.4e-3,
-            material: BeamMaterial::CARBIDE,
-        }
+        FlutedTool { diameter: 12.7e-3, overall_length: 76.2e-3, fluted_length: 25.4e-3, material: Material::CARBIDE }
     }
 
     #[test]

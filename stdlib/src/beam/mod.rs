@@ -29,10 +29,10 @@ mod tests;
 
 pub use equivalent::{FlutedTool, equivalent_diameter};
 pub use model::{BeamModel, DampingForm, EigenSolver, MeshOptions, ModalModel, NodeSpring, Receptance, ReducedModes};
-pub use section::{BeamMaterial, BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
+pub use section::{BeamSegment, CrossSection, SectionProperties, ShearCoefficient};
 pub use spinning::{SpinningModel, SpinningReceptance, Whirl};
 
-use spindlelab_engine::model::{Material, Section};
+use spindlelab_domain::entity::{Material, Section};
 use thiserror::Error;
 
 /// Errors of the beam model.
@@ -43,7 +43,7 @@ pub enum BeamError {
     BadGeometry { d_out: f64, d_in: f64 },
     /// A material property is out of range.
     #[error("bad {what} material {material:?}: need E > 0, rho > 0, -1 < nu < 0.5, eta >= 0")]
-    BadMaterial { what: &'static str, material: BeamMaterial },
+    BadMaterial { what: &'static str, material: Material },
     /// A segment's properties could not be computed.
     #[error("segment {segment}: {source}")]
     Segment { segment: usize, source: Box<BeamError> },
@@ -103,17 +103,6 @@ pub enum BeamError {
     /// The eigen-solver did not converge (a matrix with non-finite entries).
     #[error("the eigen-solver did not converge")]
     NoConvergence,
-}
-
-impl From<Material> for BeamMaterial {
-    fn from(m: Material) -> Self {
-        BeamMaterial {
-            youngs_modulus: m.youngs_modulus,
-            density: m.density,
-            poisson: m.poisson,
-            loss_factor: m.loss_factor,
-        }
-    }
 }
 
 /// Converts recipe sections (Table 5.1, lengths in m) into beam segments. A fluted section

@@ -13,46 +13,21 @@
 //! both materials share one loss factor, as in Table 5.2).
 
 use super::BeamError;
+use spindlelab_domain::Material;
 use std::f64::consts::PI;
 
-/// Elastic, inertial and damping properties of a material (SI).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BeamMaterial {
-    /// Young's modulus E, Pa.
-    pub youngs_modulus: f64,
-    /// Density ρ, kg/m³.
-    pub density: f64,
-    /// Poisson's ratio ν.
-    pub poisson: f64,
-    /// Structural loss factor η (complex modulus E(1 + iη)).
-    pub loss_factor: f64,
-}
-
-impl BeamMaterial {
-    /// Steel of Table 5.2: 200 GPa, ν 0.29, 7800 kg/m³, η 0.0015.
-    pub const STEEL: BeamMaterial =
-        BeamMaterial { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
-    /// Carbide of Table 5.2: 550 GPa, ν 0.22, 15000 kg/m³, η 0.0015.
-    pub const CARBIDE: BeamMaterial =
-        BeamMaterial { youngs_modulus: 550e9, density: 15000.0, poisson: 0.22, loss_factor: 0.0015 };
-
-    /// Shear modulus G = E / (2(1 + ν)).
-    pub fn shear_modulus(&self) -> f64 {
-        self.youngs_modulus / (2.0 * (1.0 + self.poisson))
-    }
-
-    fn validate(&self, what: &'static str) -> Result<(), BeamError> {
-        let ok = self.youngs_modulus.is_finite()
-            && self.youngs_modulus > 0.0
-            && self.density.is_finite()
-            && self.density > 0.0
-            && self.poisson.is_finite()
-            && self.poisson > -1.0
-            && self.poisson < 0.5
-            && self.loss_factor.is_finite()
-            && self.loss_factor >= 0.0;
-        if ok { Ok(()) } else { Err(BeamError::BadMaterial { what, material: *self }) }
-    }
+/// The checks a Timoshenko section makes of a material: E and ρ positive, ν in (−1, ½), η ≥ 0.
+fn validate(m: &Material, what: &'static str) -> Result<(), BeamError> {
+    let ok = m.youngs_modulus.is_finite()
+        && m.youngs_modulus > 0.0
+        && m.density.is_finite()
+        && m.density > 0.0
+        && m.poisson.is_finite()
+        && m.poisson > -1.0
+        && m.poisson < 0.5
+        && m.loss_factor.is_finite()
+        && m.loss_factor >= 0.0;
+    if ok { Ok(()) } else { Err(BeamError::BadMaterial { what, material: *m }) }
 }
 
 /// Shear coefficient model for circular sections (solid, hollow and, through the composite
@@ -102,9 +77,9 @@ pub struct CrossSection {
     /// Bore (inner) diameter, m; 0 for a solid section.
     pub d_in: f64,
     /// Material of the tube.
-    pub outer: BeamMaterial,
+    pub outer: Material,
     /// Material filling the bore, if any.
-    pub inner: Option<BeamMaterial>,
+    pub inner: Option<Material>,
 }
 
 /// Per-length properties of a cross-section used by the Timoshenko element.
@@ -131,7 +106,7 @@ fn ring(d_out: f64, d_in: f64) -> (f64, f64) {
 
 impl CrossSection {
     /// Solid circular section.
-    pub fn solid(d: f64, material: BeamMaterial) -> CrossSection {
+    pub fn solid(d: f64, material: Material) -> CrossSection {
         CrossSection { d_out: d, d_in: 0.0, outer: material, inner: None }
     }
 
@@ -141,7 +116,7 @@ impl CrossSection {
         if !geometry_ok || self.d_in >= self.d_out {
             return Err(BeamError::BadGeometry { d_out: self.d_out, d_in: self.d_in });
         }
-        self.outer.validate("outer")?;
+        validate(&self.outer, "outer")?;
         let (a_o, i_o) = ring(self.d_out, self.d_in);
         let o = self.outer;
         let kappa_o = shear.hollow_circle(o.poisson, self.d_in / self.d_out);
@@ -154,7 +129,7 @@ impl CrossSection {
         };
         let mut eta_ei = o.loss_factor * p.ei;
         if let (Some(c), true) = (self.inner, self.d_in > 0.0) {
-            c.validate("inner")?;
+            validate(&c, "inner")?;
             let (a_c, i_c) = ring(self.d_in, 0.0);
             let ei_c = c.youngs_modulus * i_c;
             p.ei += ei_c;
@@ -183,9 +158,9 @@ pub struct BeamSegment {
     /// Length, m.
     pub length: f64,
     /// Tube material.
-    pub outer: BeamMaterial,
+    pub outer: Material,
     /// Core material filling the bore, if any.
-    pub inner: Option<BeamMaterial>,
+    pub inner: Option<Material>,
 }
 
 impl BeamSegment {
@@ -304,12 +279,12 @@ mod tests {
         let (d_out, d_in) = (28.04e-3, 12.7e-3);
         for shear in [ShearCoefficient::Cowper, ShearCoefficient::Hutchinson] {
             // A core of the tube's own material is the solid section, shear included.
-            let same = CrossSection { d_out, d_in, outer: BeamMaterial::STEEL, inner: Some(BeamMaterial::STEEL) };
-            let solid = CrossSection::solid(d_out, BeamMaterial::STEEL).properties(shear).unwrap();
+            let same = CrossSection { d_out, d_in, outer: Material::STEEL, inner: Some(Material::STEEL) };
+            let solid = CrossSection::solid(d_out, Material::STEEL).properties(shear).unwrap();
             let p = same.properties(shear).unwrap();
             assert!((p.ga_s - solid.ga_s).abs() < 1e-12 * solid.ga_s, "{shear:?}");
             // Steel on carbide: κ(ν̄) of the solid circle times the summed G·A.
-            let (st, cb) = (BeamMaterial::STEEL, BeamMaterial::CARBIDE);
+            let (st, cb) = (Material::STEEL, Material::CARBIDE);
             let s = CrossSection { d_out, d_in, outer: st, inner: Some(cb) };
             let a_o = PI / 4.0 * (d_out * d_out - d_in * d_in);
             let a_c = PI / 4.0 * d_in * d_in;
@@ -329,7 +304,7 @@ mod tests {
     #[test]
     fn composite_section_sums_bending_stiffness_and_mass() {
         let (d_out, d_in) = (28.04e-3, 12.7e-3);
-        let s = CrossSection { d_out, d_in, outer: BeamMaterial::STEEL, inner: Some(BeamMaterial::CARBIDE) };
+        let s = CrossSection { d_out, d_in, outer: Material::STEEL, inner: Some(Material::CARBIDE) };
         let p = s.properties(ShearCoefficient::Cowper).unwrap();
         let ei = 200e9 * PI * (d_out.powi(4) - d_in.powi(4)) / 64.0 + 550e9 * PI * d_in.powi(4) / 64.0;
         let rho_a = 7800.0 * PI * (d_out.powi(2) - d_in.powi(2)) / 4.0 + 15000.0 * PI * d_in.powi(2) / 4.0;
@@ -337,8 +312,8 @@ mod tests {
         assert!((p.rho_a - rho_a).abs() < 1e-12 * rho_a);
         assert!((p.eta - 0.0015).abs() < 1e-15);
         // A core of the same material gives the solid section.
-        let same = CrossSection { inner: Some(BeamMaterial::STEEL), outer: BeamMaterial::STEEL, d_out, d_in };
-        let solid = CrossSection::solid(d_out, BeamMaterial::STEEL).properties(ShearCoefficient::Cowper).unwrap();
+        let same = CrossSection { inner: Some(Material::STEEL), outer: Material::STEEL, d_out, d_in };
+        let solid = CrossSection::solid(d_out, Material::STEEL).properties(ShearCoefficient::Cowper).unwrap();
         let p2 = same.properties(ShearCoefficient::Cowper).unwrap();
         assert!((p2.ei - solid.ei).abs() < 1e-12 * solid.ei);
         assert!((p2.rho_i - solid.rho_i).abs() < 1e-12 * solid.rho_i);
@@ -346,9 +321,9 @@ mod tests {
 
     #[test]
     fn bad_geometry_and_material_are_rejected() {
-        let s = CrossSection { d_out: 0.01, d_in: 0.02, outer: BeamMaterial::STEEL, inner: None };
+        let s = CrossSection { d_out: 0.01, d_in: 0.02, outer: Material::STEEL, inner: None };
         assert!(matches!(s.properties(ShearCoefficient::Cowper), Err(BeamError::BadGeometry { .. })));
-        let mut m = BeamMaterial::STEEL;
+        let mut m = Material::STEEL;
         m.poisson = 0.7;
         let s = CrossSection::solid(0.01, m);
         assert!(matches!(s.properties(ShearCoefficient::Cowper), Err(BeamError::BadMaterial { .. })));

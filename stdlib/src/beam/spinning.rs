@@ -243,18 +243,18 @@ mod tests {
     use super::*;
     use crate::beam::linalg::complex_solve;
     use crate::beam::{
-        BeamMaterial, BeamSegment, CrossSection, MeshOptions, NodeSpring, segments_from_sections,
+        BeamSegment, CrossSection, Material, MeshOptions, NodeSpring, segments_from_sections,
         table::tool_holder_sections,
     };
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use std::f64::consts::PI;
 
-    fn steel_no_loss() -> BeamMaterial {
-        BeamMaterial { loss_factor: 0.0, ..BeamMaterial::STEEL }
+    fn steel_no_loss() -> Material {
+        Material { loss_factor: 0.0, ..Material::STEEL }
     }
 
-    fn shaft(d: f64, l: f64, elements: usize, material: BeamMaterial) -> BeamModel {
+    fn shaft(d: f64, l: f64, elements: usize, material: Material) -> BeamModel {
         let seg = BeamSegment::uniform(CrossSection::solid(d, material), l);
         let mesh = MeshOptions { max_element_length: l / elements as f64 * (1.0 + 1e-12), ..MeshOptions::default() };
         BeamModel::from_segments(&[seg], &mesh).unwrap()
@@ -341,7 +341,7 @@ mod tests {
 
     #[test]
     fn circular_coordinates_solve_the_full_gyroscopic_system() {
-        let mut planar = shaft(25e-3, 0.15, 10, BeamMaterial::STEEL);
+        let mut planar = shaft(25e-3, 0.15, 10, Material::STEEL);
         planar.add_spring(0, NodeSpring { kt: 5e7, ct: 300.0, kr: 2e5, cr: 2.0 }).unwrap();
         let mut spin = SpinningModel::new(planar);
         let tip = spin.n_nodes() - 1;
@@ -413,7 +413,7 @@ mod tests {
         // every speed; tilt Id ω² ∓ IpΩω − kθ = 0, forward ω = (IpΩ + √((IpΩ)² + 4Id kθ)) / 2Id,
         // backward with −IpΩ.
         let (d, l, k) = (40e-3, 0.1, 1e5);
-        let rigid = BeamMaterial { youngs_modulus: 200e12, ..steel_no_loss() };
+        let rigid = Material { youngs_modulus: 200e12, ..steel_no_loss() };
         let mut spin = SpinningModel::new(shaft(d, l, 20, rigid));
         let (disk_m, disk_id, disk_ip) = (2.0, 0.005, 0.01);
         let last = spin.n_nodes() - 1;
@@ -480,7 +480,7 @@ mod tests {
 
     #[test]
     fn bad_speeds_and_nodes_are_rejected() {
-        let spin = SpinningModel::new(shaft(20e-3, 0.1, 5, BeamMaterial::STEEL));
+        let spin = SpinningModel::new(shaft(20e-3, 0.1, 5, Material::STEEL));
         assert!(matches!(spin.receptance(0, 99, 10.0, &[100.0]), Err(BeamError::NoSuchNode { node: 99, .. })));
         assert!(matches!(spin.receptance(0, 1, f64::NAN, &[100.0]), Err(BeamError::BadSpeed(_))));
         assert!(matches!(spin.receptance(0, 1, 10.0, &[-1.0]), Err(BeamError::BadFrequency(_))));

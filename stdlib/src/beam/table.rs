@@ -2,7 +2,7 @@
 //! Table 5.2 materials, and the §5.3 fluted end mill: one copy for tests, benches and examples.
 
 use super::{BeamSegment, segments_from_sections};
-use spindlelab_engine::model::{Component, Material, Section};
+use spindlelab_domain::entity::{Component, Material, Section};
 
 /// Steel of Table 5.2 as a recipe material.
 pub const STEEL: Material = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };

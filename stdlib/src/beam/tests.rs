@@ -7,11 +7,11 @@ use num_complex::Complex64;
 use std::f64::consts::{PI, TAU};
 use table::tool_holder_sections;
 
-fn steel_no_loss() -> BeamMaterial {
-    BeamMaterial { loss_factor: 0.0, ..BeamMaterial::STEEL }
+fn steel_no_loss() -> Material {
+    Material { loss_factor: 0.0, ..Material::STEEL }
 }
 
-fn uniform(d: f64, length: f64, material: BeamMaterial, elements: usize) -> BeamModel {
+fn uniform(d: f64, length: f64, material: Material, elements: usize) -> BeamModel {
     let seg = BeamSegment::uniform(CrossSection::solid(d, material), length);
     let mesh = MeshOptions { max_element_length: length / elements as f64 * (1.0 + 1e-12), ..MeshOptions::default() };
     BeamModel::from_segments(&[seg], &mesh).unwrap()
@@ -211,7 +211,7 @@ fn modal_and_direct_receptances_agree_on_tool_holder() {
 #[test]
 fn free_free_low_frequency_tends_to_rigid_body_asymptote() {
     let (d, l) = (12.7e-3, 0.1);
-    let mat = BeamMaterial::CARBIDE;
+    let mat = Material::CARBIDE;
     let model = uniform(d, l, mat, 40);
     let modes = model.modes().unwrap();
     let p = CrossSection::solid(d, mat).properties(ShearCoefficient::Cowper).unwrap();
@@ -263,7 +263,7 @@ fn tip_mass_lowers_cantilever_frequency_as_rayleigh_predicts() {
 
 #[test]
 fn damped_springs_use_coupled_modal_form_and_agree_with_direct() {
-    let mut model = uniform(20e-3, 0.15, BeamMaterial::STEEL, 15);
+    let mut model = uniform(20e-3, 0.15, Material::STEEL, 15);
     model.add_spring(0, NodeSpring { kt: 5e7, ct: 300.0, kr: 2e5, cr: 2.0 }).unwrap();
     let tip = model.n_nodes() - 1;
     model.add_point_mass(tip, 0.01, 1e-7).unwrap();
@@ -335,9 +335,9 @@ fn tapered_cantilever_converges_to_integrated_compliance() {
 
 #[test]
 fn mixed_loss_factors_use_coupled_modal_form_and_agree_with_direct() {
-    let carbide = BeamMaterial { loss_factor: 0.02, ..BeamMaterial::CARBIDE };
+    let carbide = Material { loss_factor: 0.02, ..Material::CARBIDE };
     let segs = [
-        BeamSegment::uniform(CrossSection::solid(30e-3, BeamMaterial::STEEL), 40e-3),
+        BeamSegment::uniform(CrossSection::solid(30e-3, Material::STEEL), 40e-3),
         BeamSegment::uniform(CrossSection::solid(12.7e-3, carbide), 50e-3),
     ];
     let model =
@@ -374,7 +374,7 @@ fn exact_free_free(p: &SectionProperties, l: f64, guess: f64) -> f64 {
 fn hutchinson_raises_first_bending_mode_of_stubby_carbide_section() {
     // The §5.3 equivalent-diameter cylinder: solid carbide, 10.98 mm over 31.75 mm (L/d ≈ 2.9).
     let (d, l) = (10.98e-3, 31.75e-3);
-    let mat = BeamMaterial { loss_factor: 0.0, ..BeamMaterial::CARBIDE };
+    let mat = Material { loss_factor: 0.0, ..Material::CARBIDE };
     let seg = BeamSegment::uniform(CrossSection::solid(d, mat), l);
     let mut fe = [0.0; 2];
     let mut exact = [0.0; 2];
@@ -401,7 +401,7 @@ fn hutchinson_raises_first_bending_mode_of_stubby_carbide_section() {
 
 #[test]
 fn bad_segments_name_the_segment_and_value() {
-    let good = BeamSegment::uniform(CrossSection::solid(20e-3, BeamMaterial::STEEL), 0.05);
+    let good = BeamSegment::uniform(CrossSection::solid(20e-3, Material::STEEL), 0.05);
     let mesh = MeshOptions::default();
     let build = |bad: BeamSegment| BeamModel::from_segments(&[good, good, bad], &mesh);
     for length in [0.0, -0.01, f64::NAN, f64::INFINITY] {
@@ -437,7 +437,7 @@ fn bad_segments_name_the_segment_and_value() {
     }
     let e = build(BeamSegment { d_out_end: 8e-3, d_in: 9e-3, ..good }).unwrap_err().to_string();
     assert!(e.contains("segment 2") && e.contains("0.008") && e.contains("0.009"), "{e}");
-    let nan_material = BeamSegment { outer: BeamMaterial { density: f64::NAN, ..BeamMaterial::STEEL }, ..good };
+    let nan_material = BeamSegment { outer: Material { density: f64::NAN, ..Material::STEEL }, ..good };
     assert!(matches!(build(nan_material), Err(BeamError::Segment { segment: 2, .. })));
     let fine = MeshOptions { max_element_length: 1e-6, ..mesh };
     assert!(matches!(
@@ -494,8 +494,8 @@ fn structural_damping_complex_modes_equal_direct_solve_on_steel_carbide_tool_hol
 /// undamped modes.
 #[test]
 fn graded_model_is_exact_with_the_jacobi_solver() {
-    let carbide = BeamMaterial { loss_factor: 0.025, ..BeamMaterial::CARBIDE };
-    let steel = BeamMaterial { loss_factor: 0.012, ..BeamMaterial::STEEL };
+    let carbide = Material { loss_factor: 0.025, ..Material::CARBIDE };
+    let steel = Material { loss_factor: 0.012, ..Material::STEEL };
     let segs = [
         BeamSegment::uniform(CrossSection::solid(30e-3, steel), 40e-3),
         BeamSegment::uniform(CrossSection::solid(12.7e-3, carbide), 50e-3),

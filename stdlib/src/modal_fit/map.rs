@@ -2,26 +2,27 @@
 //! frequency (free length by Eq. 5.6) whose tip receptance matches the mode's around resonance.
 
 use super::{Band, Mode};
-use crate::eb_modes::{BeamMaterial, EbError, FIXED_FREE_ROOT_1, FixedFreeBeam};
+use crate::eb_modes::{EbError, FIXED_FREE_ROOT_1, FixedFreeBeam};
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
+use spindlelab_domain::Material;
 use std::f64::consts::{PI, TAU};
 
 /// Closed-form diameter of the beam whose first mode has tip modal mass `M` at `f`: the first cantilever
 /// mode's tip modal mass is `ρAL/4`, and with `L = sqrt(c d)` from Eq. 5.6
 /// (`c = 1.87510407²/(2πf) · sqrt(E/16ρ)`) this gives `M = (πρ/16) sqrt(c) d^{5/2}`.
-pub fn closed_form_diameter(mode: &Mode, material: &BeamMaterial) -> f64 {
+pub fn closed_form_diameter(mode: &Mode, material: &Material) -> f64 {
     let c = FIXED_FREE_ROOT_1 * FIXED_FREE_ROOT_1 / (TAU * mode.freq_hz)
-        * (material.e_pa / (16.0 * material.rho_kg_m3)).sqrt();
-    (16.0 * mode.modal_mass / (PI * material.rho_kg_m3 * c.sqrt())).powf(0.4)
+        * (material.youngs_modulus / (16.0 * material.density)).sqrt();
+    (16.0 * mode.modal_mass / (PI * material.density * c.sqrt())).powf(0.4)
 }
 
 /// The beam's `H` against the mode's Eq. 5.8 receptance on the band points: `Σ|H_beam − H_mode| / Σ|H_mode|`,
 /// searched over `(ln d, ln η)`.
 struct BeamCost<'a> {
     f_hz: f64,
-    material: BeamMaterial,
+    material: Material,
     w: &'a [f64],
     target: &'a [Complex64],
     scale: f64,
@@ -44,12 +45,7 @@ impl CostFunction for BeamCost<'_> {
 /// Maps `mode` to its equivalent beam (§5.2.5): the closed form ([`closed_form_diameter`], `η = 2ξ`) refined by
 /// a two-parameter Nelder–Mead on `points` evenly spaced lines of `band` (at most ±3 half-power widths around
 /// the mode), so that the beam's tip `H` matches the mode's Eq. 5.8 FRF. The frequency is kept.
-pub fn beam_for_mode(
-    mode: &Mode,
-    band: &Band,
-    material: &BeamMaterial,
-    points: usize,
-) -> Result<FixedFreeBeam, EbError> {
+pub fn beam_for_mode(mode: &Mode, band: &Band, material: &Material, points: usize) -> Result<FixedFreeBeam, EbError> {
     let d0 = closed_form_diameter(mode, material);
     let eta0 = 2.0 * mode.damping_ratio;
     let start = FixedFreeBeam::equivalent(mode.freq_hz, d0, eta0, *material)?;

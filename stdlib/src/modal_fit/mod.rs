@@ -35,10 +35,11 @@ pub use pick::{Peak, moving_average, pick_modes, pick_modes_signed};
 pub use polyref::{DiagramPole, SetFit, SetOptions, SharedPole, Stability, Targets, fit_set};
 pub use refit::REFIT_ITERATIONS;
 
-use crate::eb_modes::{BeamMaterial, EbError, FixedFreeBeam};
+use crate::eb_modes::{EbError, FixedFreeBeam};
 use crate::rcsa::{Receptance, ReceptanceFrf};
 use num_complex::Complex64;
-use spindlelab_engine::value::Mode;
+use spindlelab_domain::Material;
+use spindlelab_domain::value::Mode;
 use std::f64::consts::TAU;
 use thiserror::Error;
 
@@ -240,7 +241,7 @@ pub struct FitOptions {
     /// Points each band is interpolated to for the per-mode fits (bands with fewer lines use their lines).
     pub band_points: usize,
     /// Material of the equivalent beams.
-    pub material: BeamMaterial,
+    pub material: Material,
     /// Refit the mapped beams jointly against the measured FRF (global iterations on the beam model); `false`
     /// keeps the plain per-mode mapping of §5.2.5.
     pub beam_refit: bool,
@@ -271,7 +272,7 @@ impl Default for FitOptions {
             floating_modes: false,
             seed: 0,
             band_points: 200,
-            material: BeamMaterial::STEEL,
+            material: Material::STEEL,
             beam_refit: true,
             signed: false,
             weighting: Weighting::Relative,

@@ -708,7 +708,7 @@ fn lsfd_kind(
 mod tests {
     use super::*;
     use crate::modal_fit::lsfd::pole;
-    use spindlelab_engine::value::Mode;
+    use spindlelab_domain::value::Mode;
 
     /// Three modes of a structure seen at three points: the residue of mode `r` in FRF `o` is
     /// `φ_o,r φ_1,r/(2iω_d m_r)` (reference at point 1, response at points 1–3), so that the

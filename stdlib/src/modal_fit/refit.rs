@@ -10,11 +10,12 @@
 //! norms), beam after beam, until the summed objective over all bands stops improving.
 
 use super::{Band, EquivalentBeam};
-use crate::eb_modes::{BeamMaterial, FixedFreeBeam};
+use crate::eb_modes::FixedFreeBeam;
 use crate::rcsa::Receptance;
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use num_complex::Complex64;
+use spindlelab_domain::Material;
 use std::f64::consts::TAU;
 
 /// Cap on the refit's global iterations (sweeps over all beams).
@@ -47,7 +48,7 @@ impl FastH {
     pub(super) fn new(beam: FixedFreeBeam) -> Self {
         let ei = beam.ei_complex();
         let len = beam.length_m;
-        let q = (Complex64::from(beam.material.rho_kg_m3 * beam.area()) / ei).powf(0.25) * len;
+        let q = (Complex64::from(beam.material.density * beam.area()) / ei).powf(0.25) * len;
         FastH { beam, scale: Complex64::from(len * len * len) / ei, q, ei }
     }
 
@@ -111,7 +112,7 @@ struct BandData {
 struct BeamRefitCost<'a> {
     data: &'a BandData,
     held: &'a [Complex64],
-    material: BeamMaterial,
+    material: Material,
     f_lo: f64,
     f_hi: f64,
 }
@@ -172,7 +173,7 @@ pub(super) fn refit_beams(
     h: &[Complex64],
     bands: &[Band],
     beams: &[EquivalentBeam],
-    material: &BeamMaterial,
+    material: &Material,
     points: usize,
 ) -> Refit {
     let data: Vec<BandData> = bands
@@ -272,7 +273,7 @@ mod tests {
 
     #[test]
     fn fast_h_is_the_beams_tip_h() {
-        let beam = FixedFreeBeam::equivalent(1100.0, 0.05, 0.06, BeamMaterial::STEEL).unwrap();
+        let beam = FixedFreeBeam::equivalent(1100.0, 0.05, 0.06, Material::STEEL).unwrap();
         let fast = FastH::new(beam);
         for f in [1.0, 200.0, 600.0, 1000.0, 1100.0, 1300.0, 3000.0, 6900.0, 20_000.0] {
             let w: f64 = TAU * f;

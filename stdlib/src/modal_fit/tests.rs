@@ -184,7 +184,7 @@ fn bands_follow_eq_5_13() {
 
 #[test]
 fn equivalent_beam_matches_the_mode_near_resonance() {
-    let mat = BeamMaterial::STEEL;
+    let mat = Material::STEEL;
     for mode in [
         Mode { freq_hz: 900.0, damping_ratio: 0.03, modal_mass: 0.8 },
         Mode { freq_hz: 3200.0, damping_ratio: 0.015, modal_mass: 0.2 },
@@ -194,7 +194,7 @@ fn equivalent_beam_matches_the_mode_near_resonance() {
         // The closed form is the start: the first mode's tip modal mass is ρAL/4.
         let d0 = closed_form_diameter(&mode, &mat);
         let b0 = FixedFreeBeam::equivalent(mode.freq_hz, d0, 0.0, mat).unwrap();
-        assert!((mat.rho_kg_m3 * b0.area() * b0.length_m / 4.0 / mode.modal_mass - 1.0).abs() < 1e-12);
+        assert!((mat.density * b0.area() * b0.length_m / 4.0 / mode.modal_mass - 1.0).abs() < 1e-12);
         assert!((beam.d_m / d0 - 1.0).abs() < 0.05 && (beam.eta / (2.0 * mode.damping_ratio) - 1.0).abs() < 0.05);
         // Within ±2 half-power widths the beam's H is the mode's to 1.5 % of the peak.
         let peak = mode.receptance(TAU * mode.freq_hz).norm();

@@ -1,5 +1,8 @@
 //! `frf.gap`: a model's FRF against a measured one, in units of the measurement's noise.
 
+/// The kind name of `frf.gap`: the gap between a model FRF and a measured one.
+pub const FRF_GAP: &str = "frf.gap";
+
 use crate::gap::{self, NoiseModel};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
@@ -20,7 +23,7 @@ impl FrfGap {
     pub fn new() -> Self {
         FrfGap {
             spec: NodeSpec {
-                kind: "frf.gap",
+                kind: FRF_GAP,
                 version: 3,
                 description: "The gap between a model FRF and a measured one: relative complex L2, the noise floor (from the coherence or a declared noise model) and their ratio (about 1 for a model that explains the data), peak-frequency error, where the discrepancy is largest, a per-band table, and the noise-weighted residual a fit minimises.",
                 inputs: vec![

@@ -1,7 +1,7 @@
 //! `impact.simulate`: the Hertz hammer–target model of dissertation §2.1 as a recipe node.
 
 use crate::impact::{
-    Contact, Hammer, ImpactError, ImpactSetup, ModalTarget, Mode, SensorNoise, Sphere, Table21Target, first_contact,
+    Contact, Hammer, ImpactError, ImpactSetup, ModalTarget, SensorNoise, Sphere, Table21Target, first_contact,
     simulate, table_2_1_target,
 };
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
@@ -124,7 +124,11 @@ fn steel() -> (f64, f64) {
     (crate::impact::STEEL_YOUNGS_MODULUS, crate::impact::STEEL_POISSON)
 }
 
-fn setup_from(params: &Params, recipe: Option<&spindlelab_engine::model::Recipe>) -> Result<ImpactSetup, NodeError> {
+fn setup_from(
+    params: &Params,
+    recipe: Option<&spindlelab_engine::model::Recipe>,
+    spec: &NodeSpec,
+) -> Result<ImpactSetup, NodeError> {
     let f = |n: &str| params.f64(n).unwrap_or(f64::NAN);
     let target = if let Some(preset) = params.text("target_preset") {
         if params.get("target_modes").is_some() || params.get("target_mass").is_some() {
@@ -138,19 +142,21 @@ fn setup_from(params: &Params, recipe: Option<&spindlelab_engine::model::Recipe>
         if params.get("target_mass").is_some() {
             return Err(NodeError::param("target_modes", "give either `target_modes` or `target_mass`, not both"));
         }
-        ModalTarget {
-            modes: modes
-                .iter()
-                .map(|m| Mode {
-                    mass: m.f64("mass").unwrap_or(f64::NAN),
-                    stiffness: m.f64("stiffness").unwrap_or(f64::NAN),
-                    damping: m.f64("damping").unwrap_or(0.0),
-                })
-                .collect(),
-        }
+        let rows: Vec<(f64, f64, f64)> = modes
+            .iter()
+            .map(|m| {
+                (
+                    m.f64("mass").unwrap_or(f64::NAN),
+                    m.f64("stiffness").unwrap_or(f64::NAN),
+                    m.f64("damping").unwrap_or(0.0),
+                )
+            })
+            .collect();
+        ModalTarget::from_mass_stiffness_damping(&rows).map_err(|e| NodeError::param("target_modes", e.to_string()))?
     } else {
         match (params.f64("target_mass"), params.f64("target_stiffness")) {
-            (Some(m), Some(k)) => ModalTarget::single(m, k, f("target_damping")),
+            (Some(m), Some(k)) => ModalTarget::from_mass_stiffness_damping(&[(m, k, f("target_damping"))])
+                .map_err(|e| to_node_error(e, spec))?,
             _ => {
                 return Err(NodeError::param(
                     "target_mass",
@@ -229,12 +235,12 @@ impl Node for ImpactSimulate {
 
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
         // The closed-form approach phase checks every parameter and that contact happens.
-        let setup = setup_from(params, None)?;
+        let setup = setup_from(params, None, &self.spec)?;
         first_contact(&setup).map(|_| ()).map_err(|e| to_node_error(e, &self.spec))
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let mut setup = setup_from(ctx.params, Some(ctx.recipe))?;
+        let mut setup = setup_from(ctx.params, Some(ctx.recipe), &self.spec)?;
         let impacts = ctx.params.int("impacts").unwrap_or(1).max(1) as usize;
         let noise = ctx.params.f64("noise").unwrap_or(0.0);
         let seed = ctx.params.int("seed").unwrap_or(0) as u64;

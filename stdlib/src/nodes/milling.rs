@@ -3,11 +3,11 @@
 use super::stability::{COEFFICIENT_ROW, coefficient_table, cutting_param, milling, modal, pairs, read_trials};
 use crate::milling::{MillingSimulation, simulate};
 use crate::stability::{self, SpeedFrf, Trial};
+use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
-use std::f64::consts::TAU;
 
 pub struct MillingSimulate {
     spec: NodeSpec,
@@ -91,7 +91,7 @@ impl Node for MillingSimulate {
         let p = ctx.params;
         let modes = stability::ModalModel::new(modal(ctx, "modes_x")?, modal(ctx, "modes_y")?)
             .map_err(|e| NodeError::input("modes_x", e.to_string()))?;
-        let speed_rpm = ctx.f64("speed")? * 60.0 / TAU;
+        let speed_rpm = Speed::from_rad_s(ctx.f64("speed")?).rpm();
         let sim = MillingSimulation {
             cut: milling(ctx)?,
             depth: ctx.f64("depth")?,

@@ -22,6 +22,16 @@ mod structure;
 mod table;
 mod transform;
 
+/// The names of the kinds other crates refer to (the diagnosis finds steps by them and
+/// writes them into the recipes it edits): each kind is spelled once, by its node.
+pub mod kinds {
+    pub use super::gap::FRF_GAP;
+    pub use super::read::READ_FRF;
+    pub use super::stability::{STABILITY_SPEED_DEPENDENT, TRIALS_SCORE};
+    pub use super::structure::{BEAM_SUBSTRUCTURE, RCSA_COUPLE, SPINDLE_RECEPTANCE};
+    pub use super::transform::{FRF_ADD_MODE, FRF_PHASE_SLOPE, RECEPTANCE_TIP_MASS, SUBSTRUCTURE_JOINT};
+}
+
 pub use compare::FrfCompare;
 pub use convert::FrfConvert;
 pub use error_motion::{ErrorsSeparate, LdvIntegrate, TachDecode};

@@ -2,8 +2,8 @@
 //! and the modes of a transfer FRF (signed modal constants, no beams).
 
 use super::convert::{self, ZeroLine};
-use crate::eb_modes::BeamMaterial;
 use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues, Weighting};
+use spindlelab_domain::Material;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Column, Frf, FrfKind, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
@@ -228,14 +228,14 @@ impl Node for ModalFitNode {
                     .materials
                     .get(name)
                     .ok_or_else(|| NodeError::param("material", format!("no material `{name}` in the recipe")))?;
-                BeamMaterial { e_pa: m.youngs_modulus, rho_kg_m3: m.density }
+                *m
             }
-            None => BeamMaterial::STEEL,
+            None => Material::STEEL,
         };
-        if !(material.e_pa.is_finite()
-            && material.e_pa > 0.0
-            && material.rho_kg_m3.is_finite()
-            && material.rho_kg_m3 > 0.0)
+        if !(material.youngs_modulus.is_finite()
+            && material.youngs_modulus > 0.0
+            && material.density.is_finite()
+            && material.density > 0.0)
         {
             return Err(NodeError::param("material", "the material needs a positive `E` and `rho`"));
         }

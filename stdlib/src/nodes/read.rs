@@ -4,12 +4,12 @@
 //! The file is a parameter: the recipe names it relative to its own folder, and its
 //! contents are hashed into the cache key, so editing the data reruns what depends on it.
 
+use spindlelab_domain::Speed;
 use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
 use spindlelab_engine::value::{PortType, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
-use std::f64::consts::TAU;
 use std::path::Path;
 
 const FORMATS: &[&str] = &["auto", "csv", "uff"];
@@ -195,7 +195,7 @@ impl Node for ReadFrf {
         let mut frf = loaded.value;
         let shown = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         if let Some(w) = ctx.params.f64("speed") {
-            let rpm = w * 60.0 / TAU;
+            let rpm = Speed::from_rad_s(w).rpm();
             match frf.speed_rpm {
                 Some(s) if (s - rpm).abs() > 1e-6 * rpm.abs().max(1.0) => {
                     return Err(NodeError::param(

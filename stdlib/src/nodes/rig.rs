@@ -6,6 +6,7 @@ use crate::rig::{
     Direction, RigConfig, RigError, RigMode, RigRecording, SensorKind, ShakerConfig, ShakerError, Tone, Undulation,
     shaker, simulate,
 };
+use spindlelab_domain::{Speed, SpeedLaw};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, Frf, PortType, Table, TimeSeries, UnitLabel, Value};
@@ -265,11 +266,12 @@ fn undulations(list: &[Params]) -> Vec<Undulation> {
 fn modes(list: &[Params]) -> Vec<RigMode> {
     list.iter()
         .map(|m| RigMode {
-            freq_hz: m.f64("f").unwrap_or(f64::NAN),
-            damping_ratio: m.f64("zeta").unwrap_or(f64::NAN),
-            stiffness: m.f64("stiffness").unwrap_or(f64::NAN),
-            kf: m.f64("kf").unwrap_or(0.0),
-            kzeta: m.f64("kzeta").unwrap_or(0.0),
+            law: SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("kzeta").unwrap_or(0.0) },
+            ..RigMode::new(
+                m.f64("f").unwrap_or(f64::NAN),
+                m.f64("zeta").unwrap_or(f64::NAN),
+                m.f64("stiffness").unwrap_or(f64::NAN),
+            )
         })
         .collect()
 }
@@ -309,12 +311,7 @@ fn modal_input(ctx: &NodeContext, port: &str) -> Result<Option<Vec<RigMode>>, No
     if ctx.params.get(port).is_some() {
         ctx.warn(format!("both the `{port}` input and the `{port}` parameter are given; the input is used"));
     }
-    Ok(Some(
-        m.modes
-            .iter()
-            .map(|mode| RigMode::new(mode.freq_hz, mode.damping_ratio, mode.modal_mass * (TAU * mode.freq_hz).powi(2)))
-            .collect(),
-    ))
+    Ok(Some(m.modes.iter().map(|&mode| RigMode { at_rest: mode, law: SpeedLaw::NONE }).collect()))
 }
 
 fn direction(p: &Params, name: &str) -> Direction {
@@ -507,7 +504,7 @@ impl Node for RigSimulate {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some(c.direction.name().into()),
-            speed_rpm: Some(c.speed * 60.0 / TAU),
+            speed_rpm: Some(Speed::from_rad_s(c.speed).rpm()),
             sensor: Some("rig truth".into()),
             dofs: None,
         };
@@ -772,7 +769,7 @@ mod tests {
         let h: num_complex::Complex64 = modes.iter().map(|m| m.receptance(frf.freq_hz[29])).sum();
         assert_eq!(frf.values[29], h);
         // Static compliance: Σ 1/k.
-        let static_h: f64 = modes.iter().map(|m| 1.0 / m.stiffness).sum();
+        let static_h: f64 = modes.iter().map(|m| 1.0 / m.stiffness()).sum();
         assert!((frf.values[0].re - static_h).abs() < 1e-20 && frf.values[0].im == 0.0);
 
         let Value::Table(form) = &out["truth_form"] else { panic!("form") };

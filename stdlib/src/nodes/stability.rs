@@ -11,18 +11,15 @@ use crate::stability::{
     SpeedDependentOptions, SpeedFrf, StabilityError, StabilityLimit, StepCount, ToolPointFrf, Trial, TrialLikelihood,
     Verdict, ZoaOptions,
 };
+use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, Frf, Lobes, ModalModel, PortType, Scalar, Table, TimeSeries, Value};
 use spindlelab_grammar::Dimension as D;
-use std::f64::consts::TAU;
 
-/// rad/s → rpm.
-const RPM: f64 = 60.0 / TAU;
-
-/// A speed parameter (rad/s) in rpm, rounded to 1e-6 rpm so that `1500 rpm` reads back as 1500.
+/// A speed parameter (rad/s) in rpm as the recipe wrote it.
 pub(super) fn to_rpm(w: f64) -> f64 {
-    (w * RPM * 1e6).round() / 1e6
+    Speed::from_rad_s(w).rpm_as_written()
 }
 
 pub(super) fn cutting_param() -> Field {
@@ -151,6 +148,11 @@ fn outputs(items: Vec<(&str, Value)>) -> Outputs {
 }
 
 // ------------------------------------------------------------------ stability.lobes
+
+/// The kind name of `stability.speed_dependent`: lobes from tool-point FRFs that change with speed.
+pub const STABILITY_SPEED_DEPENDENT: &str = "stability.speed_dependent";
+/// The kind name of `trials.score`: cutting trials scored against lobes.
+pub const TRIALS_SCORE: &str = "trials.score";
 
 /// `stability.lobes`: the ZOA stability limit (Altintas & Budak 1995) from tool-point FRFs in x and y.
 pub struct StabilityLobes {
@@ -512,7 +514,7 @@ impl StabilitySpeedDependent {
     pub fn new() -> Self {
         StabilitySpeedDependent {
             spec: NodeSpec {
-                kind: "stability.speed_dependent",
+                kind: STABILITY_SPEED_DEPENDENT,
                 version: 1,
                 description: "Speed-dependent stability lobes (§6.1–6.3): tool-point FRFs at discrete speeds and cutting coefficients over speed, cubic-spline interpolated; at each speed the ZOA limit of the FRF at that speed, next to the stationary limit of one fixed FRF.",
                 inputs: vec![
@@ -603,7 +605,9 @@ pub(super) fn coefficient_table(
         let (lo, hi) = (span.0.min(0.0) - 1.0, span.1.max(span.0) + 1.0);
         // The cutting setup's linear speed law, sampled at knots a cubic reproduces exactly.
         if let Some(cut) = law.filter(|c| c.ks_change != 0.0 || c.beta_change != 0.0) {
-            let (Some(reference), per) = (cut.calibrated_at.map(to_rpm), to_rpm(cut.change_per)) else {
+            let (Some(reference), per) =
+                (cut.calibrated_at.map(Speed::rpm_as_written), cut.change_per.rpm_as_written())
+            else {
                 return Err(NodeError::param("cutting", "a speed law needs `calibrated_at`"));
             };
             let (ks, beta) = (c.kt.hypot(c.kn), c.kt.atan2(c.kn));
@@ -908,7 +912,7 @@ impl Node for ChatterDetect {
         let r = chatter::detect_chatter(
             rec(ts, x),
             rec(ts, y),
-            ctx.f64("speed")? * RPM,
+            Speed::from_rad_s(ctx.f64("speed")?).rpm(),
             p.int("teeth").unwrap_or(1) as usize,
             &opts,
         )
@@ -962,7 +966,7 @@ impl TrialsScore {
     pub fn new() -> Self {
         TrialsScore {
             spec: NodeSpec {
-                kind: "trials.score",
+                kind: TRIALS_SCORE,
                 version: 2,
                 description: "Scores cutting trials (CSV rpm,depth_mm,outcome[,chatter_freq_hz]) against a stability diagram: predicted outcome, right or wrong and distance to the boundary per trial, and the fraction right.",
                 inputs: vec![PortSpec::new("lobes", PortType::Lobes, "the diagram: limiting depth over speed")],

@@ -9,8 +9,9 @@
 //! solve of the whole mesh; with all modes kept the expansion equals the direct solve.
 
 use crate::beam::{self, BeamModel, MeshOptions, ShearCoefficient};
-use crate::eb_modes::{self, EquivalentMode};
+use crate::eb_modes;
 use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, ReceptanceFrf, TwoPort};
+use spindlelab_domain::Speed;
 use spindlelab_engine::model::{Component, Joint, Section};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -18,7 +19,6 @@ use spindlelab_engine::value::{
     Column, Frf, PortType, ReceptanceSet, Substructure, SubstructurePart, Table, UnitLabel, Value,
 };
 use spindlelab_grammar::Dimension as D;
-use std::f64::consts::TAU;
 use std::sync::{Arc, Mutex};
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
@@ -505,6 +505,13 @@ fn rcsa_error(port: &str, e: RcsaError, hint: &str) -> NodeError {
 
 // ------------------------------------------------------------------ beam.receptance
 
+/// The kind name of `spindle.receptance`: the spindle model's receptance at the holder base.
+pub const SPINDLE_RECEPTANCE: &str = "spindle.receptance";
+/// The kind name of `rcsa.couple`: receptance coupling of a substructure to a spindle receptance.
+pub const RCSA_COUPLE: &str = "rcsa.couple";
+/// The kind name of `beam.substructure`: a tool/holder assembly reduced to its coupling points.
+pub const BEAM_SUBSTRUCTURE: &str = "beam.substructure";
+
 /// `beam.receptance`: tip receptances of a free–free assembly (§5.4).
 pub struct BeamReceptance {
     spec: NodeSpec,
@@ -583,7 +590,7 @@ impl Node for BeamReceptance {
                 blocks.iter().map(|b| Receptance::new(b[0][0], b[0][1], b[1][0], b[1][1])).collect()
             }
         };
-        let speed_rpm = spin.map(|w| w * 60.0 / std::f64::consts::TAU);
+        let speed_rpm = spin.map(|w| Speed::from_rad_s(w).rpm());
         let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, speed_rpm);
         let top = freqs.last().copied().unwrap_or(0.0);
         let nat: Vec<f64> =
@@ -630,7 +637,7 @@ impl SpindleReceptance {
         params.extend(grid_params());
         SpindleReceptance {
             spec: NodeSpec {
-                kind: "spindle.receptance",
+                kind: SPINDLE_RECEPTANCE,
                 version: 2,
                 description: "Spindle-machine receptances at the holder base as the sum of equivalent fixed-free Euler-Bernoulli modes (Eqs. 5.5-5.7, 5.10-5.12) at a speed.",
                 inputs: vec![grid_port()],
@@ -691,21 +698,15 @@ impl Node for SpindleReceptance {
             return Err(NodeError::param("machine", format!("machine `{name}` lists no spindle modes for `{dir}`")));
         }
         let freqs = grid(ctx)?;
-        let rpm = |w: f64| w * 60.0 / TAU;
-        let speed = match (p.f64("speed"), measured.and_then(|f| f.speed_rpm)) {
-            (Some(w), _) => rpm(w),
-            (None, Some(s)) => s,
-            (None, None) => 0.0,
+        // The measured FRF's speed as its file wrote it (rpm), so the label is the file's.
+        let (speed, speed_rpm) = match (p.f64("speed"), measured.and_then(|f| f.speed_rpm)) {
+            (Some(w), _) => (Speed::from_rad_s(w), Speed::from_rad_s(w).rpm()),
+            (None, Some(s)) => (Speed::from_rpm(s), s),
+            (None, None) => (Speed::ZERO, 0.0),
         };
-        let eq: Vec<EquivalentMode> = modes
-            .iter()
-            .map(|m| EquivalentMode { f_hz: m.freq_hz, d_m: m.diameter, eta: m.loss_factor, kf: m.kf, keta: m.keta })
-            .collect();
-        let material =
-            eb_modes::BeamMaterial { e_pa: spindle.material.youngs_modulus, rho_kg_m3: spindle.material.density };
-        let r = eb_modes::spindle_receptance(&eq, &material, speed, rpm(spindle.ref_speed), &freqs)
+        let r = eb_modes::spindle_receptance(modes, &spindle.material, speed, spindle.ref_speed, &freqs)
             .map_err(|e| NodeError::param("machine", format!("spindle of machine `{name}`, direction {dir}: {e}")))?;
-        let set = to_set(&r, Some(dir.to_string()), Some(speed));
+        let set = to_set(&r, Some(dir.to_string()), Some(speed_rpm));
         let frf = h_of(&set);
         Ok(outputs(vec![("receptance", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
     }
@@ -738,7 +739,7 @@ impl RcsaCouple {
         params.extend(mesh_params());
         RcsaCouple {
             spec: NodeSpec {
-                kind: "rcsa.couple",
+                kind: RCSA_COUPLE,
                 version: 2,
                 description: "RCSA: couples a free-free FE assembly to the spindle receptances at its base, G11 = R11 - R12 (R22 + K^-1 + B)^-1 R21 (Eqs. 5.3, 5.16-5.17); a compliant tool_joint makes it spindle-holder-tool.",
                 inputs: vec![
@@ -867,7 +868,7 @@ impl BeamSubstructure {
         params.extend(mesh_params());
         BeamSubstructure {
             spec: NodeSpec {
-                kind: "beam.substructure",
+                kind: BEAM_SUBSTRUCTURE,
                 version: 2,
                 description: "Free-free Timoshenko FE model of an assembly (§5.4) with structural damping, reduced to its tip and spindle end: every complex mode, computed once and coupled by rcsa.couple at every speed, direction and joint setting.",
                 inputs: vec![],
@@ -1052,7 +1053,7 @@ impl Node for BeamCampbell {
             let mut rows: Vec<(f64, f64)> = rows.filter(|(f, _)| *f <= top).collect();
             rows.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
             for (f, sense) in rows {
-                cols[0].push(w.speed * 60.0 / std::f64::consts::TAU);
+                cols[0].push(Speed::from_rad_s(w.speed).rpm());
                 cols[1].push(f);
                 cols[2].push(sense);
             }

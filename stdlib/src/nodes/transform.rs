@@ -27,6 +27,15 @@ fn spec(
 
 // ------------------------------------------------------------------ substructure.joint
 
+/// The kind name of `substructure.joint`: a compliant joint at a substructure's holder face.
+pub const SUBSTRUCTURE_JOINT: &str = "substructure.joint";
+/// The kind name of `receptance.tip_mass`: a point mass at a receptance's tip.
+pub const RECEPTANCE_TIP_MASS: &str = "receptance.tip_mass";
+/// The kind name of `frf.phase_slope`: a phase lag linear in frequency.
+pub const FRF_PHASE_SLOPE: &str = "frf.phase_slope";
+/// The kind name of `frf.add_mode`: one mode added to an FRF.
+pub const FRF_ADD_MODE: &str = "frf.add_mode";
+
 /// `substructure.joint`: puts a joint `diag(kt + iωct, kr + iωcr)` between the holder and
 /// the tool of a substructure reduced in two parts.
 pub struct SubstructureJoint {
@@ -43,7 +52,7 @@ impl SubstructureJoint {
     pub fn new() -> Self {
         SubstructureJoint {
             spec: spec(
-                "substructure.joint",
+                SUBSTRUCTURE_JOINT,
                 "Puts a tool–holder joint K = diag(kt + iω ct, kr + iω cr) between the holder and the tool of a two-part substructure (beam.substructure with a compliant tool_joint or `split: holder_face`), replacing any joint there; the parts' modes are reused.",
                 vec![PortSpec::new("structure", PortType::Substructure, "holder and tool, reduced in two parts")],
                 vec![PortSpec::new("structure", PortType::Substructure, "the same parts with the joint")],
@@ -105,7 +114,7 @@ impl ReceptanceTipMass {
     pub fn new() -> Self {
         ReceptanceTipMass {
             spec: spec(
-                "receptance.tip_mass",
+                RECEPTANCE_TIP_MASS,
                 "Adds a translational point mass (a sensor, no rotary inertia) to tip receptances: G' = G (I - w^2 diag(m, 0) G)^-1; the measured configuration from the cutting one.",
                 vec![PortSpec::new("tip", PortType::ReceptanceSet, "2x2 tip receptances")],
                 vec![
@@ -154,7 +163,7 @@ impl FrfPhaseSlope {
     pub fn new() -> Self {
         FrfPhaseSlope {
             spec: spec(
-                "frf.phase_slope",
+                FRF_PHASE_SLOPE,
                 "Adds a phase linear in frequency, H' = H exp(i s f): a sensor's delay or filter lag (-13.84 deg/kHz for a capacitance gauge, §2.3).",
                 vec![PortSpec::new("frf", PortType::Frf, "the FRF")],
                 vec![PortSpec::new("frf", PortType::Frf, "with the phase slope")],
@@ -200,7 +209,7 @@ impl FrfAddMode {
     pub fn new() -> Self {
         FrfAddMode {
             spec: spec(
-                "frf.add_mode",
+                FRF_ADD_MODE,
                 "Adds one mode to an FRF, H' = H + 1/(k (1 - (f/fn)^2 + 2i zeta f/fn)): a resonance the model lacks, such as a sensor mount's.",
                 vec![PortSpec::new("frf", PortType::Frf, "the FRF (m/N)")],
                 vec![PortSpec::new("frf", PortType::Frf, "with the mode")],

@@ -1,8 +1,8 @@
 //! Configuration of the virtual rig: structure, rotation, artifact, error motions, probes,
 //! hammer and faults, with the dissertation's values as defaults, and its validation.
 
-use crate::impact::{Contact, ImpactError, ImpactSetup, ModalTarget, Mode, Sphere, first_contact};
-use num_complex::Complex64;
+use crate::impact::{Contact, ImpactError, ImpactSetup, ModalTarget, Sphere, first_contact};
+use spindlelab_domain::{Mode, Speed, SpeedLaw};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use thiserror::Error;
 
@@ -84,63 +84,32 @@ impl SensorKind {
     }
 }
 
-/// One structural mode at the impact point with its speed law (same form as the recipe
-/// spindle modes): `f(n) = f0 (1 + kf (n/n_ref)²)`, `ζ(n) = ζ0 (1 + kζ (n/n_ref)²)`; the
-/// modal stiffness does not change with speed.
+/// One structural mode at the impact point with its speed law (the law of the recipe's
+/// spindle modes, applied to the damping ratio): `f(n) = f0 (1 + kf (n/n_ref)²)`,
+/// `ζ(n) = ζ0 (1 + kd (n/n_ref)²)`; the modal stiffness does not change with speed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigMode {
-    /// Natural frequency at rest, Hz.
-    pub freq_hz: f64,
-    /// Viscous damping ratio at rest, in [0, 1).
-    pub damping_ratio: f64,
-    /// Modal stiffness, N/m (> 0).
-    pub stiffness: f64,
-    /// Speed-law coefficient of the frequency.
-    pub kf: f64,
-    /// Speed-law coefficient of the damping ratio.
-    pub kzeta: f64,
+    /// The mode at rest.
+    pub at_rest: Mode,
+    /// How its frequency and damping ratio change with speed.
+    pub law: SpeedLaw,
 }
 
 impl RigMode {
-    pub const fn new(freq_hz: f64, damping_ratio: f64, stiffness: f64) -> Self {
-        RigMode { freq_hz, damping_ratio, stiffness, kf: 0.0, kzeta: 0.0 }
+    /// A mode of natural frequency (Hz), damping ratio and modal stiffness (N/m) that does not
+    /// change with speed.
+    pub fn new(freq_hz: f64, damping_ratio: f64, stiffness: f64) -> Self {
+        RigMode { at_rest: Mode::from_stiffness(freq_hz, damping_ratio, stiffness), law: SpeedLaw::NONE }
     }
 
-    /// The mode at spindle speed `speed` (same unit as `ref_speed`).
-    pub fn at_speed(&self, speed: f64, ref_speed: f64) -> ModeAtSpeed {
-        let s = (speed / ref_speed).powi(2);
-        ModeAtSpeed {
-            freq_hz: self.freq_hz * (1.0 + self.kf * s),
-            damping_ratio: self.damping_ratio * (1.0 + self.kzeta * s),
-            stiffness: self.stiffness,
-        }
-    }
-}
-
-/// A mode at one speed: frequency (Hz), damping ratio and modal stiffness (N/m).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ModeAtSpeed {
-    pub freq_hz: f64,
-    pub damping_ratio: f64,
-    pub stiffness: f64,
-}
-
-impl ModeAtSpeed {
-    /// Receptance `1/(k (1 − r² + 2iζr))`, `r = f/f_n`, m/N (Eq. 5.8 in modal form); valid at
-    /// negative frequencies too (`H(−f) = conj H(f)`).
-    pub fn receptance(&self, freq_hz: f64) -> Complex64 {
-        let r = freq_hz / self.freq_hz;
-        1.0 / (self.stiffness * Complex64::new(1.0 - r * r, 2.0 * self.damping_ratio * r))
-    }
-
-    /// Modal mass `k/ω²`, kg.
-    pub fn mass(&self) -> f64 {
-        self.stiffness / (TAU * self.freq_hz).powi(2)
-    }
-
-    /// Modal viscous damping `2ζk/ω`, N·s/m.
-    pub fn damping(&self) -> f64 {
-        2.0 * self.damping_ratio * self.stiffness / (TAU * self.freq_hz)
+    /// The mode at spindle speed `speed`, by its law about `reference`, with its stiffness.
+    pub fn at_speed(&self, speed: Speed, reference: Speed) -> Mode {
+        let m = &self.at_rest;
+        Mode::from_stiffness(
+            self.law.frequency(m.freq_hz, speed, reference),
+            self.law.damping(m.damping_ratio, speed, reference),
+            m.stiffness(),
+        )
     }
 }
 
@@ -335,14 +304,14 @@ pub struct RigConfig {
 
 /// Rotational speed from rpm, rad/s.
 pub fn rpm(n: f64) -> f64 {
-    n * TAU / 60.0
+    Speed::from_rpm(n).rad_s()
 }
 
 impl Default for RigConfig {
     /// A realistic spindle at 1000 rpm with dissertation settings: 100 kHz, probes at 0°,
     /// 99.84°, 202.5°, capacitance gauges with −13.84 deg/kHz, 20 impacts of 65,536 samples.
     fn default() -> Self {
-        let mode = |f, z, k, kf, kz| RigMode { freq_hz: f, damping_ratio: z, stiffness: k, kf, kzeta: kz };
+        let mode = |f, z, k, kf, kd| RigMode { law: SpeedLaw { kf, kd }, ..RigMode::new(f, z, k) };
         RigConfig {
             sample_rate: 100.0e3,
             speed: rpm(1000.0),
@@ -449,8 +418,9 @@ impl RigConfig {
     }
 
     /// The struck direction's modes at the nominal speed.
-    pub fn modes_at_speed(&self) -> Vec<ModeAtSpeed> {
-        self.struck_modes().iter().map(|m| m.at_speed(self.speed, self.ref_speed)).collect()
+    pub fn modes_at_speed(&self) -> Vec<Mode> {
+        let (n, reference) = (Speed::from_rad_s(self.speed), Speed::from_rad_s(self.ref_speed));
+        self.struck_modes().iter().map(|m| m.at_speed(n, reference)).collect()
     }
 
     /// Record length in samples.
@@ -502,11 +472,7 @@ impl RigConfig {
     /// sampled `IMPACT_SUBSAMPLES` times faster than the record.
     pub(crate) fn impact_setup(&self) -> ImpactSetup {
         let h = &self.hammer;
-        let modes = self
-            .modes_at_speed()
-            .iter()
-            .map(|m| Mode { mass: m.mass(), stiffness: m.stiffness, damping: m.damping() })
-            .collect();
+        let modes = self.modes_at_speed();
         let mut s = ImpactSetup::new(
             crate::impact::Hammer { mass: h.mass, stiffness: h.stiffness, damping: h.damping },
             ModalTarget { modes },
@@ -537,21 +503,26 @@ impl RigConfig {
         for (name, modes) in [("modes_x", &self.modes_x), ("modes_y", &self.modes_y)] {
             for (i, m) in modes.iter().enumerate() {
                 let f = |field: &str| format!("{name}[{i}].{field}");
-                positive(&f("freq_hz"), m.freq_hz)?;
-                positive(&f("stiffness"), m.stiffness)?;
-                finite(&f("kf"), m.kf)?;
-                finite(&f("kzeta"), m.kzeta)?;
-                if !(m.damping_ratio.is_finite() && (0.0..1.0).contains(&m.damping_ratio)) {
-                    return Err(bad(f("damping_ratio"), m.damping_ratio, "must lie in [0, 1) (underdamped)"));
+                let (rest, law) = (&m.at_rest, &m.law);
+                positive(&f("freq_hz"), rest.freq_hz)?;
+                positive(&f("stiffness"), rest.stiffness())?;
+                finite(&f("kf"), law.kf)?;
+                finite(&f("kzeta"), law.kd)?;
+                if !(rest.damping_ratio.is_finite() && (0.0..1.0).contains(&rest.damping_ratio)) {
+                    return Err(bad(f("damping_ratio"), rest.damping_ratio, "must lie in [0, 1) (underdamped)"));
                 }
-                let s = m.at_speed(self.speed, self.ref_speed);
+                let s = m.at_speed(Speed::from_rad_s(self.speed), Speed::from_rad_s(self.ref_speed));
                 if s.freq_hz.is_nan() || s.freq_hz <= 0.0 {
-                    return Err(bad(f("kf"), m.kf, format!("gives a natural frequency of {} Hz at speed", s.freq_hz)));
+                    return Err(bad(
+                        f("kf"),
+                        law.kf,
+                        format!("gives a natural frequency of {} Hz at speed", s.freq_hz),
+                    ));
                 }
                 if !(s.damping_ratio.is_finite() && (0.0..1.0).contains(&s.damping_ratio)) {
                     return Err(bad(
                         f("kzeta"),
-                        m.kzeta,
+                        law.kd,
                         format!("gives a damping ratio of {} at speed, outside [0, 1)", s.damping_ratio),
                     ));
                 }

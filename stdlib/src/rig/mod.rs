@@ -61,8 +61,8 @@ mod shaker;
 
 pub use config::{
     Adc, CAPACITANCE_PHASE_SLOPE, Direction, HammerConfig, IMPACT_SPAN, IMPACT_SUBSAMPLES, MAX_DELAY, MAX_PROBES,
-    MAX_SAMPLES, ModeAtSpeed, Noise, PULSE_WINDOW, RigConfig, RigError, RigMode, SensorKind, TachConfig, Tone,
-    Undulation, VIBROMETER_PHASE_SLOPE, delay_from_phase_slope, harmonic_slope, harmonic_sum, rpm,
+    MAX_SAMPLES, Noise, PULSE_WINDOW, RigConfig, RigError, RigMode, SensorKind, TachConfig, Tone, Undulation,
+    VIBROMETER_PHASE_SLOPE, delay_from_phase_slope, harmonic_slope, harmonic_sum, rpm,
 };
 pub use shaker::{ShakerConfig, ShakerError, ShakerRecording, shaker};
 
@@ -72,6 +72,7 @@ use num_complex::Complex64;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
+use spindlelab_domain::Mode;
 use std::f64::consts::{PI, TAU};
 
 // Random streams.
@@ -230,7 +231,7 @@ pub struct RigTruth {
     pub setup_angle: f64,
     pub rotation: Rotation,
     /// The struck direction's modes at the nominal speed.
-    pub modes: Vec<ModeAtSpeed>,
+    pub modes: Vec<Mode>,
     /// Form error seen by probe A, `R(θ)` of Eq. 3.4.
     pub form: Vec<Undulation>,
     /// Synchronous error motion along probe A, `x(θ)` of Eq. 3.4.
@@ -252,7 +253,7 @@ pub struct RigTruth {
 impl RigTruth {
     /// Receptance of the struck direction at the nominal speed, `Σ 1/(k_j(1 − r_j² + 2iζ_j r_j))`, m/N.
     pub fn receptance(&self, freq_hz: f64) -> Complex64 {
-        self.modes.iter().map(|m| m.receptance(freq_hz)).sum()
+        self.modes.iter().map(|m| m.receptance(TAU * freq_hz)).sum()
     }
 
     /// What the ratio of the DFTs of the sampled response and force equals for a response
@@ -790,7 +791,7 @@ impl<'a> ProbeSynth<'a> {
         config: &RigConfig,
         frame: &ProbeFrame,
         rot: &Rotation,
-        modes: &[ModeAtSpeed],
+        modes: &[Mode],
         force: &'a [Segment],
         n: usize,
         seed: u64,
@@ -813,7 +814,7 @@ impl<'a> ProbeSynth<'a> {
         let j_start = -((MAX_DELAY * fs).ceil() as i64) - 2;
 
         let mode_list: Vec<(f64, f64, f64)> =
-            modes.iter().map(|m| (TAU * m.freq_hz, m.damping_ratio, m.stiffness)).collect();
+            modes.iter().map(|m| (m.omega(), m.damping_ratio, m.stiffness())).collect();
         let structure = Chain::new(if config.impacts > 0 { &mode_list } else { &[] }, h, span, velocity);
         let async_x = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_X);
         let async_y = AsyncMotion::new(config, h, span, seed, STREAM_ASYNC_Y);
@@ -1121,7 +1122,7 @@ fn probe_channels(
     config: &RigConfig,
     frame: &ProbeFrame,
     rot: &Rotation,
-    modes: &[ModeAtSpeed],
+    modes: &[Mode],
     force: &[Segment],
     n: usize,
     seed: u64,

@@ -36,8 +36,8 @@ fn dft_ratio_of_response_and_force_is_the_receptance() {
         // Modes follow the speed law at 3000 rpm.
         let src = c.struck_modes()[0];
         let s = 0.09;
-        assert!((t.modes[0].freq_hz - src.freq_hz * (1.0 + src.kf * s)).abs() < 1e-9);
-        assert!((t.modes[0].damping_ratio - src.damping_ratio * (1.0 + src.kzeta * s)).abs() < 1e-12);
+        assert!((t.modes[0].freq_hz - src.at_rest.freq_hz * (1.0 + src.law.kf * s)).abs() < 1e-9);
+        assert!((t.modes[0].damping_ratio - src.at_rest.damping_ratio * (1.0 + src.law.kd * s)).abs() < 1e-12);
 
         let n = r.len();
         assert_eq!(n, 65_536);
@@ -490,13 +490,13 @@ fn bad_configurations_name_the_field() {
         ("modes_x", RigConfig { modes_x: Vec::new(), ..d() }),
     ];
     let mut m = d();
-    m.modes_x[1].freq_hz = -5.0;
+    m.modes_x[1].at_rest.freq_hz = -5.0;
     cases.push(("modes_x[1].freq_hz", m));
     let mut m = d();
-    m.modes_y[0].damping_ratio = 1.0;
+    m.modes_y[0].at_rest.damping_ratio = 1.0;
     cases.push(("modes_y[0].damping_ratio", m));
     let mut m = d();
-    m.modes_x[2].freq_hz = 60e3;
+    m.modes_x[2].at_rest.freq_hz = 60e3;
     cases.push(("modes_x[2].freq_hz", m));
     let mut m = d();
     m.form[0].upr = 0;

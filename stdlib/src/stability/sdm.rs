@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 /// The mode type of every kernel: natural frequency (Hz), damping ratio and modal mass (kg), receptance Eq. 5.8.
-pub use spindlelab_engine::value::Mode;
+pub use spindlelab_domain::value::Mode;
 
 /// Modes of the tool point along `x` (feed) and `y`; a direction without modes is rigid.
 #[derive(Debug, Clone, PartialEq)]

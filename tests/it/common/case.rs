@@ -61,7 +61,7 @@ pub fn assert_baseline_matches(r: &Recipe, case: &Json, names: &CaseNames) {
         Joint::Rigid => assert_eq!(joint["rigid"].as_bool(), Some(true), "joint should be compliant"),
     }
     let spindle = machine.spindle.as_ref().unwrap();
-    assert!(close(spindle.ref_speed, f(&case["spindle"]["ref_speed_rpm"]) * 2.0 * PI / 60.0));
+    assert!(close(spindle.ref_speed.rpm(), f(&case["spindle"]["ref_speed_rpm"])));
     assert!(close(spindle.material.youngs_modulus, f(&case["spindle"]["material"]["E_pa"])));
     for (dir, modes) in &spindle.modes {
         let want = case["spindle"]["modes"][dir.as_str()].as_array().unwrap();
@@ -72,7 +72,7 @@ pub fn assert_baseline_matches(r: &Recipe, case: &Json, names: &CaseNames) {
                     && close(m.diameter, f(&w["d_m"]))
                     && close(m.loss_factor, f(&w["eta"]))
             );
-            assert_eq!((m.kf, m.keta), (f(&w["kf"]), f(&w["keta"])));
+            assert_eq!((m.law.kf, m.law.kd), (f(&w["kf"]), f(&w["keta"])));
         }
     }
 
@@ -87,7 +87,7 @@ pub fn assert_baseline_matches(r: &Recipe, case: &Json, names: &CaseNames) {
     assert!(close(cut.radial_immersion, f(&c["radial_immersion"])));
     assert_eq!(cut.up_milling, c["milling"] == "up");
     assert!(close(cut.kt, f(&c["Ks_n_per_m2"]) * beta.sin()) && close(cut.kn, f(&c["Ks_n_per_m2"]) * beta.cos()));
-    assert!(close(cut.calibrated_at.unwrap(), f(&c["coefficients_calibrated_at_rpm"]) * 2.0 * PI / 60.0));
+    assert!(close(cut.calibrated_at.unwrap().rpm(), f(&c["coefficients_calibrated_at_rpm"])));
     let range: Vec<f64> = c["trial_rpm_range"].as_array().unwrap().iter().map(|v| f(v) * 2.0 * PI / 60.0).collect();
-    assert!(cut.trial_speeds.iter().zip(&range).all(|(a, b)| close(*a, *b)));
+    assert!(cut.trial_speeds.iter().zip(&range).all(|(a, b)| close(a.rad_s(), *b)));
 }

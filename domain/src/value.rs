@@ -359,6 +359,19 @@ impl Mode {
         Mode { freq_hz, damping_ratio, modal_mass: stiffness / (wn * wn) }
     }
 
+    /// The mode of modal mass `m` (kg), stiffness `k` (N/m) and viscous damping `c` (N·s/m):
+    /// `f = √(k/m)/2π`, `ζ = c/(2√(km))` (zero when undamped, so a free rigid-body mode,
+    /// `k = 0`, is `f = 0` with its mass).
+    pub fn from_mass_stiffness_damping(m: f64, k: f64, c: f64) -> Mode {
+        let damping_ratio = if c == 0.0 { 0.0 } else { c / (2.0 * (k * m).sqrt()) };
+        Mode { freq_hz: (k / m).sqrt() / std::f64::consts::TAU, damping_ratio, modal_mass: m }
+    }
+
+    /// Viscous modal damping `c = 2ζ m ω_n`, N·s/m.
+    pub fn damping(&self) -> f64 {
+        2.0 * self.damping_ratio * self.modal_mass * self.omega()
+    }
+
     /// Natural angular frequency `2πf`, rad/s.
     pub fn omega(&self) -> f64 {
         std::f64::consts::TAU * self.freq_hz
@@ -384,7 +397,7 @@ impl Mode {
 /// A free–free beam assembly: Timoshenko sections from the spindle end to the tip.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BeamModel {
-    pub sections: Vec<crate::model::Section>,
+    pub sections: Vec<crate::entity::Section>,
 }
 
 /// A free–free substructure (a holder with its tool) reduced to its two coupling points, the
@@ -671,5 +684,14 @@ mod tests {
         let hr = m.receptance(m.omega());
         assert!(hr.re.abs() < 1e-12 * hr.im.abs());
         assert!((hr.im * 2.0 * 0.03 * 2e7 + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn mass_stiffness_and_damping_round_trip() {
+        let m = Mode::from_mass_stiffness_damping(0.4, 3e7, 120.0);
+        assert!((m.stiffness() / 3e7 - 1.0).abs() < 1e-14 && (m.damping() / 120.0 - 1.0).abs() < 1e-14);
+        assert!((m.freq_hz - (3e7f64 / 0.4).sqrt() / std::f64::consts::TAU).abs() < 1e-12);
+        let rigid = Mode::from_mass_stiffness_damping(2.0, 0.0, 0.0);
+        assert_eq!((rigid.freq_hz, rigid.damping_ratio, rigid.modal_mass, rigid.stiffness()), (0.0, 0.0, 2.0, 0.0));
     }
 }

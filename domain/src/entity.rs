@@ -1,0 +1,147 @@
+//! The entities a recipe names, typed and in SI: materials, machines with their spindle
+//! models, tool/holder assemblies of Timoshenko sections, sensors and cutting setups.
+//!
+//! The engine builds them from checked recipe fields; the kernels take them as they are.
+
+use crate::speed::{Speed, SpeedLaw};
+use serde::{Deserialize, Serialize};
+
+/// Elastic, inertial and damping properties of an isotropic material (SI): the one material
+/// of the recipe, the Timoshenko sections and the equivalent Euler–Bernoulli spindle beams.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    /// Young's modulus E, Pa.
+    pub youngs_modulus: f64,
+    /// Density ρ, kg/m³.
+    pub density: f64,
+    /// Poisson's ratio ν (NaN where a recipe leaves it out: Euler–Bernoulli beams do without).
+    pub poisson: f64,
+    /// Structural loss factor η (complex modulus E(1 + iη)).
+    pub loss_factor: f64,
+}
+
+impl Material {
+    /// Steel of Table 5.2: 200 GPa, ν 0.29, 7800 kg/m³, η 0.0015.
+    pub const STEEL: Material = Material { youngs_modulus: 200e9, density: 7800.0, poisson: 0.29, loss_factor: 0.0015 };
+    /// Carbide of Table 5.2: 550 GPa, ν 0.22, 15000 kg/m³, η 0.0015.
+    pub const CARBIDE: Material =
+        Material { youngs_modulus: 550e9, density: 15000.0, poisson: 0.22, loss_factor: 0.0015 };
+
+    /// Shear modulus G = E / (2(1 + ν)).
+    pub fn shear_modulus(&self) -> f64 {
+        self.youngs_modulus / (2.0 * (1.0 + self.poisson))
+    }
+}
+
+/// Which part of the assembly a section belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Component {
+    Holder,
+    HolderAndTool,
+    Tool,
+}
+
+/// One Timoshenko section of a tool/holder assembly, lengths in metres.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Section {
+    pub name: String,
+    pub component: Component,
+    pub fluted: bool,
+    pub d_out_spindle_end: f64,
+    pub d_out_tip_end: f64,
+    pub d_in: f64,
+    pub length: f64,
+    pub outer: Material,
+    pub inner: Option<Material>,
+    pub d_equivalent: Option<f64>,
+}
+
+/// A joint between substructures: rigid, or stiffness and damping per direction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Joint {
+    Rigid,
+    Compliant { kt: f64, ct: f64, kr: f64, cr: f64 },
+}
+
+/// One equivalent fixed-free Euler–Bernoulli spindle mode (§5.2) with its speed law: the
+/// natural frequency and loss factor change with speed, the diameter does not.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SpindleMode {
+    /// Natural frequency at rest, Hz.
+    pub freq_hz: f64,
+    /// Diameter of the equivalent beam, m.
+    pub diameter: f64,
+    /// Structural loss factor at rest.
+    pub loss_factor: f64,
+    /// Frequency and loss factor over speed (`kf`, `keta` in a recipe).
+    pub law: SpeedLaw,
+}
+
+impl SpindleMode {
+    /// A mode that does not change with speed.
+    pub fn new(freq_hz: f64, diameter: f64, loss_factor: f64) -> SpindleMode {
+        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE }
+    }
+
+    /// Natural frequency (Hz) and loss factor at speed `n`, by the law about `reference`.
+    pub fn at_speed(&self, n: Speed, reference: Speed) -> (f64, f64) {
+        (self.law.frequency(self.freq_hz, n, reference), self.law.damping(self.loss_factor, n, reference))
+    }
+}
+
+/// The spindle-machine receptance at the holder base as equivalent modes per direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spindle {
+    pub material: Material,
+    /// Reference speed of the speed law.
+    pub ref_speed: Speed,
+    pub modes: Vec<(String, Vec<SpindleMode>)>,
+}
+
+/// A machine: directions, speeds, spindle model and holder joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Machine {
+    pub directions: Vec<String>,
+    /// Spindle speeds of interest.
+    pub speeds: Vec<Speed>,
+    pub max_speed: Option<Speed>,
+    pub spindle: Option<Spindle>,
+    pub holder_interface: Joint,
+}
+
+/// A tool/holder assembly of sections from the spindle end to the tip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assembly {
+    pub sections: Vec<Section>,
+    pub tool_joint: Joint,
+}
+
+/// A response sensor and what it does to a measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensor {
+    pub kind: String,
+    /// Phase slope of the chain (rad per Hz, i.e. seconds × 2π); Eq. 2.11.
+    pub phase_slope: f64,
+    pub mass: f64,
+    pub location: String,
+    pub noise: Option<f64>,
+}
+
+/// A milling setup, with coefficients in the tangential/normal convention `Kt = Ks sin β`, `Kn = Ks cos β`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cutting {
+    pub teeth: u32,
+    pub radial_immersion: f64,
+    pub up_milling: bool,
+    pub kt: f64,
+    pub kn: f64,
+    pub calibrated_at: Option<Speed>,
+    /// Linear speed law about `calibrated_at`: relative change of Ks and change of β (rad)
+    /// per `change_per` of speed; zero for speed-independent coefficients.
+    pub ks_change: f64,
+    pub beta_change: f64,
+    pub change_per: Speed,
+    pub feed_per_tooth: Option<f64>,
+    pub workpiece: Option<String>,
+    pub trial_speeds: Vec<Speed>,
+}
