@@ -14,6 +14,7 @@ pub mod formats;
 pub mod graph;
 pub mod model;
 pub mod node;
+pub mod node_params;
 pub mod plot;
 pub mod report;
 pub mod schema;

@@ -1,13 +1,37 @@
 //! `frf.gap`: a model's FRF against a measured one, in units of the measurement's noise.
 
+use crate::gap::{self, NoiseModel};
+use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
+use spindlelab_engine::value::{Column, Frf, PortType, Scalar, Table, UnitLabel, Value};
+use spindlelab_grammar::Dimension as D;
+
 /// The kind name of `frf.gap`: the gap between a model FRF and a measured one.
 pub const FRF_GAP: &str = "frf.gap";
 
-use crate::gap::{self, NoiseModel};
-use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
-use spindlelab_engine::value::{Column, Frf, PortType, Scalar, Table, UnitLabel, Value};
-use spindlelab_grammar::Dimension as D;
+node_params! {
+    /// Parameters of `frf.gap`.
+    pub struct GapParams<'a> {
+        band: opt &'a [f64] = (T::QuantityList(D::FREQUENCY), "[low, high] Hz to compare (default: every measured line the model covers)"),
+        noise: def &'a str = (
+            T::Choice(&["coherence", "h1", "declared"]),
+            "coherence",
+            "where the noise of each line comes from: the coherence as the virtual rig writes it (σ² = |H|²(1/γ − 1)/20); an analyser's H1 estimate over `averages` averages with γ² its ordinary coherence (σ² = |H|²(1 − γ²)/(nγ²)); or `sigma_rel`, `floor_rel` and `rolloff`",
+        ),
+        averages: opt usize = (
+            T::Integer { min: 1, max: 1_000_000 },
+            "`noise: h1`: the number of impacts or blocks averaged into the measured FRF",
+        ),
+        sigma_rel: opt f64 = (T::Quantity(D::DIMENSIONLESS), "declared noise: relative noise of each line (e.g. 1.5 %)"),
+        floor_rel: opt f64 = (T::Quantity(D::DIMENSIONLESS), "declared noise: absolute floor as a fraction of max|H|"),
+        rolloff: opt f64 = (
+            T::Quantity(D::FREQUENCY),
+            "declared noise: the floor rises as √(1 + (f/rolloff)⁴) beyond the excitation's roll-off",
+        ),
+        bands: def usize = (T::Integer { min: 1, max: 1000 }, "10", "number of equal-width bands in the `bands` table"),
+    }
+}
 
 pub struct FrfGap {
     spec: NodeSpec,
@@ -52,66 +76,35 @@ impl FrfGap {
                         "(H_model − H_meas)/(noise_floor·‖H_meas‖) on the compared lines: Σ|r|² = ratio², the objective of a fit",
                     ),
                 ],
-                params: vec![
-                    Field::opt(
-                        "band",
-                        T::QuantityList(D::FREQUENCY),
-                        "[low, high] Hz to compare (default: every measured line the model covers)",
-                    ),
-                    Field::def(
-                        "noise",
-                        T::Choice(&["coherence", "h1", "declared"]),
-                        "coherence",
-                        "where the noise of each line comes from: the coherence as the virtual rig writes it (σ² = |H|²(1/γ − 1)/20); an analyser's H1 estimate over `averages` averages with γ² its ordinary coherence (σ² = |H|²(1 − γ²)/(nγ²)); or `sigma_rel`, `floor_rel` and `rolloff`",
-                    ),
-                    Field::opt(
-                        "averages",
-                        T::Integer { min: 1, max: 1_000_000 },
-                        "`noise: h1`: the number of impacts or blocks averaged into the measured FRF",
-                    ),
-                    Field::opt(
-                        "sigma_rel",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "declared noise: relative noise of each line (e.g. 1.5 %)",
-                    ),
-                    Field::opt(
-                        "floor_rel",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "declared noise: absolute floor as a fraction of max|H|",
-                    ),
-                    Field::opt(
-                        "rolloff",
-                        T::Quantity(D::FREQUENCY),
-                        "declared noise: the floor rises as √(1 + (f/rolloff)⁴) beyond the excitation's roll-off",
-                    ),
-                    Field::def(
-                        "bands",
-                        T::Integer { min: 1, max: 1000 },
-                        "10",
-                        "number of equal-width bands in the `bands` table",
-                    ),
-                ],
+                params: GapParams::fields(),
             },
         }
     }
 }
 
-fn declared(p: &Params) -> Result<Option<NoiseModel>, NodeError> {
-    if p.text("noise") == Some("h1") {
-        let n = p.int("averages").ok_or_else(|| {
-            NodeError::param("averages", "`noise: h1` needs `averages`: how many impacts or blocks the FRF averages")
-        })?;
-        return Ok(Some(NoiseModel::H1 { averages: n as f64 }));
+fn declared(p: &GapParams) -> Result<Option<NoiseModel>, NodeError> {
+    match p.noise {
+        "h1" => {
+            let n = p.averages.ok_or_else(|| {
+                NodeError::param(
+                    "averages",
+                    "`noise: h1` needs `averages`: how many impacts or blocks the FRF averages",
+                )
+            })?;
+            Ok(Some(NoiseModel::H1 { averages: n as f64 }))
+        }
+        "declared" => {
+            let need = |name: &str, v: Option<f64>| {
+                v.ok_or_else(|| {
+                    NodeError::param(name, "`noise: declared` needs `sigma_rel`, `floor_rel` and `rolloff`")
+                })
+            };
+            let (sigma_rel, floor_rel, rolloff_hz) =
+                (need("sigma_rel", p.sigma_rel)?, need("floor_rel", p.floor_rel)?, need("rolloff", p.rolloff)?);
+            Ok(Some(NoiseModel::Declared { sigma_rel, floor_rel, rolloff_hz }))
+        }
+        _ => Ok(None),
     }
-    if p.text("noise") != Some("declared") {
-        return Ok(None);
-    }
-    let need = |name: &str| {
-        p.f64(name)
-            .ok_or_else(|| NodeError::param(name, "`noise: declared` needs `sigma_rel`, `floor_rel` and `rolloff`"))
-    };
-    let (sigma_rel, floor_rel, rolloff_hz) = (need("sigma_rel")?, need("floor_rel")?, need("rolloff")?);
-    Ok(Some(NoiseModel::Declared { sigma_rel, floor_rel, rolloff_hz }))
 }
 
 impl Node for FrfGap {
@@ -119,11 +112,12 @@ impl Node for FrfGap {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        declared(p)?;
-        super::non_negative(p, &["sigma_rel", "floor_rel"])?;
-        super::positive(p, &["rolloff"])?;
-        if let Some(b) = p.list("band")
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = GapParams::read(params)?;
+        declared(&p)?;
+        super::non_negative(params, &["sigma_rel", "floor_rel"])?;
+        super::positive(params, &["rolloff"])?;
+        if let Some(b) = p.band
             && (b.len() != 2 || b[0] >= b[1])
         {
             return Err(NodeError::param("band", "give `[low, high]` with low below high"));
@@ -136,8 +130,9 @@ impl Node for FrfGap {
             return Err(NodeError::input("model", "expected FRFs"));
         };
         super::convert::same_kind(meas, "measured", model, "model")?;
-        let noise = declared(ctx.params)?.unwrap_or(NoiseModel::Coherence);
-        let (lo, hi) = match ctx.params.list("band") {
+        let p = GapParams::read(ctx.params)?;
+        let noise = declared(&p)?.unwrap_or(NoiseModel::Coherence);
+        let (lo, hi) = match p.band {
             Some([a, b]) => (*a, *b),
             _ => (f64::NEG_INFINITY, f64::INFINITY),
         };
@@ -207,7 +202,7 @@ impl Node for FrfGap {
                 f.len()
             ));
         }
-        let bands = usize::try_from(ctx.params.int("bands").unwrap_or(10)).unwrap_or(10);
+        let bands = p.bands;
         let coherence = meas.coherence.as_ref().map(|_| coh.as_slice());
         let g =
             gap::gap(&f, &hm, &hx, coherence, noise, bands).map_err(|e| NodeError::input("measured", e.to_string()))?;
