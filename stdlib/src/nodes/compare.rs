@@ -2,9 +2,26 @@
 
 use crate::compare::{self, Region};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Scalar, Table, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `frf.compare`.
+    pub struct FrfCompareParams<'a> {
+        region: def &'a str = (
+            T::Choice(&["modes", "all"]),
+            "modes",
+            "judge the half-power band of each reference mode, or every line",
+        ),
+        min_coherence: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0.9",
+            "lines with lower coherence are not judged",
+        ),
+    }
+}
 
 pub struct FrfCompare {
     spec: NodeSpec,
@@ -40,20 +57,7 @@ impl FrfCompare {
                     PortSpec::new("magnitude_error", PortType::Scalar, "largest | |H|/|H_ref| − 1 | over judged lines"),
                     PortSpec::new("phase_error", PortType::Scalar, "largest |arg(H/H_ref)| over judged lines (rad)"),
                 ],
-                params: vec![
-                    Field::def(
-                        "region",
-                        T::Choice(&["modes", "all"]),
-                        "modes",
-                        "judge the half-power band of each reference mode, or every line",
-                    ),
-                    Field::def(
-                        "min_coherence",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0.9",
-                        "lines with lower coherence are not judged",
-                    ),
-                ],
+                params: FrfCompareParams::fields(),
             },
         }
     }
@@ -65,7 +69,8 @@ impl Node for FrfCompare {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if p.f64("min_coherence").is_some_and(|c| !(0.0..=1.0).contains(&c)) {
+        let p = FrfCompareParams::read(p)?;
+        if !(0.0..=1.0).contains(&p.min_coherence) {
             return Err(NodeError::param("min_coherence", "must lie in [0, 1]"));
         }
         Ok(())
@@ -76,8 +81,9 @@ impl Node for FrfCompare {
             return Err(NodeError::input("frf", "expected FRFs"));
         };
         super::convert::same_kind(b, "reference", a, "frf")?;
-        let region = if ctx.params.text("region") == Some("all") { Region::All } else { Region::Modes };
-        let min_coherence = ctx.params.f64("min_coherence").unwrap_or(0.9);
+        let p = FrfCompareParams::read(ctx.params)?;
+        let region = if p.region == "all" { Region::All } else { Region::Modes };
+        let min_coherence = p.min_coherence;
         let c = compare::compare(
             &a.freq_hz,
             &a.values,

@@ -8,7 +8,8 @@
 
 use num_complex::Complex64;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::FieldType as T;
 use spindlelab_engine::value::{Frf, FrfKind, PortType, UnitLabel, Value};
 use std::f64::consts::TAU;
 
@@ -95,6 +96,18 @@ pub(crate) fn same_kind(a: &Frf, a_port: &str, b: &Frf, b_port: &str) -> Result<
     ))
 }
 
+node_params! {
+    /// Parameters of `frf.convert`.
+    pub struct FrfConvertParams<'a> {
+        to: req &'a str = (T::Choice(&["receptance", "mobility", "accelerance"]), "the kind to convert to"),
+        zero_line: def &'a str = (
+            T::Choice(&["drop", "nan"]),
+            "drop",
+            "a 0 Hz line divided by iω: left out (`drop`) or kept as NaN (`nan`), which comparisons pass over",
+        ),
+    }
+}
+
 pub struct FrfConvert {
     spec: NodeSpec,
 }
@@ -118,15 +131,7 @@ impl FrfConvert {
                     "an FRF whose unit says its kind (m/N, m/s/N, m/s^2/N)",
                 )],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF in the kind asked for")],
-                params: vec![
-                    Field::req("to", T::Choice(&["receptance", "mobility", "accelerance"]), "the kind to convert to"),
-                    Field::def(
-                        "zero_line",
-                        T::Choice(&["drop", "nan"]),
-                        "drop",
-                        "a 0 Hz line divided by iω: left out (`drop`) or kept as NaN (`nan`), which comparisons pass over",
-                    ),
-                ],
+                params: FrfConvertParams::fields(),
             },
         }
     }
@@ -142,12 +147,13 @@ impl Node for FrfConvert {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
         let from = kind_of(frf, "frf")?;
-        let to = match ctx.params.text("to") {
-            Some("mobility") => FrfKind::Mobility,
-            Some("accelerance") => FrfKind::Accelerance,
+        let p = FrfConvertParams::read(ctx.params)?;
+        let to = match p.to {
+            "mobility" => FrfKind::Mobility,
+            "accelerance" => FrfKind::Accelerance,
             _ => FrfKind::Receptance,
         };
-        let zero = if ctx.params.text("zero_line") == Some("nan") { ZeroLine::Nan } else { ZeroLine::Drop };
+        let zero = if p.zero_line == "nan" { ZeroLine::Nan } else { ZeroLine::Drop };
         let (out, touched) = convert(frf, from, to, zero);
         if touched {
             ctx.warn(match zero {

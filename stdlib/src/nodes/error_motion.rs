@@ -3,43 +3,38 @@
 //! vibrometer velocity (§3.2.1).
 
 use crate::error_motion::{
-    DEFAULT_ANGLES_DEG, LdvError, ProbeRecords, Separation, SeparationError, SeparationOptions, integrate_velocity,
-    separate,
+    LdvError, ProbeRecords, Separation, SeparationError, SeparationOptions, integrate_velocity, separate,
 };
 use crate::tach::{Revolutions, TachError, TachOptions, decode};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::f64::consts::TAU;
 
-const TACH_FIELDS: [Field; 3] = [
-    Field::def("channel", T::Text, "tach", "name of the tachometer channel (V)"),
-    Field::opt(
-        "threshold",
-        T::Quantity(D::DIMENSIONLESS),
-        "falling-edge threshold in the channel's units (V); default midway between the low and high levels",
-    ),
-    Field::def(
-        "max_drift",
-        T::Quantity(D::DIMENSIONLESS),
-        "2 %",
-        "largest accepted deviation of one revolution's speed from the mean",
-    ),
-];
+/// The tachometer fields the three kinds share: the `threshold` and `max_drift` of
+/// `tach.decode`, which `errors.separate` (both) and `ldv.integrate` (`max_drift`) repeat.
+const THRESHOLD_DOC: &str =
+    "falling-edge threshold in the channel's units (V); default midway between the low and high levels";
+const MAX_DRIFT_DEFAULT: &str = "2 %";
+const MAX_DRIFT_DOC: &str = "largest accepted deviation of one revolution's speed from the mean";
 
-fn tach_options(p: &Params) -> TachOptions {
-    TachOptions {
-        threshold: p.f64("threshold"),
-        max_drift: p.f64("max_drift").unwrap_or(0.02),
-        ..TachOptions::default()
+node_params! {
+    /// Parameters of `tach.decode`.
+    pub struct TachDecodeParams<'a> {
+        channel: def &'a str = (T::Text, "tach", "name of the tachometer channel (V)"),
+        threshold: opt f64 = (T::Quantity(D::DIMENSIONLESS), THRESHOLD_DOC),
+        max_drift: def f64 = (T::Quantity(D::DIMENSIONLESS), MAX_DRIFT_DEFAULT, MAX_DRIFT_DOC),
     }
 }
 
-fn validate_tach(p: &Params) -> Result<(), NodeError> {
-    if let Some(d) = p.f64("max_drift")
-        && (d.is_nan() || d <= 0.0)
-    {
+fn tach_options(threshold: Option<f64>, max_drift: f64) -> TachOptions {
+    TachOptions { threshold, max_drift, ..TachOptions::default() }
+}
+
+fn validate_max_drift(d: f64) -> Result<(), NodeError> {
+    if d.is_nan() || d <= 0.0 {
         return Err(NodeError::param("max_drift", format!("must be positive, got {d}")));
     }
     Ok(())
@@ -69,11 +64,10 @@ fn channel<'a>(ts: &'a TimeSeries, name: &str, param: &str) -> Result<&'a Channe
     })
 }
 
-fn decode_tach(ts: &TimeSeries, p: &Params) -> Result<Revolutions, NodeError> {
-    let name = p.text("channel").or_else(|| p.text("tach")).unwrap_or("tach");
-    let param = if p.text("channel").is_some() { "channel" } else { "tach" };
+/// Revolutions from the tachometer channel `name`, which the parameter `param` names.
+fn decode_tach(ts: &TimeSeries, name: &str, param: &str, opts: &TachOptions) -> Result<Revolutions, NodeError> {
     let tach = channel(ts, name, param)?;
-    decode(&tach.samples, ts.sample_rate, ts.t0, &tach_options(p)).map_err(tach_err)
+    decode(&tach.samples, ts.sample_rate, ts.t0, opts).map_err(tach_err)
 }
 
 /// `tach.decode`: falling edges of the tachometer → revolution table and mean speed.
@@ -107,7 +101,7 @@ impl TachDecode {
                     ),
                     PortSpec::new("speed", PortType::Scalar, "mean spindle speed (rad/s)"),
                 ],
-                params: TACH_FIELDS.to_vec(),
+                params: TachDecodeParams::fields(),
             },
         }
     }
@@ -119,12 +113,13 @@ impl Node for TachDecode {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        validate_tach(p)
+        validate_max_drift(TachDecodeParams::read(p)?.max_drift)
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let ts = time_series(ctx)?;
-        let revs = decode_tach(ts, ctx.params)?;
+        let p = TachDecodeParams::read(ctx.params)?;
+        let revs = decode_tach(ts, p.channel, "channel", &tach_options(p.threshold, p.max_drift))?;
         let n = revs.count();
         let table = Table {
             columns: vec![
@@ -139,6 +134,61 @@ impl Node for TachDecode {
         ]
         .into_iter()
         .collect())
+    }
+}
+
+node_params! {
+    /// Parameters of `errors.separate`.
+    pub struct ErrorsSeparateParams<'a> {
+        tach: def &'a str = (T::Text, "tach", "name of the tachometer channel (V)"),
+        probe_a: def &'a str = (T::Text, "a", "channel of probe A (at the first angle, 0)"),
+        probe_b: def &'a str = (T::Text, "b", "channel of probe B (at σ)"),
+        probe_c: def &'a str = (T::Text, "c", "channel of probe C (at ρ)"),
+        angles: def &'a [f64] = (
+            T::QuantityList(D::ANGLE),
+            "[0, 99.84, 202.5] deg",
+            "probe angles A, B (σ), C (ρ); A at 0",
+        ),
+        sensor: def &'a str = (
+            T::Choice(&["displacement", "velocity"]),
+            "displacement",
+            "velocity probes (laser vibrometer) are integrated first (§3.2.1)",
+        ),
+        segments: def usize = (
+            T::Integer { min: 2, max: 100_000 },
+            "10",
+            "segments of revolutions for the uncertainty of §3.2.2.1",
+        ),
+        samples_per_rev: opt usize = (
+            T::Integer { min: 8, max: 100_000_000 },
+            "angle grid size (even); default the fewest samples in a revolution, rounded down to an FFT-friendly even number",
+        ),
+        allow_unrecoverable: def bool = (
+            T::Bool,
+            "false",
+            "accept probe angles that cannot separate low harmonics (they are zeroed)",
+        ),
+        required_upr: def usize = (
+            T::Integer { min: 2, max: 1_000_000 },
+            "100",
+            "harmonics 2..=this must be separable by the probe angles",
+        ),
+        gain_tolerance: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0.01",
+            "harmonics with α_k² + β_k² below this are not divided by (Eq. 3.12)",
+        ),
+        phase_slope: def f64 = (
+            T::Quantity(D::PHASE_SLOPE),
+            "0 deg/kHz",
+            "phase slope of the probe chain (Eq. 2.11); its delay is taken out of the angle mapping",
+        ),
+        async_max_frequency: opt f64 = (
+            T::Quantity(D::FREQUENCY),
+            "keep asynchronous spectrum lines up to this frequency",
+        ),
+        threshold: opt f64 = (T::Quantity(D::DIMENSIONLESS), THRESHOLD_DOC),
+        max_drift: def f64 = (T::Quantity(D::DIMENSIONLESS), MAX_DRIFT_DEFAULT, MAX_DRIFT_DOC),
     }
 }
 
@@ -188,66 +238,7 @@ impl ErrorsSeparate {
                     ),
                     PortSpec::new("summary", PortType::Table, "one row of figures of merit"),
                 ],
-                params: vec![
-                    Field::def("tach", T::Text, "tach", "name of the tachometer channel (V)"),
-                    Field::def("probe_a", T::Text, "a", "channel of probe A (at the first angle, 0)"),
-                    Field::def("probe_b", T::Text, "b", "channel of probe B (at σ)"),
-                    Field::def("probe_c", T::Text, "c", "channel of probe C (at ρ)"),
-                    Field::def(
-                        "angles",
-                        T::QuantityList(D::ANGLE),
-                        "[0, 99.84, 202.5] deg",
-                        "probe angles A, B (σ), C (ρ); A at 0",
-                    ),
-                    Field::def(
-                        "sensor",
-                        T::Choice(&["displacement", "velocity"]),
-                        "displacement",
-                        "velocity probes (laser vibrometer) are integrated first (§3.2.1)",
-                    ),
-                    Field::def(
-                        "segments",
-                        T::Integer { min: 2, max: 100_000 },
-                        "10",
-                        "segments of revolutions for the uncertainty of §3.2.2.1",
-                    ),
-                    Field::opt(
-                        "samples_per_rev",
-                        T::Integer { min: 8, max: 100_000_000 },
-                        "angle grid size (even); default the fewest samples in a revolution, rounded down to an FFT-friendly even number",
-                    ),
-                    Field::def(
-                        "allow_unrecoverable",
-                        T::Bool,
-                        "false",
-                        "accept probe angles that cannot separate low harmonics (they are zeroed)",
-                    ),
-                    Field::def(
-                        "required_upr",
-                        T::Integer { min: 2, max: 1_000_000 },
-                        "100",
-                        "harmonics 2..=this must be separable by the probe angles",
-                    ),
-                    Field::def(
-                        "gain_tolerance",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0.01",
-                        "harmonics with α_k² + β_k² below this are not divided by (Eq. 3.12)",
-                    ),
-                    Field::def(
-                        "phase_slope",
-                        T::Quantity(D::PHASE_SLOPE),
-                        "0 deg/kHz",
-                        "phase slope of the probe chain (Eq. 2.11); its delay is taken out of the angle mapping",
-                    ),
-                    Field::opt(
-                        "async_max_frequency",
-                        T::Quantity(D::FREQUENCY),
-                        "keep asynchronous spectrum lines up to this frequency",
-                    ),
-                    TACH_FIELDS[1],
-                    TACH_FIELDS[2],
-                ],
+                params: ErrorsSeparateParams::fields(),
             },
         }
     }
@@ -272,11 +263,10 @@ fn ldv_err(e: LdvError, channel: &str) -> NodeError {
     NodeError::input("signal", format!("channel `{channel}`: {e}"))
 }
 
-fn angles_of(p: &Params) -> Result<[f64; 3], NodeError> {
-    match p.list("angles") {
-        Some(&[a, b, c]) => Ok([a, b, c]),
-        Some(v) => Err(NodeError::param("angles", format!("three angles (A, B, C) are needed, got {}", v.len()))),
-        None => Ok(DEFAULT_ANGLES_DEG.map(f64::to_radians)),
+fn angles_of(angles: &[f64]) -> Result<[f64; 3], NodeError> {
+    match *angles {
+        [a, b, c] => Ok([a, b, c]),
+        _ => Err(NodeError::param("angles", format!("three angles (A, B, C) are needed, got {}", angles.len()))),
     }
 }
 
@@ -286,22 +276,22 @@ impl Node for ErrorsSeparate {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        validate_tach(p)?;
-        let angles = angles_of(p)?;
+        let p = ErrorsSeparateParams::read(p)?;
+        validate_max_drift(p.max_drift)?;
+        let angles = angles_of(p.angles)?;
         if angles[0].abs() > 1e-12 {
             return Err(NodeError::param("angles", "probe A must be at 0: angles count from probe A"));
         }
-        if let Some(n) = p.int("samples_per_rev")
-            && n.rem_euclid(2) == 1
+        if let Some(n) = p.samples_per_rev
+            && n % 2 == 1
         {
             return Err(NodeError::param("samples_per_rev", format!("must be even, got {n}")));
         }
-        if let Some(t) = p.f64("gain_tolerance")
-            && (t.is_nan() || t < 0.0)
-        {
+        let t = p.gain_tolerance;
+        if t.is_nan() || t < 0.0 {
             return Err(NodeError::param("gain_tolerance", format!("must not be negative, got {t}")));
         }
-        if let Some(f) = p.f64("async_max_frequency")
+        if let Some(f) = p.async_max_frequency
             && (f.is_nan() || f <= 0.0)
         {
             return Err(NodeError::param("async_max_frequency", format!("must be positive, got {f}")));
@@ -310,12 +300,12 @@ impl Node for ErrorsSeparate {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
         let ts = time_series(ctx)?;
-        let mut revs = decode_tach(ts, p)?;
+        let p = ErrorsSeparateParams::read(ctx.params)?;
+        let mut revs = decode_tach(ts, p.tach, "tach", &tach_options(p.threshold, p.max_drift))?;
         // A probe chain that lags by τ shows at t the surface that passed at t − τ: the
         // probes' revolutions start τ after the tachometer's edges (Eq. 2.11's slope −2πτ).
-        let slope = p.f64("phase_slope").unwrap_or(0.0);
+        let slope = p.phase_slope;
         if slope != 0.0 {
             let tau = -slope / std::f64::consts::TAU;
             let last = ts.t0 + (ts.len().saturating_sub(1)) as f64 / ts.sample_rate;
@@ -323,11 +313,11 @@ impl Node for ErrorsSeparate {
             revs = crate::tach::Revolutions::from_edges(shifted, revs.sample_rate())
                 .map_err(|e| NodeError::param("phase_slope", e.to_string()))?;
         }
-        let velocity = p.text("sensor") == Some("velocity");
+        let velocity = p.sensor == "velocity";
         let mut records: Vec<Vec<f64>> = Vec::with_capacity(3);
         let mut borrowed: Vec<&[f64]> = Vec::with_capacity(3);
-        for (param, default) in [("probe_a", "a"), ("probe_b", "b"), ("probe_c", "c")] {
-            let ch = channel(ts, p.text(param).unwrap_or(default), param)?;
+        for (param, name) in [("probe_a", p.probe_a), ("probe_b", p.probe_b), ("probe_c", p.probe_c)] {
+            let ch = channel(ts, name, param)?;
             match (velocity, ch.unit.symbol.as_str()) {
                 (false, "m/s") => {
                     return Err(NodeError::param(
@@ -353,21 +343,21 @@ impl Node for ErrorsSeparate {
         if velocity {
             borrowed = records.iter().map(Vec::as_slice).collect();
         }
-        let angles = angles_of(p)?;
+        let angles = angles_of(p.angles)?;
         let opts = SeparationOptions {
             angles,
-            samples_per_rev: p.int("samples_per_rev").map(|n| n as usize),
-            segments: p.int("segments").unwrap_or(10) as usize,
-            gain_tolerance: p.f64("gain_tolerance").unwrap_or(1e-2),
-            required_harmonics: p.int("required_upr").unwrap_or(100) as usize,
-            allow_unrecoverable: p.bool("allow_unrecoverable").unwrap_or(false),
+            samples_per_rev: p.samples_per_rev,
+            segments: p.segments,
+            gain_tolerance: p.gain_tolerance,
+            required_harmonics: p.required_upr,
+            allow_unrecoverable: p.allow_unrecoverable,
             async_spectrum: true,
         };
         let probes =
             ProbeRecords { a: borrowed[0], b: borrowed[1], c: borrowed[2], sample_rate: ts.sample_rate, t0: ts.t0 };
         let sep = separate(&probes, &revs, &opts).map_err(separation_err)?;
         warn(ctx, &sep, angles);
-        Ok(outputs(&sep, p.f64("async_max_frequency")))
+        Ok(outputs(&sep, p.async_max_frequency))
     }
 }
 
@@ -470,6 +460,22 @@ fn outputs(sep: &Separation, async_max: Option<f64>) -> Outputs {
     .collect()
 }
 
+node_params! {
+    /// Parameters of `ldv.integrate`.
+    pub struct LdvIntegrateParams<'a> {
+        channels: opt &'a str = (
+            T::Text,
+            "comma-separated channels to integrate; default every channel but the tachometer",
+        ),
+        tach: def &'a str = (T::Text, "tach", "name of the tachometer channel (V)"),
+        spindle_speed: opt f64 = (
+            T::Quantity(D::ROTATIONAL_SPEED),
+            "spindle speed for the high-pass cutoff; default the tachometer's mean speed",
+        ),
+        max_drift: def f64 = (T::Quantity(D::DIMENSIONLESS), MAX_DRIFT_DEFAULT, MAX_DRIFT_DOC),
+    }
+}
+
 /// `ldv.integrate`: laser-vibrometer velocity → displacement (§3.2.1).
 pub struct LdvIntegrate {
     spec: NodeSpec,
@@ -498,20 +504,7 @@ impl LdvIntegrate {
                     PortType::TimeSeries,
                     "the integrated channels (m); other channels pass through unchanged",
                 )],
-                params: vec![
-                    Field::opt(
-                        "channels",
-                        T::Text,
-                        "comma-separated channels to integrate; default every channel but the tachometer",
-                    ),
-                    Field::def("tach", T::Text, "tach", "name of the tachometer channel (V)"),
-                    Field::opt(
-                        "spindle_speed",
-                        T::Quantity(D::ROTATIONAL_SPEED),
-                        "spindle speed for the high-pass cutoff; default the tachometer's mean speed",
-                    ),
-                    TACH_FIELDS[2],
-                ],
+                params: LdvIntegrateParams::fields(),
             },
         }
     }
@@ -523,8 +516,9 @@ impl Node for LdvIntegrate {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        validate_tach(p)?;
-        if let Some(w) = p.f64("spindle_speed")
+        let p = LdvIntegrateParams::read(p)?;
+        validate_max_drift(p.max_drift)?;
+        if let Some(w) = p.spindle_speed
             && (w.is_nan() || w <= 0.0)
         {
             return Err(NodeError::param("spindle_speed", format!("must be positive, got {w}")));
@@ -533,14 +527,14 @@ impl Node for LdvIntegrate {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
         let ts = time_series(ctx)?;
-        let tach = p.text("tach").unwrap_or("tach");
-        let spindle_hz = match p.f64("spindle_speed") {
+        let p = LdvIntegrateParams::read(ctx.params)?;
+        let tach = p.tach;
+        let spindle_hz = match p.spindle_speed {
             Some(w) => w / TAU,
-            None => decode_tach(ts, p)?.mean_speed_rpm() / 60.0,
+            None => decode_tach(ts, tach, "tach", &tach_options(None, p.max_drift))?.mean_speed_rpm() / 60.0,
         };
-        let wanted: Vec<String> = match p.text("channels") {
+        let wanted: Vec<String> = match p.channels {
             Some(list) => {
                 let names: Vec<String> =
                     list.split(',').map(str::trim).filter(|s| !s.is_empty()).map(str::to_string).collect();

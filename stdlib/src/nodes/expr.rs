@@ -2,10 +2,19 @@
 //! between physics steps (a ratio, a unit change, a margin).
 
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType, Params};
 use spindlelab_engine::syntax::rhai::{self, Scope};
 use spindlelab_engine::syntax::{RhaiLimits, sandboxed_engine};
 use spindlelab_engine::value::{PortType, Scalar, Value};
+
+node_params! {
+    /// Parameters of `rhai.eval`.
+    pub struct RhaiEvalParams<'a> {
+        expr: req &'a str = (FieldType::Text, "Rhai expression, e.g. `x / y * 1000.0`"),
+        unit: def &'a str = (FieldType::Text, "", "unit label of the result (SI symbol)"),
+    }
+}
 
 pub struct RhaiEval {
     spec: NodeSpec,
@@ -24,10 +33,7 @@ impl RhaiEval {
                     PortSpec::new("z", PortType::Scalar, "bound to `z`").optional(),
                 ],
                 outputs: vec![PortSpec::new("value", PortType::Scalar, "the expression's value")],
-                params: vec![
-                    Field::req("expr", FieldType::Text, "Rhai expression, e.g. `x / y * 1000.0`"),
-                    Field::def("unit", FieldType::Text, "", "unit label of the result (SI symbol)"),
-                ],
+                params: RhaiEvalParams::fields(),
             },
         }
     }
@@ -49,7 +55,7 @@ impl Node for RhaiEval {
     }
 
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
-        let expr = params.text("expr").unwrap_or_default();
+        let expr = RhaiEvalParams::read(params)?.expr;
         sandboxed_engine(&limits())
             .compile_expression(expr)
             .map(|_| ())
@@ -57,6 +63,7 @@ impl Node for RhaiEval {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let p = RhaiEvalParams::read(ctx.params)?;
         let engine = sandboxed_engine(&limits());
         let mut scope = Scope::new();
         for var in ["x", "y", "z"] {
@@ -64,7 +71,7 @@ impl Node for RhaiEval {
                 scope.push(var, s.value);
             }
         }
-        let expr = ctx.params.text("expr").unwrap_or_default();
+        let expr = p.expr;
         let result: rhai::Dynamic = engine
             .eval_expression_with_scope(&mut scope, expr)
             .map_err(|e| NodeError::param("expr", format!("`{expr}` failed: {e}")))?;
@@ -78,7 +85,7 @@ impl Node for RhaiEval {
         if !value.is_finite() {
             return Err(NodeError::param("expr", format!("`{expr}` gave {value}")));
         }
-        let unit = ctx.params.text("unit").unwrap_or_default();
+        let unit = p.unit;
         Ok([("value".to_string(), Value::Scalar(Scalar::new(value, unit)))].into_iter().collect())
     }
 }

@@ -3,9 +3,53 @@
 
 use crate::frf::{Averaging, DecayStart, FrfError, FrfEstimator, FrfOptions, ImpactRecord, Trigger, Windows};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Frf, PortType, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `frf.estimate`.
+    pub struct FrfEstimateParams<'a> {
+        windows: def bool = (T::Bool, "true", "apply the §3.1.2 windows"),
+        force_window: def f64 = (T::Quantity(D::TIME), "6.5 ms", "rectangular force window length"),
+        response_decay: def f64 = (
+            T::Quantity(D::TIME),
+            "0.113 s",
+            "time constant of the exponential response window",
+        ),
+        decay_from: def &'a str = (
+            T::Choice(&["force-window-end", "frame-start"]),
+            "force-window-end",
+            "where the response window starts to decay (§3.1.2: at the force window's end)",
+        ),
+        trigger: def &'a str = (
+            T::Choice(&["force-peak", "record-start", "level"]),
+            "force-peak",
+            "where each analysis frame starts: before the force peak, at the record start, or before the first sample above `trigger_level`",
+        ),
+        trigger_level: opt f64 = (
+            T::Quantity(D::FORCE),
+            "force that triggers the frame (with `trigger: level`)",
+        ),
+        pre_trigger: def f64 = (
+            T::Quantity(D::TIME),
+            "0.5 ms",
+            "time kept before the force peak or the trigger sample",
+        ),
+        averaging: def &'a str = (
+            T::Choice(&["h1", "h2", "time-synchronous"]),
+            "h1",
+            "H1 or H2 spectral averaging, or impact-synchronous time averaging (§3.1.3)",
+        ),
+        response: def &'a str = (
+            T::Choice(&["displacement", "velocity"]),
+            "displacement",
+            "velocity responses become receptance by Eq. 3.3",
+        ),
+        max_frequency: opt f64 = (T::Quantity(D::FREQUENCY), "keep lines up to this frequency"),
+    }
+}
 
 pub struct FrfEstimate {
     spec: NodeSpec,
@@ -35,79 +79,34 @@ impl FrfEstimate {
                     ),
                 ],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "receptance (m/N) with coherence")],
-                params: vec![
-                    Field::def("windows", T::Bool, "true", "apply the §3.1.2 windows"),
-                    Field::def("force_window", T::Quantity(D::TIME), "6.5 ms", "rectangular force window length"),
-                    Field::def(
-                        "response_decay",
-                        T::Quantity(D::TIME),
-                        "0.113 s",
-                        "time constant of the exponential response window",
-                    ),
-                    Field::def(
-                        "decay_from",
-                        T::Choice(&["force-window-end", "frame-start"]),
-                        "force-window-end",
-                        "where the response window starts to decay (§3.1.2: at the force window's end)",
-                    ),
-                    Field::def(
-                        "trigger",
-                        T::Choice(&["force-peak", "record-start", "level"]),
-                        "force-peak",
-                        "where each analysis frame starts: before the force peak, at the record start, or before the first sample above `trigger_level`",
-                    ),
-                    Field::opt(
-                        "trigger_level",
-                        T::Quantity(D::FORCE),
-                        "force that triggers the frame (with `trigger: level`)",
-                    ),
-                    Field::def(
-                        "pre_trigger",
-                        T::Quantity(D::TIME),
-                        "0.5 ms",
-                        "time kept before the force peak or the trigger sample",
-                    ),
-                    Field::def(
-                        "averaging",
-                        T::Choice(&["h1", "h2", "time-synchronous"]),
-                        "h1",
-                        "H1 or H2 spectral averaging, or impact-synchronous time averaging (§3.1.3)",
-                    ),
-                    Field::def(
-                        "response",
-                        T::Choice(&["displacement", "velocity"]),
-                        "displacement",
-                        "velocity responses become receptance by Eq. 3.3",
-                    ),
-                    Field::opt("max_frequency", T::Quantity(D::FREQUENCY), "keep lines up to this frequency"),
-                ],
+                params: FrfEstimateParams::fields(),
             },
         }
     }
 }
 
-fn options(p: &Params) -> FrfOptions {
-    let windows = if p.bool("windows").unwrap_or(true) {
+fn options(p: &FrfEstimateParams) -> FrfOptions {
+    let windows = if p.windows {
         Windows {
-            force_window: p.f64("force_window").unwrap_or(6.5e-3),
-            response_decay: p.f64("response_decay").unwrap_or(0.113),
-            decay_from: match p.text("decay_from") {
-                Some("frame-start") => DecayStart::FrameStart,
+            force_window: p.force_window,
+            response_decay: p.response_decay,
+            decay_from: match p.decay_from {
+                "frame-start" => DecayStart::FrameStart,
                 _ => DecayStart::ForceWindowEnd,
             },
         }
     } else {
         Windows::NONE
     };
-    let pre_trigger = p.f64("pre_trigger").unwrap_or(0.5e-3);
-    let trigger = match p.text("trigger") {
-        Some("record-start") => Trigger::RecordStart,
-        Some("level") => Trigger::level(p.f64("trigger_level").unwrap_or(f64::NAN), pre_trigger),
+    let pre_trigger = p.pre_trigger;
+    let trigger = match p.trigger {
+        "record-start" => Trigger::RecordStart,
+        "level" => Trigger::level(p.trigger_level.unwrap_or(f64::NAN), pre_trigger),
         _ => Trigger::ForcePeak { pre_trigger },
     };
-    let averaging = match p.text("averaging") {
-        Some("time-synchronous") => Averaging::TimeSynchronous,
-        Some("h2") => Averaging::H2,
+    let averaging = match p.averaging {
+        "time-synchronous" => Averaging::TimeSynchronous,
+        "h2" => Averaging::H2,
         _ => Averaging::H1,
     };
     FrfOptions { windows, trigger, averaging, time_averaged: false }
@@ -133,11 +132,12 @@ impl Node for FrfEstimate {
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         super::positive(p, &["force_window", "response_decay", "max_frequency"])?;
         super::non_negative(p, &["pre_trigger"])?;
-        match (p.text("trigger"), p.f64("trigger_level")) {
-            (Some("level"), None) => {
+        let p = FrfEstimateParams::read(p)?;
+        match (p.trigger, p.trigger_level) {
+            ("level", None) => {
                 Err(NodeError::param("trigger_level", "`trigger: level` needs a `trigger_level` (a force, e.g. 20 N)"))
             }
-            (Some("level"), Some(_)) | (_, None) => Ok(()),
+            ("level", Some(_)) | (_, None) => Ok(()),
             (_, Some(_)) => Err(NodeError::param(
                 "trigger_level",
                 "a trigger level is used only with `trigger: level`; set that or drop the level",
@@ -175,15 +175,16 @@ impl Node for FrfEstimate {
             .zip(&response.channels)
             .map(|(f, r)| ImpactRecord { force: &f.samples, response: &r.samples })
             .collect();
+        let p = FrfEstimateParams::read(ctx.params)?;
         let mut est = FrfEstimator::new(force.len(), force.sample_rate).map_err(err)?;
         // One thread inside the node: the executor runs nodes in parallel, and a fixed
         // summation order keeps the numbers identical whatever the machine.
         est.set_threads(1);
-        let mut e = est.estimate(&records, &options(ctx.params)).map_err(err)?;
-        if ctx.params.text("response") == Some("velocity") {
+        let mut e = est.estimate(&records, &options(&p)).map_err(err)?;
+        if p.response == "velocity" {
             e = e.to_receptance().map_err(err)?;
         }
-        let keep = match ctx.params.f64("max_frequency") {
+        let keep = match p.max_frequency {
             Some(fmax) => e.freq.iter().take_while(|f| **f <= fmax).count(),
             None => e.freq.len(),
         };

@@ -5,6 +5,7 @@ use crate::impact::{
     simulate, table_2_1_target,
 };
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, PortType, Scalar, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
@@ -14,6 +15,60 @@ const TARGET_MODE: &[Field] = &[
     Field::req("stiffness", T::Quantity(D::STIFFNESS), "modal stiffness"),
     Field::def("damping", T::Quantity(D::DAMPING), "0 N*s/m", "modal viscous damping"),
 ];
+
+node_params! {
+    /// Parameters of `impact.simulate`.
+    pub struct ImpactSimulateParams<'a> {
+        hammer_mass: req f64 = (T::Quantity(D::MASS), "hammer mass M_h"),
+        hammer_stiffness: def f64 = (T::Quantity(D::STIFFNESS), "100 N/m", "hammer spring K_h"),
+        hammer_damping: def f64 = (T::Quantity(D::DAMPING), "0 N*s/m", "hammer damping C_h"),
+        target_mass: opt f64 = (T::Quantity(D::MASS), "single-DOF target mass M_t"),
+        target_stiffness: opt f64 = (T::Quantity(D::STIFFNESS), "single-DOF target stiffness K_t"),
+        target_damping: def f64 = (T::Quantity(D::DAMPING), "0 N*s/m", "single-DOF target damping C_t"),
+        target_modes: opt &'a [Params] = (T::ObjectList(TARGET_MODE), "multi-DOF target as modes in modal space"),
+        target_preset: opt &'a str = (
+            T::Choice(&["table-2.1-target-1", "table-2.1-target-2"]),
+            "a 10-mode target of Table 2.1",
+        ),
+        tip_radius: def f64 = (T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius r1"),
+        target_radius: def f64 = (T::Quantity(D::LENGTH), "1 mm", "target sphere radius r2"),
+        tip_material: opt &'a str = (
+            T::Entity(EntityKind::Material),
+            "hammer tip material (default steel 200 GPa, 0.29)",
+        ),
+        target_material: opt &'a str = (
+            T::Entity(EntityKind::Material),
+            "target material (default steel 200 GPa, 0.29)",
+        ),
+        restitution: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0.95",
+            "coefficient of restitution e of Eq. 2.4",
+        ),
+        release: def f64 = (T::Quantity(D::LENGTH), "10 mm", "hammer position at release X_hi"),
+        contact: def f64 = (T::Quantity(D::LENGTH), "-3 mm", "target contact point X_t0"),
+        dt: def f64 = (T::Quantity(D::TIME), "1e-8 s", "integration step of Eq. 2.7"),
+        duration: def f64 = (T::Quantity(D::TIME), "10 ms", "record length after first contact"),
+        pre_trigger: def f64 = (T::Quantity(D::TIME), "0 s", "record kept before first contact"),
+        sample_rate: def f64 = (T::Quantity(D::FREQUENCY), "100 kHz", "output sampling rate"),
+        noise: def f64 = (
+            T::Quantity(D::LENGTH),
+            "0 m",
+            "standard deviation of sensor noise on the displacement",
+        ),
+        impacts: def usize = (
+            T::Integer { min: 1, max: 1000 },
+            "1",
+            "records to make, each with its own noise",
+        ),
+        seed: def u64 = (T::Integer { min: 0, max: i64::MAX }, "0", "noise seed"),
+        integrator: def &'a str = (
+            T::Choice(&["exact-free-flight", "euler"]),
+            "exact-free-flight",
+            "free flight between contacts solved exactly, or Eq. 2.7 throughout",
+        ),
+    }
+}
 
 pub struct ImpactSimulate {
     spec: NodeSpec,
@@ -58,63 +113,7 @@ impl ImpactSimulate {
                         "number of separate contacts (2 or more is a double hit)",
                     ),
                 ],
-                params: vec![
-                    Field::req("hammer_mass", T::Quantity(D::MASS), "hammer mass M_h"),
-                    Field::def("hammer_stiffness", T::Quantity(D::STIFFNESS), "100 N/m", "hammer spring K_h"),
-                    Field::def("hammer_damping", T::Quantity(D::DAMPING), "0 N*s/m", "hammer damping C_h"),
-                    Field::opt("target_mass", T::Quantity(D::MASS), "single-DOF target mass M_t"),
-                    Field::opt("target_stiffness", T::Quantity(D::STIFFNESS), "single-DOF target stiffness K_t"),
-                    Field::def("target_damping", T::Quantity(D::DAMPING), "0 N*s/m", "single-DOF target damping C_t"),
-                    Field::opt("target_modes", T::ObjectList(TARGET_MODE), "multi-DOF target as modes in modal space"),
-                    Field::opt(
-                        "target_preset",
-                        T::Choice(&["table-2.1-target-1", "table-2.1-target-2"]),
-                        "a 10-mode target of Table 2.1",
-                    ),
-                    Field::def("tip_radius", T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius r1"),
-                    Field::def("target_radius", T::Quantity(D::LENGTH), "1 mm", "target sphere radius r2"),
-                    Field::opt(
-                        "tip_material",
-                        T::Entity(EntityKind::Material),
-                        "hammer tip material (default steel 200 GPa, 0.29)",
-                    ),
-                    Field::opt(
-                        "target_material",
-                        T::Entity(EntityKind::Material),
-                        "target material (default steel 200 GPa, 0.29)",
-                    ),
-                    Field::def(
-                        "restitution",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0.95",
-                        "coefficient of restitution e of Eq. 2.4",
-                    ),
-                    Field::def("release", T::Quantity(D::LENGTH), "10 mm", "hammer position at release X_hi"),
-                    Field::def("contact", T::Quantity(D::LENGTH), "-3 mm", "target contact point X_t0"),
-                    Field::def("dt", T::Quantity(D::TIME), "1e-8 s", "integration step of Eq. 2.7"),
-                    Field::def("duration", T::Quantity(D::TIME), "10 ms", "record length after first contact"),
-                    Field::def("pre_trigger", T::Quantity(D::TIME), "0 s", "record kept before first contact"),
-                    Field::def("sample_rate", T::Quantity(D::FREQUENCY), "100 kHz", "output sampling rate"),
-                    Field::def(
-                        "noise",
-                        T::Quantity(D::LENGTH),
-                        "0 m",
-                        "standard deviation of sensor noise on the displacement",
-                    ),
-                    Field::def(
-                        "impacts",
-                        T::Integer { min: 1, max: 1000 },
-                        "1",
-                        "records to make, each with its own noise",
-                    ),
-                    Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "noise seed"),
-                    Field::def(
-                        "integrator",
-                        T::Choice(&["exact-free-flight", "euler"]),
-                        "exact-free-flight",
-                        "free flight between contacts solved exactly, or Eq. 2.7 throughout",
-                    ),
-                ],
+                params: ImpactSimulateParams::fields(),
             },
         }
     }
@@ -125,21 +124,20 @@ fn steel() -> (f64, f64) {
 }
 
 fn setup_from(
-    params: &Params,
+    p: &ImpactSimulateParams,
     recipe: Option<&spindlelab_engine::model::Recipe>,
     spec: &NodeSpec,
 ) -> Result<ImpactSetup, NodeError> {
-    let f = |n: &str| params.f64(n).unwrap_or(f64::NAN);
-    let target = if let Some(preset) = params.text("target_preset") {
-        if params.get("target_modes").is_some() || params.get("target_mass").is_some() {
+    let target = if let Some(preset) = p.target_preset {
+        if p.target_modes.is_some() || p.target_mass.is_some() {
             return Err(NodeError::param(
                 "target_preset",
                 "give one target: a preset, `target_modes`, or `target_mass` with `target_stiffness`",
             ));
         }
         table_2_1_target(if preset.ends_with('1') { Table21Target::Target1 } else { Table21Target::Target2 })
-    } else if let Some(modes) = params.objects("target_modes") {
-        if params.get("target_mass").is_some() {
+    } else if let Some(modes) = p.target_modes {
+        if p.target_mass.is_some() {
             return Err(NodeError::param("target_modes", "give either `target_modes` or `target_mass`, not both"));
         }
         let rows: Vec<(f64, f64, f64)> = modes
@@ -154,8 +152,8 @@ fn setup_from(
             .collect();
         ModalTarget::from_mass_stiffness_damping(&rows).map_err(|e| NodeError::param("target_modes", e.to_string()))?
     } else {
-        match (params.f64("target_mass"), params.f64("target_stiffness")) {
-            (Some(m), Some(k)) => ModalTarget::from_mass_stiffness_damping(&[(m, k, f("target_damping"))])
+        match (p.target_mass, p.target_stiffness) {
+            (Some(m), Some(k)) => ModalTarget::from_mass_stiffness_damping(&[(m, k, p.target_damping)])
                 .map_err(|e| to_node_error(e, spec))?,
             _ => {
                 return Err(NodeError::param(
@@ -165,28 +163,28 @@ fn setup_from(
             }
         }
     };
-    let material = |name: &str| -> (f64, f64) {
-        match (params.text(name), recipe) {
+    let material = |name: Option<&str>| -> (f64, f64) {
+        match (name, recipe) {
             (Some(m), Some(r)) => r.materials.get(m).map(|m| (m.youngs_modulus, m.poisson)).unwrap_or_else(steel),
             _ => steel(),
         }
     };
-    let (e1, nu1) = material("tip_material");
-    let (e2, nu2) = material("target_material");
-    let hammer = Hammer { mass: f("hammer_mass"), stiffness: f("hammer_stiffness"), damping: f("hammer_damping") };
+    let (e1, nu1) = material(p.tip_material);
+    let (e2, nu2) = material(p.target_material);
+    let hammer = Hammer { mass: p.hammer_mass, stiffness: p.hammer_stiffness, damping: p.hammer_damping };
     let mut setup = ImpactSetup::new(hammer, target);
     setup.contact = Contact {
-        hammer_tip: Sphere { radius: f("tip_radius"), youngs_modulus: e1, poisson: nu1 },
-        target: Sphere { radius: f("target_radius"), youngs_modulus: e2, poisson: nu2 },
-        restitution: f("restitution"),
+        hammer_tip: Sphere { radius: p.tip_radius, youngs_modulus: e1, poisson: nu1 },
+        target: Sphere { radius: p.target_radius, youngs_modulus: e2, poisson: nu2 },
+        restitution: p.restitution,
     };
-    setup.release_position = f("release");
-    setup.contact_position = f("contact");
-    setup.dt = f("dt");
-    setup.duration = f("duration");
-    setup.pre_trigger = f("pre_trigger");
-    setup.sample_rate = f("sample_rate");
-    setup.exact_free_flight = params.text("integrator") != Some("euler");
+    setup.release_position = p.release;
+    setup.contact_position = p.contact;
+    setup.dt = p.dt;
+    setup.duration = p.duration;
+    setup.pre_trigger = p.pre_trigger;
+    setup.sample_rate = p.sample_rate;
+    setup.exact_free_flight = p.integrator != "euler";
     Ok(setup)
 }
 
@@ -235,15 +233,14 @@ impl Node for ImpactSimulate {
 
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
         // The closed-form approach phase checks every parameter and that contact happens.
-        let setup = setup_from(params, None, &self.spec)?;
+        let setup = setup_from(&ImpactSimulateParams::read(params)?, None, &self.spec)?;
         first_contact(&setup).map(|_| ()).map_err(|e| to_node_error(e, &self.spec))
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let mut setup = setup_from(ctx.params, Some(ctx.recipe), &self.spec)?;
-        let impacts = ctx.params.int("impacts").unwrap_or(1).max(1) as usize;
-        let noise = ctx.params.f64("noise").unwrap_or(0.0);
-        let seed = ctx.params.int("seed").unwrap_or(0) as u64;
+        let p = ImpactSimulateParams::read(ctx.params)?;
+        let mut setup = setup_from(&p, Some(ctx.recipe), &self.spec)?;
+        let (impacts, noise, seed) = (p.impacts.max(1), p.noise, p.seed);
         let mut forces = Vec::with_capacity(impacts);
         let mut disps = Vec::with_capacity(impacts);
         let mut first = None;

@@ -5,9 +5,33 @@ use crate::milling::{MillingSimulation, simulate};
 use crate::stability::{self, SpeedFrf, Trial};
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
+use std::path::Path;
+
+node_params! {
+    /// Parameters of `milling.simulate`.
+    pub struct MillingSimulateParams<'a> {
+        cutting: req &'a str = (T::Entity(EntityKind::Cutting), cutting_param().doc),
+        speed: req f64 = (T::Quantity(D::ROTATIONAL_SPEED), "spindle speed"),
+        depth: req f64 = (T::Quantity(D::LENGTH), "axial depth of cut"),
+        feed_per_tooth: opt f64 = (
+            T::Quantity(D::LENGTH),
+            "feed per tooth (default: the cutting setup's `feed_per_tooth`)",
+        ),
+        revolutions: def usize = (T::Integer { min: 2, max: 100_000 }, "100", "length of the simulation"),
+        steps_per_tooth: opt usize = (
+            T::Integer { min: 8, max: 100_000 },
+            "time steps per tooth period (default: at least 100 and 20 per period of the highest mode)",
+        ),
+        runout: opt &'a [f64] = (
+            T::QuantityList(D::LENGTH),
+            "radial runout of each tooth, one value per tooth (e.g. `[10, 0, 0, 0] um`)",
+        ),
+    }
+}
 
 pub struct MillingSimulate {
     spec: NodeSpec,
@@ -56,27 +80,7 @@ impl MillingSimulate {
                         "y of the tool as a tooth passes the finished wall, steady state (m; + towards +y)",
                     ),
                 ],
-                params: vec![
-                    cutting_param(),
-                    Field::req("speed", T::Quantity(D::ROTATIONAL_SPEED), "spindle speed"),
-                    Field::req("depth", T::Quantity(D::LENGTH), "axial depth of cut"),
-                    Field::opt(
-                        "feed_per_tooth",
-                        T::Quantity(D::LENGTH),
-                        "feed per tooth (default: the cutting setup's `feed_per_tooth`)",
-                    ),
-                    Field::def("revolutions", T::Integer { min: 2, max: 100_000 }, "100", "length of the simulation"),
-                    Field::opt(
-                        "steps_per_tooth",
-                        T::Integer { min: 8, max: 100_000 },
-                        "time steps per tooth period (default: at least 100 and 20 per period of the highest mode)",
-                    ),
-                    Field::opt(
-                        "runout",
-                        T::QuantityList(D::LENGTH),
-                        "radial runout of each tooth, one value per tooth (e.g. `[10, 0, 0, 0] um`)",
-                    ),
-                ],
+                params: MillingSimulateParams::fields(),
             },
         }
     }
@@ -88,23 +92,19 @@ impl Node for MillingSimulate {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
+        let p = MillingSimulateParams::read(ctx.params)?;
         let modes = stability::ModalModel::new(modal(ctx, "modes_x")?, modal(ctx, "modes_y")?)
             .map_err(|e| NodeError::input("modes_x", e.to_string()))?;
-        let speed_rpm = Speed::from_rad_s(ctx.f64("speed")?).rpm();
+        let speed_rpm = Speed::from_rad_s(p.speed).rpm();
         let sim = MillingSimulation {
             cut: milling(ctx)?,
-            depth: ctx.f64("depth")?,
-            feed_per_tooth: feed_per_tooth(ctx)?,
+            depth: p.depth,
+            feed_per_tooth: feed_per_tooth(ctx, p.feed_per_tooth, p.cutting)?,
             speed_rpm,
             modes,
-            runout: p
-                .list("runout")
-                .map(<[f64]>::to_vec)
-                .or_else(|| p.f64("runout").map(|r| vec![r]))
-                .unwrap_or_default(),
-            revolutions: p.int("revolutions").unwrap_or(100) as usize,
-            steps_per_tooth: p.int("steps_per_tooth").map(|s| s as usize),
+            runout: p.runout.map(<[f64]>::to_vec).unwrap_or_default(),
+            revolutions: p.revolutions,
+            steps_per_tooth: p.steps_per_tooth,
         };
         let r = simulate(&sim).map_err(|e| match e {
             crate::milling::MillingError::Runout { .. } => NodeError::param("runout", e.to_string()),
@@ -162,12 +162,11 @@ impl Node for MillingSimulate {
     }
 }
 
-/// The feed per tooth: the node's parameter, else the cutting setup's.
-fn feed_per_tooth(ctx: &NodeContext) -> Result<f64, NodeError> {
-    if let Some(f) = ctx.params.f64("feed_per_tooth") {
+/// The feed per tooth: the node's parameter `given`, else that of the cutting setup `name`.
+fn feed_per_tooth(ctx: &NodeContext, given: Option<f64>, name: &str) -> Result<f64, NodeError> {
+    if let Some(f) = given {
         return Ok(f);
     }
-    let name = ctx.params.text("cutting").unwrap_or_default();
     ctx.recipe.cutting.get(name).and_then(|c| c.feed_per_tooth).ok_or_else(|| {
         NodeError::param(
             "feed_per_tooth",
@@ -225,41 +224,41 @@ impl TrialsSimulate {
                         "fraction of the simulated trials whose recorded outcome the simulation gives",
                     ),
                 ],
-                params: vec![
-                    cutting_param(),
-                    Field::req("file", T::File, "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`"),
-                    Field::opt(
-                        "coefficients",
-                        T::ObjectList(COEFFICIENT_ROW),
-                        "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
-                         (default: the cutting setup's)",
-                    ),
-                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "100 Hz", "lower end of the modal fit"),
-                    Field::opt(
-                        "max_frequency",
-                        T::Quantity(D::FREQUENCY),
-                        "upper end of the modal fit (default: the FRFs' last line)",
-                    ),
-                    Field::opt(
-                        "feed_per_tooth",
-                        T::Quantity(D::LENGTH),
-                        "feed per tooth (default: the cutting setup's `feed_per_tooth`)",
-                    ),
-                    Field::def(
-                        "revolutions",
-                        T::Integer { min: 2, max: 100_000 },
-                        "100",
-                        "length of each simulated cut",
-                    ),
-                    Field::def(
-                        "extrapolate",
-                        T::Bool,
-                        "false",
-                        "extend the end cubics beyond the measured speeds instead of refusing",
-                    ),
-                ],
+                params: TrialsSimulateParams::fields(),
             },
         }
+    }
+}
+
+node_params! {
+    /// Parameters of `trials.simulate`.
+    pub struct TrialsSimulateParams<'a> {
+        cutting: req &'a str = (T::Entity(EntityKind::Cutting), cutting_param().doc),
+        file: req &'a Path = (T::File, "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`"),
+        coefficients: opt &'a [Params] = (
+            T::ObjectList(COEFFICIENT_ROW),
+            "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
+             (default: the cutting setup's)",
+        ),
+        min_frequency: def f64 = (T::Quantity(D::FREQUENCY), "100 Hz", "lower end of the modal fit"),
+        max_frequency: opt f64 = (
+            T::Quantity(D::FREQUENCY),
+            "upper end of the modal fit (default: the FRFs' last line)",
+        ),
+        feed_per_tooth: opt f64 = (
+            T::Quantity(D::LENGTH),
+            "feed per tooth (default: the cutting setup's `feed_per_tooth`)",
+        ),
+        revolutions: def usize = (
+            T::Integer { min: 2, max: 100_000 },
+            "100",
+            "length of each simulated cut",
+        ),
+        extrapolate: def bool = (
+            T::Bool,
+            "false",
+            "extend the end cubics beyond the measured speeds instead of refusing",
+        ),
     }
 }
 
@@ -279,23 +278,24 @@ impl Node for TrialsSimulate {
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         use crate::modal_fit::{self, FitOptions};
         use rayon::prelude::*;
-        let p = ctx.params;
+        let p = TrialsSimulateParams::read(ctx.params)?;
         let mill = milling(ctx)?;
         let frfs: Vec<SpeedFrf> = pairs(ctx)?.into_iter().map(|(speed_rpm, frf)| SpeedFrf { speed_rpm, frf }).collect();
         let trials = read_trials(ctx)?;
         let span = (frfs[0].speed_rpm, frfs[frfs.len() - 1].speed_rpm);
         let (lo, hi) = trials.iter().fold(span, |(a, b), t| (a.min(t.speed_rpm), b.max(t.speed_rpm)));
-        let law = p.text("cutting").and_then(|n| ctx.recipe.cutting.get(n));
-        let coeffs = coefficient_table(p, &mill, law, (lo, hi))?;
-        let feed = feed_per_tooth(ctx)?;
-        let allow = p.bool("extrapolate").unwrap_or(false);
+        let law = ctx.recipe.cutting.get(p.cutting);
+        // The shared readers take the raw parameters: `coefficients` here, `file` in `read_trials`.
+        let coeffs = coefficient_table(ctx.params, &mill, law, (lo, hi))?;
+        let feed = feed_per_tooth(ctx, p.feed_per_tooth, p.cutting)?;
+        let allow = p.extrapolate;
         let fit = FitOptions {
-            min_frequency_hz: p.f64("min_frequency").unwrap_or(100.0),
-            max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
+            min_frequency_hz: p.min_frequency,
+            max_frequency_hz: p.max_frequency.unwrap_or(f64::INFINITY),
             beam_refit: false,
             ..FitOptions::default()
         };
-        let revolutions = p.int("revolutions").unwrap_or(100) as usize;
+        let revolutions = p.revolutions;
         let one = |t: &Trial| -> Result<Option<Simulated>, NodeError> {
             if !allow && (t.speed_rpm < span.0 || t.speed_rpm > span.1) {
                 return Ok(None);
@@ -377,5 +377,20 @@ impl Node for TrialsSimulate {
         out.insert("verdicts".into(), Value::Table(verdicts));
         out.insert("agreement".into(), Value::Scalar(Scalar { value: agreement, unit: UnitLabel::new("") }));
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `cutting` is declared here with the doc of the shared [`cutting_param`]: the field is
+    /// the shared one.
+    #[test]
+    fn the_cutting_field_is_the_shared_one() {
+        let shared = format!("{:?}", cutting_param());
+        for fields in [MillingSimulateParams::fields(), TrialsSimulateParams::fields()] {
+            assert_eq!(format!("{:?}", fields[0]), shared);
+        }
     }
 }

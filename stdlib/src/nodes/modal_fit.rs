@@ -5,9 +5,78 @@ use super::convert::{self, ZeroLine};
 use crate::modal_fit::{self, FitError, FitOptions, Method, ModalFit, Residues, Weighting};
 use spindlelab_domain::Material;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{Column, Frf, FrfKind, ModalModel, Mode, PortType, ReceptanceSet, Table, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `modal.fit`.
+    pub struct ModalFitParams<'a> {
+        method: def &'a str = (
+            T::Choice(&["simplex", "lscf"]),
+            "simplex",
+            "§5.2 simplex procedure or least-squares complex frequency-domain fit",
+        ),
+        min_frequency: def f64 = (T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
+        max_frequency: opt f64 = (T::Quantity(D::FREQUENCY), "upper end of the fit band (default: the last line)"),
+        h_sens: def usize = (
+            T::Integer { min: 1, max: 10_000 },
+            "5",
+            "moving-average width on Im(H) for peak picking, points (§5.2.1)",
+        ),
+        v_sens: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0.1 %",
+            "peak cut-off as a fraction of the largest |Im H| (§5.2.1)",
+        ),
+        prominence: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "3",
+            "least prominence of the smoothed |H| at a picked peak, dB (0: off); rejects noise minima of Im H where the FRF is flat",
+        ),
+        residues: def &'a str = (
+            T::Choice(&["real", "complex"]),
+            "real",
+            "real modal masses (Eq. 5.8) or complex residues with lower and upper residual terms (LSFD), for non-proportional damping",
+        ),
+        iterations: def usize = (T::Integer { min: 1, max: 1000 }, "20", "global iterations of step 4 (§5.2.4)"),
+        delete_after: def usize = (
+            T::Integer { min: 1, max: 1000 },
+            "14",
+            "delete modes stuck at their bounds after this many iterations (§5.2.4.1)",
+        ),
+        floating_modes: def bool = (T::Bool, "false", "add the random floating modes of §5.2.3"),
+        seed: def u64 = (T::Integer { min: 0, max: i64::MAX }, "0", "seed of the floating modes"),
+        band_points: def usize = (
+            T::Integer { min: 8, max: 100_000 },
+            "200",
+            "lines each mode band is sampled to for its fit",
+        ),
+        material: opt &'a str = (
+            T::Entity(EntityKind::Material),
+            "material of the equivalent beams (default steel, E 200 GPa, ρ 7800 kg/m³)",
+        ),
+        beam_refit: def bool = (
+            T::Bool,
+            "true",
+            "refit the mapped beams jointly so that their sum reproduces the measured FRF (false: the plain per-mode mapping of §5.2.5)",
+        ),
+        driving_point: opt bool = (
+            T::Bool,
+            "whether response and reference are the same point and direction (default: from the FRF's node and direction numbers, else unknown); a driving point's modal masses must be positive (modes that come out negative are rejected), a transfer FRF's modal constants carry signs",
+        ),
+        weighting: def &'a str = (
+            T::Choice(&["relative", "absolute"]),
+            "relative",
+            "line weights of the LSCF and LSFD least squares: 1/|H| (every line by its relative error) or none (the global L2 distance, which the peaks dominate)",
+        ),
+        order: opt usize = (
+            T::Integer { min: 4, max: 200 },
+            "LSCF model order (number of poles; default four per picked peak, at least 8, raised to six and eight while fewer poles than peaks are stable)",
+        ),
+    }
+}
 
 pub struct ModalFitNode {
     spec: NodeSpec,
@@ -69,98 +138,10 @@ impl ModalFitNode {
                         "one row: lower residual LR (term −LR/ω²), its mass 1/LR, upper residual UR, the global relative L2 residual ‖H − H_fit‖/‖H‖ and the 1/|H|-weighted relative error (RMS of |H − H_fit|/|H|) of the modal model on the fit band",
                     ),
                 ],
-                params: vec![
-                    Field::def(
-                        "method",
-                        T::Choice(&["simplex", "lscf"]),
-                        "simplex",
-                        "§5.2 simplex procedure or least-squares complex frequency-domain fit",
-                    ),
-                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
-                    Field::opt(
-                        "max_frequency",
-                        T::Quantity(D::FREQUENCY),
-                        "upper end of the fit band (default: the last line)",
-                    ),
-                    Field::def(
-                        "h_sens",
-                        T::Integer { min: 1, max: 10_000 },
-                        "5",
-                        "moving-average width on Im(H) for peak picking, points (§5.2.1)",
-                    ),
-                    Field::def(
-                        "v_sens",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0.1 %",
-                        "peak cut-off as a fraction of the largest |Im H| (§5.2.1)",
-                    ),
-                    Field::def(
-                        "prominence",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "3",
-                        "least prominence of the smoothed |H| at a picked peak, dB (0: off); rejects noise minima of Im H where the FRF is flat",
-                    ),
-                    Field::def(
-                        "residues",
-                        T::Choice(&["real", "complex"]),
-                        "real",
-                        "real modal masses (Eq. 5.8) or complex residues with lower and upper residual terms (LSFD), for non-proportional damping",
-                    ),
-                    Field::def(
-                        "iterations",
-                        T::Integer { min: 1, max: 1000 },
-                        "20",
-                        "global iterations of step 4 (§5.2.4)",
-                    ),
-                    Field::def(
-                        "delete_after",
-                        T::Integer { min: 1, max: 1000 },
-                        "14",
-                        "delete modes stuck at their bounds after this many iterations (§5.2.4.1)",
-                    ),
-                    Field::def("floating_modes", T::Bool, "false", "add the random floating modes of §5.2.3"),
-                    Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "seed of the floating modes"),
-                    Field::def(
-                        "band_points",
-                        T::Integer { min: 8, max: 100_000 },
-                        "200",
-                        "lines each mode band is sampled to for its fit",
-                    ),
-                    Field::opt(
-                        "material",
-                        T::Entity(EntityKind::Material),
-                        "material of the equivalent beams (default steel, E 200 GPa, ρ 7800 kg/m³)",
-                    ),
-                    Field::def(
-                        "beam_refit",
-                        T::Bool,
-                        "true",
-                        "refit the mapped beams jointly so that their sum reproduces the measured FRF (false: the plain per-mode mapping of §5.2.5)",
-                    ),
-                    Field::opt(
-                        "driving_point",
-                        T::Bool,
-                        "whether response and reference are the same point and direction (default: from the FRF's node and direction numbers, else unknown); a driving point's modal masses must be positive (modes that come out negative are rejected), a transfer FRF's modal constants carry signs",
-                    ),
-                    Field::def(
-                        "weighting",
-                        T::Choice(&["relative", "absolute"]),
-                        "relative",
-                        "line weights of the LSCF and LSFD least squares: 1/|H| (every line by its relative error) or none (the global L2 distance, which the peaks dominate)",
-                    ),
-                    Field::opt(
-                        "order",
-                        T::Integer { min: 4, max: 200 },
-                        "LSCF model order (number of poles; default four per picked peak, at least 8, raised to six and eight while fewer poles than peaks are stable)",
-                    ),
-                ],
+                params: ModalFitParams::fields(),
             },
         }
     }
-}
-
-fn int(p: &Params, name: &str, default: i64) -> usize {
-    p.int(name).unwrap_or(default).max(0) as usize
 }
 
 fn err(e: FitError) -> NodeError {
@@ -186,20 +167,21 @@ impl Node for ModalFitNode {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::non_negative(p, &["min_frequency", "prominence"])?;
-        super::positive(p, &["max_frequency", "v_sens"])?;
-        if let Some(v) = p.f64("v_sens")
-            && v > 1.0
-        {
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = ModalFitParams::read(params)?;
+        super::non_negative(params, &["min_frequency", "prominence"])?;
+        super::positive(params, &["max_frequency", "v_sens"])?;
+        let v = p.v_sens;
+        if v > 1.0 {
             return Err(NodeError::param("v_sens", format!("must be at most 100 %, got {v}")));
         }
-        if let (Some(lo), Some(hi)) = (p.f64("min_frequency"), p.f64("max_frequency"))
+        let lo = p.min_frequency;
+        if let Some(hi) = p.max_frequency
             && hi <= lo
         {
             return Err(NodeError::param("max_frequency", format!("{hi} Hz is not above min_frequency {lo} Hz")));
         }
-        if p.int("order").is_some_and(|n| n % 2 != 0) {
+        if p.order.is_some_and(|n| n % 2 != 0) {
             return Err(NodeError::param("order", "must be even: poles come in conjugate pairs"));
         }
         Ok(())
@@ -219,9 +201,9 @@ impl Node for ModalFitNode {
             ));
         }
         let labelled = frf.dofs.map(|d| d.driving_point());
-        let p = ctx.params;
-        let stated = p.bool("driving_point");
-        let material = match p.text("material") {
+        let p = ModalFitParams::read(ctx.params)?;
+        let stated = p.driving_point;
+        let material = match p.material {
             Some(name) => {
                 let m = ctx
                     .recipe
@@ -239,34 +221,34 @@ impl Node for ModalFitNode {
         {
             return Err(NodeError::param("material", "the material needs a positive `E` and `rho`"));
         }
-        let method = match p.text("method") {
-            Some("lscf") => Method::Lscf { order: p.int("order").map(|n| n as usize) },
+        let method = match p.method {
+            "lscf" => Method::Lscf { order: p.order },
             _ => Method::Simplex,
         };
         let opts = FitOptions {
             method,
-            min_frequency_hz: p.f64("min_frequency").unwrap_or(0.0),
-            max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
-            h_sens: int(p, "h_sens", 5),
-            v_sens: p.f64("v_sens").unwrap_or(0.001),
-            prominence_db: p.f64("prominence").unwrap_or(3.0),
-            residues: match p.text("residues") {
-                Some("complex") => Residues::Complex,
+            min_frequency_hz: p.min_frequency,
+            max_frequency_hz: p.max_frequency.unwrap_or(f64::INFINITY),
+            h_sens: p.h_sens,
+            v_sens: p.v_sens,
+            prominence_db: p.prominence,
+            residues: match p.residues {
+                "complex" => Residues::Complex,
                 _ => Residues::Real,
             },
-            iterations: int(p, "iterations", 20),
-            delete_after: int(p, "delete_after", 14),
-            floating_modes: p.bool("floating_modes").unwrap_or(false),
-            seed: p.int("seed").unwrap_or(0).max(0) as u64,
-            band_points: int(p, "band_points", 200),
+            iterations: p.iterations,
+            delete_after: p.delete_after,
+            floating_modes: p.floating_modes,
+            seed: p.seed,
+            band_points: p.band_points,
             material,
-            beam_refit: p.bool("beam_refit").unwrap_or(true),
+            beam_refit: p.beam_refit,
             // Only a driving point stated as one is held to positive modal masses; node numbers may be
             // placeholders, so a driving point by its numbers alone is checked after the fit instead.
             signed: stated != Some(true),
             kind_order: kind.order(),
-            weighting: match p.text("weighting") {
-                Some("absolute") => Weighting::Absolute,
+            weighting: match p.weighting {
+                "absolute" => Weighting::Absolute,
                 _ => Weighting::Relative,
             },
         };

@@ -5,9 +5,55 @@
 use super::convert;
 use crate::modal_fit::{self, FitError, SetFit, SetOptions, Stability, Targets, Weighting, signed_mode_of_residue};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, Frf, FrfDofs, FrfKind, FrfSet, ModalModel, Mode, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `modal.fit_set`.
+    pub struct ModalFitSetParams<'a> {
+        min_frequency: def f64 = (T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
+        max_frequency: opt f64 = (T::Quantity(D::FREQUENCY), "upper end of the fit band (default: the last line)"),
+        modes: opt usize = (
+            T::Integer { min: 1, max: 200 },
+            "how many modes to keep: the most prominent peaks of the summed |H| that have a stable pole (default: every peak at least `prominence` prominent that has one)",
+        ),
+        frequencies: opt &'a [f64] = (
+            T::QuantityList(D::FREQUENCY),
+            "approximate natural frequencies to take the poles at, instead of the peaks of the summed |H|",
+        ),
+        prominence: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "6",
+            "least prominence of a peak of the summed |H| over the higher of its flanking minima, dB",
+        ),
+        max_order: def usize = (
+            T::Integer { min: 4, max: 300 },
+            "120",
+            "highest model order of the stabilisation diagram: poles of the common denominator, conjugates counted (even; sdypy-EMA's pol_order_high is half of it)",
+        ),
+        stable_frequency: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "1 %",
+            "a pole is stable in frequency when the previous order has one this close (relative)",
+        ),
+        stable_damping: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "5 %",
+            "and stable in damping when that pole's damping ratio is this close too (relative)",
+        ),
+        weighting: def &'a str = (
+            T::Choice(&["absolute", "relative"]),
+            "absolute",
+            "line weights of the LSCF and LSFD least squares: none, each FRF scaled to unit RMS (the peaks lead; the global L2 distance) or 1/|H| (every line by its relative error)",
+        ),
+        point: opt usize = (
+            T::Integer { min: 1, max: 1_000_000 },
+            "which FRF of the set (its place, from 1) the `modes` output describes (default: the first driving point by its node numbers, else the first FRF)",
+        ),
+    }
+}
 
 pub struct ModalFitSetNode {
     spec: NodeSpec,
@@ -68,59 +114,7 @@ impl ModalFitSetNode {
                         "the modes as the FRF `point` sees them (Eq. 5.8: frequency, damping ratio, signed modal mass 1/(2ω_d|A|)), for the nodes that take a modal model",
                     ),
                 ],
-                params: vec![
-                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "0 Hz", "lower end of the fit band"),
-                    Field::opt(
-                        "max_frequency",
-                        T::Quantity(D::FREQUENCY),
-                        "upper end of the fit band (default: the last line)",
-                    ),
-                    Field::opt(
-                        "modes",
-                        T::Integer { min: 1, max: 200 },
-                        "how many modes to keep: the most prominent peaks of the summed |H| that have a stable pole (default: every peak at least `prominence` prominent that has one)",
-                    ),
-                    Field::opt(
-                        "frequencies",
-                        T::QuantityList(D::FREQUENCY),
-                        "approximate natural frequencies to take the poles at, instead of the peaks of the summed |H|",
-                    ),
-                    Field::def(
-                        "prominence",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "6",
-                        "least prominence of a peak of the summed |H| over the higher of its flanking minima, dB",
-                    ),
-                    Field::def(
-                        "max_order",
-                        T::Integer { min: 4, max: 300 },
-                        "120",
-                        "highest model order of the stabilisation diagram: poles of the common denominator, conjugates counted (even; sdypy-EMA's pol_order_high is half of it)",
-                    ),
-                    Field::def(
-                        "stable_frequency",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "1 %",
-                        "a pole is stable in frequency when the previous order has one this close (relative)",
-                    ),
-                    Field::def(
-                        "stable_damping",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "5 %",
-                        "and stable in damping when that pole's damping ratio is this close too (relative)",
-                    ),
-                    Field::def(
-                        "weighting",
-                        T::Choice(&["absolute", "relative"]),
-                        "absolute",
-                        "line weights of the LSCF and LSFD least squares: none, each FRF scaled to unit RMS (the peaks lead; the global L2 distance) or 1/|H| (every line by its relative error)",
-                    ),
-                    Field::opt(
-                        "point",
-                        T::Integer { min: 1, max: 1_000_000 },
-                        "which FRF of the set (its place, from 1) the `modes` output describes (default: the first driving point by its node numbers, else the first FRF)",
-                    ),
-                ],
+                params: ModalFitSetParams::fields(),
             },
         }
     }
@@ -150,29 +144,30 @@ impl Node for ModalFitSetNode {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::non_negative(p, &["min_frequency", "prominence"])?;
-        super::positive(p, &["max_frequency", "stable_frequency", "stable_damping"])?;
-        if let (Some(lo), Some(hi)) = (p.f64("min_frequency"), p.f64("max_frequency"))
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = ModalFitSetParams::read(params)?;
+        super::non_negative(params, &["min_frequency", "prominence"])?;
+        super::positive(params, &["max_frequency", "stable_frequency", "stable_damping"])?;
+        let lo = p.min_frequency;
+        if let Some(hi) = p.max_frequency
             && hi <= lo
         {
             return Err(NodeError::param("max_frequency", format!("{hi} Hz is not above min_frequency {lo} Hz")));
         }
-        if p.int("max_order").is_some_and(|n| n % 2 != 0) {
+        if p.max_order % 2 != 0 {
             return Err(NodeError::param("max_order", "must be even: poles come in conjugate pairs"));
         }
-        if let Some(v) = p.f64("stable_frequency")
-            && v >= 1.0
-        {
+        let v = p.stable_frequency;
+        if v >= 1.0 {
             return Err(NodeError::param("stable_frequency", format!("must be below 100 %, got {v}")));
         }
-        if p.int("modes").is_some() && p.list("frequencies").is_some() {
+        if p.modes.is_some() && p.frequencies.is_some() {
             return Err(NodeError::param(
                 "frequencies",
                 "give either `modes` (how many peaks) or `frequencies` (where), not both",
             ));
         }
-        if let Some(f) = p.list("frequencies")
+        if let Some(f) = p.frequencies
             && let Some(v) = f.iter().find(|v| !(v.is_finite() && **v > 0.0))
         {
             return Err(NodeError::param("frequencies", format!("must be positive, got {v} Hz")));
@@ -190,10 +185,9 @@ impl Node for ModalFitSetNode {
         // A file without units is taken as a receptance, as `modal.fit` does.
         let kind =
             if first.unit.symbol.trim().is_empty() { FrfKind::Receptance } else { convert::kind_of(first, "set")? };
-        let p = ctx.params;
-        let point = match p.int("point") {
+        let p = ModalFitSetParams::read(ctx.params)?;
+        let point = match p.point {
             Some(k) => {
-                let k = usize::try_from(k).unwrap_or(0);
                 if k == 0 || k > set.frfs.len() {
                     return Err(NodeError::param(
                         "point",
@@ -204,24 +198,21 @@ impl Node for ModalFitSetNode {
             }
             None => set.frfs.iter().position(|f| f.dofs.is_some_and(|d| d.driving_point())).unwrap_or(0),
         };
-        let targets = match p.list("frequencies") {
+        let targets = match p.frequencies {
             Some(f) => Targets::Frequencies(f.to_vec()),
-            None => Targets::Peaks {
-                count: p.int("modes").map(|n| n.max(1) as usize),
-                prominence_db: p.f64("prominence").unwrap_or(6.0),
-            },
+            None => Targets::Peaks { count: p.modes.map(|n| n.max(1)), prominence_db: p.prominence },
         };
         let opts = SetOptions {
-            min_frequency_hz: p.f64("min_frequency").unwrap_or(0.0),
-            max_frequency_hz: p.f64("max_frequency").unwrap_or(f64::INFINITY),
-            max_order: p.int("max_order").unwrap_or(120).max(0) as usize,
-            weighting: match p.text("weighting") {
-                Some("relative") => Weighting::Relative,
+            min_frequency_hz: p.min_frequency,
+            max_frequency_hz: p.max_frequency.unwrap_or(f64::INFINITY),
+            max_order: p.max_order,
+            weighting: match p.weighting {
+                "relative" => Weighting::Relative,
                 _ => Weighting::Absolute,
             },
             kind_order: kind.order(),
-            stable_frequency: p.f64("stable_frequency").unwrap_or(0.01),
-            stable_damping: p.f64("stable_damping").unwrap_or(0.05),
+            stable_frequency: p.stable_frequency,
+            stable_damping: p.stable_damping,
             targets,
         };
         let values: Vec<&[num_complex::Complex64]> = set.frfs.iter().map(|f| f.values.as_slice()).collect();

@@ -9,7 +9,8 @@
 use crate::stability;
 use num_complex::Complex64;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Frf, ModalModel, Mode, PortType, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::f64::consts::TAU;
@@ -17,6 +18,18 @@ use std::f64::consts::TAU;
 /// Most lines one FRF of this node may have (10 kHz at 0.01 Hz): a grid is stated by the
 /// recipe, and memory is not sized by a typo in it.
 pub const MAX_LINES: usize = 1_000_001;
+
+node_params! {
+    /// Parameters of `modal.frf`.
+    pub struct ModalFrfParams<'a> {
+        min_frequency: def f64 = (T::Quantity(D::FREQUENCY), "0 Hz", "first line of the grid"),
+        max_frequency: req f64 = (
+            T::Quantity(D::FREQUENCY),
+            "last line of the grid (at most; the grid steps by `resolution` from `min_frequency`)",
+        ),
+        resolution: def f64 = (T::Quantity(D::FREQUENCY), "1 Hz", "line spacing"),
+    }
+}
 
 /// `modal.frf`: modal models along x and y → their receptances on `min_frequency ..
 /// max_frequency` every `resolution`.
@@ -47,15 +60,7 @@ impl ModalFrf {
                     PortSpec::new("frf_y", PortType::Frf, "receptance along y (m/N), when modes_y is connected")
                         .optional(),
                 ],
-                params: vec![
-                    Field::def("min_frequency", T::Quantity(D::FREQUENCY), "0 Hz", "first line of the grid"),
-                    Field::req(
-                        "max_frequency",
-                        T::Quantity(D::FREQUENCY),
-                        "last line of the grid (at most; the grid steps by `resolution` from `min_frequency`)",
-                    ),
-                    Field::def("resolution", T::Quantity(D::FREQUENCY), "1 Hz", "line spacing"),
-                ],
+                params: ModalFrfParams::fields(),
             },
         }
     }
@@ -63,9 +68,7 @@ impl ModalFrf {
 
 /// The grid of the parameters, Hz: `min, min + Δf, …` up to `max` (within a millionth of a line).
 fn grid(p: &Params) -> Result<Vec<f64>, NodeError> {
-    let lo = p.f64("min_frequency").unwrap_or(0.0);
-    let hi = p.f64("max_frequency").unwrap_or(f64::NAN);
-    let df = p.f64("resolution").unwrap_or(1.0);
+    let ModalFrfParams { min_frequency: lo, max_frequency: hi, resolution: df, .. } = ModalFrfParams::read(p)?;
     if !(lo.is_finite() && lo >= 0.0) {
         return Err(NodeError::param("min_frequency", format!("{lo} Hz: give a frequency of 0 Hz or more")));
     }

@@ -2,12 +2,21 @@
 
 use crate::phase::{self, PhaseError, SensorKind};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Scalar, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 /// Degrees per kilohertz in rad/Hz, for messages.
 const DEG_PER_KHZ: f64 = std::f64::consts::PI / 180.0 / 1000.0;
+
+node_params! {
+    /// Parameters of `phase.correct`.
+    pub struct PhaseCorrectParams<'a> {
+        slope: opt f64 = (T::Quantity(D::PHASE_SLOPE), "phase slope Δθ, e.g. -13.84 deg/kHz"),
+        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `phase_slope` to use"),
+    }
+}
 
 pub struct PhaseCorrect {
     spec: NodeSpec,
@@ -31,10 +40,7 @@ impl PhaseCorrect {
                     PortSpec::new("slope", PortType::Scalar, "measured phase slope (from phase.measure)").optional(),
                 ],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "corrected FRF")],
-                params: vec![
-                    Field::opt("slope", T::Quantity(D::PHASE_SLOPE), "phase slope Δθ, e.g. -13.84 deg/kHz"),
-                    Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `phase_slope` to use"),
-                ],
+                params: PhaseCorrectParams::fields(),
             },
         }
     }
@@ -46,7 +52,8 @@ impl Node for PhaseCorrect {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if p.f64("slope").is_some() && p.text("sensor").is_some() {
+        let p = PhaseCorrectParams::read(p)?;
+        if p.slope.is_some() && p.sensor.is_some() {
             return Err(NodeError::param("slope", "give either `slope` or `sensor`, not both"));
         }
         Ok(())
@@ -56,6 +63,7 @@ impl Node for PhaseCorrect {
         let Value::Frf(frf) = ctx.input("frf")? else {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
+        let p = PhaseCorrectParams::read(ctx.params)?;
         let slope = if let Some(Value::Scalar(s)) = ctx.inputs_of("slope").first().map(|l| l.value.as_ref()) {
             if s.unit.symbol != "rad*s" && s.unit.symbol != "rad/Hz" {
                 return Err(NodeError::input(
@@ -64,9 +72,9 @@ impl Node for PhaseCorrect {
                 ));
             }
             s.value
-        } else if let Some(v) = ctx.params.f64("slope") {
+        } else if let Some(v) = p.slope {
             v
-        } else if let Some(name) = ctx.params.text("sensor") {
+        } else if let Some(name) = p.sensor {
             ctx.recipe
                 .sensors
                 .get(name)
@@ -81,6 +89,25 @@ impl Node for PhaseCorrect {
         let mut out = frf.clone();
         phase::correct(&out.freq_hz, &mut out.values, slope).map_err(|e| NodeError::param("slope", e.to_string()))?;
         Ok([("frf".to_string(), Value::Frf(out))].into_iter().collect())
+    }
+}
+
+node_params! {
+    /// Parameters of `phase.measure`.
+    pub struct PhaseMeasureParams<'a> {
+        accel_channel: def &'a str = (T::Text, "accel", "accelerometer channel"),
+        sensor_channel: def &'a str = (T::Text, "sensor", "channel of the sensor under test"),
+        sensor: def &'a str = (
+            T::Choice(&["displacement", "velocity"]),
+            "displacement",
+            "what the sensor measures",
+        ),
+        bandwidth: def f64 = (
+            T::Quantity(D::FREQUENCY),
+            "100 Hz",
+            "width of the band-pass around the drive frequency",
+        ),
+        order: def usize = (T::Integer { min: 1, max: 8 }, "3", "Butterworth order of the band-pass"),
     }
 }
 
@@ -117,23 +144,7 @@ impl PhaseMeasure {
                         "drive frequency, measured phase lag, and the line's residual",
                     ),
                 ],
-                params: vec![
-                    Field::def("accel_channel", T::Text, "accel", "accelerometer channel"),
-                    Field::def("sensor_channel", T::Text, "sensor", "channel of the sensor under test"),
-                    Field::def(
-                        "sensor",
-                        T::Choice(&["displacement", "velocity"]),
-                        "displacement",
-                        "what the sensor measures",
-                    ),
-                    Field::def(
-                        "bandwidth",
-                        T::Quantity(D::FREQUENCY),
-                        "100 Hz",
-                        "width of the band-pass around the drive frequency",
-                    ),
-                    Field::def("order", T::Integer { min: 1, max: 8 }, "3", "Butterworth order of the band-pass"),
-                ],
+                params: PhaseMeasureParams::fields(),
             },
         }
     }
@@ -145,22 +156,20 @@ impl Node for PhaseMeasure {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if p.f64("bandwidth").is_some_and(|b| b <= 0.0) {
+        if PhaseMeasureParams::read(p)?.bandwidth <= 0.0 {
             return Err(NodeError::param("bandwidth", "must be positive"));
         }
         Ok(())
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
-        let kind = match p.text("sensor") {
-            Some("velocity") => SensorKind::Velocity,
+        let p = PhaseMeasureParams::read(ctx.params)?;
+        let kind = match p.sensor {
+            "velocity" => SensorKind::Velocity,
             _ => SensorKind::Displacement,
         };
-        let bandwidth = p.f64("bandwidth").unwrap_or(100.0);
-        let order = p.int("order").unwrap_or(3) as usize;
-        let (accel_name, sensor_name) =
-            (p.text("accel_channel").unwrap_or("accel"), p.text("sensor_channel").unwrap_or("sensor"));
+        let (bandwidth, order) = (p.bandwidth, p.order);
+        let (accel_name, sensor_name) = (p.accel_channel, p.sensor_channel);
         let mut points = Vec::new();
         for item in ctx.inputs_of("records") {
             let Value::TimeSeries(ts) = item.value.as_ref() else {

@@ -7,59 +7,58 @@
 use spindlelab_domain::Speed;
 use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{PortType, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::path::Path;
 
-const FORMATS: &[&str] = &["auto", "csv", "uff"];
+pub(super) const FORMATS: &[&str] = &["auto", "csv", "uff"];
 
-pub(super) fn file_param() -> Field {
-    Field::req("file", T::File, "the data file, relative to the recipe's folder")
-}
+/// The doc of the `file` parameter every reader has.
+pub(super) const FILE_DOC: &str = "the data file, relative to the recipe's folder";
 
-pub(super) fn format_param() -> Field {
-    Field::def(
-        "format",
-        T::Choice(FORMATS),
-        "auto",
-        "file layout; `auto` goes by the extension (`.csv`, `.uff`/`.unv`), else by the contents",
-    )
-}
+/// The default and the doc of the `format` parameter every reader has.
+pub(super) const FORMAT_DEFAULT: &str = "auto";
+pub(super) const FORMAT_DOC: &str =
+    "file layout; `auto` goes by the extension (`.csv`, `.uff`/`.unv`), else by the contents";
 
-fn dataset_param(what: &str) -> Field {
-    let doc: &'static str = match what {
-        "frf" => {
-            "which FRF to read, counting from 1: a dataset 58 of a UFF file, or a sweep point of a CSV file a swept output wrote"
-        }
-        _ => {
-            "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel"
-        }
-    };
-    Field::opt("dataset", T::Integer { min: 1, max: 1_000_000 }, doc)
-}
+/// The range of the `dataset` parameter, and its doc for FRFs and for time series.
+const DATASET: T = T::Integer { min: 1, max: 1_000_000 };
+const DATASET_FRF_DOC: &str = "which FRF to read, counting from 1: a dataset 58 of a UFF file, or a sweep point of a CSV file a swept output wrote";
+const DATASET_TIME_DOC: &str =
+    "UFF only: which dataset 58 of the file to read, counting from 1; without it every time response becomes a channel";
 
-/// The file and its layout, as the parameters give them.
-fn source(params: &Params, frfs: bool) -> Result<(&Path, FileFormat), NodeError> {
-    let path = params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
-    let format = match params.text("format") {
-        Some("csv") => FileFormat::Csv,
-        Some("uff") => FileFormat::Uff,
+/// The layout of `path` as the `format` parameter gives it.
+pub(super) fn file_format(path: &Path, format: &str) -> Result<FileFormat, NodeError> {
+    Ok(match format {
+        "csv" => FileFormat::Csv,
+        "uff" => FileFormat::Uff,
         _ => FileFormat::detect(path).map_err(read_error)?,
-    };
+    })
+}
+
+/// The layout of the file, checked against `dataset` where the file holds no datasets.
+fn source(path: &Path, format: &str, dataset: Option<usize>, frfs: bool) -> Result<FileFormat, NodeError> {
+    let format = file_format(path, format)?;
     // A CSV file holds one time series or receptance set; a swept FRF file holds sweep points.
-    if format == FileFormat::Csv && params.int("dataset").is_some() && !frfs {
+    if format == FileFormat::Csv && dataset.is_some() && !frfs {
         return Err(NodeError::param("dataset", format!("applies to UFF files; {} is CSV", path.display())));
     }
-    Ok((path, format))
+    Ok(format)
 }
 
 pub(super) fn read_error(e: FormatError) -> NodeError {
     NodeError::param("file", e.to_string())
 }
 
-fn dataset(params: &Params) -> Option<usize> {
-    params.int("dataset").and_then(|k| usize::try_from(k).ok())
+node_params! {
+    /// Parameters of `read.time_series`.
+    pub struct ReadTimeSeriesParams<'a> {
+        file: req &'a Path = (T::File, FILE_DOC),
+        format: def &'a str = (T::Choice(FORMATS), FORMAT_DEFAULT, FORMAT_DOC),
+        dataset: opt usize = (DATASET, DATASET_TIME_DOC),
+    }
 }
 
 /// `read.time_series`: a time series from a CSV or UFF file.
@@ -82,7 +81,7 @@ impl ReadTimeSeries {
                 description: "Reads a time series from a CSV file (as outputs write it) or from UFF dataset 58/58b time responses; units to SI.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new("series", PortType::TimeSeries, "the channels of the file, in SI units")],
-                params: vec![file_param(), format_param(), dataset_param("time")],
+                params: ReadTimeSeriesParams::fields(),
             },
         }
     }
@@ -94,8 +93,9 @@ impl Node for ReadTimeSeries {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params, false)?;
-        let loaded = formats::read_time_series(path, format, dataset(ctx.params)).map_err(read_error)?;
+        let p = ReadTimeSeriesParams::read(ctx.params)?;
+        let format = source(p.file, p.format, p.dataset, false)?;
+        let loaded = formats::read_time_series(p.file, format, p.dataset).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);
         }
@@ -110,6 +110,35 @@ impl Node for ReadTimeSeries {
 
 /// The kind that reads one measured FRF file; measurement sets expand into it.
 pub const READ_FRF: &str = "read.frf";
+
+node_params! {
+    /// Parameters of `read.frf`.
+    pub struct ReadFrfParams<'a> {
+        file: req &'a Path = (T::File, FILE_DOC),
+        format: def &'a str = (T::Choice(FORMATS), FORMAT_DEFAULT, FORMAT_DOC),
+        dataset: opt usize = (DATASET, DATASET_FRF_DOC),
+        direction: opt &'a str = (
+            T::Choice(&["x", "y", "z"]),
+            "UFF: take the FRF whose response is in this direction; CSV: the direction of a file without `# direction`",
+        ),
+        response: opt i64 = (
+            T::Integer { min: 0, max: i64::MAX },
+            "take the FRF whose response node number is this (UFF record 6; CSV `# response:`)",
+        ),
+        reference: opt i64 = (
+            T::Integer { min: 0, max: i64::MAX },
+            "take the FRF whose reference (excitation) node number is this",
+        ),
+        speed: opt f64 = (
+            T::Quantity(D::ROTATIONAL_SPEED),
+            "the spindle speed of the measurement: fills a file without one, and must agree with a file that states it",
+        ),
+        units: opt &'a str = (
+            T::Text,
+            "the unit of the file's values (`m/N`, `um/N`, `m/s^2/N`): a file without `# units:` is read in it, one whose units are of another kind is refused",
+        ),
+    }
+}
 
 /// `read.frf`: an FRF from a CSV or UFF file.
 pub struct ReadFrf {
@@ -131,36 +160,7 @@ impl ReadFrf {
                 description: "Reads an FRF from a CSV file (`freq_hz,real,imag[,coherence]`) or a UFF dataset 58/58b (function type 4), with its response and reference nodes and directions; units to SI. Sweep `dataset`, `response` or `reference` to read a measurement set.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new("frf", PortType::Frf, "the FRF, frequencies in Hz, values in SI units")],
-                params: vec![
-                    file_param(),
-                    format_param(),
-                    dataset_param("frf"),
-                    Field::opt(
-                        "direction",
-                        T::Choice(&["x", "y", "z"]),
-                        "UFF: take the FRF whose response is in this direction; CSV: the direction of a file without `# direction`",
-                    ),
-                    Field::opt(
-                        "response",
-                        T::Integer { min: 0, max: i64::MAX },
-                        "take the FRF whose response node number is this (UFF record 6; CSV `# response:`)",
-                    ),
-                    Field::opt(
-                        "reference",
-                        T::Integer { min: 0, max: i64::MAX },
-                        "take the FRF whose reference (excitation) node number is this",
-                    ),
-                    Field::opt(
-                        "speed",
-                        T::Quantity(D::ROTATIONAL_SPEED),
-                        "the spindle speed of the measurement: fills a file without one, and must agree with a file that states it",
-                    ),
-                    Field::opt(
-                        "units",
-                        T::Text,
-                        "the unit of the file's values (`m/N`, `um/N`, `m/s^2/N`): a file without `# units:` is read in it, one whose units are of another kind is refused",
-                    ),
-                ],
+                params: ReadFrfParams::fields(),
             },
         }
     }
@@ -171,22 +171,25 @@ impl Node for ReadFrf {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if let Some(u) = p.text("units") {
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = ReadFrfParams::read(params)?;
+        if let Some(u) = p.units {
             formats::frf_unit(u).map_err(|why| {
                 NodeError::param("units", format!("{why}; the values of an FRF are {}", formats::FRF_UNIT_EXPECTED))
             })?;
         }
-        super::non_negative(p, &["speed"])
+        super::non_negative(params, &["speed"])
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params, true)?;
+        let p = ReadFrfParams::read(ctx.params)?;
+        let path = p.file;
+        let format = source(path, p.format, p.dataset, true)?;
         let select = FrfSelect {
-            dataset: dataset(ctx.params),
-            direction: ctx.params.text("direction").map(str::to_string),
-            response: ctx.params.int("response"),
-            reference: ctx.params.int("reference"),
+            dataset: p.dataset,
+            direction: p.direction.map(str::to_string),
+            response: p.response,
+            reference: p.reference,
         };
         let loaded = formats::read_frf(path, format, &select).map_err(read_error)?;
         for note in loaded.notes {
@@ -194,7 +197,7 @@ impl Node for ReadFrf {
         }
         let mut frf = loaded.value;
         let shown = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-        if let Some(w) = ctx.params.f64("speed") {
+        if let Some(w) = p.speed {
             let rpm = Speed::from_rad_s(w).rpm();
             match frf.speed_rpm {
                 Some(s) if (s - rpm).abs() > 1e-6 * rpm.abs().max(1.0) => {
@@ -207,7 +210,7 @@ impl Node for ReadFrf {
                 None => frf.speed_rpm = Some(rpm),
             }
         }
-        if let Some(u) = ctx.params.text("units") {
+        if let Some(u) = p.units {
             let (scale, want) = formats::frf_unit(u).map_err(|why| NodeError::param("units", why))?;
             // Both labels are SI labels of their kind (`m/N`), or a label kept as written.
             let have = frf.unit.symbol.trim();
@@ -232,6 +235,18 @@ impl Node for ReadFrf {
     }
 }
 
+node_params! {
+    /// Parameters of `read.receptance`.
+    pub struct ReadReceptanceParams<'a> {
+        file: req &'a Path = (T::File, FILE_DOC),
+        format: def &'a str = (T::Choice(FORMATS), FORMAT_DEFAULT, FORMAT_DOC),
+        direction: opt &'a str = (
+            T::Choice(&["x", "y"]),
+            "UFF: the direction to take when the file holds several; CSV: the direction of a file without `# direction`",
+        ),
+    }
+}
+
 /// `read.receptance`: a 2×2 receptance set from a CSV or UFF file.
 pub struct ReadReceptance {
     spec: NodeSpec,
@@ -252,15 +267,7 @@ impl ReadReceptance {
                 description: "Reads a 2x2 receptance set (H, L, N, P) from a CSV file (`freq_hz,h_re,h_im,...,p_im`) or from four UFF datasets 58 told apart by their direction codes; units to SI.",
                 inputs: vec![],
                 outputs: vec![PortSpec::new("receptance", PortType::ReceptanceSet, "the receptance set, in SI units")],
-                params: vec![
-                    file_param(),
-                    format_param(),
-                    Field::opt(
-                        "direction",
-                        T::Choice(&["x", "y"]),
-                        "UFF: the direction to take when the file holds several; CSV: the direction of a file without `# direction`",
-                    ),
-                ],
+                params: ReadReceptanceParams::fields(),
             },
         }
     }
@@ -272,8 +279,9 @@ impl Node for ReadReceptance {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let (path, format) = source(ctx.params, false)?;
-        let loaded = formats::read_receptance(path, format, ctx.params.text("direction")).map_err(read_error)?;
+        let p = ReadReceptanceParams::read(ctx.params)?;
+        let format = source(p.file, p.format, None, false)?;
+        let loaded = formats::read_receptance(p.file, format, p.direction).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);
         }

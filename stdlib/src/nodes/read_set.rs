@@ -4,11 +4,33 @@
 //! fitted together (`modal.fit_set`) need them as one value on one grid. The file enters the
 //! cache key by its contents, as with the other readers.
 
-use super::read::{file_param, format_param, read_error};
-use spindlelab_engine::formats::{self, FileFormat, FrfSelect};
+use super::read::{FILE_DOC, FORMAT_DEFAULT, FORMAT_DOC, FORMATS, file_format, read_error};
+use spindlelab_engine::formats::{self, FrfSelect};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::FieldType as T;
 use spindlelab_engine::value::{PortType, Value};
+use std::path::Path;
+
+node_params! {
+    /// Parameters of `read.frf_set`.
+    pub struct ReadFrfSetParams<'a> {
+        file: req &'a Path = (T::File, FILE_DOC),
+        format: def &'a str = (T::Choice(FORMATS), FORMAT_DEFAULT, FORMAT_DOC),
+        direction: opt &'a str = (
+            T::Choice(&["x", "y", "z"]),
+            "keep only the FRFs whose response is in this direction",
+        ),
+        response: opt i64 = (
+            T::Integer { min: 0, max: i64::MAX },
+            "keep only the FRFs whose response node number is this",
+        ),
+        reference: opt i64 = (
+            T::Integer { min: 0, max: i64::MAX },
+            "keep only the FRFs whose reference (excitation) node number is this",
+        ),
+    }
+}
 
 /// `read.frf_set`: the FRFs of a file as one set.
 pub struct ReadFrfSet {
@@ -34,25 +56,7 @@ impl ReadFrfSet {
                     PortType::FrfSet,
                     "the FRFs, in file order, on their common grid (Hz) in SI units",
                 )],
-                params: vec![
-                    file_param(),
-                    format_param(),
-                    Field::opt(
-                        "direction",
-                        T::Choice(&["x", "y", "z"]),
-                        "keep only the FRFs whose response is in this direction",
-                    ),
-                    Field::opt(
-                        "response",
-                        T::Integer { min: 0, max: i64::MAX },
-                        "keep only the FRFs whose response node number is this",
-                    ),
-                    Field::opt(
-                        "reference",
-                        T::Integer { min: 0, max: i64::MAX },
-                        "keep only the FRFs whose reference (excitation) node number is this",
-                    ),
-                ],
+                params: ReadFrfSetParams::fields(),
             },
         }
     }
@@ -64,20 +68,15 @@ impl Node for ReadFrfSet {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
-        let path = p.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
-        let format = match p.text("format") {
-            Some("csv") => FileFormat::Csv,
-            Some("uff") => FileFormat::Uff,
-            _ => FileFormat::detect(path).map_err(read_error)?,
-        };
+        let p = ReadFrfSetParams::read(ctx.params)?;
+        let format = file_format(p.file, p.format)?;
         let select = FrfSelect {
             dataset: None,
-            direction: p.text("direction").map(str::to_string),
-            response: p.int("response"),
-            reference: p.int("reference"),
+            direction: p.direction.map(str::to_string),
+            response: p.response,
+            reference: p.reference,
         };
-        let loaded = formats::read_frf_set(path, format, &select).map_err(read_error)?;
+        let loaded = formats::read_frf_set(p.file, format, &select).map_err(read_error)?;
         for note in loaded.notes {
             ctx.warn(note);
         }

@@ -8,6 +8,7 @@ use crate::rig::{
 };
 use spindlelab_domain::{Speed, SpeedLaw};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, Frf, PortType, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
@@ -46,10 +47,9 @@ const SENSORS: &[&str] = &["capacitance_probe", "laser_vibrometer"];
 /// The asynchronous tones; a tone given `per_rev` runs at that multiple of the nominal
 /// spindle frequency (`speed` in rad/s), so it follows the speed like a bearing order (and
 /// is absent when the spindle is at rest).
-fn tones(p: &Params, speed: f64) -> Result<Vec<Tone>, NodeError> {
+fn tones(list: Option<&[Params]>, speed: f64) -> Result<Vec<Tone>, NodeError> {
     let spindle_hz = speed / std::f64::consts::TAU;
-    p.objects("async_tones")
-        .unwrap_or(&[])
+    list.unwrap_or(&[])
         .iter()
         .enumerate()
         .map(|(i, t)| {
@@ -67,11 +67,113 @@ fn tones(p: &Params, speed: f64) -> Result<Vec<Tone>, NodeError> {
                 freq_hz,
                 amplitude: t.f64("amplitude").unwrap_or(f64::NAN),
                 phase: t.f64("phase").unwrap_or(0.0),
-                direction: direction(t, "direction"),
+                direction: direction(t.text("direction")),
             })
         })
         .filter(|t| !matches!(t, Ok(Tone { freq_hz, .. }) if *freq_hz == 0.0 && speed == 0.0))
         .collect()
+}
+
+node_params! {
+    /// Parameters of `rig.simulate`.
+    pub struct RigSimulateParams<'a> {
+        sample_rate: def f64 = (T::Quantity(D::FREQUENCY), "100 kHz", "sampling rate of every channel"),
+        speed: def f64 = (T::Quantity(D::ROTATIONAL_SPEED), "1000 rpm", "nominal spindle speed"),
+        ref_speed: def f64 = (T::Quantity(D::ROTATIONAL_SPEED), "10000 rpm", "reference speed of the mode speed laws"),
+        speed_drift: def f64 = (RATIO, "0.001", "relative amplitude of the slow seeded speed drift"),
+        direction: def &'a str = (
+            T::Choice(&["x", "y"]),
+            "x",
+            "struck direction; the probe setup is oriented along it (probe A along it)",
+        ),
+        impacts: def usize = (
+            T::Integer { min: 0, max: 10_000 },
+            "20",
+            "number of impacts (0: an error-motion run sized by `duration` or `revolutions`)",
+        ),
+        impact_interval: def f64 = (
+            T::Quantity(D::TIME),
+            "0.65536 s",
+            "time between impacts; the record is impacts × interval long",
+        ),
+        impact_offset: def f64 = (
+            T::Quantity(D::TIME),
+            "50 ms",
+            "nominal time of each impact after the start of its interval",
+        ),
+        impact_jitter: def f64 = (T::Quantity(D::TIME), "2 ms", "largest seeded impact timing deviation"),
+        duration: opt f64 = (T::Quantity(D::TIME), "record length (overrides impacts × interval)"),
+        revolutions: opt f64 = (RATIO, "record length in revolutions (overrides impacts × interval)"),
+        modes_x: opt &'a [Params] = (T::ObjectList(MODE), "modes along machine x (default: 700, 1100, 2400 Hz)"),
+        modes_y: opt &'a [Params] = (T::ObjectList(MODE), "modes along machine y (default: 720, 1150, 2350 Hz)"),
+        form: opt &'a [Params] = (
+            T::ObjectList(UNDULATION),
+            "artifact form error read by a probe along +x (default: 2, 3, 5, 8, 13 UPR; [] for none)",
+        ),
+        sync_x: opt &'a [Params] = (
+            T::ObjectList(UNDULATION),
+            "synchronous error motion along machine x (default: 1, 2, 44 UPR)",
+        ),
+        sync_y: opt &'a [Params] = (
+            T::ObjectList(UNDULATION),
+            "synchronous error motion along machine y (default: 1, 3, 44 UPR)",
+        ),
+        async_rms: def f64 = (
+            T::Quantity(D::LENGTH),
+            "20 nm",
+            "RMS of the random asynchronous error motion per direction",
+        ),
+        async_bandwidth: def f64 = (
+            T::Quantity(D::FREQUENCY),
+            "1 kHz",
+            "corner of the 2nd-order low-pass shaping the random asynchronous motion",
+        ),
+        async_tones: opt &'a [Params] = (T::ObjectList(TONE), "non-synchronous sinusoidal error motions"),
+        probes: def &'a [f64] = (
+            T::QuantityList(D::ANGLE),
+            "[0, 99.84, 202.5] deg",
+            "probe angles from probe A (Eq. 3.4), one channel each",
+        ),
+        sensor: def &'a str = (T::Choice(SENSORS), "capacitance_probe", "displacement probes or vibrometer"),
+        phase_slope: opt f64 = (
+            T::Quantity(D::PHASE_SLOPE),
+            "amplifier phase slope, a pure delay on the probes (default −13.84 deg/kHz, −10.27 for a vibrometer)",
+        ),
+        force_noise: def f64 = (T::Quantity(D::FORCE), "0.05 N", "force sensor noise (std)"),
+        probe_noise: def f64 = (T::Quantity(D::LENGTH), "5 nm", "capacitance probe noise (std)"),
+        velocity_noise: def f64 = (T::Quantity(D::VELOCITY), "20 um/s", "vibrometer noise (std)"),
+        tach_noise: def f64 = (RATIO, "0.01", "tachometer noise (std), V"),
+        force_lsb: opt f64 = (T::Quantity(D::FORCE), "force ADC step (quantisation)"),
+        probe_lsb: opt f64 = (T::Quantity(D::LENGTH), "capacitance probe ADC step"),
+        velocity_lsb: opt f64 = (T::Quantity(D::VELOCITY), "vibrometer ADC step"),
+        tach_lsb: opt f64 = (RATIO, "tachometer ADC step, V"),
+        tach_pulse: def f64 = (T::Quantity(D::ANGLE), "10 deg", "angular width of the tach low pulse"),
+        tach_edge: def f64 = (T::Quantity(D::TIME), "30 us", "duration of each tach edge"),
+        double_hits: opt &'a [f64] = (
+            T::QuantityList(D::DIMENSIONLESS),
+            "impact indices (from 0) that get a second hit 2–4 ms after the first",
+        ),
+        force_range: opt f64 = (T::Quantity(D::FORCE), "force ADC range: larger forces are clipped"),
+        hammer_mass: def f64 = (T::Quantity(D::MASS), "0.01 kg", "hammer mass (Setup 2, §2.2.2)"),
+        hammer_stiffness: def f64 = (T::Quantity(D::STIFFNESS), "623 N/m", "hammer spring (flexure)"),
+        hammer_damping: def f64 = (T::Quantity(D::DAMPING), "0 N*s/m", "hammer damping"),
+        tip_radius: def f64 = (T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius"),
+        target_radius: def f64 = (T::Quantity(D::LENGTH), "12.7 mm", "artifact surface radius"),
+        tip_material: opt &'a str = (T::Entity(EntityKind::Material), "tip material (default steel)"),
+        target_material: opt &'a str = (T::Entity(EntityKind::Material), "artifact material (default steel)"),
+        restitution: def f64 = (RATIO, "0.95", "coefficient of restitution of Eq. 2.4"),
+        release: def f64 = (T::Quantity(D::LENGTH), "6 mm", "hammer release position X_hi"),
+        contact: def f64 = (T::Quantity(D::LENGTH), "-3 mm", "artifact contact point X_t0"),
+        release_scatter: def f64 = (RATIO, "0.02", "relative scatter of the release distance"),
+        dt: def f64 = (T::Quantity(D::TIME), "1e-7 s", "integration step of Eq. 2.7 during contact"),
+        seed: def u64 = (T::Integer { min: 0, max: i64::MAX }, "0", "seed of every random part"),
+        record_length: def usize = (
+            T::Integer { min: 16, max: 1 << 24 },
+            "65536",
+            "FFT length whose grid `truth_frf` uses",
+        ),
+        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "5 kHz", "highest line of `truth_frf`"),
+    }
 }
 
 pub struct RigSimulate {
@@ -132,122 +234,7 @@ impl RigSimulate {
                         "per impact: index, time (s), peak_force (N), double_hit and saturated (0/1)",
                     ),
                 ],
-                params: vec![
-                    Field::def("sample_rate", T::Quantity(D::FREQUENCY), "100 kHz", "sampling rate of every channel"),
-                    Field::def("speed", T::Quantity(D::ROTATIONAL_SPEED), "1000 rpm", "nominal spindle speed"),
-                    Field::def(
-                        "ref_speed",
-                        T::Quantity(D::ROTATIONAL_SPEED),
-                        "10000 rpm",
-                        "reference speed of the mode speed laws",
-                    ),
-                    Field::def("speed_drift", RATIO, "0.001", "relative amplitude of the slow seeded speed drift"),
-                    Field::def(
-                        "direction",
-                        T::Choice(&["x", "y"]),
-                        "x",
-                        "struck direction; the probe setup is oriented along it (probe A along it)",
-                    ),
-                    Field::def(
-                        "impacts",
-                        T::Integer { min: 0, max: 10_000 },
-                        "20",
-                        "number of impacts (0: an error-motion run sized by `duration` or `revolutions`)",
-                    ),
-                    Field::def(
-                        "impact_interval",
-                        T::Quantity(D::TIME),
-                        "0.65536 s",
-                        "time between impacts; the record is impacts × interval long",
-                    ),
-                    Field::def(
-                        "impact_offset",
-                        T::Quantity(D::TIME),
-                        "50 ms",
-                        "nominal time of each impact after the start of its interval",
-                    ),
-                    Field::def("impact_jitter", T::Quantity(D::TIME), "2 ms", "largest seeded impact timing deviation"),
-                    Field::opt("duration", T::Quantity(D::TIME), "record length (overrides impacts × interval)"),
-                    Field::opt("revolutions", RATIO, "record length in revolutions (overrides impacts × interval)"),
-                    Field::opt("modes_x", T::ObjectList(MODE), "modes along machine x (default: 700, 1100, 2400 Hz)"),
-                    Field::opt("modes_y", T::ObjectList(MODE), "modes along machine y (default: 720, 1150, 2350 Hz)"),
-                    Field::opt(
-                        "form",
-                        T::ObjectList(UNDULATION),
-                        "artifact form error read by a probe along +x (default: 2, 3, 5, 8, 13 UPR; [] for none)",
-                    ),
-                    Field::opt(
-                        "sync_x",
-                        T::ObjectList(UNDULATION),
-                        "synchronous error motion along machine x (default: 1, 2, 44 UPR)",
-                    ),
-                    Field::opt(
-                        "sync_y",
-                        T::ObjectList(UNDULATION),
-                        "synchronous error motion along machine y (default: 1, 3, 44 UPR)",
-                    ),
-                    Field::def(
-                        "async_rms",
-                        T::Quantity(D::LENGTH),
-                        "20 nm",
-                        "RMS of the random asynchronous error motion per direction",
-                    ),
-                    Field::def(
-                        "async_bandwidth",
-                        T::Quantity(D::FREQUENCY),
-                        "1 kHz",
-                        "corner of the 2nd-order low-pass shaping the random asynchronous motion",
-                    ),
-                    Field::opt("async_tones", T::ObjectList(TONE), "non-synchronous sinusoidal error motions"),
-                    Field::def(
-                        "probes",
-                        T::QuantityList(D::ANGLE),
-                        "[0, 99.84, 202.5] deg",
-                        "probe angles from probe A (Eq. 3.4), one channel each",
-                    ),
-                    Field::def("sensor", T::Choice(SENSORS), "capacitance_probe", "displacement probes or vibrometer"),
-                    Field::opt(
-                        "phase_slope",
-                        T::Quantity(D::PHASE_SLOPE),
-                        "amplifier phase slope, a pure delay on the probes (default −13.84 deg/kHz, −10.27 for a vibrometer)",
-                    ),
-                    Field::def("force_noise", T::Quantity(D::FORCE), "0.05 N", "force sensor noise (std)"),
-                    Field::def("probe_noise", T::Quantity(D::LENGTH), "5 nm", "capacitance probe noise (std)"),
-                    Field::def("velocity_noise", T::Quantity(D::VELOCITY), "20 um/s", "vibrometer noise (std)"),
-                    Field::def("tach_noise", RATIO, "0.01", "tachometer noise (std), V"),
-                    Field::opt("force_lsb", T::Quantity(D::FORCE), "force ADC step (quantisation)"),
-                    Field::opt("probe_lsb", T::Quantity(D::LENGTH), "capacitance probe ADC step"),
-                    Field::opt("velocity_lsb", T::Quantity(D::VELOCITY), "vibrometer ADC step"),
-                    Field::opt("tach_lsb", RATIO, "tachometer ADC step, V"),
-                    Field::def("tach_pulse", T::Quantity(D::ANGLE), "10 deg", "angular width of the tach low pulse"),
-                    Field::def("tach_edge", T::Quantity(D::TIME), "30 us", "duration of each tach edge"),
-                    Field::opt(
-                        "double_hits",
-                        T::QuantityList(D::DIMENSIONLESS),
-                        "impact indices (from 0) that get a second hit 2–4 ms after the first",
-                    ),
-                    Field::opt("force_range", T::Quantity(D::FORCE), "force ADC range: larger forces are clipped"),
-                    Field::def("hammer_mass", T::Quantity(D::MASS), "0.01 kg", "hammer mass (Setup 2, §2.2.2)"),
-                    Field::def("hammer_stiffness", T::Quantity(D::STIFFNESS), "623 N/m", "hammer spring (flexure)"),
-                    Field::def("hammer_damping", T::Quantity(D::DAMPING), "0 N*s/m", "hammer damping"),
-                    Field::def("tip_radius", T::Quantity(D::LENGTH), "6.35 mm", "hammer tip sphere radius"),
-                    Field::def("target_radius", T::Quantity(D::LENGTH), "12.7 mm", "artifact surface radius"),
-                    Field::opt("tip_material", T::Entity(EntityKind::Material), "tip material (default steel)"),
-                    Field::opt("target_material", T::Entity(EntityKind::Material), "artifact material (default steel)"),
-                    Field::def("restitution", RATIO, "0.95", "coefficient of restitution of Eq. 2.4"),
-                    Field::def("release", T::Quantity(D::LENGTH), "6 mm", "hammer release position X_hi"),
-                    Field::def("contact", T::Quantity(D::LENGTH), "-3 mm", "artifact contact point X_t0"),
-                    Field::def("release_scatter", RATIO, "0.02", "relative scatter of the release distance"),
-                    Field::def("dt", T::Quantity(D::TIME), "1e-7 s", "integration step of Eq. 2.7 during contact"),
-                    Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "seed of every random part"),
-                    Field::def(
-                        "record_length",
-                        T::Integer { min: 16, max: 1 << 24 },
-                        "65536",
-                        "FFT length whose grid `truth_frf` uses",
-                    ),
-                    Field::def("max_frequency", T::Quantity(D::FREQUENCY), "5 kHz", "highest line of `truth_frf`"),
-                ],
+                params: RigSimulateParams::fields(),
             },
         }
     }
@@ -279,7 +266,7 @@ fn modes(list: &[Params]) -> Vec<RigMode> {
 /// The modes at a connected `ModalModel` port, as rig modes without speed laws (the model is
 /// already at its speed): stiffness `m (2π f)²` (Eq. 5.8 in modal form). Warns when the
 /// parameter of the same name is given too, since the port wins.
-fn modal_input(ctx: &NodeContext, port: &str) -> Result<Option<Vec<RigMode>>, NodeError> {
+fn modal_input(ctx: &NodeContext, port: &str, param_given: bool) -> Result<Option<Vec<RigMode>>, NodeError> {
     let Some(l) = ctx.inputs_of(port).first() else {
         return Ok(None);
     };
@@ -308,28 +295,25 @@ fn modal_input(ctx: &NodeContext, port: &str) -> Result<Option<Vec<RigMode>>, No
             ));
         }
     }
-    if ctx.params.get(port).is_some() {
+    if param_given {
         ctx.warn(format!("both the `{port}` input and the `{port}` parameter are given; the input is used"));
     }
     Ok(Some(m.modes.iter().map(|&mode| RigMode { at_rest: mode, law: SpeedLaw::NONE }).collect()))
 }
 
-fn direction(p: &Params, name: &str) -> Direction {
-    if p.text(name) == Some("y") { Direction::Y } else { Direction::X }
+fn direction(word: Option<&str>) -> Direction {
+    if word == Some("y") { Direction::Y } else { Direction::X }
 }
 
 /// The kernel configuration from the node parameters (materials from the recipe when given).
 fn config_from(p: &Params, recipe: Option<&spindlelab_engine::model::Recipe>) -> Result<RigConfig, NodeError> {
     let d = RigConfig::default();
-    let f = |name: &str, default: f64| p.f64(name).unwrap_or(default);
-    let sensor = if p.text("sensor") == Some("laser_vibrometer") {
-        SensorKind::LaserVibrometer
-    } else {
-        SensorKind::CapacitanceProbe
-    };
+    let p = RigSimulateParams::read(p)?;
+    let sensor =
+        if p.sensor == "laser_vibrometer" { SensorKind::LaserVibrometer } else { SensorKind::CapacitanceProbe };
     let velocity = sensor == SensorKind::LaserVibrometer;
-    let material = |name: &str| -> (f64, f64) {
-        match (p.text(name), recipe) {
+    let material = |name: Option<&str>| -> (f64, f64) {
+        match (name, recipe) {
             (Some(m), Some(r)) => r
                 .materials
                 .get(m)
@@ -338,61 +322,61 @@ fn config_from(p: &Params, recipe: Option<&spindlelab_engine::model::Recipe>) ->
             _ => (STEEL_YOUNGS_MODULUS, STEEL_POISSON),
         }
     };
-    let (e1, nu1) = material("tip_material");
-    let (e2, nu2) = material("target_material");
+    let (e1, nu1) = material(p.tip_material);
+    let (e2, nu2) = material(p.target_material);
     let mut double_hits = Vec::new();
-    for &v in p.list("double_hits").unwrap_or(&[]) {
+    for &v in p.double_hits.unwrap_or(&[]) {
         if !(v >= 0.0 && v.fract() == 0.0 && v < 1e9) {
             return Err(NodeError::param("double_hits", format!("{v} is not an impact index (a whole number from 0)")));
         }
         double_hits.push(v as usize);
     }
     let mut c = RigConfig {
-        sample_rate: f("sample_rate", d.sample_rate),
-        speed: f("speed", d.speed),
-        ref_speed: f("ref_speed", d.ref_speed),
-        speed_drift: f("speed_drift", d.speed_drift),
-        direction: direction(p, "direction"),
-        impacts: p.int("impacts").unwrap_or(d.impacts as i64).max(0) as usize,
-        impact_interval: f("impact_interval", d.impact_interval),
-        impact_offset: f("impact_offset", d.impact_offset),
-        impact_jitter: f("impact_jitter", d.impact_jitter),
-        duration: p.f64("duration"),
-        revolutions: p.f64("revolutions"),
-        modes_x: p.objects("modes_x").map_or(d.modes_x, modes),
-        modes_y: p.objects("modes_y").map_or(d.modes_y, modes),
-        form: p.objects("form").map_or(d.form, undulations),
-        sync_x: p.objects("sync_x").map_or(d.sync_x, undulations),
-        sync_y: p.objects("sync_y").map_or(d.sync_y, undulations),
-        async_rms: f("async_rms", d.async_rms),
-        async_bandwidth: f("async_bandwidth", d.async_bandwidth),
-        async_tones: tones(p, p.f64("speed").unwrap_or(d.speed))?,
-        probe_angles: p.list("probes").map_or(d.probe_angles, <[f64]>::to_vec),
+        sample_rate: p.sample_rate,
+        speed: p.speed,
+        ref_speed: p.ref_speed,
+        speed_drift: p.speed_drift,
+        direction: direction(Some(p.direction)),
+        impacts: p.impacts,
+        impact_interval: p.impact_interval,
+        impact_offset: p.impact_offset,
+        impact_jitter: p.impact_jitter,
+        duration: p.duration,
+        revolutions: p.revolutions,
+        modes_x: p.modes_x.map_or(d.modes_x, modes),
+        modes_y: p.modes_y.map_or(d.modes_y, modes),
+        form: p.form.map_or(d.form, undulations),
+        sync_x: p.sync_x.map_or(d.sync_x, undulations),
+        sync_y: p.sync_y.map_or(d.sync_y, undulations),
+        async_rms: p.async_rms,
+        async_bandwidth: p.async_bandwidth,
+        async_tones: tones(p.async_tones, p.speed)?,
+        probe_angles: p.probes.to_vec(),
         sensor,
-        phase_slope: p.f64("phase_slope").unwrap_or(sensor.default_phase_slope()),
+        phase_slope: p.phase_slope.unwrap_or(sensor.default_phase_slope()),
         double_hits,
-        force_range: p.f64("force_range").unwrap_or(f64::INFINITY),
+        force_range: p.force_range.unwrap_or(f64::INFINITY),
         ..d
     };
-    c.noise.force = f("force_noise", c.noise.force);
-    c.noise.probe = if velocity { f("velocity_noise", 20.0e-6) } else { f("probe_noise", c.noise.probe) };
-    c.noise.tach = f("tach_noise", c.noise.tach);
-    c.adc.force_lsb = f("force_lsb", 0.0);
-    c.adc.probe_lsb = if velocity { f("velocity_lsb", 0.0) } else { f("probe_lsb", 0.0) };
-    c.adc.tach_lsb = f("tach_lsb", 0.0);
-    c.tach.pulse_angle = f("tach_pulse", c.tach.pulse_angle);
-    c.tach.edge_time = f("tach_edge", c.tach.edge_time);
+    c.noise.force = p.force_noise;
+    c.noise.probe = if velocity { p.velocity_noise } else { p.probe_noise };
+    c.noise.tach = p.tach_noise;
+    c.adc.force_lsb = p.force_lsb.unwrap_or(0.0);
+    c.adc.probe_lsb = if velocity { p.velocity_lsb.unwrap_or(0.0) } else { p.probe_lsb.unwrap_or(0.0) };
+    c.adc.tach_lsb = p.tach_lsb.unwrap_or(0.0);
+    c.tach.pulse_angle = p.tach_pulse;
+    c.tach.edge_time = p.tach_edge;
     let h = &mut c.hammer;
-    h.mass = f("hammer_mass", h.mass);
-    h.stiffness = f("hammer_stiffness", h.stiffness);
-    h.damping = f("hammer_damping", h.damping);
-    h.tip = Sphere { radius: f("tip_radius", h.tip.radius), youngs_modulus: e1, poisson: nu1 };
-    h.target = Sphere { radius: f("target_radius", h.target.radius), youngs_modulus: e2, poisson: nu2 };
-    h.restitution = f("restitution", h.restitution);
-    h.release = f("release", h.release);
-    h.contact = f("contact", h.contact);
-    h.release_scatter = f("release_scatter", h.release_scatter);
-    h.dt = f("dt", h.dt);
+    h.mass = p.hammer_mass;
+    h.stiffness = p.hammer_stiffness;
+    h.damping = p.hammer_damping;
+    h.tip = Sphere { radius: p.tip_radius, youngs_modulus: e1, poisson: nu1 };
+    h.target = Sphere { radius: p.target_radius, youngs_modulus: e2, poisson: nu2 };
+    h.restitution = p.restitution;
+    h.release = p.release;
+    h.contact = p.contact;
+    h.release_scatter = p.release_scatter;
+    h.dt = p.dt;
     Ok(c)
 }
 
@@ -470,9 +454,8 @@ impl Node for RigSimulate {
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         let c = config_from(p, None)?;
         c.validate().map_err(|e| rig_error(e, c.sensor == SensorKind::LaserVibrometer))?;
-        if let Some(fmax) = p.f64("max_frequency")
-            && !(fmax > 0.0 && fmax <= 0.5 * c.sample_rate)
-        {
+        let fmax = RigSimulateParams::read(p)?.max_frequency;
+        if !(fmax > 0.0 && fmax <= 0.5 * c.sample_rate) {
             return Err(NodeError::param(
                 "max_frequency",
                 format!("{fmax} Hz must lie in (0, {}] Hz (the Nyquist frequency)", 0.5 * c.sample_rate),
@@ -482,19 +465,21 @@ impl Node for RigSimulate {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
-        let mut c = config_from(p, Some(ctx.recipe))?;
-        for (port, target) in [("modes_x", &mut c.modes_x), ("modes_y", &mut c.modes_y)] {
-            if let Some(modes) = modal_input(ctx, port)? {
+        let p = RigSimulateParams::read(ctx.params)?;
+        let mut c = config_from(ctx.params, Some(ctx.recipe))?;
+        for (port, target, given) in
+            [("modes_x", &mut c.modes_x, p.modes_x.is_some()), ("modes_y", &mut c.modes_y, p.modes_y.is_some())]
+        {
+            if let Some(modes) = modal_input(ctx, port, given)? {
                 *target = modes;
             }
         }
-        let seed = p.int("seed").unwrap_or(0).max(0) as u64;
+        let seed = p.seed;
         let r = simulate(&c, seed).map_err(|e| rig_error(e, c.sensor == SensorKind::LaserVibrometer))?;
         let (series, truth) = record(r, c.sensor.unit());
 
-        let len = p.int("record_length").unwrap_or(65_536).max(1) as usize;
-        let fmax = p.f64("max_frequency").unwrap_or(5.0e3);
+        let len = p.record_length.max(1);
+        let fmax = p.max_frequency;
         let df = c.sample_rate / len as f64;
         let lines = ((fmax / df).floor() as usize).min(len / 2);
         let freq_hz: Vec<f64> = (0..=lines).map(|k| k as f64 * df).collect();
@@ -548,6 +533,25 @@ impl Node for RigSimulate {
     }
 }
 
+node_params! {
+    /// Parameters of `rig.shaker`.
+    pub struct RigShakerParams<'a> {
+        frequency: def f64 = (T::Quantity(D::FREQUENCY), "1 kHz", "drive frequency"),
+        amplitude: def f64 = (T::Quantity(D::LENGTH), "1 um", "displacement amplitude"),
+        sensor: def &'a str = (T::Choice(SENSORS), "capacitance_probe", "chain under test"),
+        phase_slope: opt f64 = (
+            T::Quantity(D::PHASE_SLOPE),
+            "phase slope of the chain (default −13.84 deg/kHz, −10.27 for a vibrometer)",
+        ),
+        accel_noise: def f64 = (T::Quantity(D::ACCELERATION), "0.01 m/s^2", "accelerometer noise (std)"),
+        probe_noise: def f64 = (T::Quantity(D::LENGTH), "1 nm", "capacitance probe noise (std)"),
+        velocity_noise: def f64 = (T::Quantity(D::VELOCITY), "10 um/s", "vibrometer noise (std)"),
+        duration: def f64 = (T::Quantity(D::TIME), "0.1 s", "record length"),
+        sample_rate: def f64 = (T::Quantity(D::FREQUENCY), "100 kHz", "sampling rate"),
+        seed: def u64 = (T::Integer { min: 0, max: i64::MAX }, "0", "seed of the noise and start phase"),
+    }
+}
+
 pub struct RigShaker {
     spec: NodeSpec,
 }
@@ -571,48 +575,28 @@ impl RigShaker {
                     PortType::TimeSeries,
                     "channels accel (m/s², no delay) and sensor (m, or m/s for a vibrometer, delayed by the phase slope)",
                 )],
-                params: vec![
-                    Field::def("frequency", T::Quantity(D::FREQUENCY), "1 kHz", "drive frequency"),
-                    Field::def("amplitude", T::Quantity(D::LENGTH), "1 um", "displacement amplitude"),
-                    Field::def("sensor", T::Choice(SENSORS), "capacitance_probe", "chain under test"),
-                    Field::opt(
-                        "phase_slope",
-                        T::Quantity(D::PHASE_SLOPE),
-                        "phase slope of the chain (default −13.84 deg/kHz, −10.27 for a vibrometer)",
-                    ),
-                    Field::def("accel_noise", T::Quantity(D::ACCELERATION), "0.01 m/s^2", "accelerometer noise (std)"),
-                    Field::def("probe_noise", T::Quantity(D::LENGTH), "1 nm", "capacitance probe noise (std)"),
-                    Field::def("velocity_noise", T::Quantity(D::VELOCITY), "10 um/s", "vibrometer noise (std)"),
-                    Field::def("duration", T::Quantity(D::TIME), "0.1 s", "record length"),
-                    Field::def("sample_rate", T::Quantity(D::FREQUENCY), "100 kHz", "sampling rate"),
-                    Field::def("seed", T::Integer { min: 0, max: i64::MAX }, "0", "seed of the noise and start phase"),
-                ],
+                params: RigShakerParams::fields(),
             },
         }
     }
 }
 
-fn shaker_config(p: &Params) -> ShakerConfig {
-    let d = ShakerConfig::default();
-    let f = |name: &str, default: f64| p.f64(name).unwrap_or(default);
-    let sensor = if p.text("sensor") == Some("laser_vibrometer") {
-        SensorKind::LaserVibrometer
-    } else {
-        SensorKind::CapacitanceProbe
-    };
+fn shaker_config(p: &RigShakerParams) -> ShakerConfig {
+    let sensor =
+        if p.sensor == "laser_vibrometer" { SensorKind::LaserVibrometer } else { SensorKind::CapacitanceProbe };
     let sensor_noise = match sensor {
-        SensorKind::LaserVibrometer => f("velocity_noise", 10.0e-6),
-        SensorKind::CapacitanceProbe => f("probe_noise", 1.0e-9),
+        SensorKind::LaserVibrometer => p.velocity_noise,
+        SensorKind::CapacitanceProbe => p.probe_noise,
     };
     ShakerConfig {
-        sample_rate: f("sample_rate", d.sample_rate),
-        frequency: f("frequency", d.frequency),
-        amplitude: f("amplitude", d.amplitude),
+        sample_rate: p.sample_rate,
+        frequency: p.frequency,
+        amplitude: p.amplitude,
         sensor,
-        phase_slope: p.f64("phase_slope").unwrap_or(sensor.default_phase_slope()),
-        accel_noise: f("accel_noise", d.accel_noise),
+        phase_slope: p.phase_slope.unwrap_or(sensor.default_phase_slope()),
+        accel_noise: p.accel_noise,
         sensor_noise,
-        duration: f("duration", d.duration),
+        duration: p.duration,
     }
 }
 
@@ -632,13 +616,14 @@ impl Node for RigShaker {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        let c = shaker_config(p);
+        let c = shaker_config(&RigShakerParams::read(p)?);
         c.validate().map_err(|e| shaker_error(e, c.sensor))
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let c = shaker_config(ctx.params);
-        let seed = ctx.params.int("seed").unwrap_or(0).max(0) as u64;
+        let p = RigShakerParams::read(ctx.params)?;
+        let c = shaker_config(&p);
+        let seed = p.seed;
         let r = shaker(&c, seed).map_err(|e| shaker_error(e, c.sensor))?;
         let series = TimeSeries {
             sample_rate: r.sample_rate,

@@ -4,9 +4,47 @@ use crate::runout::{self, Sampling};
 use crate::segment::{self, DetectOptions};
 use crate::tach::{self, TachOptions};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `runout.remove`.
+    pub struct RunoutRemoveParams<'a> {
+        channels: def &'a str = (T::Text, "a", "channels to clean, comma-separated"),
+        tach_channel: def &'a str = (T::Text, "tach", "tachometer channel (falling edge at θ = 0)"),
+        force_channel: def &'a str = (
+            T::Text,
+            "force",
+            "force channel whose impacts are kept out of the average; empty for none",
+        ),
+        before: def f64 = (
+            T::Quantity(D::TIME),
+            "5 ms",
+            "time before each impact kept out of the average",
+        ),
+        settle: def f64 = (
+            T::Quantity(D::TIME),
+            "0.2 s",
+            "time after each impact kept out of the average, while the response rings",
+        ),
+        max_drift: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "2 %",
+            "largest speed deviation of one revolution from the mean",
+        ),
+        samples_per_rev: opt usize = (
+            T::Integer { min: 8, max: 1 << 20 },
+            "angle grid size (default: fewest samples in a revolution)",
+        ),
+        stationary: def &'a str = (
+            T::Choice(&["error", "pass"]),
+            "error",
+            "a tachometer without edges: an error, or pass the signal through unchanged with a warning (a spindle at rest has no runout)",
+        ),
+    }
+}
 
 pub struct RunoutRemove {
     spec: NodeSpec,
@@ -42,45 +80,7 @@ impl RunoutRemove {
                         "the averaged once-per-revolution content per angle and channel",
                     ),
                 ],
-                params: vec![
-                    Field::def("channels", T::Text, "a", "channels to clean, comma-separated"),
-                    Field::def("tach_channel", T::Text, "tach", "tachometer channel (falling edge at θ = 0)"),
-                    Field::def(
-                        "force_channel",
-                        T::Text,
-                        "force",
-                        "force channel whose impacts are kept out of the average; empty for none",
-                    ),
-                    Field::def(
-                        "before",
-                        T::Quantity(D::TIME),
-                        "5 ms",
-                        "time before each impact kept out of the average",
-                    ),
-                    Field::def(
-                        "settle",
-                        T::Quantity(D::TIME),
-                        "0.2 s",
-                        "time after each impact kept out of the average, while the response rings",
-                    ),
-                    Field::def(
-                        "max_drift",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "2 %",
-                        "largest speed deviation of one revolution from the mean",
-                    ),
-                    Field::opt(
-                        "samples_per_rev",
-                        T::Integer { min: 8, max: 1 << 20 },
-                        "angle grid size (default: fewest samples in a revolution)",
-                    ),
-                    Field::def(
-                        "stationary",
-                        T::Choice(&["error", "pass"]),
-                        "error",
-                        "a tachometer without edges: an error, or pass the signal through unchanged with a warning (a spindle at rest has no runout)",
-                    ),
-                ],
+                params: RunoutRemoveParams::fields(),
             },
         }
     }
@@ -98,7 +98,7 @@ impl Node for RunoutRemove {
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
         super::non_negative(p, &["before", "settle"])?;
         super::positive(p, &["max_drift"])?;
-        if p.text("channels").is_some_and(|c| c.split(',').all(|s| s.trim().is_empty())) {
+        if RunoutRemoveParams::read(p)?.channels.split(',').all(|s| s.trim().is_empty()) {
             return Err(NodeError::param("channels", "name at least one channel"));
         }
         Ok(())
@@ -108,29 +108,26 @@ impl Node for RunoutRemove {
         let Value::TimeSeries(signal) = ctx.input("signal")? else {
             return Err(NodeError::input("signal", "expected a time series"));
         };
-        let p = ctx.params;
+        let p = RunoutRemoveParams::read(ctx.params)?;
         let names: Vec<&str> = signal.channels.iter().map(|c| c.name.as_str()).collect();
         let find = |param: &str, name: &str| {
             signal.channels.iter().position(|c| c.name == name).ok_or_else(|| {
                 NodeError::param(param, format!("no channel `{name}` in the recording (it has: {})", names.join(", ")))
             })
         };
-        let tach_ch = &signal.channels[find("tach_channel", p.text("tach_channel").unwrap_or("tach"))?];
+        let tach_ch = &signal.channels[find("tach_channel", p.tach_channel)?];
         let targets: Vec<usize> = p
-            .text("channels")
-            .unwrap_or("a")
+            .channels
             .split(',')
             .map(str::trim)
             .filter(|s| !s.is_empty())
             .map(|name| find("channels", name))
             .collect::<Result<_, _>>()?;
         let fs = signal.sample_rate;
-        let opts = TachOptions { max_drift: p.f64("max_drift").unwrap_or(0.02), ..TachOptions::default() };
+        let opts = TachOptions { max_drift: p.max_drift, ..TachOptions::default() };
         let revs = match tach::decode(&tach_ch.samples, fs, signal.t0, &opts) {
             Ok(r) => r,
-            Err(e @ (tach::TachError::Flat { .. } | tach::TachError::TooFewEdges { .. }))
-                if p.text("stationary") == Some("pass") =>
-            {
+            Err(e @ (tach::TachError::Flat { .. } | tach::TachError::TooFewEdges { .. })) if p.stationary == "pass" => {
                 ctx.warn(format!("no revolution in `{}` ({e}): the spindle is at rest, nothing removed", tach_ch.name));
                 let empty = Table { columns: Vec::new() };
                 return Ok([
@@ -144,10 +141,10 @@ impl Node for RunoutRemove {
         };
         let edges = revs.edges();
         let mut exclude = Vec::new();
-        let force_name = p.text("force_channel").unwrap_or("force");
+        let force_name = p.force_channel;
         if !force_name.is_empty() {
             let force = &signal.channels[find("force_channel", force_name)?];
-            let (before, settle) = (p.f64("before").unwrap_or(5e-3), p.f64("settle").unwrap_or(0.2));
+            let (before, settle) = (p.before, p.settle);
             match segment::detect(&force.samples, fs, signal.t0, 0, 1, &DetectOptions::default()) {
                 Ok(impacts) => exclude.extend(impacts.iter().map(|i| (i.time - before, i.time + settle))),
                 Err(segment::SegmentError::NoImpact { .. }) => {}
@@ -155,7 +152,7 @@ impl Node for RunoutRemove {
             }
         }
         let sampling = Sampling { rate: fs, t0: signal.t0 };
-        let grid = p.int("samples_per_rev").map(|n| n as usize);
+        let grid = p.samples_per_rev;
         let mut out = signal.clone();
         let mut columns = Vec::new();
         for &c in &targets {

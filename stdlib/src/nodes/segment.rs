@@ -3,9 +3,40 @@
 
 use crate::segment::{self, DetectOptions, SegmentError};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Table, TimeSeries, Value};
 use spindlelab_grammar::Dimension as D;
+
+node_params! {
+    /// Parameters of `impact.segment`.
+    pub struct ImpactSegmentParams<'a> {
+        force_channel: def &'a str = (T::Text, "force", "channel holding the force"),
+        response_channel: def &'a str = (T::Text, "a", "channel holding the response"),
+        record_length: def usize = (T::Integer { min: 64, max: 1 << 24 }, "65536", "samples per record"),
+        pre_trigger: def f64 = (T::Quantity(D::TIME), "0.5 ms", "time kept before each force peak"),
+        trigger_level: opt f64 = (
+            T::Quantity(D::FORCE),
+            "force that starts an impact (default 10 % of the largest)",
+        ),
+        double_hit_ratio: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "5 %",
+            "a second pulse above this fraction of the peak is a double hit",
+        ),
+        double_hit_window: def f64 = (
+            T::Quantity(D::TIME),
+            "6.5 ms",
+            "time after the peak in which a second pulse is a double hit",
+        ),
+        dead_time: def f64 = (T::Quantity(D::TIME), "50 ms", "shortest time between two impacts"),
+        full_scale: opt f64 = (
+            T::Quantity(D::FORCE),
+            "range of the force channel; a pulse reaching it is clipped",
+        ),
+        min_records: def usize = (T::Integer { min: 1, max: 100_000 }, "1", "fewest accepted impacts"),
+    }
+}
 
 pub struct ImpactSegment {
     spec: NodeSpec,
@@ -42,50 +73,20 @@ impl ImpactSegment {
                         "every impact found: time, peak force, rejection code (0 used, 1 double hit, 2 saturated, 3 truncated)",
                     ),
                 ],
-                params: vec![
-                    Field::def("force_channel", T::Text, "force", "channel holding the force"),
-                    Field::def("response_channel", T::Text, "a", "channel holding the response"),
-                    Field::def("record_length", T::Integer { min: 64, max: 1 << 24 }, "65536", "samples per record"),
-                    Field::def("pre_trigger", T::Quantity(D::TIME), "0.5 ms", "time kept before each force peak"),
-                    Field::opt(
-                        "trigger_level",
-                        T::Quantity(D::FORCE),
-                        "force that starts an impact (default 10 % of the largest)",
-                    ),
-                    Field::def(
-                        "double_hit_ratio",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "5 %",
-                        "a second pulse above this fraction of the peak is a double hit",
-                    ),
-                    Field::def(
-                        "double_hit_window",
-                        T::Quantity(D::TIME),
-                        "6.5 ms",
-                        "time after the peak in which a second pulse is a double hit",
-                    ),
-                    Field::def("dead_time", T::Quantity(D::TIME), "50 ms", "shortest time between two impacts"),
-                    Field::opt(
-                        "full_scale",
-                        T::Quantity(D::FORCE),
-                        "range of the force channel; a pulse reaching it is clipped",
-                    ),
-                    Field::def("min_records", T::Integer { min: 1, max: 100_000 }, "1", "fewest accepted impacts"),
-                ],
+                params: ImpactSegmentParams::fields(),
             },
         }
     }
 }
 
-fn options(p: &Params) -> DetectOptions {
-    let d = DetectOptions::default();
+fn options(p: &ImpactSegmentParams) -> DetectOptions {
     DetectOptions {
-        trigger_level: p.f64("trigger_level"),
-        double_hit_ratio: p.f64("double_hit_ratio").unwrap_or(d.double_hit_ratio),
-        double_hit_window: p.f64("double_hit_window").unwrap_or(d.double_hit_window),
-        dead_time: p.f64("dead_time").unwrap_or(d.dead_time),
-        full_scale: p.f64("full_scale"),
-        ..d
+        trigger_level: p.trigger_level,
+        double_hit_ratio: p.double_hit_ratio,
+        double_hit_window: p.double_hit_window,
+        dead_time: p.dead_time,
+        full_scale: p.full_scale,
+        ..DetectOptions::default()
     }
 }
 
@@ -100,9 +101,8 @@ impl Node for ImpactSegment {
     }
 
     fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if let Some(r) = p.f64("double_hit_ratio")
-            && !(r > 0.0 && r < 1.0)
-        {
+        let r = ImpactSegmentParams::read(p)?.double_hit_ratio;
+        if !(r > 0.0 && r < 1.0) {
             return Err(NodeError::param("double_hit_ratio", format!("must lie between 0 and 100 %, got {r}")));
         }
         super::positive(p, &["trigger_level", "full_scale", "double_hit_window", "dead_time"])?;
@@ -113,26 +113,25 @@ impl Node for ImpactSegment {
         let Value::TimeSeries(signal) = ctx.input("signal")? else {
             return Err(NodeError::input("signal", "expected a time series"));
         };
-        let p = ctx.params;
-        let channel = |param: &str, default: &str| -> Result<&Channel, NodeError> {
-            let name = p.text(param).unwrap_or(default);
+        let p = ImpactSegmentParams::read(ctx.params)?;
+        let channel = |param: &str, name: &str| -> Result<&Channel, NodeError> {
             signal.channel(name).ok_or_else(|| {
                 let names: Vec<&str> = signal.channels.iter().map(|c| c.name.as_str()).collect();
                 NodeError::param(param, format!("no channel `{name}` in the recording (it has: {})", names.join(", ")))
             })
         };
-        let force = channel("force_channel", "force")?;
-        let response = channel("response_channel", "a")?;
+        let force = channel("force_channel", p.force_channel)?;
+        let response = channel("response_channel", p.response_channel)?;
         let fs = signal.sample_rate;
-        let len = p.int("record_length").unwrap_or(65_536) as usize;
-        let pre = (p.f64("pre_trigger").unwrap_or(0.5e-3) * fs).round() as usize;
+        let len = p.record_length;
+        let pre = (p.pre_trigger * fs).round() as usize;
         if pre >= len {
             return Err(NodeError::param(
                 "pre_trigger",
                 format!("{pre} samples is not shorter than the record ({len})"),
             ));
         }
-        let impacts = segment::detect(&force.samples, fs, signal.t0, pre, len, &options(p)).map_err(|e| match e {
+        let impacts = segment::detect(&force.samples, fs, signal.t0, pre, len, &options(&p)).map_err(|e| match e {
             SegmentError::InvalidOption { field, .. } => NodeError::param(field, e.to_string()),
             other => NodeError::input("signal", format!("channel `{}`: {other}", force.name)),
         })?;
@@ -148,7 +147,7 @@ impl Node for ImpactSegment {
             }
         }
         let accepted = impacts.iter().filter(|i| i.rejection.is_none()).count();
-        let min = p.int("min_records").unwrap_or(1) as usize;
+        let min = p.min_records;
         if accepted < min {
             return Err(NodeError::input(
                 "signal",

@@ -13,35 +13,22 @@ use crate::stability::{
 };
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, Frf, Lobes, ModalModel, PortType, Scalar, Table, TimeSeries, Value};
 use spindlelab_grammar::Dimension as D;
+use std::path::Path;
 
 /// A speed parameter (rad/s) in rpm as the recipe wrote it.
 pub(super) fn to_rpm(w: f64) -> f64 {
     Speed::from_rad_s(w).rpm_as_written()
 }
 
+/// The `cutting` field the kinds here and in `milling.rs` declare (their tables are checked against it in
+/// tests).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn cutting_param() -> Field {
     Field::req("cutting", T::Entity(EntityKind::Cutting), "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β")
-}
-
-fn lobes_param() -> Field {
-    Field::opt(
-        "lobes",
-        T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
-        "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
-         response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
-    )
-}
-
-fn resolution_param() -> Field {
-    Field::def(
-        "resolution",
-        T::Quantity(D::FREQUENCY),
-        "1 Hz",
-        "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
-    )
 }
 
 /// Warns when an explicit `lobes` leaves part of the FRF band unreached at the slowest speed.
@@ -56,9 +43,15 @@ fn warn_lobes_short(ctx: &NodeContext, count: usize, needed: usize, band_top_hz:
     }
 }
 
-/// The cutting entity a node names, as the kernels' [`Milling`] (its constant coefficients).
+/// The cutting entity a node's `cutting` parameter names, as the kernels' [`Milling`] (its constant
+/// coefficients).
 pub(super) fn milling(ctx: &NodeContext) -> Result<Milling, NodeError> {
     let name = ctx.params.text("cutting").ok_or_else(|| NodeError::param("cutting", "missing"))?;
+    milling_named(ctx, name)
+}
+
+/// The cutting entity `name` of the recipe, as the kernels' [`Milling`] (its constant coefficients).
+fn milling_named(ctx: &NodeContext, name: &str) -> Result<Milling, NodeError> {
     let c = ctx
         .recipe
         .cutting
@@ -71,17 +64,14 @@ pub(super) fn milling(ctx: &NodeContext) -> Result<Milling, NodeError> {
         .map_err(|e| NodeError::param("cutting", format!("cutting setup `{name}`: {e}")))
 }
 
-/// The `speeds` parameter in rpm, as given (a list, a range or one speed).
-fn speed_list(p: &Params) -> Option<Vec<f64>> {
-    match p.list("speeds") {
-        Some(list) => Some(list.iter().map(|&w| to_rpm(w)).collect()),
-        None => p.f64("speeds").map(|w| vec![to_rpm(w)]),
-    }
+/// The `speeds` parameter (rad/s, a list or a range as checked) in rpm.
+fn speed_list(speeds: &[f64]) -> Vec<f64> {
+    speeds.iter().map(|&w| to_rpm(w)).collect()
 }
 
 /// The `speeds` list in rpm, ascending and positive.
-fn speeds_rpm(p: &Params) -> Result<Vec<f64>, NodeError> {
-    let rpm: Vec<f64> = speed_list(p).unwrap_or_default();
+fn speeds_rpm(speeds: &[f64]) -> Result<Vec<f64>, NodeError> {
+    let rpm: Vec<f64> = speed_list(speeds);
     if rpm.is_empty() {
         return Err(NodeError::param("speeds", "give at least one spindle speed, e.g. `1000..20000 step 10 rpm`"));
     }
@@ -154,6 +144,27 @@ pub const STABILITY_SPEED_DEPENDENT: &str = "stability.speed_dependent";
 /// The kind name of `trials.score`: cutting trials scored against lobes.
 pub const TRIALS_SCORE: &str = "trials.score";
 
+node_params! {
+    /// Parameters of `stability.lobes`.
+    pub struct LobesParams<'a> {
+        cutting: req &'a str = (
+            T::Entity(EntityKind::Cutting),
+            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
+        ),
+        speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
+        lobes: opt usize = (
+            T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
+            "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
+             response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
+        ),
+        resolution: def f64 = (
+            T::Quantity(D::FREQUENCY),
+            "1 Hz",
+            "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
+        ),
+    }
+}
+
 /// `stability.lobes`: the ZOA stability limit (Altintas & Budak 1995) from tool-point FRFs in x and y.
 pub struct StabilityLobes {
     spec: NodeSpec,
@@ -184,12 +195,7 @@ impl StabilityLobes {
                         "speed (rpm), depth_limit (m), chatter_frequency (Hz), lobe k (−1 where none limits)",
                     ),
                 ],
-                params: vec![
-                    cutting_param(),
-                    Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
-                    lobes_param(),
-                    resolution_param(),
-                ],
+                params: LobesParams::fields(),
             },
         }
     }
@@ -200,21 +206,23 @@ impl Node for StabilityLobes {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::positive(p, &["resolution"])?;
-        speeds_rpm(p).map(|_| ())
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = LobesParams::read(params)?;
+        super::positive(params, &["resolution"])?;
+        speeds_rpm(p.speeds).map(|_| ())
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let p = LobesParams::read(ctx.params)?;
         let (fx, fy) = (receptance(ctx, "frf_x")?, receptance(ctx, "frf_y")?);
-        let mill = milling(ctx)?;
+        let mill = milling_named(ctx, p.cutting)?;
         let frf = ToolPointFrf::from_pair(&fx.freq_hz, fx.values.clone(), &fy.freq_hz, fy.values.clone())
             .map_err(|e| stab_err(e, "frf_y"))?;
         let opts = ZoaOptions {
-            lobes: ctx.params.int("lobes").map(|k| k as usize),
-            speeds_rpm: speeds_rpm(ctx.params)?,
+            lobes: p.lobes,
+            speeds_rpm: speeds_rpm(p.speeds)?,
             keep_lobes: false,
-            resolution_hz: ctx.params.f64("resolution"),
+            resolution_hz: Some(p.resolution),
         };
         let z = stability::zoa_lobes(&frf, &mill, &opts).map_err(|e| stab_err(e, "frf_x"))?;
         warn_lobes_short(ctx, z.lobe_count, z.lobes_needed, z.band_top_hz, mill.teeth, opts.speeds_rpm[0]);
@@ -233,6 +241,34 @@ impl Node for StabilityLobes {
 }
 
 // ------------------------------------------------------------------ stability.sd
+
+node_params! {
+    /// Parameters of `stability.sd`.
+    pub struct SdParams<'a> {
+        cutting: req &'a str = (
+            T::Entity(EntityKind::Cutting),
+            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
+        ),
+        speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
+        max_depth: req f64 = (T::Quantity(D::LENGTH), "largest axial depth scanned"),
+        steps: opt usize = (
+            T::Integer { min: 2, max: 2000 },
+            "time steps per tooth period (default: per speed, at least 50 per shortest natural period, \
+             40 to 1000)",
+        ),
+        scan_points: def usize = (
+            T::Integer { min: 2, max: 1000 },
+            "40",
+            "depths scanned from max_depth/scan_points to max_depth before bisection",
+        ),
+        tolerance: def f64 = (T::Quantity(D::LENGTH), "0.1 um", "bisection stops below this bracket"),
+        map_depths: def usize = (
+            T::Integer { min: 0, max: 1000 },
+            "0",
+            "depths of the map, evenly from max_depth/map_depths to max_depth (0: no map rows)",
+        ),
+    }
+}
 
 /// `stability.sd`: the limiting depth per speed by first-order semi-discretization (Insperger & Stépán 2002,
 /// 2004) of the tool-point modal models.
@@ -279,30 +315,7 @@ impl StabilitySd {
                         "speed (rpm), depth (m), spectral_radius (stable below 1) on speeds × map_depths",
                     ),
                 ],
-                params: vec![
-                    cutting_param(),
-                    Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
-                    Field::req("max_depth", T::Quantity(D::LENGTH), "largest axial depth scanned"),
-                    Field::opt(
-                        "steps",
-                        T::Integer { min: 2, max: 2000 },
-                        "time steps per tooth period (default: per speed, at least 50 per shortest natural period, \
-                         40 to 1000)",
-                    ),
-                    Field::def(
-                        "scan_points",
-                        T::Integer { min: 2, max: 1000 },
-                        "40",
-                        "depths scanned from max_depth/scan_points to max_depth before bisection",
-                    ),
-                    Field::def("tolerance", T::Quantity(D::LENGTH), "0.1 um", "bisection stops below this bracket"),
-                    Field::def(
-                        "map_depths",
-                        T::Integer { min: 0, max: 1000 },
-                        "0",
-                        "depths of the map, evenly from max_depth/map_depths to max_depth (0: no map rows)",
-                    ),
-                ],
+                params: SdParams::fields(),
             },
         }
     }
@@ -320,25 +333,26 @@ impl Node for StabilitySd {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::positive(p, &["max_depth", "tolerance"])?;
-        speeds_rpm(p).map(|_| ())
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = SdParams::read(params)?;
+        super::positive(params, &["max_depth", "tolerance"])?;
+        speeds_rpm(p.speeds).map(|_| ())
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
+        let p = SdParams::read(ctx.params)?;
         let model = stability::ModalModel::new(modal(ctx, "modes_x")?, modal(ctx, "modes_y")?)
             .map_err(|e| stab_err(e, "modes_x"))?;
         if model.x.is_empty() && model.y.is_empty() {
             return Err(NodeError::input("modes_x", "neither modes_x nor modes_y holds a mode: nothing can chatter"));
         }
-        let mill = milling(ctx)?;
-        let speeds = speeds_rpm(p)?;
-        let max_depth = ctx.f64("max_depth")?;
+        let mill = milling_named(ctx, p.cutting)?;
+        let speeds = speeds_rpm(p.speeds)?;
+        let max_depth = p.max_depth;
         let opts = SdOptions {
-            steps: p.int("steps").map_or(StepCount::AUTO, |m| StepCount::Fixed(m as usize)),
-            scan_points: p.int("scan_points").unwrap_or(40) as usize,
-            depth_tolerance_m: p.f64("tolerance").unwrap_or(1e-7),
+            steps: p.steps.map_or(StepCount::AUTO, StepCount::Fixed),
+            scan_points: p.scan_points,
+            depth_tolerance_m: p.tolerance,
         };
         let limits =
             stability::sd_depth_limits(&model, &mill, &speeds, max_depth, &opts).map_err(|e| stab_err(e, "modes_x"))?;
@@ -367,7 +381,7 @@ impl Node for StabilitySd {
                 Column::new("steps", "", limits.iter().map(|d| d.steps as f64).collect()),
             ],
         };
-        let n = p.int("map_depths").unwrap_or(0) as usize;
+        let n = p.map_depths;
         let depths: Vec<f64> = (1..=n).map(|i| max_depth * i as f64 / n as f64).collect();
         let (mut ms, mut md, mut mr) = (Vec::new(), Vec::new(), Vec::new());
         if n > 0 {
@@ -414,6 +428,18 @@ const MODE_ROW: &[Field] = &[
     Field::opt("stiffness", T::Quantity(D::STIFFNESS), "modal stiffness k = m (2πf)² (or give mass)"),
 ];
 
+node_params! {
+    /// Parameters of `modal.model`.
+    pub struct ModalModelParams<'a> {
+        x: opt &'a [Params] = (
+            T::ObjectList(MODE_ROW),
+            "modes along x, rows {frequency, damping, mass} or {frequency, damping, stiffness} (none: \
+             rigid)",
+        ),
+        y: opt &'a [Params] = (T::ObjectList(MODE_ROW), "modes along y, rows as for x (none: rigid)"),
+    }
+}
+
 impl ModalModelNode {
     pub fn new() -> Self {
         ModalModelNode {
@@ -426,15 +452,7 @@ impl ModalModelNode {
                     PortSpec::new("modes_x", PortType::ModalModel, "modes along x, the feed direction"),
                     PortSpec::new("modes_y", PortType::ModalModel, "modes along y"),
                 ],
-                params: vec![
-                    Field::opt(
-                        "x",
-                        T::ObjectList(MODE_ROW),
-                        "modes along x, rows {frequency, damping, mass} or {frequency, damping, stiffness} (none: \
-                         rigid)",
-                    ),
-                    Field::opt("y", T::ObjectList(MODE_ROW), "modes along y, rows as for x (none: rigid)"),
-                ],
+                params: ModalModelParams::fields(),
             },
         }
     }
@@ -442,10 +460,10 @@ impl ModalModelNode {
 
 /// The modes of the `x` and `y` parameters, checked: each row gives a mass or a stiffness (not both, positive),
 /// and [`stability::ModalModel::new`] checks frequency, damping and mass.
-fn stated_modes(p: &Params) -> Result<stability::ModalModel, NodeError> {
+fn stated_modes(p: &ModalModelParams) -> Result<stability::ModalModel, NodeError> {
     let mut dirs: [Vec<stability::Mode>; 2] = Default::default();
-    for (dir, modes) in ["x", "y"].into_iter().zip(dirs.iter_mut()) {
-        for (index, r) in p.objects(dir).unwrap_or_default().iter().enumerate() {
+    for ((dir, rows), modes) in [("x", p.x), ("y", p.y)].into_iter().zip(dirs.iter_mut()) {
+        for (index, r) in rows.unwrap_or_default().iter().enumerate() {
             let bad = |what: String| NodeError::param(dir, format!("mode {index} along {dir}: {what}"));
             let (f, zeta) = (r.f64("frequency").unwrap_or(f64::NAN), r.f64("damping").unwrap_or(f64::NAN));
             let mode = match (r.f64("mass"), r.f64("stiffness")) {
@@ -474,12 +492,12 @@ impl Node for ModalModelNode {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        stated_modes(p).map(|_| ())
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        stated_modes(&ModalModelParams::read(params)?).map(|_| ())
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let model = stated_modes(ctx.params)?;
+        let model = stated_modes(&ModalModelParams::read(ctx.params)?)?;
         Ok(outputs(vec![
             ("modes_x", Value::ModalModel(ModalModel { modes: model.x })),
             ("modes_y", Value::ModalModel(ModalModel { modes: model.y })),
@@ -510,6 +528,45 @@ pub(super) const COEFFICIENT_ROW: &[Field] = &[
     Field::opt("Kn", T::Quantity(D::PRESSURE), "normal coefficient (with Kt)"),
 ];
 
+node_params! {
+    /// Parameters of `stability.speed_dependent`.
+    pub struct SpeedDependentParams<'a> {
+        cutting: req &'a str = (
+            T::Entity(EntityKind::Cutting),
+            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
+        ),
+        coefficients: opt &'a [Params] = (
+            T::ObjectList(COEFFICIENT_ROW),
+            "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
+             (default: the cutting setup's constant coefficients)",
+        ),
+        speeds: opt &'a [f64] = (
+            T::QuantityList(D::ROTATIONAL_SPEED),
+            "speeds: an evenly spaced grid, e.g. `1000..4000 step 5 rpm`, or an ascending list (the trials' speeds) (default: the measured span every 5 rpm)",
+        ),
+        stationary_speed: def f64 = (
+            T::Quantity(D::ROTATIONAL_SPEED),
+            "0 rpm",
+            "speed of the FRFs used for the stationary diagram",
+        ),
+        extrapolate: def bool = (
+            T::Bool,
+            "false",
+            "extend the end cubics beyond the measured speeds instead of refusing",
+        ),
+        lobes: opt usize = (
+            T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
+            "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
+             response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
+        ),
+        resolution: def f64 = (
+            T::Quantity(D::FREQUENCY),
+            "1 Hz",
+            "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
+        ),
+    }
+}
+
 impl StabilitySpeedDependent {
     pub fn new() -> Self {
         StabilitySpeedDependent {
@@ -535,42 +592,15 @@ impl StabilitySpeedDependent {
                          (Hz); ratio of the two depths",
                     ),
                 ],
-                params: vec![
-                    cutting_param(),
-                    Field::opt(
-                        "coefficients",
-                        T::ObjectList(COEFFICIENT_ROW),
-                        "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
-                         (default: the cutting setup's constant coefficients)",
-                    ),
-                    Field::opt(
-                        "speeds",
-                        T::QuantityList(D::ROTATIONAL_SPEED),
-                        "speeds: an evenly spaced grid, e.g. `1000..4000 step 5 rpm`, or an ascending list (the trials' speeds) (default: the measured span every 5 rpm)",
-                    ),
-                    Field::def(
-                        "stationary_speed",
-                        T::Quantity(D::ROTATIONAL_SPEED),
-                        "0 rpm",
-                        "speed of the FRFs used for the stationary diagram",
-                    ),
-                    Field::def(
-                        "extrapolate",
-                        T::Bool,
-                        "false",
-                        "extend the end cubics beyond the measured speeds instead of refusing",
-                    ),
-                    lobes_param(),
-                    resolution_param(),
-                ],
+                params: SpeedDependentParams::fields(),
             },
         }
     }
 }
 
 /// The speed grid as (first, last, step) rpm, from an evenly spaced list.
-fn grid(p: &Params) -> Result<Option<(f64, f64, f64)>, NodeError> {
-    let Some(rpm) = speed_list(p) else {
+fn grid(speeds: Option<&[f64]>) -> Result<Option<(f64, f64, f64)>, NodeError> {
+    let Some(rpm) = speeds.map(speed_list) else {
         return Ok(None);
     };
     if rpm.is_empty() {
@@ -594,13 +624,25 @@ fn grid(p: &Params) -> Result<Option<(f64, f64, f64)>, NodeError> {
     Ok(Some((lo, hi, step)))
 }
 
+/// The cutting coefficients over speed of a node's `coefficients` parameter (see [`coefficients_over_speed`]).
 pub(super) fn coefficient_table(
     p: &Params,
     mill: &Milling,
     law: Option<&spindlelab_engine::model::Cutting>,
     span: (f64, f64),
 ) -> Result<CoefficientTable, NodeError> {
-    let Some(rows) = p.objects("coefficients") else {
+    coefficients_over_speed(p.objects("coefficients"), mill, law, span)
+}
+
+/// The cutting coefficients over speed: the `coefficients` rows, else the cutting setup's speed law or its
+/// constant coefficients over `span` (rpm).
+fn coefficients_over_speed(
+    rows: Option<&[Params]>,
+    mill: &Milling,
+    law: Option<&spindlelab_engine::model::Cutting>,
+    span: (f64, f64),
+) -> Result<CoefficientTable, NodeError> {
+    let Some(rows) = rows else {
         let c = mill.coefficients;
         let (lo, hi) = (span.0.min(0.0) - 1.0, span.1.max(span.0) + 1.0);
         // The cutting setup's linear speed law, sampled at knots a cubic reproduces exactly.
@@ -748,17 +790,18 @@ impl Node for StabilitySpeedDependent {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::non_negative(p, &["stationary_speed"])?;
-        super::positive(p, &["resolution"])?;
-        grid(p).map(|_| ())
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = SpeedDependentParams::read(params)?;
+        super::non_negative(params, &["stationary_speed"])?;
+        super::positive(params, &["resolution"])?;
+        grid(p.speeds).map(|_| ())
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
-        let mill = milling(ctx)?;
+        let p = SpeedDependentParams::read(ctx.params)?;
+        let mill = milling_named(ctx, p.cutting)?;
         let measured = pairs(ctx)?;
-        let stationary_rpm = to_rpm(p.f64("stationary_speed").unwrap_or(0.0));
+        let stationary_rpm = to_rpm(p.stationary_speed);
         let stationary = measured
             .iter()
             .find(|(s, _)| (s - stationary_rpm).abs() <= 1e-6 * s.abs().max(1.0))
@@ -771,18 +814,18 @@ impl Node for StabilitySpeedDependent {
                 )
             })?;
         let span = (measured[0].0, measured[measured.len() - 1].0);
-        let range = grid(p)?;
+        let range = grid(p.speeds)?;
         let options = SpeedDependentOptions {
             range_rpm: range.map(|(lo, hi, _)| (lo, hi)),
             step_rpm: range.map_or(5.0, |r| if r.2.is_nan() { 5.0 } else { r.2 }),
-            lobes: p.int("lobes").map(|k| k as usize),
-            allow_extrapolation: p.bool("extrapolate").unwrap_or(false),
-            speeds_rpm: range.filter(|r| r.2.is_nan()).and_then(|_| speed_list(p)),
-            resolution_hz: p.f64("resolution"),
+            lobes: p.lobes,
+            allow_extrapolation: p.extrapolate,
+            speeds_rpm: range.filter(|r| r.2.is_nan()).and_then(|_| p.speeds.map(speed_list)),
+            resolution_hz: Some(p.resolution),
         };
-        let law = p.text("cutting").and_then(|n| ctx.recipe.cutting.get(n));
-        let coeffs =
-            coefficient_table(p, &mill, law, range.map_or(span, |(lo, hi, _)| (lo.min(span.0), hi.max(span.1))))?;
+        let law = ctx.recipe.cutting.get(p.cutting);
+        let span = range.map_or(span, |(lo, hi, _)| (lo.min(span.0), hi.max(span.1)));
+        let coeffs = coefficients_over_speed(p.coefficients, &mill, law, span)?;
         let frfs: Vec<SpeedFrf> = measured.into_iter().map(|(speed_rpm, frf)| SpeedFrf { speed_rpm, frf }).collect();
         let limits = stability::speed_dependent_lobes(
             &frfs,
@@ -833,6 +876,22 @@ impl Node for StabilitySpeedDependent {
 
 // ------------------------------------------------------------------ chatter.detect
 
+node_params! {
+    /// Parameters of `chatter.detect`.
+    pub struct ChatterDetectParams<'a> {
+        x_channel: def &'a str = (T::Text, "ax", "channel along x"),
+        y_channel: def &'a str = (T::Text, "ay", "channel along y"),
+        speed: req f64 = (T::Quantity(D::ROTATIONAL_SPEED), "spindle speed of the cut"),
+        teeth: req usize = (T::Integer { min: 1, max: 64 }, "number of teeth"),
+        threshold: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0.2",
+            "chatter when the largest unnotched peak exceeds this fraction of the largest tooth harmonic",
+        ),
+        max_frequency: opt f64 = (T::Quantity(D::FREQUENCY), "search peaks up to here (default Nyquist)"),
+    }
+}
+
 /// `chatter.detect`: stable or chatter from the x and y vibration records of one cut (§6.4, `|A| = |A_x| + |A_y|`).
 pub struct ChatterDetect {
     spec: NodeSpec,
@@ -861,19 +920,7 @@ impl ChatterDetect {
                     ),
                     PortSpec::new("spectrum", PortType::Table, "frequency (Hz), amplitude |A|, notched (0/1)"),
                 ],
-                params: vec![
-                    Field::def("x_channel", T::Text, "ax", "channel along x"),
-                    Field::def("y_channel", T::Text, "ay", "channel along y"),
-                    Field::req("speed", T::Quantity(D::ROTATIONAL_SPEED), "spindle speed of the cut"),
-                    Field::req("teeth", T::Integer { min: 1, max: 64 }, "number of teeth"),
-                    Field::def(
-                        "threshold",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0.2",
-                        "chatter when the largest unnotched peak exceeds this fraction of the largest tooth harmonic",
-                    ),
-                    Field::opt("max_frequency", T::Quantity(D::FREQUENCY), "search peaks up to here (default Nyquist)"),
-                ],
+                params: ChatterDetectParams::fields(),
             },
         }
     }
@@ -884,45 +931,34 @@ impl Node for ChatterDetect {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        super::positive(p, &["speed", "threshold", "max_frequency"])
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        super::positive(params, &["speed", "threshold", "max_frequency"])
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
+        let p = ChatterDetectParams::read(ctx.params)?;
         let Value::TimeSeries(ts) = ctx.input("signal")? else {
             return Err(NodeError::input("signal", "expected a time series"));
         };
-        let channel = |param: &str, default: &str| {
-            let name = p.text(param).unwrap_or(default);
+        let channel = |param: &str, name: &str| {
             ts.channel(name).ok_or_else(|| {
                 let have: Vec<&str> = ts.channels.iter().map(|c| c.name.as_str()).collect();
                 NodeError::param(param, format!("no channel `{name}` in the signal; it has: {}", have.join(", ")))
             })
         };
-        let (x, y) = (channel("x_channel", "ax")?, channel("y_channel", "ay")?);
-        let opts = ChatterOptions {
-            threshold: p.f64("threshold").unwrap_or(0.2),
-            max_freq_hz: p.f64("max_frequency"),
-            ..ChatterOptions::default()
-        };
+        let (x, y) = (channel("x_channel", p.x_channel)?, channel("y_channel", p.y_channel)?);
+        let opts = ChatterOptions { threshold: p.threshold, max_freq_hz: p.max_frequency, ..ChatterOptions::default() };
         fn rec<'a>(ts: &'a TimeSeries, c: &'a Channel) -> Record<'a> {
             Record { sample_rate_hz: ts.sample_rate, samples: &c.samples }
         }
-        let r = chatter::detect_chatter(
-            rec(ts, x),
-            rec(ts, y),
-            Speed::from_rad_s(ctx.f64("speed")?).rpm(),
-            p.int("teeth").unwrap_or(1) as usize,
-            &opts,
-        )
-        .map_err(|e| match e {
-            ChatterError::InvalidOption { .. } => NodeError::param("threshold", e.to_string()),
-            ChatterError::NoTeeth | ChatterError::InvalidSpeed(_) | ChatterError::ToothAboveNyquist { .. } => {
-                NodeError::param("speed", e.to_string())
-            }
-            other => NodeError::input("signal", other.to_string()),
-        })?;
+        let r = chatter::detect_chatter(rec(ts, x), rec(ts, y), Speed::from_rad_s(p.speed).rpm(), p.teeth, &opts)
+            .map_err(|e| match e {
+                ChatterError::InvalidOption { .. } => NodeError::param("threshold", e.to_string()),
+                ChatterError::NoTeeth | ChatterError::InvalidSpeed(_) | ChatterError::ToothAboveNyquist { .. } => {
+                    NodeError::param("speed", e.to_string())
+                }
+                other => NodeError::input("signal", other.to_string()),
+            })?;
         let kind = match r.kind {
             None => 0.0,
             Some(ChatterKind::QuasiPeriodic) => 1.0,
@@ -950,6 +986,31 @@ impl Node for ChatterDetect {
 }
 
 // ------------------------------------------------------------------ trials.score
+
+node_params! {
+    /// Parameters of `trials.score`.
+    pub struct TrialsScoreParams<'a> {
+        file: req &'a Path = (
+            T::File,
+            "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`, outcome `stable` or `chatter`",
+        ),
+        margin: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "0 %",
+            "`misfit` also counts right trials closer than this (in ln depth) to the boundary, so a fit centres the boundary between the stable and the chattering cuts",
+        ),
+        sigma: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "5 %",
+            "standard deviation of ln(depth/limit) at the boundary in the trials' likelihood: how sharply the diagram's limit is known",
+        ),
+        lapse: def f64 = (
+            T::Quantity(D::DIMENSIONLESS),
+            "2 %",
+            "chance that a trial's outcome is not the diagram's (a mislabelled or disturbed cut): bounds what one trial costs in the likelihood",
+        ),
+    }
+}
 
 /// `trials.score`: cutting trials (speed, depth, stable/chatter) scored against a stability diagram.
 pub struct TrialsScore {
@@ -1002,31 +1063,7 @@ impl TrialsScore {
                          boundary across the trials",
                     ),
                 ],
-                params: vec![
-                    Field::req(
-                        "file",
-                        T::File,
-                        "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`, outcome `stable` or `chatter`",
-                    ),
-                    Field::def(
-                        "margin",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "0 %",
-                        "`misfit` also counts right trials closer than this (in ln depth) to the boundary, so a fit centres the boundary between the stable and the chattering cuts",
-                    ),
-                    Field::def(
-                        "sigma",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "5 %",
-                        "standard deviation of ln(depth/limit) at the boundary in the trials' likelihood: how sharply the diagram's limit is known",
-                    ),
-                    Field::def(
-                        "lapse",
-                        T::Quantity(D::DIMENSIONLESS),
-                        "2 %",
-                        "chance that a trial's outcome is not the diagram's (a mislabelled or disturbed cut): bounds what one trial costs in the likelihood",
-                    ),
-                ],
+                params: TrialsScoreParams::fields(),
             },
         }
     }
@@ -1035,6 +1072,11 @@ impl TrialsScore {
 /// The trials of the node's `file` parameter.
 pub(super) fn read_trials(ctx: &NodeContext) -> Result<Vec<Trial>, NodeError> {
     let path = ctx.params.file("file").ok_or_else(|| NodeError::param("file", "missing"))?;
+    trials_in(path)
+}
+
+/// The trials of the CSV file at `path` (errors name the `file` parameter).
+fn trials_in(path: &Path) -> Result<Vec<Trial>, NodeError> {
     let bytes = spindlelab_engine::formats::read_capped(path, spindlelab_engine::formats::MAX_DATA_BYTES)
         .map_err(|e| NodeError::param("file", format!("cannot read {}: {e}", path.display())))?;
     let text = String::from_utf8(bytes)
@@ -1096,15 +1138,14 @@ impl Node for TrialsScore {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        if let Some(sigma) = p.f64("sigma")
-            && !(sigma.is_finite() && sigma > 0.0)
-        {
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = TrialsScoreParams::read(params)?;
+        let sigma = p.sigma;
+        if !(sigma.is_finite() && sigma > 0.0) {
             return Err(NodeError::param("sigma", format!("{} %: give a positive spread, e.g. `5 %`", sigma * 100.0)));
         }
-        if let Some(lapse) = p.f64("lapse")
-            && !(0.0..0.5).contains(&lapse)
-        {
+        let lapse = p.lapse;
+        if !(0.0..0.5).contains(&lapse) {
             return Err(NodeError::param(
                 "lapse",
                 format!("{} %: give a rate in [0, 50) %, e.g. `2 %`", lapse * 100.0),
@@ -1114,10 +1155,11 @@ impl Node for TrialsScore {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let p = TrialsScoreParams::read(ctx.params)?;
         let Value::Lobes(lobes) = ctx.input("lobes")? else {
             return Err(NodeError::input("lobes", "expected stability lobes"));
         };
-        let trials = read_trials(ctx)?;
+        let trials = trials_in(p.file)?;
         let score = stability::score_trials(&lobes.speed_rpm, &lobes.depth_limit, &trials).map_err(|e| match e {
             StabilityError::InvalidDiagram { .. } => NodeError::input("lobes", e.to_string()),
             other => NodeError::param("file", other.to_string()),
@@ -1157,7 +1199,7 @@ impl Node for TrialsScore {
         }
         let [speed, depth, outcome, predicted, right, limit, distance] = cols;
         let misclassified = right.iter().filter(|r| **r == 0.0).count();
-        let margin = ctx.params.f64("margin").unwrap_or(0.0);
+        let margin = p.margin;
         let misfit = (0..speed.len())
             .filter(|&k| right[k] >= 0.0 && limit[k] > 0.0)
             .map(|k| {
@@ -1167,10 +1209,7 @@ impl Node for TrialsScore {
             })
             .sum::<f64>()
             .sqrt();
-        let likelihood = TrialLikelihood {
-            sigma: ctx.params.f64("sigma").unwrap_or(0.05),
-            lapse: ctx.params.f64("lapse").unwrap_or(0.02),
-        };
+        let likelihood = TrialLikelihood { sigma: p.sigma, lapse: p.lapse };
         let deviance = likelihood.total_deviance(&trials, &score.verdicts);
         let verdicts = Table {
             columns: vec![
@@ -1190,5 +1229,26 @@ impl Node for TrialsScore {
             ("misfit", Value::Scalar(Scalar::new(misfit, ""))),
             ("deviance", Value::Scalar(Scalar::new(deviance, ""))),
         ]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fields written out in several kinds' tables stay the same field for field: `cutting` is the shared
+    /// [`cutting_param`], `lobes` and `resolution` are those of `stability.lobes`.
+    #[test]
+    fn the_repeated_fields_agree() {
+        let field = |fields: Vec<Field>, name: &str| {
+            format!("{:?}", fields.into_iter().find(|f| f.name == name).expect("declared"))
+        };
+        let shared = format!("{:?}", cutting_param());
+        for fields in [LobesParams::fields(), SdParams::fields(), SpeedDependentParams::fields()] {
+            assert_eq!(field(fields, "cutting"), shared);
+        }
+        for name in ["lobes", "resolution"] {
+            assert_eq!(field(SpeedDependentParams::fields(), name), field(LobesParams::fields(), name));
+        }
     }
 }

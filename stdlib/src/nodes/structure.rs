@@ -14,7 +14,8 @@ use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, Receptanc
 use spindlelab_domain::Speed;
 use spindlelab_engine::model::{Component, Joint, Section};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{
     Column, Frf, PortType, ReceptanceSet, Substructure, SubstructurePart, Table, UnitLabel, Value,
 };
@@ -22,20 +23,6 @@ use spindlelab_grammar::Dimension as D;
 use std::sync::{Arc, Mutex};
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
-
-/// Frequency-grid parameters shared by the nodes that make receptances from a model.
-fn grid_params() -> [Field; 3] {
-    [
-        Field::def("max_frequency", T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
-        Field::opt("resolution", T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
-        Field::def(
-            "lines",
-            T::Integer { min: 1, max: 1_000_000 },
-            "1000",
-            "number of lines (from one spacing up to max_frequency) when no resolution is given",
-        ),
-    ]
-}
 
 fn grid_port() -> PortSpec {
     PortSpec::new(
@@ -46,47 +33,12 @@ fn grid_port() -> PortSpec {
     .optional()
 }
 
-fn mesh_params() -> [Field; 2] {
-    [
-        Field::def("max_element", T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
-        Field::def(
-            "shear",
-            T::Choice(&["cowper", "hutchinson"]),
-            "cowper",
-            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
-        ),
-    ]
-}
-
-fn coupling_params() -> [Field; 4] {
-    [
-        Field::def(
-            "interface",
-            T::Choice(&["rigid", "machine"]),
-            "rigid",
-            "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
-        ),
-        Field::opt("machine", T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use"),
-        Field::def(
-            "grid_mismatch",
-            T::Choice(&["refuse", "resample"]),
-            "refuse",
-            "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
-        ),
-        Field::def(
-            "max_condition",
-            RATIO,
-            "1e10",
-            "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
-        ),
-    ]
-}
-
-fn mesh(p: &Params) -> MeshOptions {
+/// The FE mesh options from the `max_element` and `shear` parameters.
+fn mesh(max_element: f64, shear: &str) -> MeshOptions {
     MeshOptions {
-        max_element_length: p.f64("max_element").unwrap_or(2e-3),
-        shear: match p.text("shear") {
-            Some("hutchinson") => ShearCoefficient::Hutchinson,
+        max_element_length: max_element,
+        shear: match shear {
+            "hutchinson" => ShearCoefficient::Hutchinson,
             _ => ShearCoefficient::Cowper,
         },
         ..MeshOptions::default()
@@ -98,19 +50,18 @@ fn check_mesh(p: &Params) -> Result<(), NodeError> {
 }
 
 /// The frequency grid from the `grid` input, else from the grid parameters; positive lines only.
-fn grid(ctx: &NodeContext) -> Result<Vec<f64>, NodeError> {
+fn grid(ctx: &NodeContext, max_frequency: f64, resolution: Option<f64>, lines: usize) -> Result<Vec<f64>, NodeError> {
     if let Some(l) = ctx.inputs_of("grid").first() {
         let Value::Frf(f) = l.value.as_ref() else {
             return Err(NodeError::input("grid", "expected an FRF"));
         };
         return positive_lines(ctx, "grid", &f.freq_hz);
     }
-    let p = ctx.params;
-    let fmax = p.f64("max_frequency").unwrap_or(5e3);
-    let (df, n) = match p.f64("resolution") {
+    let fmax = max_frequency;
+    let (df, n) = match resolution {
         Some(df) => (df, (fmax / df * (1.0 + 1e-12)).floor() as usize),
         None => {
-            let n = p.int("lines").unwrap_or(1000).max(1) as usize;
+            let n = lines.max(1);
             (fmax / n as f64, n)
         }
     };
@@ -187,8 +138,8 @@ pub(super) fn outputs(items: Vec<(&str, Value)>) -> Outputs {
 }
 
 /// The sensor's mass (kg) named by the `sensor` parameter, 0 without one.
-fn sensor_mass(ctx: &NodeContext) -> Result<f64, NodeError> {
-    match ctx.params.text("sensor") {
+fn sensor_mass(ctx: &NodeContext, sensor: Option<&str>) -> Result<f64, NodeError> {
+    match sensor {
         None => Ok(0.0),
         Some(name) => ctx
             .recipe
@@ -199,8 +150,12 @@ fn sensor_mass(ctx: &NodeContext) -> Result<f64, NodeError> {
     }
 }
 
-fn assembly<'a>(ctx: &'a NodeContext, param: &str) -> Result<&'a spindlelab_engine::model::Assembly, NodeError> {
-    let name = ctx.params.text(param).ok_or_else(|| NodeError::param(param, "missing"))?;
+/// The assembly `name`, given as parameter `param`.
+fn assembly<'a>(
+    ctx: &'a NodeContext,
+    param: &str,
+    name: &str,
+) -> Result<&'a spindlelab_engine::model::Assembly, NodeError> {
     ctx.recipe
         .assemblies
         .get(name)
@@ -228,11 +183,11 @@ fn interface_of(joint: &Joint, param: &str, what: &str) -> Result<Interface, Nod
 }
 
 /// The spindle–holder interface the `interface` parameter asks for.
-fn holder_interface(ctx: &NodeContext) -> Result<Interface, NodeError> {
-    if ctx.params.text("interface") != Some("machine") {
+fn holder_interface(ctx: &NodeContext, interface: &str, machine: Option<&str>) -> Result<Interface, NodeError> {
+    if interface != "machine" {
         return Ok(Interface::Rigid);
     }
-    let name = ctx.params.text("machine").ok_or_else(|| {
+    let name = machine.ok_or_else(|| {
         NodeError::param("machine", "`interface: machine` needs `machine`, whose `holder_interface` to use")
     })?;
     let m = ctx
@@ -243,9 +198,9 @@ fn holder_interface(ctx: &NodeContext) -> Result<Interface, NodeError> {
     interface_of(&m.holder_interface, "machine", &format!("the `holder_interface` of machine `{name}`"))
 }
 
-fn check_coupling(p: &Params) -> Result<(), NodeError> {
+fn check_coupling(p: &Params, interface: &str, machine: Option<&str>) -> Result<(), NodeError> {
     check_mesh(p)?;
-    if p.text("interface") == Some("machine") && p.text("machine").is_none() {
+    if interface == "machine" && machine.is_none() {
         return Err(NodeError::param(
             "machine",
             "`interface: machine` needs `machine`, whose `holder_interface` to use",
@@ -254,8 +209,8 @@ fn check_coupling(p: &Params) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn rcsa_options(p: &Params) -> RcsaOptions {
-    RcsaOptions { max_condition: p.f64("max_condition").unwrap_or(1e10) }
+fn rcsa_options(max_condition: f64) -> RcsaOptions {
+    RcsaOptions { max_condition }
 }
 
 /// The free–free two-port of `sections` (1 = tip, the last node; 2 = node 0, the spindle end) on
@@ -441,7 +396,7 @@ pub fn resample(s: &ReceptanceSet, target: &[f64]) -> Result<ReceptanceSet, Stri
 
 /// The receptance input of a coupling node on the grid it works on: its own, or the `grid`
 /// input's (equal, or resampled when `grid_mismatch: resample`), without a 0 Hz line.
-fn input_on_grid(ctx: &NodeContext, port: &str) -> Result<ReceptanceSet, NodeError> {
+fn input_on_grid(ctx: &NodeContext, port: &str, grid_mismatch: &str) -> Result<ReceptanceSet, NodeError> {
     let Value::ReceptanceSet(s) = ctx.input(port)? else {
         return Err(NodeError::input(port, "expected a 2x2 receptance set"));
     };
@@ -465,7 +420,7 @@ fn input_on_grid(ctx: &NodeContext, port: &str) -> Result<ReceptanceSet, NodeErr
                 describe_grid(&s.freq_hz),
                 describe_grid(&g.freq_hz)
             );
-            if ctx.params.text("grid_mismatch") != Some("resample") {
+            if grid_mismatch != "resample" {
                 return Err(NodeError::input(
                     "grid",
                     format!(
@@ -512,6 +467,31 @@ pub const RCSA_COUPLE: &str = "rcsa.couple";
 /// The kind name of `beam.substructure`: a tool/holder assembly reduced to its coupling points.
 pub const BEAM_SUBSTRUCTURE: &str = "beam.substructure";
 
+node_params! {
+    /// Parameters of `beam.receptance`.
+    pub struct BeamReceptanceParams<'a> {
+        assembly: req &'a str = (T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
+        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+        spin: opt f64 = (
+            T::Quantity(D::ROTATIONAL_SPEED),
+            "spin the assembly at this speed: gyroscopic (Nelson) elements couple the two planes; `tip` is then the in-plane block",
+        ),
+        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
+        resolution: opt f64 = (T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
+        lines: def usize = (
+            T::Integer { min: 1, max: 1_000_000 },
+            "1000",
+            "number of lines (from one spacing up to max_frequency) when no resolution is given",
+        ),
+        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        shear: def &'a str = (
+            T::Choice(&["cowper", "hutchinson"]),
+            "cowper",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+        ),
+    }
+}
+
 /// `beam.receptance`: tip receptances of a free–free assembly (§5.4).
 pub struct BeamReceptance {
     spec: NodeSpec,
@@ -525,17 +505,6 @@ impl Default for BeamReceptance {
 
 impl BeamReceptance {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
-            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
-            Field::opt(
-                "spin",
-                T::Quantity(D::ROTATIONAL_SPEED),
-                "spin the assembly at this speed: gyroscopic (Nelson) elements couple the two planes; `tip` is then the in-plane block",
-            ),
-        ];
-        params.extend(grid_params());
-        params.extend(mesh_params());
         BeamReceptance {
             spec: NodeSpec {
                 kind: "beam.receptance",
@@ -551,7 +520,7 @@ impl BeamReceptance {
                         "free-free natural frequencies (rigid-body modes left out) up to the grid's highest line",
                     ),
                 ],
-                params,
+                params: BeamReceptanceParams::fields(),
             },
         }
     }
@@ -567,13 +536,15 @@ impl Node for BeamReceptance {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let freqs = grid(ctx)?;
-        let a = assembly(ctx, "assembly")?;
+        let p = BeamReceptanceParams::read(ctx.params)?;
+        let freqs = grid(ctx, p.max_frequency, p.resolution, p.lines)?;
+        let a = assembly(ctx, "assembly", p.assembly)?;
         let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
         let mut model =
-            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(ctx.params)).map_err(fe)?;
+            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(p.max_element, p.shear))
+                .map_err(fe)?;
         let tip = model.n_nodes() - 1;
-        let m = sensor_mass(ctx)?;
+        let m = sensor_mass(ctx, p.sensor)?;
         if m > 0.0 {
             model.add_point_mass(tip, m, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
         }
@@ -581,7 +552,7 @@ impl Node for BeamReceptance {
             ctx.warn("the assembly's `tool_joint` is not modelled here (one continuous beam); rcsa.couple models it");
         }
         let modes = model.modes().map_err(fe)?;
-        let spin = ctx.params.f64("spin").filter(|w| *w != 0.0);
+        let spin = p.spin.filter(|w| *w != 0.0);
         let lines: Vec<Receptance> = match spin {
             None => modes.receptance(tip, tip, &freqs).map_err(fe)?.iter().map(block).collect(),
             Some(w) => {
@@ -608,6 +579,28 @@ impl Node for BeamReceptance {
 
 // ------------------------------------------------------------------ spindle.receptance
 
+node_params! {
+    /// Parameters of `spindle.receptance`.
+    pub struct SpindleReceptanceParams<'a> {
+        machine: req &'a str = (T::Entity(EntityKind::Machine), "a machine with a `spindle` model"),
+        direction: opt &'a str = (
+            T::Choice(&["x", "y"]),
+            "which direction's modes; default: the `grid` FRF's direction, else x",
+        ),
+        speed: opt f64 = (
+            T::Quantity(D::ROTATIONAL_SPEED),
+            "spindle speed for the speed laws; default: the `grid` FRF's speed, else 0 rpm",
+        ),
+        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
+        resolution: opt f64 = (T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
+        lines: def usize = (
+            T::Integer { min: 1, max: 1_000_000 },
+            "1000",
+            "number of lines (from one spacing up to max_frequency) when no resolution is given",
+        ),
+    }
+}
+
 /// `spindle.receptance`: the spindle-machine receptance at the holder base from equivalent modes.
 pub struct SpindleReceptance {
     spec: NodeSpec,
@@ -621,20 +614,6 @@ impl Default for SpindleReceptance {
 
 impl SpindleReceptance {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::req("machine", T::Entity(EntityKind::Machine), "a machine with a `spindle` model"),
-            Field::opt(
-                "direction",
-                T::Choice(&["x", "y"]),
-                "which direction's modes; default: the `grid` FRF's direction, else x",
-            ),
-            Field::opt(
-                "speed",
-                T::Quantity(D::ROTATIONAL_SPEED),
-                "spindle speed for the speed laws; default: the `grid` FRF's speed, else 0 rpm",
-            ),
-        ];
-        params.extend(grid_params());
         SpindleReceptance {
             spec: NodeSpec {
                 kind: SPINDLE_RECEPTANCE,
@@ -645,7 +624,7 @@ impl SpindleReceptance {
                     PortSpec::new("receptance", PortType::ReceptanceSet, "2x2 receptances at the holder base"),
                     PortSpec::new("frf", PortType::Frf, "its H = y/F (m/N)"),
                 ],
-                params,
+                params: SpindleReceptanceParams::fields(),
             },
         }
     }
@@ -662,8 +641,8 @@ impl Node for SpindleReceptance {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let p = ctx.params;
-        let name = p.text("machine").ok_or_else(|| NodeError::param("machine", "missing"))?;
+        let p = SpindleReceptanceParams::read(ctx.params)?;
+        let name = p.machine;
         let machine = ctx
             .recipe
             .machines
@@ -683,7 +662,7 @@ impl Node for SpindleReceptance {
             Some(Value::Frf(f)) => Some(f),
             _ => None,
         };
-        let dir = p.text("direction").or_else(|| measured.and_then(|f| f.direction.as_deref())).unwrap_or("x");
+        let dir = p.direction.or_else(|| measured.and_then(|f| f.direction.as_deref())).unwrap_or("x");
         let Some((_, modes)) = spindle.modes.iter().find(|(d, _)| d == dir) else {
             let have: Vec<&str> = spindle.modes.iter().map(|(d, _)| d.as_str()).collect();
             return Err(NodeError::param(
@@ -697,9 +676,9 @@ impl Node for SpindleReceptance {
         if modes.is_empty() {
             return Err(NodeError::param("machine", format!("machine `{name}` lists no spindle modes for `{dir}`")));
         }
-        let freqs = grid(ctx)?;
+        let freqs = grid(ctx, p.max_frequency, p.resolution, p.lines)?;
         // The measured FRF's speed as its file wrote it (rpm), so the label is the file's.
-        let (speed, speed_rpm) = match (p.f64("speed"), measured.and_then(|f| f.speed_rpm)) {
+        let (speed, speed_rpm) = match (p.speed, measured.and_then(|f| f.speed_rpm)) {
             (Some(w), _) => (Speed::from_rad_s(w), Speed::from_rad_s(w).rpm()),
             (None, Some(s)) => (Speed::from_rpm(s), s),
             (None, None) => (Speed::ZERO, 0.0),
@@ -714,6 +693,39 @@ impl Node for SpindleReceptance {
 
 // ------------------------------------------------------------------ rcsa.couple
 
+node_params! {
+    /// Parameters of `rcsa.couple`.
+    pub struct RcsaCoupleParams<'a> {
+        assembly: opt &'a str = (
+            T::Entity(EntityKind::Assembly),
+            "holder and tool sections, meshed here; its `tool_joint` is used (or connect `structure`)",
+        ),
+        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tool tip"),
+        interface: def &'a str = (
+            T::Choice(&["rigid", "machine"]),
+            "rigid",
+            "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
+        ),
+        machine: opt &'a str = (T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use"),
+        grid_mismatch: def &'a str = (
+            T::Choice(&["refuse", "resample"]),
+            "refuse",
+            "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
+        ),
+        max_condition: def f64 = (
+            RATIO,
+            "1e10",
+            "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
+        ),
+        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        shear: def &'a str = (
+            T::Choice(&["cowper", "hutchinson"]),
+            "cowper",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+        ),
+    }
+}
+
 /// `rcsa.couple`: tool-tip receptances of an assembly on a spindle (Eqs. 5.3, 5.16–5.17).
 pub struct RcsaCouple {
     spec: NodeSpec,
@@ -727,16 +739,6 @@ impl Default for RcsaCouple {
 
 impl RcsaCouple {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::opt(
-                "assembly",
-                T::Entity(EntityKind::Assembly),
-                "holder and tool sections, meshed here; its `tool_joint` is used (or connect `structure`)",
-            ),
-            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tool tip"),
-        ];
-        params.extend(coupling_params());
-        params.extend(mesh_params());
         RcsaCouple {
             spec: NodeSpec {
                 kind: RCSA_COUPLE,
@@ -761,7 +763,7 @@ impl RcsaCouple {
                     PortSpec::new("tip", PortType::ReceptanceSet, "2x2 receptances at the tool tip"),
                     PortSpec::new("frf", PortType::Frf, "tool-tip H (m/N), direction and speed of the spindle input"),
                 ],
-                params,
+                params: RcsaCoupleParams::fields(),
             },
         }
     }
@@ -772,21 +774,23 @@ impl Node for RcsaCouple {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        check_coupling(p)
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = RcsaCoupleParams::read(params)?;
+        check_coupling(params, p.interface, p.machine)
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let spindle = input_on_grid(ctx, "spindle")?;
-        let interface = holder_interface(ctx)?;
-        let tip_mass = sensor_mass(ctx)?;
+        let p = RcsaCoupleParams::read(ctx.params)?;
+        let spindle = input_on_grid(ctx, "spindle", p.grid_mismatch)?;
+        let interface = holder_interface(ctx, p.interface, p.machine)?;
+        let tip_mass = sensor_mass(ctx, p.sensor)?;
         let freqs = spindle.freq_hz.clone();
         let base = to_frf(&spindle);
-        let opts = rcsa_options(ctx.params);
+        let opts = rcsa_options(p.max_condition);
         let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
         let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
             Some(Value::Substructure(s)) => {
-                let ports = s.parts.iter().map(|p| cached_two_port(p, &freqs)).collect::<Result<Vec<_>, _>>()?;
+                let ports = s.parts.iter().map(|part| cached_two_port(part, &freqs)).collect::<Result<Vec<_>, _>>()?;
                 (ports, s.tool_joint)
             }
             Some(other) => {
@@ -796,15 +800,15 @@ impl Node for RcsaCouple {
                 ));
             }
             None => {
-                let name = ctx.params.text("assembly").ok_or_else(|| {
+                let name = p.assembly.ok_or_else(|| {
                     NodeError::param(
                         "assembly",
                         "rcsa.couple needs `assembly`, or a substructure connected to `structure`",
                     )
                 })?;
-                let a = assembly(ctx, "assembly")?;
+                let a = assembly(ctx, "assembly", name)?;
                 let (parts, joint) = assembly_parts(a, name, false)?;
-                let mesh = mesh(ctx.params);
+                let mesh = mesh(p.max_element, p.shear);
                 let ports = parts
                     .iter()
                     .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly").map(Arc::new))
@@ -839,6 +843,27 @@ impl Node for RcsaCouple {
 
 // ------------------------------------------------------------------ beam.substructure
 
+node_params! {
+    /// Parameters of `beam.substructure`.
+    pub struct BeamSubstructureParams<'a> {
+        assembly: req &'a str = (
+            T::Entity(EntityKind::Assembly),
+            "holder and tool sections; a compliant `tool_joint` splits it into holder and tool",
+        ),
+        split: def &'a str = (
+            T::Choice(&["auto", "holder_face"]),
+            "auto",
+            "`holder_face`: reduce holder and tool separately even with a rigid tool joint, so `substructure.joint` can put a joint there; `auto`: split only at a compliant `tool_joint`",
+        ),
+        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        shear: def &'a str = (
+            T::Choice(&["cowper", "hutchinson"]),
+            "cowper",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+        ),
+    }
+}
+
 /// `beam.substructure`: an assembly's free–free FE model reduced once to its tip and spindle end.
 pub struct BeamSubstructure {
     spec: NodeSpec,
@@ -852,20 +877,6 @@ impl Default for BeamSubstructure {
 
 impl BeamSubstructure {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::req(
-                "assembly",
-                T::Entity(EntityKind::Assembly),
-                "holder and tool sections; a compliant `tool_joint` splits it into holder and tool",
-            ),
-            Field::def(
-                "split",
-                T::Choice(&["auto", "holder_face"]),
-                "auto",
-                "`holder_face`: reduce holder and tool separately even with a rigid tool joint, so `substructure.joint` can put a joint there; `auto`: split only at a compliant `tool_joint`",
-            ),
-        ];
-        params.extend(mesh_params());
         BeamSubstructure {
             spec: NodeSpec {
                 kind: BEAM_SUBSTRUCTURE,
@@ -877,7 +888,7 @@ impl BeamSubstructure {
                     PortType::Substructure,
                     "the holder and tool as complex modes at tip and spindle end",
                 )],
-                params,
+                params: BeamSubstructureParams::fields(),
             },
         }
     }
@@ -893,10 +904,11 @@ impl Node for BeamSubstructure {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let name = ctx.params.text("assembly").unwrap_or("");
-        let a = assembly(ctx, "assembly")?;
-        let (parts, tool_joint) = assembly_parts(a, name, ctx.params.text("split") == Some("holder_face"))?;
-        let mesh = mesh(ctx.params);
+        let p = BeamSubstructureParams::read(ctx.params)?;
+        let name = p.assembly;
+        let a = assembly(ctx, "assembly", name)?;
+        let (parts, tool_joint) = assembly_parts(a, name, p.split == "holder_face")?;
+        let mesh = mesh(p.max_element, p.shear);
         let parts =
             parts.iter().map(|(part, sections)| reduce_part(part, sections, &mesh)).collect::<Result<Vec<_>, _>>()?;
         let model = Substructure { assembly: name.to_string(), parts, tool_joint };
@@ -905,6 +917,39 @@ impl Node for BeamSubstructure {
 }
 
 // ------------------------------------------------------------------ rcsa.decouple
+
+node_params! {
+    /// Parameters of `rcsa.decouple`.
+    pub struct RcsaDecoupleParams<'a> {
+        artifact: req &'a str = (T::Entity(EntityKind::Assembly), "the artifact beyond the flange, as one body"),
+        sensor: opt &'a str = (
+            T::Entity(EntityKind::Sensor),
+            "a sensor whose `mass` sat on the tip when G11 was measured",
+        ),
+        interface: def &'a str = (
+            T::Choice(&["rigid", "machine"]),
+            "rigid",
+            "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
+        ),
+        machine: opt &'a str = (T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use"),
+        grid_mismatch: def &'a str = (
+            T::Choice(&["refuse", "resample"]),
+            "refuse",
+            "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
+        ),
+        max_condition: def f64 = (
+            RATIO,
+            "1e10",
+            "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
+        ),
+        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        shear: def &'a str = (
+            T::Choice(&["cowper", "hutchinson"]),
+            "cowper",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+        ),
+    }
+}
 
 /// `rcsa.decouple`: spindle receptances from an artifact's tip receptances (inverse RCSA, Eq. 5.4).
 pub struct RcsaDecouple {
@@ -919,16 +964,6 @@ impl Default for RcsaDecouple {
 
 impl RcsaDecouple {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::req("artifact", T::Entity(EntityKind::Assembly), "the artifact beyond the flange, as one body"),
-            Field::opt(
-                "sensor",
-                T::Entity(EntityKind::Sensor),
-                "a sensor whose `mass` sat on the tip when G11 was measured",
-            ),
-        ];
-        params.extend(coupling_params());
-        params.extend(mesh_params());
         RcsaDecouple {
             spec: NodeSpec {
                 kind: "rcsa.decouple",
@@ -952,7 +987,7 @@ impl RcsaDecouple {
                     PortType::ReceptanceSet,
                     "spindle receptances at the holder base, direction and speed of the input",
                 )],
-                params,
+                params: RcsaDecoupleParams::fields(),
             },
         }
     }
@@ -963,22 +998,24 @@ impl Node for RcsaDecouple {
         &self.spec
     }
 
-    fn validate(&self, p: &Params) -> Result<(), NodeError> {
-        check_coupling(p)
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = RcsaDecoupleParams::read(params)?;
+        check_coupling(params, p.interface, p.machine)
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let g11 = input_on_grid(ctx, "assembly_tip")?;
-        let a = assembly(ctx, "artifact")?;
+        let p = RcsaDecoupleParams::read(ctx.params)?;
+        let g11 = input_on_grid(ctx, "assembly_tip", p.grid_mismatch)?;
+        let a = assembly(ctx, "artifact", p.artifact)?;
         if !matches!(a.tool_joint, Joint::Rigid) {
             ctx.warn("the artifact's `tool_joint` is not used: the artifact is decoupled as one body");
         }
-        let interface = holder_interface(ctx)?;
-        let tip_mass = sensor_mass(ctx)?;
+        let interface = holder_interface(ctx, p.interface, p.machine)?;
+        let tip_mass = sensor_mass(ctx, p.sensor)?;
         let freqs = g11.freq_hz.clone();
-        let art = two_port(&a.sections, &mesh(ctx.params), tip_mass, &freqs, "artifact")?;
+        let art = two_port(&a.sections, &mesh(p.max_element, p.shear), tip_mass, &freqs, "artifact")?;
         let hint = "there the artifact's own tip receptance R11 equals G11 (R11 - G11 is singular, e.g. G11 of the free artifact or lines where a measured G11 is noise), so the spindle is not determined: leave those lines out of the grid or fit G11 first";
-        let b = rcsa::decouple(&art, &to_frf(&g11), &interface, &rcsa_options(ctx.params))
+        let b = rcsa::decouple(&art, &to_frf(&g11), &interface, &rcsa_options(p.max_condition))
             .map_err(|e| rcsa_error("assembly_tip", e, hint))?;
         let set = to_set(&b, g11.direction.clone(), g11.speed_rpm);
         Ok(outputs(vec![("spindle", Value::ReceptanceSet(set))]))
@@ -986,6 +1023,22 @@ impl Node for RcsaDecouple {
 }
 
 // ------------------------------------------------------------------ beam.campbell
+
+node_params! {
+    /// Parameters of `beam.campbell`.
+    pub struct BeamCampbellParams<'a> {
+        assembly: req &'a str = (T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
+        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+        speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 5000 rpm`"),
+        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "20 kHz", "highest whirl frequency listed"),
+        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
+        shear: def &'a str = (
+            T::Choice(&["cowper", "hutchinson"]),
+            "cowper",
+            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+        ),
+    }
+}
 
 /// `beam.campbell`: forward and backward whirl frequencies of a spinning free–free assembly.
 pub struct BeamCampbell {
@@ -1000,13 +1053,6 @@ impl Default for BeamCampbell {
 
 impl BeamCampbell {
     pub fn new() -> Self {
-        let mut params = vec![
-            Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
-            Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
-            Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 5000 rpm`"),
-            Field::def("max_frequency", T::Quantity(D::FREQUENCY), "20 kHz", "highest whirl frequency listed"),
-        ];
-        params.extend(mesh_params());
         BeamCampbell {
             spec: NodeSpec {
                 kind: "beam.campbell",
@@ -1018,7 +1064,7 @@ impl BeamCampbell {
                     PortType::Table,
                     "one row per speed and whirl: speed (rpm), frequency (Hz), whirl (+1 forward, −1 backward)",
                 )],
-                params,
+                params: BeamCampbellParams::fields(),
             },
         }
     }
@@ -1034,17 +1080,19 @@ impl Node for BeamCampbell {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let a = assembly(ctx, "assembly")?;
+        let p = BeamCampbellParams::read(ctx.params)?;
+        let a = assembly(ctx, "assembly", p.assembly)?;
         let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
         let mut model =
-            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(ctx.params)).map_err(fe)?;
-        let m = sensor_mass(ctx)?;
+            BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(p.max_element, p.shear))
+                .map_err(fe)?;
+        let m = sensor_mass(ctx, p.sensor)?;
         if m > 0.0 {
             let tip = model.n_nodes() - 1;
             model.add_point_mass(tip, m, 0.0).map_err(|e| NodeError::param("sensor", e.to_string()))?;
         }
-        let speeds = ctx.params.list("speeds").unwrap_or(&[]).to_vec();
-        let top = ctx.params.f64("max_frequency").unwrap_or(2e4);
+        let speeds = p.speeds.to_vec();
+        let top = p.max_frequency;
         let whirls = beam::spinning::SpinningModel::new(model).campbell(&speeds).map_err(fe)?;
         // One row per whirl: forward (+1) orbits turn with the spin, backward (−1) against it.
         let mut cols: [Vec<f64>; 3] = Default::default();

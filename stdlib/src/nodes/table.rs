@@ -2,8 +2,16 @@
 //! sweep coordinates as leading columns in the units the recipe wrote them.
 
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
-use spindlelab_engine::spec::{Field, FieldType};
+use spindlelab_engine::node_params;
+use spindlelab_engine::spec::FieldType;
 use spindlelab_engine::value::{Column, PortType, Table, UnitLabel, Value};
+
+node_params! {
+    /// Parameters of `table.collect`.
+    pub struct TableCollectParams<'a> {
+        name: def &'a str = (FieldType::Text, "value", "name of the value column"),
+    }
+}
 
 pub struct TableCollect {
     spec: NodeSpec,
@@ -24,7 +32,7 @@ impl TableCollect {
                     PortType::Table,
                     "sweep coordinates (SI) and the collected value",
                 )],
-                params: vec![Field::def("name", FieldType::Text, "value", "name of the value column")],
+                params: TableCollectParams::fields(),
             },
         }
     }
@@ -42,6 +50,7 @@ impl Node for TableCollect {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
+        let p = TableCollectParams::read(ctx.params)?;
         let items = ctx.inputs_of("values");
         if items.is_empty() {
             return Err(NodeError::input("values", "no values to collect"));
@@ -95,7 +104,7 @@ impl Node for TableCollect {
             unit = s.unit.symbol.clone();
             values.push(s.value);
         }
-        let name = ctx.params.text("name").unwrap_or("value").to_string();
+        let name = p.name.to_string();
         columns.push(Column { name, unit: UnitLabel::new(unit), values, levels: Vec::new() });
         Ok([("table".to_string(), Value::Table(Table { columns }))].into_iter().collect())
     }

@@ -10,6 +10,7 @@ use super::structure::{h_of, outputs, to_frf, to_set};
 use crate::rcsa;
 use num_complex::Complex64;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
+use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{Field, FieldType as T, Params};
 use spindlelab_engine::value::{Frf, Mode, PortType, Substructure, Value};
 use spindlelab_grammar::Dimension as D;
@@ -36,6 +37,16 @@ pub const FRF_PHASE_SLOPE: &str = "frf.phase_slope";
 /// The kind name of `frf.add_mode`: one mode added to an FRF.
 pub const FRF_ADD_MODE: &str = "frf.add_mode";
 
+node_params! {
+    /// Parameters of `substructure.joint`.
+    pub struct SubstructureJointParams<'a> {
+        kt: req f64 = (T::Quantity(D::STIFFNESS), "translational stiffness"),
+        ct: def f64 = (T::Quantity(D::DAMPING), "0 N*s/m", "translational damping"),
+        kr: req f64 = (T::Quantity(D::ROTATIONAL_STIFFNESS), "rotational stiffness"),
+        cr: def f64 = (T::Quantity(D::ROTATIONAL_DAMPING), "0 N*m*s/rad", "rotational damping"),
+    }
+}
+
 /// `substructure.joint`: puts a joint `diag(kt + iωct, kr + iωcr)` between the holder and
 /// the tool of a substructure reduced in two parts.
 pub struct SubstructureJoint {
@@ -56,12 +67,7 @@ impl SubstructureJoint {
                 "Puts a tool–holder joint K = diag(kt + iω ct, kr + iω cr) between the holder and the tool of a two-part substructure (beam.substructure with a compliant tool_joint or `split: holder_face`), replacing any joint there; the parts' modes are reused.",
                 vec![PortSpec::new("structure", PortType::Substructure, "holder and tool, reduced in two parts")],
                 vec![PortSpec::new("structure", PortType::Substructure, "the same parts with the joint")],
-                vec![
-                    Field::req("kt", T::Quantity(D::STIFFNESS), "translational stiffness"),
-                    Field::def("ct", T::Quantity(D::DAMPING), "0 N*s/m", "translational damping"),
-                    Field::req("kr", T::Quantity(D::ROTATIONAL_STIFFNESS), "rotational stiffness"),
-                    Field::def("cr", T::Quantity(D::ROTATIONAL_DAMPING), "0 N*m*s/rad", "rotational damping"),
-                ],
+                SubstructureJointParams::fields(),
             ),
         }
     }
@@ -90,14 +96,21 @@ impl Node for SubstructureJoint {
                 ),
             ));
         }
-        let p = ctx.params;
-        let joint = [p.f64("kt"), p.f64("ct"), p.f64("kr"), p.f64("cr")].map(|v| v.unwrap_or(0.0));
+        let p = SubstructureJointParams::read(ctx.params)?;
+        let joint = [p.kt, p.ct, p.kr, p.cr];
         let out = Substructure { assembly: s.assembly.clone(), parts: s.parts.clone(), tool_joint: Some(joint) };
         Ok(outputs(vec![("structure", Value::Substructure(out))]))
     }
 }
 
 // ------------------------------------------------------------------ receptance.tip_mass
+
+node_params! {
+    /// Parameters of `receptance.tip_mass`.
+    pub struct ReceptanceTipMassParams<'a> {
+        mass: req f64 = (T::Quantity(D::MASS), "the mass on the tip (negative removes one)"),
+    }
+}
 
 /// `receptance.tip_mass`: `G' = G (I − ω² diag(m, 0) G)⁻¹`, a translational mass on the tip.
 pub struct ReceptanceTipMass {
@@ -121,7 +134,7 @@ impl ReceptanceTipMass {
                     PortSpec::new("tip", PortType::ReceptanceSet, "with the mass"),
                     PortSpec::new("frf", PortType::Frf, "its H (m/N)"),
                 ],
-                vec![Field::req("mass", T::Quantity(D::MASS), "the mass on the tip (negative removes one)")],
+                ReceptanceTipMassParams::fields(),
             ),
         }
     }
@@ -136,7 +149,7 @@ impl Node for ReceptanceTipMass {
         let Value::ReceptanceSet(set) = ctx.input("tip")? else {
             return Err(NodeError::input("tip", "expected a receptance set"));
         };
-        let mass = ctx.f64("mass")?;
+        let mass = ReceptanceTipMassParams::read(ctx.params)?.mass;
         let g = rcsa::with_point_mass(&to_frf(set), mass).map_err(|e| {
             NodeError::param("mass", format!("{e}: the mass resonates with the structure exactly on a line"))
         })?;
@@ -147,6 +160,13 @@ impl Node for ReceptanceTipMass {
 }
 
 // ------------------------------------------------------------------ frf.phase_slope
+
+node_params! {
+    /// Parameters of `frf.phase_slope`.
+    pub struct FrfPhaseSlopeParams<'a> {
+        slope: req f64 = (T::Quantity(D::PHASE_SLOPE), "phase per frequency, e.g. -13.84 deg/kHz"),
+    }
+}
 
 /// `frf.phase_slope`: `H' = H exp(i s f)`, a phase linear in frequency (a sensor's delay).
 pub struct FrfPhaseSlope {
@@ -167,7 +187,7 @@ impl FrfPhaseSlope {
                 "Adds a phase linear in frequency, H' = H exp(i s f): a sensor's delay or filter lag (-13.84 deg/kHz for a capacitance gauge, §2.3).",
                 vec![PortSpec::new("frf", PortType::Frf, "the FRF")],
                 vec![PortSpec::new("frf", PortType::Frf, "with the phase slope")],
-                vec![Field::req("slope", T::Quantity(D::PHASE_SLOPE), "phase per frequency, e.g. -13.84 deg/kHz")],
+                FrfPhaseSlopeParams::fields(),
             ),
         }
     }
@@ -183,7 +203,7 @@ impl Node for FrfPhaseSlope {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
         // The slope is stored in rad/Hz (rad·s).
-        let slope = ctx.f64("slope")?;
+        let slope = FrfPhaseSlopeParams::read(ctx.params)?.slope;
         let mut out = frf.clone();
         for (v, f) in out.values.iter_mut().zip(&frf.freq_hz) {
             *v *= Complex64::from_polar(1.0, slope * f);
@@ -193,6 +213,22 @@ impl Node for FrfPhaseSlope {
 }
 
 // ------------------------------------------------------------------ frf.add_mode
+
+node_params! {
+    /// Parameters of `frf.add_mode`.
+    pub struct FrfAddModeParams<'a> {
+        f: req f64 = (T::Quantity(D::FREQUENCY), "natural frequency"),
+        zeta: req f64 = (T::Quantity(D::DIMENSIONLESS), "damping ratio"),
+        stiffness: req f64 = (
+            T::Quantity(D::STIFFNESS),
+            "modal stiffness k (its static compliance is 1/k)",
+        ),
+        direction: opt &'a str = (
+            T::Choice(&["x", "y", "z"]),
+            "add the mode only to FRFs along this direction (others pass unchanged): a resonance of one direction in a sweep over both",
+        ),
+    }
+}
 
 /// `frf.add_mode`: `H' = H + 1/(k(1 − (f/fn)² + 2iζ f/fn))`, one more mode.
 pub struct FrfAddMode {
@@ -213,20 +249,7 @@ impl FrfAddMode {
                 "Adds one mode to an FRF, H' = H + 1/(k (1 - (f/fn)^2 + 2i zeta f/fn)): a resonance the model lacks, such as a sensor mount's.",
                 vec![PortSpec::new("frf", PortType::Frf, "the FRF (m/N)")],
                 vec![PortSpec::new("frf", PortType::Frf, "with the mode")],
-                vec![
-                    Field::req("f", T::Quantity(D::FREQUENCY), "natural frequency"),
-                    Field::req("zeta", T::Quantity(D::DIMENSIONLESS), "damping ratio"),
-                    Field::req(
-                        "stiffness",
-                        T::Quantity(D::STIFFNESS),
-                        "modal stiffness k (its static compliance is 1/k)",
-                    ),
-                    Field::opt(
-                        "direction",
-                        T::Choice(&["x", "y", "z"]),
-                        "add the mode only to FRFs along this direction (others pass unchanged): a resonance of one direction in a sweep over both",
-                    ),
-                ],
+                FrfAddModeParams::fields(),
             ),
         }
     }
@@ -246,7 +269,8 @@ impl Node for FrfAddMode {
         let Value::Frf(frf) = ctx.input("frf")? else {
             return Err(NodeError::input("frf", "expected an FRF"));
         };
-        if let Some(only) = ctx.params.text("direction") {
+        let p = FrfAddModeParams::read(ctx.params)?;
+        if let Some(only) = p.direction {
             match frf.direction.as_deref() {
                 Some(d) if d == only => {}
                 Some(_) => return Ok(outputs(vec![("frf", Value::Frf(frf.clone()))])),
@@ -258,7 +282,7 @@ impl Node for FrfAddMode {
                 }
             }
         }
-        let mode = Mode::from_stiffness(ctx.f64("f")?, ctx.f64("zeta")?, ctx.f64("stiffness")?);
+        let mode = Mode::from_stiffness(p.f, p.zeta, p.stiffness);
         let mut out: Frf = frf.clone();
         for (v, f) in out.values.iter_mut().zip(&frf.freq_hz) {
             *v += mode.receptance(TAU * f);
