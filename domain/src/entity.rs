@@ -5,6 +5,7 @@
 
 use crate::speed::{Speed, SpeedLaw};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// Elastic, inertial and damping properties of an isotropic material (SI): the one material
 /// of the recipe, the Timoshenko sections and the equivalent Euler–Bernoulli spindle beams.
@@ -144,4 +145,17 @@ pub struct Cutting {
     pub feed_per_tooth: Option<f64>,
     pub workpiece: Option<String>,
     pub trial_speeds: Vec<Speed>,
+}
+
+/// The entities one step names through its parameters (in objects and lists too), resolved
+/// by the compiler: what a node sees of the recipe. A node cannot reach an entity its step
+/// does not name, so its cache key (which holds the digests of the entities named) covers
+/// everything it reads.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Entities {
+    pub materials: BTreeMap<String, Material>,
+    pub machines: BTreeMap<String, Machine>,
+    pub assemblies: BTreeMap<String, Assembly>,
+    pub sensors: BTreeMap<String, Sensor>,
+    pub cutting: BTreeMap<String, Cutting>,
 }

@@ -10,7 +10,7 @@
 //! thread it runs on; random parts take a seed parameter. The cache relies on this: the
 //! same kind, version, parameters and inputs give the same outputs.
 
-use crate::model::Recipe;
+use crate::model::Entities;
 use crate::spec::{Field, Params};
 use crate::value::{PortType, Value};
 use indexmap::IndexMap;
@@ -91,8 +91,8 @@ pub struct NodeContext<'a> {
     pub params: &'a Params,
     /// Values per input port: one for an ordinary port, all of them for a collecting port.
     pub inputs: &'a IndexMap<String, Vec<Labelled>>,
-    /// The resolved recipe, for the entities that parameters name.
-    pub recipe: &'a Recipe,
+    /// The entities the step's parameters name, resolved and typed by the compiler.
+    pub entities: &'a Entities,
     /// Warnings raised while running (see [`NodeContext::warn`]).
     pub warnings: Mutex<Vec<String>>,
 }
@@ -102,9 +102,9 @@ impl<'a> NodeContext<'a> {
         instance: &'a str,
         params: &'a Params,
         inputs: &'a IndexMap<String, Vec<Labelled>>,
-        recipe: &'a Recipe,
+        entities: &'a Entities,
     ) -> Self {
-        NodeContext { instance, params, inputs, recipe, warnings: Mutex::new(Vec::new()) }
+        NodeContext { instance, params, inputs, entities, warnings: Mutex::new(Vec::new()) }
     }
 
     /// Records a warning that does not stop the node, such as a rejected record: the run

@@ -642,12 +642,17 @@ fn no_call_sees_anything_of_an_earlier_one() {
     let kg = spindlelab::engine::grammar::parse_unit("kg").unwrap().dim;
     mass.values.insert("mass".into(), spindlelab::engine::spec::ParamValue::Quantity { value: 0.01, dim: kg });
     for i in 0..40 {
-        let out = remember.run(&NodeContext::new("remember", &params, &x, &recipe)).expect("runs");
+        let out =
+            remember.run(&NodeContext::new("remember", &params, &x, &recipe.entities_named_by(&params))).expect("runs");
         let Value::Scalar(y) = &out["y"] else { panic!() };
         assert_eq!(y.value, 1.0, "call {i} saw an earlier call (1000: its page, > 1: its data)");
         match i % 3 {
-            0 => drop(noop.run(&NodeContext::new("noop", &params, &x, &recipe)).expect("runs")),
-            1 => drop(tip_mass.run(&NodeContext::new("tip", &mass, &frf, &recipe)).expect("runs")),
+            0 => drop(
+                noop.run(&NodeContext::new("noop", &params, &x, &recipe.entities_named_by(&params))).expect("runs"),
+            ),
+            1 => drop(
+                tip_mass.run(&NodeContext::new("tip", &mass, &frf, &recipe.entities_named_by(&mass))).expect("runs"),
+            ),
             _ => {}
         }
     }
@@ -674,7 +679,7 @@ fn the_spectrum_plugin_names_a_sample_that_is_not_a_number_and_a_sum_that_overfl
         let signal = Labelled { label: String::new(), coords: vec![], value: Arc::new(Value::TimeSeries(series)) };
         let inputs: IndexMap<String, Vec<Labelled>> = [("signal".to_string(), vec![signal])].into_iter().collect();
         let (params, recipe) = (Params::default(), Recipe::default());
-        match node.run(&NodeContext::new("spectrum", &params, &inputs, &recipe)) {
+        match node.run(&NodeContext::new("spectrum", &params, &inputs, &recipe.entities_named_by(&params))) {
             Err(NodeError::Failed(m)) => m,
             other => panic!("not refused: {other:?}"),
         }

@@ -245,11 +245,8 @@ pub fn execute(
                     let stopped = stop && !failed_steps.contains(&inst.step);
                     let blocked =
                         stopped || inst.deps().any(|d| outcomes[d].as_ref().and_then(Outcome::outputs).is_none());
-                    let outcome = if blocked {
-                        Outcome::Skipped
-                    } else {
-                        run_one(recipe, graph, registry, cache.as_ref(), &outcomes, i)
-                    };
+                    let outcome =
+                        if blocked { Outcome::Skipped } else { run_one(graph, registry, cache.as_ref(), &outcomes, i) };
                     progress(i, &inst.id);
                     (i, outcome)
                 })
@@ -404,7 +401,6 @@ fn with_warnings(e: NodeError, warnings: Vec<String>) -> NodeError {
 }
 
 fn run_one(
-    recipe: &Recipe,
     graph: &Graph,
     registry: &Registry,
     cache: Option<&Cache>,
@@ -448,7 +444,7 @@ fn run_one(
         }
         inputs.insert(port.clone(), vals);
     }
-    let ctx = NodeContext::new(&inst.id, &inst.params, &inputs, recipe);
+    let ctx = NodeContext::new(&inst.id, &inst.params, &inputs, &inst.entities);
     let t = Instant::now();
     // A panic in a node is a bug in that node; contain it and report it as that node's failure.
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| node.run(&ctx)));

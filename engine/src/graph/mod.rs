@@ -10,10 +10,11 @@ mod render;
 pub use render::{to_dot, to_mermaid};
 
 use crate::diag::Diagnostics;
-use crate::model::{Recipe, Step};
+use crate::model::{Entities, Recipe, Step};
 use crate::node::Registry;
 use crate::spec::{ParamValue, Params};
 use indexmap::IndexMap;
+use std::sync::Arc;
 
 /// One run of a node: a step, or one point of a swept step.
 #[derive(Debug, Clone)]
@@ -34,6 +35,8 @@ pub struct Instance {
     pub key: String,
     /// Digest of each parameter, so a plan can say which one changed.
     pub param_digests: IndexMap<String, String>,
+    /// The entities the parameters name, resolved: all the node sees of the recipe.
+    pub entities: Arc<Entities>,
 }
 
 impl Instance {
@@ -231,6 +234,7 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                     );
                 }
                 ids.push(instances.len());
+                let entities = Arc::new(recipe.entities_named_by(&params));
                 instances.push(Instance {
                     id,
                     step: step.id.clone(),
@@ -242,6 +246,7 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
                     inputs,
                     key: blake3::hash(key_text.as_bytes()).to_hex().to_string(),
                     param_digests,
+                    entities,
                 });
             }
         }

@@ -8,7 +8,7 @@ use crate::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_grammar::Dimension as D;
 
 pub use spindlelab_domain::entity::{
-    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
+    Assembly, Component, Cutting, Entities, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
 };
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);

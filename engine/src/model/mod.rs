@@ -12,7 +12,7 @@ mod resolve;
 mod reuse;
 
 pub use entities::{
-    Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
+    Assembly, Component, Cutting, Entities, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
     fields as entity_fields,
 };
 pub use fit::{FitMethod, FitScale, FitSpec, FreeParam};
@@ -116,6 +116,44 @@ impl Recipe {
     /// it beside the entity's name, so editing a material reruns the steps that use it.
     pub fn entity_digest(&self, kind: EntityKind, name: &str) -> Option<String> {
         self.entity_digests.get(&(kind, name.to_string())).cloned()
+    }
+
+    /// The entities `params` name (in objects and lists too), typed: what the node of a step
+    /// with these parameters sees of the recipe.
+    pub fn entities_named_by(&self, params: &Params) -> Entities {
+        let mut out = Entities::default();
+        self.collect_entities(params, &mut out);
+        out
+    }
+
+    fn collect_entities(&self, params: &Params, out: &mut Entities) {
+        for v in params.values.values() {
+            match v {
+                ParamValue::Entity { kind, name } => {
+                    let n = name.clone();
+                    match kind {
+                        EntityKind::Material => {
+                            self.materials.get(name).map(|e| out.materials.insert(n, *e));
+                        }
+                        EntityKind::Machine => {
+                            self.machines.get(name).map(|e| out.machines.insert(n, e.clone()));
+                        }
+                        EntityKind::Assembly => {
+                            self.assemblies.get(name).map(|e| out.assemblies.insert(n, e.clone()));
+                        }
+                        EntityKind::Sensor => {
+                            self.sensors.get(name).map(|e| out.sensors.insert(n, e.clone()));
+                        }
+                        EntityKind::Cutting => {
+                            self.cutting.get(name).map(|e| out.cutting.insert(n, e.clone()));
+                        }
+                    }
+                }
+                ParamValue::Object(p) => self.collect_entities(p, out),
+                ParamValue::Objects(list) => list.iter().for_each(|p| self.collect_entities(p, out)),
+                _ => {}
+            }
+        }
     }
 
     /// `materials.steel`: how the manifest names an entity.

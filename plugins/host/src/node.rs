@@ -7,7 +7,7 @@ use crate::v0_2_0 as v2;
 use crate::{Limits, LoadError, Manifest};
 use spindlelab_engine::diag::escape_controls;
 use spindlelab_engine::grammar::{self, Dimension};
-use spindlelab_engine::model::Recipe;
+use spindlelab_engine::model::Entities;
 use spindlelab_engine::node::{EffectParam, EffectSpec, Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType, ParamValue as P, Params};
 use spindlelab_engine::value::Value;
@@ -550,10 +550,10 @@ impl PluginNode {
     }
 }
 
-fn param_value(v: &P, recipe: &Recipe) -> Option<ParamValue> {
+fn param_value(v: &P, entities: &Entities) -> Option<ParamValue> {
     Some(match v {
         P::Entity { kind: EntityKind::Material, name } => {
-            let m = recipe.materials.get(name)?;
+            let m = entities.materials.get(name)?;
             ParamValue::Material(v1::Material {
                 name: name.clone(),
                 youngs_modulus: m.youngs_modulus,
@@ -563,7 +563,7 @@ fn param_value(v: &P, recipe: &Recipe) -> Option<ParamValue> {
             })
         }
         P::Entity { kind: EntityKind::Sensor, name } => {
-            let s = recipe.sensors.get(name)?;
+            let s = entities.sensors.get(name)?;
             ParamValue::Sensor(v1::Sensor {
                 name: name.clone(),
                 kind: s.kind.clone(),
@@ -583,11 +583,11 @@ fn param_value(v: &P, recipe: &Recipe) -> Option<ParamValue> {
 
 /// The parameters as the interface passes them (SI), in the kind's order; a material or
 /// sensor by its properties, the only entity data a plugin sees.
-fn params_of(spec: &NodeSpec, params: &Params, recipe: &Recipe) -> Vec<NamedParam> {
+fn params_of(spec: &NodeSpec, params: &Params, entities: &Entities) -> Vec<NamedParam> {
     spec.params
         .iter()
         .filter_map(|f| {
-            let value = param_value(params.get(f.name)?, recipe)?;
+            let value = param_value(params.get(f.name)?, entities)?;
             Some(NamedParam { name: f.name.to_string(), value })
         })
         .collect()
@@ -607,7 +607,7 @@ impl Node for PluginNode {
     }
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
-        let params = params_of(&self.spec, ctx.params, ctx.recipe);
+        let params = params_of(&self.spec, ctx.params, ctx.entities);
         let mut inputs = Vec::new();
         for port in &self.spec.inputs {
             for l in ctx.inputs_of(port.name) {

@@ -609,7 +609,8 @@ mod tests {
             vec![Labelled { label: String::new(), coords: Vec::new(), value: Arc::new(Value::TimeSeries(signal)) }],
         );
         let r = recipe();
-        let ctx = NodeContext::new("test", &p, &inputs, &r);
+        let entities = r.entities_named_by(&p);
+        let ctx = NodeContext::new("test", &p, &inputs, &entities);
         let out = node.run(&ctx);
         (out, ctx.take_warnings())
     }

@@ -125,7 +125,7 @@ fn steel() -> (f64, f64) {
 
 fn setup_from(
     p: &ImpactSimulateParams,
-    recipe: Option<&spindlelab_engine::model::Recipe>,
+    recipe: Option<&spindlelab_engine::model::Entities>,
     spec: &NodeSpec,
 ) -> Result<ImpactSetup, NodeError> {
     let target = if let Some(preset) = p.target_preset {
@@ -239,7 +239,7 @@ impl Node for ImpactSimulate {
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let p = ImpactSimulateParams::read(ctx.params)?;
-        let mut setup = setup_from(&p, Some(ctx.recipe), &self.spec)?;
+        let mut setup = setup_from(&p, Some(ctx.entities), &self.spec)?;
         let (impacts, noise, seed) = (p.impacts.max(1), p.noise, p.seed);
         let mut forces = Vec::with_capacity(impacts);
         let mut disps = Vec::with_capacity(impacts);

@@ -167,7 +167,7 @@ fn feed_per_tooth(ctx: &NodeContext, given: Option<f64>, name: &str) -> Result<f
     if let Some(f) = given {
         return Ok(f);
     }
-    ctx.recipe.cutting.get(name).and_then(|c| c.feed_per_tooth).ok_or_else(|| {
+    ctx.entities.cutting.get(name).and_then(|c| c.feed_per_tooth).ok_or_else(|| {
         NodeError::param(
             "feed_per_tooth",
             format!("give `feed_per_tooth`, here or in the cutting setup `{name}` (e.g. `feed_per_tooth: 0.05 mm`)"),
@@ -284,7 +284,7 @@ impl Node for TrialsSimulate {
         let trials = read_trials(ctx)?;
         let span = (frfs[0].speed_rpm, frfs[frfs.len() - 1].speed_rpm);
         let (lo, hi) = trials.iter().fold(span, |(a, b), t| (a.min(t.speed_rpm), b.max(t.speed_rpm)));
-        let law = ctx.recipe.cutting.get(p.cutting);
+        let law = ctx.entities.cutting.get(p.cutting);
         // The shared readers take the raw parameters: `coefficients` here, `file` in `read_trials`.
         let coeffs = coefficient_table(ctx.params, &mill, law, (lo, hi))?;
         let feed = feed_per_tooth(ctx, p.feed_per_tooth, p.cutting)?;

@@ -206,7 +206,7 @@ impl Node for ModalFitNode {
         let material = match p.material {
             Some(name) => {
                 let m = ctx
-                    .recipe
+                    .entities
                     .materials
                     .get(name)
                     .ok_or_else(|| NodeError::param("material", format!("no material `{name}` in the recipe")))?;
@@ -426,7 +426,7 @@ mod tests {
         for method in ["simplex", "lscf"] {
             let p = params(&node, &format!("method: {method}\nv_sens: 10 %"));
             node.validate(&p).unwrap();
-            let out = node.run(&NodeContext::new("fit", &p, &inputs, &recipe)).unwrap();
+            let out = node.run(&NodeContext::new("fit", &p, &inputs, &recipe.entities_named_by(&p))).unwrap();
             let Value::ModalModel(m) = &out["modes"] else { panic!("modes") };
             assert_eq!(m.modes.len(), 2, "{method}");
             for (got, want) in m.modes.iter().zip(&modes) {

@@ -476,7 +476,7 @@ mod tests {
         let recipe = empty_recipe();
         let p = params(&node, "min_frequency: 20 Hz\nmax_order: 30");
         node.validate(&p).unwrap();
-        let out = node.run(&NodeContext::new("fit", &p, &inputs, &recipe)).unwrap();
+        let out = node.run(&NodeContext::new("fit", &p, &inputs, &recipe.entities_named_by(&p))).unwrap();
         let Value::Table(t) = &out["modal_table"] else { panic!() };
         let f = &t.columns[0].values;
         assert_eq!(f.len(), 2, "{f:?}");
@@ -492,12 +492,12 @@ mod tests {
         let Value::ModalModel(m) = &out["modes"] else { panic!() };
         assert!(m.modes.iter().all(|m| (m.modal_mass - 1.0).abs() < 1e-4), "{m:?}");
         let second = params(&node, "min_frequency: 20 Hz\nmax_order: 30\npoint: 2");
-        let out2 = node.run(&NodeContext::new("fit", &second, &inputs, &recipe)).unwrap();
+        let out2 = node.run(&NodeContext::new("fit", &second, &inputs, &recipe.entities_named_by(&second))).unwrap();
         let Value::ModalModel(m) = &out2["modes"] else { panic!() };
         assert!((m.modes[1].modal_mass * 0.6 + 1.0).abs() < 1e-4, "{m:?}");
         let third = params(&node, "point: 3");
         assert!(matches!(
-            node.run(&NodeContext::new("fit", &third, &inputs, &recipe)),
+            node.run(&NodeContext::new("fit", &third, &inputs, &recipe.entities_named_by(&third))),
             Err(NodeError::InvalidParam { .. })
         ));
         let Value::FrfSet(fitted) = &out["fitted"] else { panic!() };

@@ -168,7 +168,8 @@ mod tests {
             map.insert(port.to_string(), vec![Labelled { label: String::new(), coords: vec![], value }]);
         }
         let recipe = empty_recipe();
-        let ctx = NodeContext::new("frf", &p, &map, &recipe);
+        let entities = recipe.entities_named_by(&p);
+        let ctx = NodeContext::new("frf", &p, &map, &entities);
         let out = node.run(&ctx)?;
         Ok((out, ctx.take_warnings()))
     }

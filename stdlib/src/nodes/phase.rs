@@ -75,7 +75,7 @@ impl Node for PhaseCorrect {
         } else if let Some(v) = p.slope {
             v
         } else if let Some(name) = p.sensor {
-            ctx.recipe
+            ctx.entities
                 .sensors
                 .get(name)
                 .map(|s| s.phase_slope)

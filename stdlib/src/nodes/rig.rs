@@ -306,7 +306,7 @@ fn direction(word: Option<&str>) -> Direction {
 }
 
 /// The kernel configuration from the node parameters (materials from the recipe when given).
-fn config_from(p: &Params, recipe: Option<&spindlelab_engine::model::Recipe>) -> Result<RigConfig, NodeError> {
+fn config_from(p: &Params, recipe: Option<&spindlelab_engine::model::Entities>) -> Result<RigConfig, NodeError> {
     let d = RigConfig::default();
     let p = RigSimulateParams::read(p)?;
     let sensor =
@@ -466,7 +466,7 @@ impl Node for RigSimulate {
 
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let p = RigSimulateParams::read(ctx.params)?;
-        let mut c = config_from(ctx.params, Some(ctx.recipe))?;
+        let mut c = config_from(ctx.params, Some(ctx.entities))?;
         for (port, target, given) in
             [("modes_x", &mut c.modes_x, p.modes_x.is_some()), ("modes_y", &mut c.modes_y, p.modes_y.is_some())]
         {
@@ -650,7 +650,7 @@ mod tests {
     fn run(node: &dyn Node, p: &Params) -> Result<Outputs, NodeError> {
         let r = recipe();
         let inputs = Default::default();
-        node.run(&NodeContext::new("test", p, &inputs, &r))
+        node.run(&NodeContext::new("test", p, &inputs, &r.entities_named_by(p)))
     }
 
     fn param_error(node: &dyn Node, yaml: &str) -> String {
@@ -684,7 +684,8 @@ mod tests {
             "modes_y".to_string(),
             vec![Labelled { label: String::new(), coords: vec![], value: Arc::new(Value::ModalModel(model.clone())) }],
         );
-        let ctx = NodeContext::new("test", &p, &inputs, &r);
+        let entities = r.entities_named_by(&p);
+        let ctx = NodeContext::new("test", &p, &inputs, &entities);
         let out = node.run(&ctx).unwrap();
         let Value::Frf(frf) = &out["truth_frf"] else { panic!("frf") };
         assert_eq!(frf.direction.as_deref(), Some("y"));

@@ -53,7 +53,7 @@ pub(super) fn milling(ctx: &NodeContext) -> Result<Milling, NodeError> {
 /// The cutting entity `name` of the recipe, as the kernels' [`Milling`] (its constant coefficients).
 fn milling_named(ctx: &NodeContext, name: &str) -> Result<Milling, NodeError> {
     let c = ctx
-        .recipe
+        .entities
         .cutting
         .get(name)
         .ok_or_else(|| NodeError::param("cutting", format!("no cutting setup `{name}` in the recipe")))?;
@@ -823,7 +823,7 @@ impl Node for StabilitySpeedDependent {
             speeds_rpm: range.filter(|r| r.2.is_nan()).and_then(|_| p.speeds.map(speed_list)),
             resolution_hz: Some(p.resolution),
         };
-        let law = ctx.recipe.cutting.get(p.cutting);
+        let law = ctx.entities.cutting.get(p.cutting);
         let span = range.map_or(span, |(lo, hi, _)| (lo.min(span.0), hi.max(span.1)));
         let coeffs = coefficients_over_speed(p.coefficients, &mill, law, span)?;
         let frfs: Vec<SpeedFrf> = measured.into_iter().map(|(speed_rpm, frf)| SpeedFrf { speed_rpm, frf }).collect();

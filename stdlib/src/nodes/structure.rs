@@ -142,7 +142,7 @@ fn sensor_mass(ctx: &NodeContext, sensor: Option<&str>) -> Result<f64, NodeError
     match sensor {
         None => Ok(0.0),
         Some(name) => ctx
-            .recipe
+            .entities
             .sensors
             .get(name)
             .map(|s| s.mass)
@@ -156,7 +156,7 @@ fn assembly<'a>(
     param: &str,
     name: &str,
 ) -> Result<&'a spindlelab_engine::model::Assembly, NodeError> {
-    ctx.recipe
+    ctx.entities
         .assemblies
         .get(name)
         .ok_or_else(|| NodeError::param(param, format!("no assembly `{name}` in the recipe")))
@@ -191,7 +191,7 @@ fn holder_interface(ctx: &NodeContext, interface: &str, machine: Option<&str>) -
         NodeError::param("machine", "`interface: machine` needs `machine`, whose `holder_interface` to use")
     })?;
     let m = ctx
-        .recipe
+        .entities
         .machines
         .get(name)
         .ok_or_else(|| NodeError::param("machine", format!("no machine `{name}` in the recipe")))?;
@@ -644,7 +644,7 @@ impl Node for SpindleReceptance {
         let p = SpindleReceptanceParams::read(ctx.params)?;
         let name = p.machine;
         let machine = ctx
-            .recipe
+            .entities
             .machines
             .get(name)
             .ok_or_else(|| NodeError::param("machine", format!("no machine `{name}` in the recipe")))?;

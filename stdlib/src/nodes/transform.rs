@@ -339,7 +339,7 @@ mod tests {
         let p = params(&node, "mass: 500 g");
         let inputs = input("tip", Value::ReceptanceSet(set));
         let recipe = empty_recipe();
-        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe)).unwrap();
+        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe.entities_named_by(&p))).unwrap();
         let Value::Frf(h) = &out["frf"] else { panic!() };
         for (f, v) in freq.iter().zip(&h.values) {
             let w = TAU * f;
@@ -357,7 +357,7 @@ mod tests {
         let p = params(&node, "slope: -13.84 deg/kHz");
         let inputs = input("frf", Value::Frf(frf(values.clone(), freq.clone())));
         let recipe = empty_recipe();
-        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe)).unwrap();
+        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe.entities_named_by(&p))).unwrap();
         let Value::Frf(h) = &out["frf"] else { panic!() };
         for ((f, a), b) in freq.iter().zip(&values).zip(&h.values) {
             let turn = (b / a).arg();
@@ -374,7 +374,7 @@ mod tests {
         let p = params(&node, "{f: 4650 Hz, zeta: 0.02, stiffness: 5e8 N/m}");
         let inputs = input("frf", Value::Frf(frf(vec![Complex64::new(0.0, 0.0); freq.len()], freq.clone())));
         let recipe = empty_recipe();
-        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe)).unwrap();
+        let out = node.run(&NodeContext::new("t", &p, &inputs, &recipe.entities_named_by(&p))).unwrap();
         let Value::Frf(h) = &out["frf"] else { panic!() };
         for (f, v) in freq.iter().zip(&h.values) {
             let r = f / 4650.0;
