@@ -21,7 +21,7 @@ fn bench(c: &mut Criterion) {
         all.into_iter().filter(|case| only.is_empty() || only.split(',').any(|c| c == *case)).collect();
     assert!(!chosen.is_empty(), "SPINDLELAB_BENCH_CASES={only:?} names no training case (train_01 … train_08)");
     for case in chosen {
-        let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/training").join(case);
+        let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/training").join(case);
         let dir = tempfile::tempdir().expect("temporary folder");
         for entry in std::fs::read_dir(&from).expect("case folder") {
             let p = entry.expect("entry").path();

@@ -96,7 +96,8 @@ fn bench(c: &mut Criterion) {
     let one = inputs("x", Value::Scalar(Scalar::new(1.5, "m")));
     c.bench_function("plugins/noop_call", |b| {
         b.iter(|| {
-            let ctx = NodeContext::new("noop", &params, &one, &recipe);
+            let entities = recipe.entities_named_by(&params);
+            let ctx = NodeContext::new("noop", &params, &one, &entities);
             black_box(noop.run(&ctx).expect("runs"))
         })
     });
@@ -112,7 +113,8 @@ fn bench(c: &mut Criterion) {
     let signal = inputs("signal", series);
     let builtin = BuiltinSpectrum::new();
     let table = |node: &dyn Node| {
-        let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
+        let entities = recipe.entities_named_by(&params);
+        let ctx = NodeContext::new("spectrum", &params, &signal, &entities);
         match node.run(&ctx).expect("runs").swap_remove("spectrum") {
             Some(Value::Table(t)) => t,
             _ => panic!("no spectrum table"),
@@ -128,7 +130,8 @@ fn bench(c: &mut Criterion) {
     // The target is a ratio, and this machine's speed drifts between criterion's runs of
     // the two: time them in alternation too, and report the paired ratios.
     let time = |node: &dyn Node| {
-        let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
+        let entities = recipe.entities_named_by(&params);
+        let ctx = NodeContext::new("spectrum", &params, &signal, &entities);
         let start = std::time::Instant::now();
         black_box(node.run(&ctx).expect("runs"));
         start.elapsed().as_secs_f64()
@@ -148,14 +151,16 @@ fn bench(c: &mut Criterion) {
     );
     c.bench_function("plugins/spectrum_65536_plugin", |b| {
         b.iter(|| {
-            let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
+            let entities = recipe.entities_named_by(&params);
+            let ctx = NodeContext::new("spectrum", &params, &signal, &entities);
             black_box(plugin.run(&ctx).expect("runs"))
         })
     });
     // The same node kind built in: the target is the plugin within 2× of this.
     c.bench_function("plugins/spectrum_65536_native", |b| {
         b.iter(|| {
-            let ctx = NodeContext::new("spectrum", &params, &signal, &recipe);
+            let entities = recipe.entities_named_by(&params);
+            let ctx = NodeContext::new("spectrum", &params, &signal, &entities);
             black_box(builtin.run(&ctx).expect("runs"))
         })
     });

@@ -17,7 +17,7 @@ use std::path::Path;
 
 fn bench(c: &mut Criterion) {
     let registry = spindlelab::registry();
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/train-02");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/train-02");
     let out = tempfile::tempdir().expect("temporary folder");
     let mut opts = RunOptions::new(out.path());
     opts.use_cache = false;
