@@ -126,7 +126,8 @@ fn diagnose_writes_under_the_recipe_name_like_run() {
 
 /// A scalar output written in the unit the output names (`unit: deg/kHz`), read back through
 /// the scalar reader in that unit; a unit of another quantity is reported and that file alone
-/// is not written; a unit that is none, or one on a plot, is refused at its place (exit 2).
+/// is not written; a unit that is none, or one on a plot or a table, is refused at its place
+/// (exit 2).
 #[test]
 fn a_scalar_output_is_written_in_the_unit_it_names() {
     let dir = tempfile::tempdir().unwrap();
@@ -169,14 +170,22 @@ outputs:
     let j: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!((j["value"].as_f64().unwrap() + 13.84).abs() < 1e-12 && json.contains("deg/kHz"), "{json}");
 
+    // A table of the slope: its columns carry their own units, so `unit` is refused there.
+    let table = "  table:\n    kind: table.collect\n    inputs: { values: \"@slope.value\" }\noutputs:\n";
     for (outputs, said) in [
         ("  - { from: \"@slope.value\", file: a.csv, unit: furlongs }\n", "bad.yaml:8:48"),
         (
             "  - { from: \"@slope.value\", file: a.svg, unit: deg/kHz }\n",
             "is for a scalar written to `.csv` or `.json`",
         ),
+        (
+            "  - { from: \"@table.table\", file: t.csv, unit: deg/kHz }\n",
+            "`unit` is for a scalar output; `@table.table` is a table",
+        ),
     ] {
-        std::fs::write(dir.path().join("bad.yaml"), recipe(outputs)).unwrap();
+        let text = recipe(outputs);
+        let text = if outputs.contains("@table") { text.replace("outputs:\n", table) } else { text };
+        std::fs::write(dir.path().join("bad.yaml"), text).unwrap();
         let (code, _, err) = spindlelab(dir.path(), &["run", "bad.yaml", "-o", "bad", "-q"]);
         assert_eq!(code, Some(2), "{err}");
         assert!(err.contains(said), "{err}");

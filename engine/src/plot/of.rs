@@ -505,6 +505,9 @@ fn spectrum(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
     Ok(panels.into_iter().map(|(_, p)| p).collect())
 }
 
+/// The most speeds a stability diagram may have to be drawn as points on its line.
+const FEW_SPEEDS: usize = 40;
+
 /// Depth limit (mm) over speed (rpm) for every diagram, trials as ○ stable and × chatter,
 /// and beneath, the chatter frequency of each diagram with the trials' observed ones.
 fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
@@ -520,8 +523,16 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                 let lobes: &Lobes = lobes;
                 let style = if k < main.len() { Style::Line } else { Style::Dashed };
                 let name = if l.sweep.is_empty() { l.name.clone() } else { format!("{}, {}", l.name, l.words(false)) };
-                let d = lobes.speed_rpm.iter().zip(&lobes.depth_limit).map(|(s, b)| (*s, b * 1e3)).collect();
+                let d: Vec<(f64, f64)> =
+                    lobes.speed_rpm.iter().zip(&lobes.depth_limit).map(|(s, b)| (*s, b * 1e3)).collect();
+                // A diagram at a few speeds is its points, not the straight lines between them
+                // (a lobe's cusps fall between): the points are drawn, unnamed, on the line.
+                let few = d.len() <= FEW_SPEEDS;
+                let points = few.then(|| d.clone());
                 depth.series.push(Series::new(name.clone(), d, style.clone(), color));
+                if let Some(points) = points {
+                    depth.series.push(Series::new("", points, Style::Dots, color));
+                }
                 let c = lobes.speed_rpm.iter().zip(&lobes.chatter_hz).map(|(s, f)| (*s, *f)).collect();
                 chatter.series.push(Series::new(name, c, Style::Dots, color));
                 color += 1;
@@ -1026,6 +1037,26 @@ mod tests {
         assert_eq!(by_name("trials: stable"), Some(vec![(1500.0, 1.0)]));
         assert_eq!(by_name("trials: chatter"), Some(vec![(1500.0, 4.0)]));
         assert_eq!(by_name("trials: not scored (outside)"), Some(vec![(2500.0, 1.0)]));
+    }
+
+    /// A diagram at a few speeds shows its points on its line, without a second legend entry;
+    /// a dense one is its line alone.
+    #[test]
+    fn a_diagram_at_a_few_speeds_shows_its_points() {
+        let lobes = |n: usize| {
+            Value::Lobes(crate::value::Lobes {
+                speed_rpm: (0..n).map(|i| 1000.0 + 100.0 * i as f64).collect(),
+                depth_limit: vec![2e-3; n],
+                chatter_hz: vec![900.0; n],
+            })
+        };
+        let (few, many) = (lobes(5), lobes(FEW_SPEEDS + 1));
+        let series = |v: &Value| figure("l", None, &[layer(v)], &[]).unwrap().panels[0].series.clone();
+        let s = series(&few);
+        assert_eq!(s.len(), 2, "{s:?}");
+        assert_eq!((s[0].style.clone(), s[1].style.clone()), (Style::Line, Style::Dots));
+        assert_eq!((s[1].name.as_str(), s[1].color, s[1].points.len()), ("", s[0].color, 5));
+        assert_eq!(series(&many).len(), 1);
     }
 
     /// The same figure gives the same bytes (SVG and PNG), and the PNG decodes to the size drawn.
