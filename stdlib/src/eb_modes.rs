@@ -86,7 +86,7 @@ fn non_negative(name: &'static str, value: f64) -> Result<(), EbError> {
 pub fn free_length(f_hz: f64, d_m: f64, material: &Material) -> Result<f64, EbError> {
     positive("f_hz", f_hz)?;
     positive("d_m", d_m)?;
-    check_material(&material)?;
+    check_material(material)?;
     Ok((FIXED_FREE_ROOT_1 * FIXED_FREE_ROOT_1 * d_m / (TAU * f_hz)
         * (material.youngs_modulus / (16.0 * material.density)).sqrt())
     .sqrt())

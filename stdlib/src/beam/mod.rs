@@ -121,8 +121,8 @@ pub fn segments_from_sections(sections: &[Section]) -> Vec<BeamSegment> {
                 d_out_end: d1,
                 d_in: s.d_in,
                 length: s.length,
-                outer: s.outer.into(),
-                inner: if s.d_in > 0.0 { s.inner.map(Into::into) } else { None },
+                outer: s.outer,
+                inner: if s.d_in > 0.0 { s.inner } else { None },
             }
         })
         .collect()
