@@ -15,6 +15,9 @@
 //! spec.params = GapParams::fields();
 //! ```
 //!
+//! A field several kinds share is declared once as a `Field` constant and named instead of
+//! the arguments: `interface: def &'a str = INTERFACE`.
+//!
 //! `req` and `def` fields are always present once a recipe is checked (a default is filled in
 //! by the checker, parsed like user input), so they read as plain values; `opt` fields read
 //! as `Option`. Reading names the parameter if the node is handed unchecked parameters.
@@ -106,7 +109,7 @@ macro_rules! node_params {
     (
         $(#[$meta:meta])*
         $vis:vis struct $name:ident<$lt:lifetime> {
-            $( $field:ident : $how:ident $ty:ty = ( $($arg:expr),+ $(,)? ) ),* $(,)?
+            $( $field:ident : $how:ident $ty:ty = $rhs:tt ),* $(,)?
         }
     ) => {
         $(#[$meta])*
@@ -120,7 +123,7 @@ macro_rules! node_params {
         impl<$lt> $name<$lt> {
             /// The field table: what the compiler checks and `spindlelab nodes` shows.
             pub fn fields() -> ::std::vec::Vec<$crate::spec::Field> {
-                ::std::vec![ $( $crate::spec::Field::$how(stringify!($field), $($arg),+), )* ]
+                ::std::vec![ $( $crate::node_params!(@field $field, $how, $rhs), )* ]
             }
 
             /// Reads checked parameters.
@@ -132,6 +135,25 @@ macro_rules! node_params {
             }
         }
     };
+    (@field $field:ident, $how:ident, ( $($arg:expr),+ $(,)? )) => {
+        $crate::spec::Field::$how(stringify!($field), $($arg),+)
+    };
+    // A field several kinds share, declared once as a `Field` constant of the same name.
+    (@field $field:ident, $how:ident, $shared:ident) => {{
+        let f: $crate::spec::Field = $shared;
+        debug_assert_eq!(f.name, stringify!($field), "shared field `{}` declared as `{}`", f.name, stringify!($field));
+        debug_assert_eq!(
+            (f.required, f.default.is_some()),
+            $crate::node_params!(@how $how),
+            "shared field `{}` is not `{}`",
+            f.name,
+            stringify!($how)
+        );
+        f
+    }};
+    (@how req) => { (true, false) };
+    (@how opt) => { (false, false) };
+    (@how def) => { (false, true) };
     (@type opt $ty:ty) => { ::std::option::Option<$ty> };
     (@type req $ty:ty) => { $ty };
     (@type def $ty:ty) => { $ty };
@@ -148,13 +170,15 @@ mod tests {
     use crate::spec::{FieldType as T, ParamValue, Params};
     use spindlelab_grammar::Dimension as D;
 
+    const SHARED: crate::spec::Field = crate::spec::Field::def("teeth", T::Integer { min: 1, max: 64 }, "2", "teeth");
+
     node_params! {
         /// A node's parameters.
         struct Demo<'a> {
             band: opt &'a [f64] = (T::QuantityList(D::FREQUENCY), "[low, high] Hz"),
             noise: def &'a str = (T::Choice(&["coherence", "declared"]), "coherence", "where the noise comes from"),
             Ks: req f64 = (T::Quantity(D::PRESSURE), "specific cutting force"),
-            teeth: def usize = (T::Integer { min: 1, max: 64 }, "2", "teeth"),
+            teeth: def usize = SHARED,
         }
     }
 

@@ -1,12 +1,12 @@
 //! `milling.simulate`: the time-domain milling simulation ([`crate::milling`]) as a node.
 
-use super::stability::{COEFFICIENT_ROW, coefficient_table, cutting_param, milling, modal, pairs, read_trials};
+use super::stability::{COEFFICIENT_ROW, CUTTING, coefficient_table, milling, modal, pairs, read_trials};
 use crate::milling::{MillingSimulation, simulate};
 use crate::stability::{self, SpeedFrf, Trial};
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::path::Path;
@@ -14,7 +14,7 @@ use std::path::Path;
 node_params! {
     /// Parameters of `milling.simulate`.
     pub struct MillingSimulateParams<'a> {
-        cutting: req &'a str = (T::Entity(EntityKind::Cutting), cutting_param().doc),
+        cutting: req &'a str = CUTTING,
         speed: req f64 = (T::Quantity(D::ROTATIONAL_SPEED), "spindle speed"),
         depth: req f64 = (T::Quantity(D::LENGTH), "axial depth of cut"),
         feed_per_tooth: opt f64 = (
@@ -233,7 +233,7 @@ impl TrialsSimulate {
 node_params! {
     /// Parameters of `trials.simulate`.
     pub struct TrialsSimulateParams<'a> {
-        cutting: req &'a str = (T::Entity(EntityKind::Cutting), cutting_param().doc),
+        cutting: req &'a str = CUTTING,
         file: req &'a Path = (T::File, "trials CSV `rpm,depth_mm,outcome[,chatter_freq_hz]`"),
         coefficients: opt &'a [Params] = (
             T::ObjectList(COEFFICIENT_ROW),
@@ -377,20 +377,5 @@ impl Node for TrialsSimulate {
         out.insert("verdicts".into(), Value::Table(verdicts));
         out.insert("agreement".into(), Value::Scalar(Scalar { value: agreement, unit: UnitLabel::new("") }));
         Ok(out)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `cutting` is declared here with the doc of the shared [`cutting_param`]: the field is
-    /// the shared one.
-    #[test]
-    fn the_cutting_field_is_the_shared_one() {
-        let shared = format!("{:?}", cutting_param());
-        for fields in [MillingSimulateParams::fields(), TrialsSimulateParams::fields()] {
-            assert_eq!(format!("{:?}", fields[0]), shared);
-        }
     }
 }

@@ -1,31 +1,20 @@
 //! `stability.lobes`: the ZOA stability limit on tool-point FRFs.
 
+use super::{CUTTING, LOBES, RESOLUTION, SPEEDS};
 use super::{lobes_value, milling_named, outputs, receptance, speeds_rpm, stab_err, warn_lobes_short, warn_unlimited};
 use crate::stability::{self, ToolPointFrf, ZoaOptions};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::Params;
 use spindlelab_engine::value::{Column, PortType, Table, Value};
-use spindlelab_grammar::Dimension as D;
 
 node_params! {
     /// Parameters of `stability.lobes`.
     pub struct LobesParams<'a> {
-        cutting: req &'a str = (
-            T::Entity(EntityKind::Cutting),
-            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
-        ),
-        speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
-        lobes: opt usize = (
-            T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
-            "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
-             response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
-        ),
-        resolution: def f64 = (
-            T::Quantity(D::FREQUENCY),
-            "1 Hz",
-            "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
-        ),
+        cutting: req &'a str = CUTTING,
+        speeds: req &'a [f64] = SPEEDS,
+        lobes: opt usize = LOBES,
+        resolution: def f64 = RESOLUTION,
     }
 }
 

@@ -32,6 +32,23 @@ use spindlelab_engine::value::{Frf, Lobes, ModalModel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::path::Path;
 
+// Fields several kinds of this module share, declared once (`node_params!` names them).
+pub(super) const CUTTING: Field =
+    Field::req("cutting", T::Entity(EntityKind::Cutting), "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β");
+pub(super) const SPEEDS: Field =
+    Field::req("speeds", T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending");
+pub(super) const LOBES: Field = Field::opt(
+    "lobes",
+    T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
+    "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
+);
+pub(super) const RESOLUTION: Field = Field::def(
+    "resolution",
+    T::Quantity(D::FREQUENCY),
+    "1 Hz",
+    "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
+);
+
 /// The kind name of `stability.speed_dependent`: lobes from tool-point FRFs that change with speed.
 pub const STABILITY_SPEED_DEPENDENT: &str = "stability.speed_dependent";
 /// The kind name of `trials.score`: cutting trials scored against lobes.
@@ -40,13 +57,6 @@ pub const TRIALS_SCORE: &str = "trials.score";
 /// A speed parameter (rad/s) in rpm as the recipe wrote it.
 pub(super) fn to_rpm(w: f64) -> f64 {
     Speed::from_rad_s(w).rpm_as_written()
-}
-
-/// The `cutting` field the kinds here and in `milling.rs` declare (their tables are checked against it in
-/// tests).
-#[cfg_attr(not(test), allow(dead_code))]
-pub(super) fn cutting_param() -> Field {
-    Field::req("cutting", T::Entity(EntityKind::Cutting), "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β")
 }
 
 /// Warns when an explicit `lobes` leaves part of the FRF band unreached at the slowest speed.
@@ -393,28 +403,4 @@ pub fn parse_trials(text: &str, path: &str) -> Result<Vec<Trial>, NodeError> {
         return Err(NodeError::param("file", format!("{path}: the header is there but no trial follows")));
     }
     Ok(trials)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::lobes::LobesParams;
-    use super::sd::SdParams;
-    use super::speed_dependent::SpeedDependentParams;
-    use super::*;
-
-    /// The fields written out in several kinds' tables stay the same field for field: `cutting` is the shared
-    /// [`cutting_param`], `lobes` and `resolution` are those of `stability.lobes`.
-    #[test]
-    fn the_repeated_fields_agree() {
-        let field = |fields: Vec<Field>, name: &str| {
-            format!("{:?}", fields.into_iter().find(|f| f.name == name).expect("declared"))
-        };
-        let shared = format!("{:?}", cutting_param());
-        for fields in [LobesParams::fields(), SdParams::fields(), SpeedDependentParams::fields()] {
-            assert_eq!(field(fields, "cutting"), shared);
-        }
-        for name in ["lobes", "resolution"] {
-            assert_eq!(field(SpeedDependentParams::fields(), name), field(LobesParams::fields(), name));
-        }
-    }
 }

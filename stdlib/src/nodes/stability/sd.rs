@@ -1,21 +1,19 @@
 //! `stability.sd`: the limiting depth per speed by semi-discretization of modal models.
 
+use super::{CUTTING, SPEEDS};
 use super::{milling_named, modal, outputs, speeds_rpm, stab_err};
 use crate::stability::{self, Bifurcation, SdOptions, StepCount};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, Lobes, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 node_params! {
     /// Parameters of `stability.sd`.
     pub struct SdParams<'a> {
-        cutting: req &'a str = (
-            T::Entity(EntityKind::Cutting),
-            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
-        ),
-        speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spindle speeds, ascending"),
+        cutting: req &'a str = CUTTING,
+        speeds: req &'a [f64] = SPEEDS,
         max_depth: req f64 = (T::Quantity(D::LENGTH), "largest axial depth scanned"),
         steps: opt usize = (
             T::Integer { min: 2, max: 2000 },

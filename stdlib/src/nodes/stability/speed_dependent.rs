@@ -4,10 +4,11 @@ use super::{
     COEFFICIENT_ROW, STABILITY_SPEED_DEPENDENT, coefficients_over_speed, lobes_value, milling_named, outputs, pairs,
     speed_list, stab_err, to_rpm, warn_lobes_short, warn_unlimited,
 };
+use super::{CUTTING, LOBES, RESOLUTION};
 use crate::stability::{self, SpeedDependentOptions, SpeedFrf, StabilityError};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
@@ -27,10 +28,7 @@ impl Default for StabilitySpeedDependent {
 node_params! {
     /// Parameters of `stability.speed_dependent`.
     pub struct SpeedDependentParams<'a> {
-        cutting: req &'a str = (
-            T::Entity(EntityKind::Cutting),
-            "the cut: teeth, radial immersion, up/down, Kt/Kn or Ks/β",
-        ),
+        cutting: req &'a str = CUTTING,
         coefficients: opt &'a [Params] = (
             T::ObjectList(COEFFICIENT_ROW),
             "cutting coefficients over speed, rows {speed, Ks, beta} or {speed, Kt, Kn}, cubic in speed \
@@ -50,16 +48,8 @@ node_params! {
             "false",
             "extend the end cubics beyond the measured speeds instead of refusing",
         ),
-        lobes: opt usize = (
-            T::Integer { min: 1, max: stability::MAX_LOBES as i64 },
-            "number of lobes k = 0 … lobes − 1; by default as many as reach the FRF band's highest significant \
-             response (within 40 dB of its peak) down to the slowest speed: ⌈60 f_max/(N n_min)⌉ + 1",
-        ),
-        resolution: def f64 = (
-            T::Quantity(D::FREQUENCY),
-            "1 Hz",
-            "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
-        ),
+        lobes: opt usize = LOBES,
+        resolution: def f64 = RESOLUTION,
     }
 }
 

@@ -6,34 +6,27 @@ use crate::rcsa::{Receptance, ReceptanceFrf};
 use spindlelab_domain::Speed;
 use spindlelab_engine::model::Joint;
 
+use super::{ASSEMBLY, LINES, MAX_ELEMENT, MAX_FREQUENCY, RESOLUTION, SENSOR, SHEAR};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 node_params! {
     /// Parameters of `beam.receptance`.
     pub struct BeamReceptanceParams<'a> {
-        assembly: req &'a str = (T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
-        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+        assembly: req &'a str = ASSEMBLY,
+        sensor: opt &'a str = SENSOR,
         spin: opt f64 = (
             T::Quantity(D::ROTATIONAL_SPEED),
             "spin the assembly at this speed: gyroscopic (Nelson) elements couple the two planes; `tip` is then the in-plane block",
         ),
-        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
-        resolution: opt f64 = (T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
-        lines: def usize = (
-            T::Integer { min: 1, max: 1_000_000 },
-            "1000",
-            "number of lines (from one spacing up to max_frequency) when no resolution is given",
-        ),
-        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
-        shear: def &'a str = (
-            T::Choice(&["cowper", "hutchinson"]),
-            "cowper",
-            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
-        ),
+        max_frequency: def f64 = MAX_FREQUENCY,
+        resolution: opt f64 = RESOLUTION,
+        lines: def usize = LINES,
+        max_element: def f64 = MAX_ELEMENT,
+        shear: def &'a str = SHEAR,
     }
 }
 

@@ -4,25 +4,22 @@ use super::{assembly, check_mesh, mesh, outputs, sensor_mass};
 use crate::beam::{self, BeamModel};
 use spindlelab_domain::Speed;
 
+use super::{ASSEMBLY, MAX_ELEMENT, SENSOR, SHEAR};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
 
 node_params! {
     /// Parameters of `beam.campbell`.
     pub struct BeamCampbellParams<'a> {
-        assembly: req &'a str = (T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip"),
-        sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip"),
+        assembly: req &'a str = ASSEMBLY,
+        sensor: opt &'a str = SENSOR,
         speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 5000 rpm`"),
         max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "20 kHz", "highest whirl frequency listed"),
-        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
-        shear: def &'a str = (
-            T::Choice(&["cowper", "hutchinson"]),
-            "cowper",
-            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
-        ),
+        max_element: def f64 = MAX_ELEMENT,
+        shear: def &'a str = SHEAR,
     }
 }
 

@@ -1,17 +1,17 @@
 //! The `rcsa.couple` node kind: tool-tip receptances of an assembly coupled to a spindle.
 
 use super::{
-    RATIO, RCSA_COUPLE, assembly, assembly_parts, check_coupling, h_of, holder_interface, input_on_grid, mesh, outputs,
+    RCSA_COUPLE, assembly, assembly_parts, check_coupling, h_of, holder_interface, input_on_grid, mesh, outputs,
     rcsa_error, rcsa_options, sensor_mass, to_frf, to_set, two_port, two_port_of,
 };
 use crate::beam;
 use crate::rcsa::{self, Interface, TwoPort};
 
+use super::{GRID_MISMATCH, INTERFACE, MACHINE, MAX_CONDITION, MAX_ELEMENT, SHEAR};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{PortType, SubstructurePart, Value};
-use spindlelab_grammar::Dimension as D;
 use std::sync::{Arc, Mutex};
 
 node_params! {
@@ -22,28 +22,12 @@ node_params! {
             "holder and tool sections, meshed here; its `tool_joint` is used (or connect `structure`)",
         ),
         sensor: opt &'a str = (T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tool tip"),
-        interface: def &'a str = (
-            T::Choice(&["rigid", "machine"]),
-            "rigid",
-            "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
-        ),
-        machine: opt &'a str = (T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use"),
-        grid_mismatch: def &'a str = (
-            T::Choice(&["refuse", "resample"]),
-            "refuse",
-            "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
-        ),
-        max_condition: def f64 = (
-            RATIO,
-            "1e10",
-            "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
-        ),
-        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
-        shear: def &'a str = (
-            T::Choice(&["cowper", "hutchinson"]),
-            "cowper",
-            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
-        ),
+        interface: def &'a str = INTERFACE,
+        machine: opt &'a str = MACHINE,
+        grid_mismatch: def &'a str = GRID_MISMATCH,
+        max_condition: def f64 = MAX_CONDITION,
+        max_element: def f64 = MAX_ELEMENT,
+        shear: def &'a str = SHEAR,
     }
 }
 

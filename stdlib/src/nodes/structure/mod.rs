@@ -26,9 +26,53 @@ use crate::beam::{self, BeamModel, MeshOptions, ShearCoefficient};
 use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, ReceptanceFrf, TwoPort};
 use spindlelab_engine::model::{Component, Joint, Section};
 use spindlelab_engine::node::{NodeContext, NodeError, Outputs, PortSpec};
-use spindlelab_engine::spec::{FieldType as T, Params};
+use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
 use spindlelab_engine::value::{Frf, PortType, ReceptanceSet, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
+
+// Fields several kinds of this module share, declared once (`node_params!` names them).
+pub(super) const ASSEMBLY: Field =
+    Field::req("assembly", T::Entity(EntityKind::Assembly), "the sections, from the spindle end to the tip");
+pub(super) const SENSOR: Field =
+    Field::opt("sensor", T::Entity(EntityKind::Sensor), "a sensor whose `mass` sits on the tip");
+pub(super) const MAX_FREQUENCY: Field =
+    Field::def("max_frequency", T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line");
+pub(super) const RESOLUTION: Field =
+    Field::opt("resolution", T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines");
+pub(super) const LINES: Field = Field::def(
+    "lines",
+    T::Integer { min: 1, max: 1_000_000 },
+    "1000",
+    "number of lines (from one spacing up to max_frequency) when no resolution is given",
+);
+pub(super) const MAX_ELEMENT: Field =
+    Field::def("max_element", T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh");
+pub(super) const SHEAR: Field = Field::def(
+    "shear",
+    T::Choice(&["cowper", "hutchinson"]),
+    "cowper",
+    "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
+);
+pub(super) const INTERFACE: Field = Field::def(
+    "interface",
+    T::Choice(&["rigid", "machine"]),
+    "rigid",
+    "spindle–holder joint: rigid, or the `holder_interface` of `machine` (Eqs. 5.16–5.17)",
+);
+pub(super) const MACHINE: Field =
+    Field::opt("machine", T::Entity(EntityKind::Machine), "the machine whose `holder_interface` to use");
+pub(super) const GRID_MISMATCH: Field = Field::def(
+    "grid_mismatch",
+    T::Choice(&["refuse", "resample"]),
+    "refuse",
+    "when `grid` is connected and its lines differ from the receptance input's: refuse, or interpolate the input linearly onto `grid` (no extrapolation)",
+);
+pub(super) const MAX_CONDITION: Field = Field::def(
+    "max_condition",
+    RATIO,
+    "1e10",
+    "largest accepted condition number of a 2x2 inversion (lengths scaled, see docs/structure.md)",
+);
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
 

@@ -4,6 +4,7 @@ use super::{SPINDLE_RECEPTANCE, grid, grid_port, h_of, outputs, to_set};
 use crate::eb_modes;
 use spindlelab_domain::Speed;
 
+use super::{LINES, MAX_FREQUENCY, RESOLUTION};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
@@ -22,13 +23,9 @@ node_params! {
             T::Quantity(D::ROTATIONAL_SPEED),
             "spindle speed for the speed laws; default: the `grid` FRF's speed, else 0 rpm",
         ),
-        max_frequency: def f64 = (T::Quantity(D::FREQUENCY), "5 kHz", "highest frequency line"),
-        resolution: opt f64 = (T::Quantity(D::FREQUENCY), "line spacing; without it, max_frequency / lines"),
-        lines: def usize = (
-            T::Integer { min: 1, max: 1_000_000 },
-            "1000",
-            "number of lines (from one spacing up to max_frequency) when no resolution is given",
-        ),
+        max_frequency: def f64 = MAX_FREQUENCY,
+        resolution: opt f64 = RESOLUTION,
+        lines: def usize = LINES,
     }
 }
 

@@ -4,11 +4,11 @@ use super::{BEAM_SUBSTRUCTURE, assembly, assembly_parts, check_mesh, mesh, outpu
 use crate::beam::{self, BeamModel, MeshOptions};
 use spindlelab_engine::model::Section;
 
+use super::{MAX_ELEMENT, SHEAR};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
 use spindlelab_engine::value::{PortType, Substructure, SubstructurePart, Value};
-use spindlelab_grammar::Dimension as D;
 
 node_params! {
     /// Parameters of `beam.substructure`.
@@ -22,12 +22,8 @@ node_params! {
             "auto",
             "`holder_face`: reduce holder and tool separately even with a rigid tool joint, so `substructure.joint` can put a joint there; `auto`: split only at a compliant `tool_joint`",
         ),
-        max_element: def f64 = (T::Quantity(D::LENGTH), "2 mm", "longest Timoshenko element of the FE mesh"),
-        shear: def &'a str = (
-            T::Choice(&["cowper", "hutchinson"]),
-            "cowper",
-            "shear coefficient of the circular sections: Cowper (1966) or Hutchinson (2001)",
-        ),
+        max_element: def f64 = MAX_ELEMENT,
+        shear: def &'a str = SHEAR,
     }
 }
 
