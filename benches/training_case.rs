@@ -19,7 +19,7 @@ fn bench(c: &mut Criterion) {
     let registry = spindlelab::registry();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/train-02");
     let out = tempfile::tempdir().expect("temporary folder");
-    let mut opts = RunOptions::new(out.path());
+    let mut opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let compile = |path: &Path| engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
 

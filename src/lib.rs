@@ -1,21 +1,8 @@
 //! spindlelab: spindle-dynamics experiments described once as a recipe and run end to end.
 //!
-//! This crate is the front: the `spindlelab` binary, the registry of built-in nodes, and the
-//! run summary that the CLI prints and the snapshot tests record.
+//! This package is the `spindlelab` command (`src/main.rs`); as a library it is the
+//! application layer ([`spindlelab_app`]) under one name, as the command and the tests use it.
 
-pub mod diagnose;
-pub mod fit;
-pub mod import;
-pub mod plugins;
-pub mod summary;
+#![forbid(unsafe_code)]
 
-pub use spindlelab_domain as domain;
-pub use spindlelab_engine as engine;
-pub use spindlelab_stdlib as stdlib;
-
-/// The registry of every built-in node kind.
-pub fn registry() -> engine::node::Registry {
-    let mut r = engine::node::Registry::new();
-    stdlib::register(&mut r);
-    r
-}
+pub use spindlelab_app::*;

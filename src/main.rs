@@ -618,6 +618,7 @@ fn command(cli: Cli) -> ExitCode {
                 release_consumed: true,
                 extra_files: fitted.as_ref().map(|r| spindlelab::fit::fit_files(&c, r)).unwrap_or_default(),
                 report,
+                renderer: Some(spindlelab::renderer()),
                 ..RunOptions::new(out.clone())
             };
             let bar = if std::io::stderr().is_terminal() && !quiet {
@@ -710,6 +711,10 @@ fn command(cli: Cli) -> ExitCode {
                     eoutln!("error: {}", esc(&e));
                     ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
                 }
+                Err(e @ RunError::NoRenderer(_)) => {
+                    eoutln!("error: {}", esc(&e));
+                    ExitCode::from(EXIT_FAILURE)
+                }
             }
         }
     }
@@ -751,7 +756,7 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
     };
     let mut files = Vec::new();
     for name in manifest.files.keys() {
-        if name == engine::report::REPORT_FILE || name.starts_with('.') || name.contains("..") {
+        if name == engine::render::REPORT_FILE || name.starts_with('.') || name.contains("..") {
             continue;
         }
         match engine::formats::read_capped(&run_dir.join(name), engine::formats::MAX_DATA_BYTES) {
@@ -766,7 +771,7 @@ fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
         }
     }
     let text = (!manifest.recipe_text.is_empty()).then_some(manifest.recipe_text.as_str());
-    let html = engine::report::html(&manifest, text, &files);
+    let html = spindlelab::render::report::html(&manifest, text, &files);
     write_report(&target_for(out), html)
 }
 

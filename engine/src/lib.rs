@@ -16,7 +16,7 @@ pub mod model;
 pub mod node;
 pub mod node_params;
 pub mod plot;
-pub mod report;
+pub mod render;
 pub mod schema;
 pub mod spec;
 pub mod syntax;
@@ -187,6 +187,10 @@ pub enum RunError {
     /// The output folder is busy, holds a link that leads elsewhere, or cannot be written.
     #[error("{0}")]
     Output(exec::CommitError),
+    /// The recipe asks for a plot or a report and the run was given no renderer to draw it:
+    /// a caller's mistake (the command always gives one), found before anything runs.
+    #[error("`{0}` asks for a drawing and this run has no renderer: set `RunOptions::renderer`")]
+    NoRenderer(String),
 }
 
 /// Everything a run produced.
@@ -217,8 +221,20 @@ pub fn run(
     let names = compiled.recipe.outputs.iter().map(|o| o.file.as_str());
     let names = names.chain(opts.extra_files.iter().map(|(rel, _)| rel.as_str()));
     let names = names.chain([exec::manifest::MANIFEST_FILE]);
-    let names = names.chain(opts.report.then_some(report::REPORT_FILE));
+    let names = names.chain(opts.report.then_some(render::REPORT_FILE));
     dir.check_outputs(names).map_err(RunError::Output)?;
+    let renderer = opts.renderer.as_deref();
+    if renderer.is_none()
+        && let Some(asks) = compiled
+            .recipe
+            .outputs
+            .iter()
+            .find(|o| matches!(o.format, model::OutputFormat::Plot(_)))
+            .map(|o| o.file.as_str())
+            .or(opts.report.then_some(render::REPORT_FILE))
+    {
+        return Err(RunError::NoRenderer(asks.to_string()));
+    }
     let result = exec::execute(&compiled.recipe, &compiled.graph, registry, opts, progress);
     let failures: Vec<(String, String)> =
         result.failures(&compiled.graph).map(|(id, e)| (id.to_string(), e.to_string())).collect();
@@ -263,7 +279,10 @@ pub fn run(
             }
         }
         let bytes = match out.format {
-            model::OutputFormat::Plot(format) => match plot_output(compiled, &result, out, format, &rows) {
+            model::OutputFormat::Plot(format) => match renderer
+                .ok_or_else(|| "no renderer was given to this run".to_string())
+                .and_then(|r| plot_output(compiled, &result, out, format, &rows, r))
+            {
                 Ok(bytes) => bytes,
                 Err(message) => {
                     plot_notes.push(format!("{}: not drawn: {message}", out.file));
@@ -297,10 +316,10 @@ pub fn run(
     manifest.recipe_text = compiled.sources.first().map(|s| s.text.to_string()).unwrap_or_default();
     manifest.recipe_files = compiled.used_files();
     manifest.files = staged.files().iter().cloned().collect();
-    if opts.report {
-        let html = report::html(&manifest, Some(&manifest.recipe_text), &contents);
-        staged.write(report::REPORT_FILE, html.as_bytes()).map_err(RunError::Output)?;
-        written.push(report::REPORT_FILE.to_string());
+    if let (true, Some(renderer)) = (opts.report, renderer) {
+        let html = renderer.report(&manifest, Some(&manifest.recipe_text), &contents);
+        staged.write(render::REPORT_FILE, html.as_bytes()).map_err(RunError::Output)?;
+        written.push(render::REPORT_FILE.to_string());
         manifest.files = staged.files().iter().cloned().collect();
     }
     let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
@@ -360,6 +379,7 @@ pub fn plot_of_output(
     result: &RunResult,
     out: &model::Output,
     format: plot::PlotFormat,
+    renderer: &dyn render::Renderer,
 ) -> Option<Result<Vec<u8>, String>> {
     if !matches!(out.format, model::OutputFormat::Plot(_)) {
         return None;
@@ -371,7 +391,7 @@ pub fn plot_of_output(
             Some(exec::write::Row { label: &compiled.graph.instances[i].label, value })
         })
         .collect();
-    (!rows.is_empty()).then(|| plot_output(compiled, result, out, format, &rows))
+    (!rows.is_empty()).then(|| plot_output(compiled, result, out, format, &rows, renderer))
 }
 
 /// An output's plot: the rows of its own port, each `with` reference's values over them, each
@@ -382,6 +402,7 @@ fn plot_output(
     out: &model::Output,
     format: plot::PlotFormat,
     rows: &[exec::write::Row],
+    renderer: &dyn render::Renderer,
 ) -> Result<Vec<u8>, String> {
     let name = |r: &model::PortRef| {
         compiled.recipe.step(&r.step).and_then(|s| s.label.clone()).unwrap_or_else(|| default_label(r))
@@ -403,7 +424,8 @@ fn plot_output(
     if let Some(cut) = cut_of(compiled, &out.from.step) {
         title = format!("{title} ({cut})");
     }
-    plot::render(format, &title, out.plot.as_deref(), &main, &with).map_err(|e| e.to_string())
+    let fig = plot::figure(&title, out.plot.as_deref(), &main, &with).map_err(|e| e.to_string())?;
+    renderer.draw(&fig, format).map_err(|e| e.to_string())
 }
 
 /// A reference's legend name without a `label`: its step, and its port unless that is the

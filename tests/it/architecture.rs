@@ -12,11 +12,32 @@ const CRATES: &[(&str, &str, &[&str])] = &[
     ("spindlelab-grammar", "grammar", &[]),
     ("spindlelab-domain", "domain", &[]),
     ("spindlelab-engine", "engine", &["spindlelab-grammar", "spindlelab-domain"]),
+    ("spindlelab-render", "render", &["spindlelab-engine", "spindlelab-domain"]),
     ("spindlelab-stdlib", "stdlib", &["spindlelab-engine", "spindlelab-grammar", "spindlelab-domain"]),
+    (
+        "spindlelab-app",
+        "app",
+        &["spindlelab-engine", "spindlelab-render", "spindlelab-stdlib", "spindlelab-domain", "spindlelab-plugin-host"],
+    ),
     ("spindlelab-plugin-pack", "plugins/pack", &[]),
     ("spindlelab-plugin-host", "plugins/host", &["spindlelab-engine", "spindlelab-plugin-pack"]),
     ("spindlelab-plugin-examples", "plugins/examples", &["spindlelab-plugin-pack"]),
 ];
+
+/// Presentation sits above the engine: the engine decides what a plot shows and a renderer
+/// (`spindlelab-render`) draws it, so no drawing library is among the engine's dependencies.
+#[test]
+fn the_engine_draws_nothing_itself() {
+    let manifest = std::fs::read_to_string(root().join("engine/Cargo.toml")).unwrap();
+    for lib in ["plotters", "png", "base64"] {
+        assert!(
+            !manifest.lines().any(|l| l.trim_start().starts_with(&format!("{lib} "))),
+            "the engine depends on {lib}; drawing belongs in spindlelab-render"
+        );
+    }
+    let render = std::fs::read_to_string(root().join("render/Cargo.toml")).unwrap();
+    assert!(render.lines().any(|l| l.starts_with("plotters ")), "render/Cargo.toml draws with plotters");
+}
 
 /// The names of the workspace crates a `Cargo.toml` lists in its normal dependencies.
 fn workspace_dependencies(manifest: &str) -> Vec<String> {

@@ -32,7 +32,7 @@ fn train_07_baseline_round_trips_through_a_recipe() {
 
     // The measurement list: each FRF file read by a step, with its direction, speed and grid.
     let out = tempfile::tempdir().unwrap();
-    let mut opts = spindlelab::engine::exec::RunOptions::new(out.path());
+    let mut opts = spindlelab::engine::exec::RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let report = spindlelab::engine::run(&compiled, &spindlelab::registry(), &opts, &|_, _| {})
         .unwrap_or_else(|e| panic!("{e}"));

@@ -14,7 +14,7 @@ fn compile(path: &Path) -> Compiled {
 }
 
 fn run(c: &Compiled, out: &Path, threads: usize, cache: bool) -> engine::RunReport {
-    let mut opts = RunOptions::new(out);
+    let mut opts = RunOptions::new(out).with_renderer(spindlelab::renderer());
     opts.threads = Some(threads);
     opts.use_cache = cache;
     engine::run(c, &spindlelab::registry(), &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"))
@@ -230,7 +230,7 @@ fn a_failure_writes_nothing_but_keeps_what_was_computed_and_keep_going_writes_th
     let c = compile(&data("one-step-fails.yaml"));
     let registry = spindlelab::registry();
     let dir = tempfile::tempdir().unwrap();
-    let opts = RunOptions::new(dir.path());
+    let opts = RunOptions::new(dir.path()).with_renderer(spindlelab::renderer());
     let Err(engine::RunError::NodesFailed { failures, report }) = engine::run(&c, &registry, &opts, &|_, _| {}) else {
         panic!("the run should fail");
     };
@@ -241,7 +241,7 @@ fn a_failure_writes_nothing_but_keeps_what_was_computed_and_keep_going_writes_th
     assert!(!dir.path().join("impulse.csv").exists() && !dir.path().join("ratio.csv").exists());
     assert_eq!(report.manifest.computed, 1, "the successful instance is kept in the cache");
 
-    let mut opts = RunOptions::new(dir.path());
+    let mut opts = RunOptions::new(dir.path()).with_renderer(spindlelab::renderer());
     opts.keep_going = true;
     let Err(engine::RunError::NodesFailed { report, .. }) = engine::run(&c, &registry, &opts, &|_, _| {}) else {
         panic!("the run should still fail");
@@ -284,7 +284,7 @@ fn released_recordings_free_memory_without_changing_results() {
     let c = compile(&data("uncached-upstream.yaml"));
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     let kept = run(&c, a.path(), 2, false);
-    let mut opts = RunOptions::new(b.path());
+    let mut opts = RunOptions::new(b.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     opts.release_consumed = true;
     let released = engine::run(&c, &spindlelab::registry(), &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
@@ -314,4 +314,22 @@ fn zipped_sweeps_feed_each_port_from_its_own_step() {
             assert_eq!(producer.label, inst.label);
         }
     }
+}
+
+/// A run that asks for a plot needs a renderer to draw it: without one it stops before
+/// anything is computed, names the file that asked, and leaves the output folder as it was.
+#[test]
+fn a_plot_without_a_renderer_is_refused_before_anything_runs() {
+    let c = compile(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/phase-lag.yaml"));
+    let out = tempfile::tempdir().unwrap();
+    let opts = RunOptions::new(out.path());
+    match engine::run(&c, &spindlelab::registry(), &opts, &|_, _| {}) {
+        Err(e @ engine::RunError::NoRenderer(_)) => {
+            let file = c.recipe.outputs.iter().find(|o| o.file.ends_with(".svg") || o.file.ends_with(".png"));
+            assert!(e.to_string().contains(&file.unwrap().file), "{e}");
+        }
+        other => panic!("expected NoRenderer, got {:?}", other.map(|r| r.written)),
+    }
+    let left: Vec<_> = std::fs::read_dir(out.path()).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(left.iter().all(|n| n.to_string_lossy().starts_with('.')), "{left:?}");
 }

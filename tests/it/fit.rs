@@ -48,7 +48,7 @@ fn train_02_joint_fit_reaches_the_noise_floor_and_the_hidden_joint() {
 
     let fitted = compile(&recipe, &report.overrides());
     let out = tempfile::tempdir().unwrap();
-    let mut opts = RunOptions::new(out.path());
+    let mut opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let run = engine::run(&fitted, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
     for k in 0..2 {
@@ -157,7 +157,7 @@ fn a_minimum_on_a_log_scaled_bound_is_reached_and_reported_at_the_bound() {
     // The objective there is the one a run at 10 mm gives.
     let at_max = compile(&recipe, &[("radius".into(), "10 mm".into())]);
     let out = tempfile::tempdir().unwrap();
-    let mut opts = RunOptions::new(out.path());
+    let mut opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let run = engine::run(&at_max, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
     let t = scalar(&at_max, &run, "hit", 0, "impulse_time");

@@ -62,7 +62,7 @@ fn an_imported_case_reproduces_the_truth_simulators_baseline() {
     let (tmp, recipe) = import(&dir.join("case.json"), &dir, &["frf_x_0rpm.csv", "frf_y_0rpm.csv", "trials.csv"]);
     let c = compile(&recipe);
     let registry = spindlelab::registry();
-    let mut opts = RunOptions::new(tmp.path().join("out"));
+    let mut opts = RunOptions::new(tmp.path().join("out")).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let report = spindlelab::engine::run(&c, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
     let truth: Json = serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();

@@ -19,7 +19,7 @@ fn run(name: &str) -> Ran {
     let compiled =
         engine::compile_file(&path, &spindlelab::registry()).unwrap_or_else(|e| panic!("{}", e.render(false)));
     let dir = tempfile::tempdir().unwrap();
-    let mut opts = RunOptions::new(dir.path());
+    let mut opts = RunOptions::new(dir.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let report = engine::run(&compiled, &spindlelab::registry(), &opts, &|_, _| {});
     Ran { compiled, report }
@@ -160,7 +160,7 @@ fn unseparable_angles_are_an_error_unless_allowed() {
     std::fs::write(&recipe, text).unwrap();
     let compiled =
         engine::compile_file(&recipe, &spindlelab::registry()).unwrap_or_else(|e| panic!("{}", e.render(false)));
-    let opts = RunOptions::new(dir.path().join("out"));
+    let opts = RunOptions::new(dir.path().join("out")).with_renderer(spindlelab::renderer());
     match engine::run(&compiled, &spindlelab::registry(), &opts, &|_, _| {}) {
         Err(engine::RunError::NodesFailed { failures, .. }) => {
             assert_eq!(failures.len(), 1);

@@ -37,7 +37,7 @@ fn compile(path: &Path, plugins: &mut Plugins) -> (Compiled, engine::node::Regis
 fn run(path: &Path, plugins: &mut Plugins) -> Vec<(String, Outcome)> {
     let (c, registry) = compile(path, plugins);
     let out = tempfile::tempdir().unwrap();
-    let mut opts = RunOptions::new(out.path());
+    let mut opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     opts.keep_going = true;
     let result = match engine::run(&c, &registry, &opts, &|_, _| {}) {
@@ -380,7 +380,7 @@ fn plugin_outputs_are_cached_under_the_plugin_s_hash() {
     let node = registry.get("effect.tip_mass").unwrap();
     let sha = node.code_digest().expect("a plugin node has a code digest");
     assert_eq!(sha.len(), 64);
-    let opts = RunOptions::new(out.path());
+    let opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
     engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
     let second = engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
     let i = c.graph.instances.iter().position(|i| i.id == "with_sensor").unwrap();

@@ -22,7 +22,7 @@ fn compile(path: &Path) -> Compiled {
 }
 
 fn run(c: &Compiled, out: &Path, cache: bool) -> Result<engine::RunReport, engine::RunError> {
-    let mut opts = RunOptions::new(out);
+    let mut opts = RunOptions::new(out).with_renderer(spindlelab::renderer());
     opts.use_cache = cache;
     engine::run(c, &spindlelab::registry(), &opts, &|_, _| {})
 }
@@ -128,7 +128,7 @@ fn read_problems_point_into_the_data_file_and_skipped_datasets_warn() {
     )
     .unwrap();
     let c = compile(&recipe);
-    let mut opts = RunOptions::new(dir.path().join("out"));
+    let mut opts = RunOptions::new(dir.path().join("out")).with_renderer(spindlelab::renderer());
     opts.keep_going = true;
     opts.use_cache = false;
     let Err(engine::RunError::NodesFailed { failures, report }) =

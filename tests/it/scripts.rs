@@ -21,7 +21,7 @@ fn every_recipe_in_scripts() {
             Err(e) => panic!("{} does not compile:\n{}", path.display(), e.render(false)),
         };
         let out = tempfile::tempdir().expect("temp dir");
-        let mut opts = RunOptions::new(out.path());
+        let mut opts = RunOptions::new(out.path()).with_renderer(spindlelab::renderer());
         opts.use_cache = false;
         let report = match engine::run(&compiled, &registry, &opts, &|_, _| {}) {
             Ok(r) => r,
@@ -42,7 +42,13 @@ fn every_recipe_in_scripts() {
         insta::assert_snapshot!("short", spindlelab::summary::short(&compiled, &report.result));
         // Every plot, drawn as PNG, against its reviewed reference image.
         for o in &compiled.recipe.outputs {
-            if let Some(png) = engine::plot_of_output(&compiled, &report.result, o, engine::plot::PlotFormat::Png) {
+            if let Some(png) = engine::plot_of_output(
+                &compiled,
+                &report.result,
+                o,
+                engine::plot::PlotFormat::Png,
+                &spindlelab::render::Plotters,
+            ) {
                 let png = png.unwrap_or_else(|e| panic!("{}: {}: {e}", path.display(), o.file));
                 check_figure(path, &o.file, &png);
             }

@@ -220,6 +220,7 @@ fn train_08_probe_mount_resonance_reproduces_the_truth_simulator() {
     let opts = RunOptions {
         use_cache: false,
         targets: Some(vec![model_step.clone()]),
+        renderer: Some(spindlelab::renderer()),
         ..RunOptions::new(std::env::temp_dir())
     };
     let result = exec::execute(&c.recipe, &c.graph, &registry, &opts, &|_, _| {});

@@ -46,6 +46,8 @@ pub struct RunOptions {
     pub extra_files: Vec<(String, String)>,
     /// Write the HTML run report (`report.html`) with the outputs.
     pub report: bool,
+    /// Draws the plots and the report; a run that asks for either needs one.
+    pub renderer: Option<Arc<dyn crate::render::Renderer>>,
 }
 
 /// Outputs and warnings of computed instances, by cache key, kept in memory.
@@ -63,7 +65,14 @@ impl RunOptions {
             targets: None,
             extra_files: Vec::new(),
             report: false,
+            renderer: None,
         }
+    }
+
+    /// These options with `renderer` to draw plots and the report.
+    pub fn with_renderer(mut self, renderer: Arc<dyn crate::render::Renderer>) -> Self {
+        self.renderer = Some(renderer);
+        self
     }
 
     /// The cache directory for this output directory.

@@ -1,8 +1,7 @@
 //! Plots of port values, for outputs named `.svg` or `.png` and for the run report. A value
-//! becomes a [`Figure`] by the default view of its type ([`of`]), in the units a person reads,
-//! and plotters draws the figure with a bundled font, so the bytes depend on the values only.
+//! becomes a [`Figure`] by the default view of its type ([`of`]), in the units a person reads;
+//! a [`crate::render::Renderer`] draws the figure.
 
-pub mod draw;
 pub mod figure;
 pub mod of;
 pub mod sets;
@@ -28,19 +27,4 @@ pub enum PlotError {
 pub enum PlotFormat {
     Svg,
     Png,
-}
-
-/// The figure of `main` with `with` drawn over it, as the bytes of an SVG or PNG file.
-pub fn render(
-    format: PlotFormat,
-    title: &str,
-    variant: Option<&str>,
-    main: &[Layer],
-    with: &[Layer],
-) -> Result<Vec<u8>, PlotError> {
-    let fig = figure(title, variant, main, with)?;
-    match format {
-        PlotFormat::Svg => draw::svg(&fig).map(String::into_bytes),
-        PlotFormat::Png => draw::png(&fig),
-    }
 }

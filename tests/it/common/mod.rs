@@ -58,7 +58,7 @@ impl Ran {
 pub fn run_at(path: &Path, out: &Path) -> Ran {
     let registry = spindlelab::registry();
     let compiled = engine::compile_file(path, &registry).unwrap_or_else(|e| panic!("{}", e.render(false)));
-    let mut opts = RunOptions::new(out);
+    let mut opts = RunOptions::new(out).with_renderer(spindlelab::renderer());
     opts.use_cache = false;
     let report = engine::run(&compiled, &registry, &opts, &|_, _| {}).unwrap_or_else(|e| panic!("{e}"));
     Ran { compiled, report }

@@ -72,6 +72,7 @@ fn generate(dir: &Path, case: &Case) {
     let opts = RunOptions {
         use_cache: false,
         targets: Some(vec![model_step.clone(), lobes_step.clone()]),
+        renderer: Some(spindlelab::renderer()),
         ..RunOptions::new(std::env::temp_dir())
     };
     let result = exec::execute(&c.recipe, &c.graph, &registry, &opts, &|_, _| {});

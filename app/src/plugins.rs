@@ -195,15 +195,15 @@ impl Plugins {
 
 /// The SDK and the interface, as `spindlelab plugin new` writes them beside a new plugin.
 mod template {
-    pub const SDK_LIB: &str = include_str!("../plugins/guest/sdk/src/lib.rs");
-    pub const SDK_TRIG: &str = include_str!("../plugins/guest/sdk/src/trig.rs");
-    pub const WIT: &str = include_str!("../plugins/wit/since_v0.2.0/plugin.wit");
+    pub const SDK_LIB: &str = include_str!("../../plugins/guest/sdk/src/lib.rs");
+    pub const SDK_TRIG: &str = include_str!("../../plugins/guest/sdk/src/trig.rs");
+    pub const WIT: &str = include_str!("../../plugins/wit/since_v0.2.0/plugin.wit");
     pub const SDK_WIT_PATH: &str = "../../wit/since_v0.2.0";
-    pub const WIT_0_1_0: &str = include_str!("../plugins/wit/since_v0.1.0/plugin.wit");
+    pub const WIT_0_1_0: &str = include_str!("../../plugins/wit/since_v0.1.0/plugin.wit");
     pub const SDK_WIT_PATH_0_1_0: &str = "../../wit/since_v0.1.0";
     /// The build settings every plugin crate wants: WebAssembly SIMD, 8 MiB of initial memory,
     /// vectorised loops unrolled for the host's work bound.
-    pub const CARGO_CONFIG: &str = include_str!("../plugins/guest/.cargo/config.toml");
+    pub const CARGO_CONFIG: &str = include_str!("../../plugins/guest/.cargo/config.toml");
 }
 
 /// Creates a plugin crate named `name` in `dir`: one node kind, the SDK and the interface

@@ -164,6 +164,7 @@ pub fn fit(
             threads,
             memo: base_memo.borrow().clone(),
             targets: Some(targets.clone()),
+            renderer: Some(crate::renderer()),
             ..RunOptions::new(std::env::temp_dir())
         };
         let result = exec::execute(&trial.recipe, &trial.graph, registry, &opts, &|_, _| {});

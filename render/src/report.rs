@@ -3,14 +3,12 @@
 //! manifest. Nothing in it loads from elsewhere (no scripts, fonts or style sheets), so it
 //! opens offline and reads the same in ten years.
 
-use crate::exec::Manifest;
-use crate::plot::draw;
+use crate::draw;
 use indexmap::IndexMap;
 use plotters::prelude::*;
+use spindlelab_engine::exec::Manifest;
+use spindlelab_engine::plot::PlotError;
 use std::fmt::Write as _;
-
-/// The report's file name inside a run folder (`run --report`).
-pub const REPORT_FILE: &str = "report.html";
 
 /// Tables of at most this many rows are shown in the report; longer ones are listed by name.
 const MAX_TABLE_ROWS: usize = 40;
@@ -69,7 +67,7 @@ fn step_graph(m: &Manifest) -> (Vec<(String, String, usize, String)>, Vec<(usize
 }
 
 /// The recipe's graph as SVG: steps as boxes in columns by depth, inputs as arrows.
-pub fn graph_svg(m: &Manifest) -> Result<String, crate::plot::PlotError> {
+pub fn graph_svg(m: &Manifest) -> Result<String, PlotError> {
     let (steps, edges) = step_graph(m);
     let mut layer = vec![0usize; steps.len()];
     // Manifest order is dependency order: one pass settles every depth.
@@ -101,7 +99,7 @@ pub fn graph_svg(m: &Manifest) -> Result<String, crate::plot::PlotError> {
     draw::register_font()?;
     {
         let root = SVGBackend::with_string(&mut out, (width, height)).into_drawing_area();
-        let e = |x: DrawingAreaErrorKind<_>| crate::plot::PlotError::Draw(format!("{x:?}"));
+        let e = |x: DrawingAreaErrorKind<_>| PlotError::Draw(format!("{x:?}"));
         root.fill(&WHITE).map_err(e)?;
         for (a, b, _) in &edges {
             let ((xa, ya), (xb, yb)) = (at(*a), at(*b));

@@ -1,14 +1,14 @@
 //! A [`Figure`] drawn by plotters, as SVG text or PNG bytes. Text is laid out with the bundled
 //! DejaVu Sans, so the bytes depend on the figure only (no system fonts, no timestamps).
 
-use super::PlotError;
-use super::figure::{Color as Shade, ColorBar, Figure, Panel, Series, Style};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use spindlelab_engine::plot::PlotError;
+use spindlelab_engine::plot::figure::{Color as Shade, ColorBar, Figure, Panel, Series, Style};
 use std::sync::OnceLock;
 
 /// DejaVu Sans, cut to Latin, Greek and the symbols plots use (`assets/DejaVuSans-LICENSE.txt`).
-const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
+const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
 const FAMILY: &str = "sans-serif";
 
 /// Width of every plot, pixels; the height follows from the panels.

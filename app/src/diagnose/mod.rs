@@ -359,7 +359,13 @@ fn evaluate(
 ) -> Result<(Evaluation, Memo), String> {
     let mut targets: Vec<String> = roles.gaps.iter().map(|g| g.step.clone()).collect();
     targets.extend(roles.trials.clone());
-    let opts = RunOptions { use_cache: false, memo, targets: Some(targets), ..RunOptions::new(std::env::temp_dir()) };
+    let opts = RunOptions {
+        use_cache: false,
+        memo,
+        targets: Some(targets),
+        renderer: Some(crate::renderer()),
+        ..RunOptions::new(std::env::temp_dir())
+    };
     let result = exec::execute(&c.recipe, &c.graph, registry, &opts, &|_, _| {});
     let outputs = |i: usize| -> Result<&crate::engine::exec::Produced, String> {
         match &result.outcomes[i] {
@@ -515,6 +521,7 @@ fn diagram(
         use_cache: false,
         memo: Some(memo),
         targets: Some(vec![trials.clone()]),
+        renderer: Some(crate::renderer()),
         ..RunOptions::new(std::env::temp_dir())
     };
     let result = exec::execute(&c.recipe, &c.graph, registry, &opts, &|_, _| {});
@@ -1200,7 +1207,8 @@ fn picture_name(file: &str) -> String {
 /// before and after (magnitude and phase), and the lobes before and after with the trials.
 /// A picture that cannot be drawn is left out; the numbers are in `diagnosis.json`.
 pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
-    use crate::engine::plot::{self, Layer, PlotFormat};
+    use crate::engine::plot::{Layer, PlotFormat};
+    use crate::render::render;
     let mut out = Vec::new();
     for FilePicture { file, measured, before, after } in &d.pictures.files {
         fn layer<'a>(name: &str, v: &'a Arc<Value>) -> Layer<'a> {
@@ -1211,7 +1219,7 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
         if let Some(a) = after {
             with.push(layer("model after", a));
         }
-        if let Ok(bytes) = plot::render(PlotFormat::Svg, &format!("{file}: measured and model"), None, &main, &with) {
+        if let Ok(bytes) = render(PlotFormat::Svg, &format!("{file}: measured and model"), None, &main, &with) {
             out.push((picture_name(file), bytes));
         }
     }
@@ -1224,7 +1232,7 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
         let trials = d.pictures.lobes_after.as_ref().map_or(verdicts, |(_, v)| v);
         with.push(Layer::new("trials", trials.as_ref()));
         if let Ok(bytes) =
-            plot::render(PlotFormat::Svg, "stability lobes before and after, with the trials", None, &main, &with)
+            render(PlotFormat::Svg, "stability lobes before and after, with the trials", None, &main, &with)
         {
             out.push(("lobes.svg".to_string(), bytes));
         }
@@ -1252,7 +1260,7 @@ pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
                 if dest_url.ends_with(".svg") && !dest_url.contains(['/', '\\']) && !dest_url.starts_with('.') =>
             {
                 let bytes = read(&dest_url)?;
-                figures.push(crate::engine::report::svg_figure(&format!("fig-{dest_url}"), &dest_url, &bytes));
+                figures.push(crate::render::report::svg_figure(&format!("fig-{dest_url}"), &dest_url, &bytes));
                 let dest_url = format!("#fig-{dest_url}").into();
                 events.push(Event::Start(Tag::Link { link_type, dest_url, title, id }));
             }
@@ -1266,7 +1274,7 @@ pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
         body.push_str(&f);
         body.push('\n');
     }
-    Ok(crate::engine::report::standalone(&format!("diagnosis of {}", dir.display()), &body))
+    Ok(crate::render::report::standalone(&format!("diagnosis of {}", dir.display()), &body))
 }
 
 /// Writes `diagnosis.json`, `diagnosis.md` and `diagnosed.yaml` into `out`, each whole or
