@@ -424,10 +424,14 @@ fn command(cli: Cli) -> ExitCode {
                     for e in &entries {
                         outln!("{:width$}  {:18}  {}", esc(&e.id), e.kind, esc(&e.reason));
                     }
-                    let cached = entries.iter().filter(|e| e.reason == engine::exec::PlanReason::Cached).count();
+                    use engine::exec::PlanReason;
+                    let count = |r: fn(&PlanReason) -> bool| entries.iter().filter(|e| r(&e.reason)).count();
+                    let cached = count(|r| *r == PlanReason::Cached);
+                    let skipped = count(|r| *r == PlanReason::NotNeeded);
+                    let skip = if skipped > 0 { format!(", {skipped} not needed") } else { String::new() };
                     outln!(
-                        "{} to run, {} from cache (output directory {})",
-                        entries.len() - cached,
+                        "{} to run, {} from cache{skip} (output directory {})",
+                        entries.len() - cached - skipped,
                         cached,
                         out.display()
                     );
@@ -529,10 +533,10 @@ fn command(cli: Cli) -> ExitCode {
                 }
             };
             // Each file is written whole to a temporary name first, and both are renamed into
-            // place only when both are written.
+            // place only when both are written; a folder named that does not exist yet is made.
             let stage = |path: &Path, text: &str| {
                 let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-                tempfile::NamedTempFile::new_in(dir).and_then(|mut tmp| {
+                std::fs::create_dir_all(dir).and_then(|()| tempfile::NamedTempFile::new_in(dir)).and_then(|mut tmp| {
                     std::io::Write::write_all(&mut tmp, text.as_bytes())?;
                     Ok(tmp)
                 })

@@ -384,7 +384,7 @@ impl Placement<'_> {
         let (Some(dir), Some(name)) = (beside_case.parent(), beside_case.file_name()) else {
             return Ok(file.to_string());
         };
-        let (Ok(dir), Ok(from)) = (dir.canonicalize(), self.recipe_dir.canonicalize()) else {
+        let (Ok(dir), Some(from)) = (dir.canonicalize(), canonical_to_be(self.recipe_dir)) else {
             return Ok(file.to_string());
         };
         if !dir.join(name).is_file() {
@@ -434,6 +434,21 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
 
 /// [`recipe_from_case`] for a recipe written where `placement` says: its data files named
 /// from the recipe's folder.
+/// The canonical form of a folder that may not exist yet (the recipe's, which the command
+/// makes when it writes): its deepest existing ancestor canonicalised, the rest appended.
+fn canonical_to_be(dir: &std::path::Path) -> Option<std::path::PathBuf> {
+    let abs = std::path::absolute(dir).ok()?;
+    let mut missing = Vec::new();
+    let mut at = abs.as_path();
+    loop {
+        if let Ok(c) = at.canonicalize() {
+            return Some(missing.iter().rev().fold(c, |path, part| path.join(part)));
+        }
+        missing.push(at.file_name()?);
+        at = at.parent()?;
+    }
+}
+
 pub fn recipe_from_case_at(json: &str, path: &str, placement: Placement<'_>) -> Result<String, ImportError> {
     let parts = import_parts(json, path, Some(placement))?;
     Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
@@ -732,12 +747,15 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         let _ = writeln!(w);
         let _ = writeln!(w, "outputs:");
         if !frfs.is_empty() {
-            let _ = writeln!(w, "  # The gap per measured file, and the measured configuration over each measurement.");
+            let _ = writeln!(
+                w,
+                "  # The gap per measured file, and the measured configuration over each measurement, one plot per file."
+            );
             let _ = writeln!(w, "  - {{ from: \"@gap.summary\", file: gap.csv }}");
             let _ = writeln!(
                 w,
                 "  - {{ from: \"@measured_model.frf\", label: model, with: [{{ from: \"@tool_tip.frf\", label: measured }}], \
-                 file: model-vs-measured.svg }}"
+                 file: \"model-vs-measured-{{file}}.svg\" }}"
             );
         }
         if cutting.is_some() {

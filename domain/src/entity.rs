@@ -84,11 +84,33 @@ impl SpindleMode {
         SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE }
     }
 
+    /// A mode stated modally, as the equivalent beam the spindle model uses: the solid
+    /// fixed-free Euler–Bernoulli beam of `material` whose first mode has natural frequency
+    /// `freq_hz` and modal stiffness `stiffness` at its free end (N/m), with the loss factor
+    /// `2 zeta` that gives a viscous damping ratio `zeta` its resonant peak.
+    ///
+    /// With the first mode normalised to 1 at the tip, its modal mass is ρAL/4, so
+    /// `k = ω² ρ (π d²/4) L / 4`, and `ω = (β₁L)² (d/4) √(E/ρ) / L²` (`I/A = d²/16`); the two
+    /// give `L⁵ = k (β₁L)⁴ E / (π ρ² ω⁴)` and `d = 4 ω L² / ((β₁L)² √(E/ρ))`. The beam's higher
+    /// modes (from 6.27 f) add about 3 % to its static compliance, as a real spindle's do.
+    pub fn from_modal(freq_hz: f64, stiffness: f64, zeta: f64, material: &Material, law: SpeedLaw) -> SpindleMode {
+        let b4 = FIXED_FREE_FIRST_ROOT.powi(4);
+        let w = std::f64::consts::TAU * freq_hz;
+        let (e, rho) = (material.youngs_modulus, material.density);
+        let length = (stiffness * b4 * e / (std::f64::consts::PI * rho * rho * w.powi(4))).powf(0.2);
+        let diameter = 4.0 * w * length * length / (FIXED_FREE_FIRST_ROOT.powi(2) * (e / rho).sqrt());
+        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law }
+    }
+
     /// Natural frequency (Hz) and loss factor at speed `n`, by the law about `reference`.
     pub fn at_speed(&self, n: Speed, reference: Speed) -> (f64, f64) {
         (self.law.frequency(self.freq_hz, n, reference), self.law.damping(self.loss_factor, n, reference))
     }
 }
+
+/// β₁L of the first mode of a fixed-free Euler–Bernoulli beam: the first root of
+/// `1 + cos x cosh x = 0`.
+pub const FIXED_FREE_FIRST_ROOT: f64 = 1.875_104_068_711_961;
 
 /// The spindle-machine receptance at the holder base as equivalent modes per direction.
 #[derive(Debug, Clone, PartialEq)]

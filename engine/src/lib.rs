@@ -218,7 +218,16 @@ pub fn run(
 ) -> Result<RunReport, RunError> {
     let dir = exec::OutputDir::open(&opts.out_dir).map_err(RunError::Output)?;
     // A file of the user's where an output goes is refused before anything is computed.
-    let names = compiled.recipe.outputs.iter().map(|o| o.file.as_str());
+    let files: Vec<(&model::Output, String, Vec<usize>)> = compiled
+        .recipe
+        .outputs
+        .iter()
+        .flat_map(|o| {
+            let files = compiled.graph.output_files(o).unwrap_or_default();
+            files.into_iter().map(move |(file, ids)| (o, file, ids))
+        })
+        .collect();
+    let names = files.iter().map(|(_, f, _)| f.as_str());
     let names = names.chain(opts.extra_files.iter().map(|(rel, _)| rel.as_str()));
     let names = names.chain([exec::manifest::MANIFEST_FILE]);
     let names = names.chain(opts.report.then_some(render::REPORT_FILE));
@@ -244,8 +253,7 @@ pub fn run(
     let mut plot_notes = Vec::new();
     let mut partial = indexmap::IndexMap::new();
     let mut contents: Vec<(String, Vec<u8>)> = Vec::new();
-    for out in compiled.recipe.outputs.iter().filter(|_| complete || opts.keep_going) {
-        let ids = &compiled.graph.by_step[&out.from.step];
+    for (out, file, ids) in files.iter().filter(|_| complete || opts.keep_going) {
         let mut rows = Vec::new();
         let mut missing = Vec::new();
         for &i in ids {
@@ -270,7 +278,7 @@ pub fn run(
             match rows.iter().map(|r| in_unit(r.value, unit)).collect::<Result<Vec<_>, _>>() {
                 Ok(v) => converted = v,
                 Err(message) => {
-                    plot_notes.push(format!("{}: not written: {message}", out.file));
+                    plot_notes.push(format!("{file}: not written: {message}"));
                     continue;
                 }
             }
@@ -281,23 +289,23 @@ pub fn run(
         let bytes = match out.format {
             model::OutputFormat::Plot(format) => match renderer
                 .ok_or_else(|| "no renderer was given to this run".to_string())
-                .and_then(|r| plot_output(compiled, &result, out, format, &rows, r))
+                .and_then(|r| plot_output(compiled, &result, out, (file, ids), format, &rows, r))
             {
                 Ok(bytes) => bytes,
                 Err(message) => {
-                    plot_notes.push(format!("{}: not drawn: {message}", out.file));
+                    plot_notes.push(format!("{file}: not drawn: {message}"));
                     continue;
                 }
             },
             format => exec::write::render_partial(format, &rows, &missing).into_bytes(),
         };
-        staged.write(&out.file, &bytes).map_err(RunError::Output)?;
-        written.push(out.file.clone());
+        staged.write(file, &bytes).map_err(RunError::Output)?;
+        written.push(file.clone());
         if !missing.is_empty() {
-            partial.insert(out.file.clone(), missing);
+            partial.insert(file.clone(), missing);
         }
         if opts.report {
-            contents.push((out.file.clone(), bytes));
+            contents.push((file.clone(), bytes));
         }
     }
     for (rel, text) in &opts.extra_files {
@@ -384,14 +392,15 @@ pub fn plot_of_output(
     if !matches!(out.format, model::OutputFormat::Plot(_)) {
         return None;
     }
-    let rows: Vec<exec::write::Row> = compiled.graph.by_step[&out.from.step]
+    let ids = &compiled.graph.by_step[&out.from.step];
+    let rows: Vec<exec::write::Row> = ids
         .iter()
         .filter_map(|&i| {
             let value = result.outcomes[i].outputs()?.get(&out.from.port)?;
             Some(exec::write::Row { label: &compiled.graph.instances[i].label, value })
         })
         .collect();
-    (!rows.is_empty()).then(|| plot_output(compiled, result, out, format, &rows, renderer))
+    (!rows.is_empty()).then(|| plot_output(compiled, result, out, (&out.file, ids), format, &rows, renderer))
 }
 
 /// An output's plot: the rows of its own port, each `with` reference's values over them, each
@@ -400,6 +409,7 @@ fn plot_output(
     compiled: &Compiled,
     result: &RunResult,
     out: &model::Output,
+    (file, ids): (&str, &[usize]),
     format: plot::PlotFormat,
     rows: &[exec::write::Row],
     renderer: &dyn render::Renderer,
@@ -410,9 +420,25 @@ fn plot_output(
     let main_name = out.label.clone().unwrap_or_else(|| name(&out.from));
     let main: Vec<plot::Layer> = rows.iter().map(|r| plot::Layer::swept(main_name.clone(), r.value, r.label)).collect();
     let mut with = Vec::new();
+    // A file of one sweep point (`{file}` in its name) draws the values of that point: each
+    // `with` instance that agrees with it on the coordinates the name splits by.
+    let point: Vec<(&str, &str)> = match ids.first() {
+        Some(&i) if file != out.file => {
+            let axes = out.split_by();
+            graph::coordinates(&compiled.graph.instances[i].label)
+                .into_iter()
+                .filter(|(n, _)| axes.contains(n))
+                .collect()
+        }
+        _ => Vec::new(),
+    };
     for (w, label) in out.with.iter().zip(&out.with_labels) {
         for &i in &compiled.graph.by_step[&w.step] {
             let inst = &compiled.graph.instances[i];
+            let coords = graph::coordinates(&inst.label);
+            if point.iter().any(|(n, v)| coords.iter().any(|(m, u)| m == n && u != v)) {
+                continue;
+            }
             let value = result.outcomes[i]
                 .outputs()
                 .and_then(|o| o.get(&w.port))
@@ -421,6 +447,10 @@ fn plot_output(
         }
     }
     let mut title = format!("{}: {main_name}", compiled.recipe.name);
+    if !point.is_empty() {
+        let at: Vec<String> = point.iter().map(|(n, v)| format!("{n} {v}")).collect();
+        title = format!("{title}, {}", at.join(", "));
+    }
     if let Some(cut) = cut_of(compiled, &out.from.step) {
         title = format!("{title} ({cut})");
     }

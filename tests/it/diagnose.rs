@@ -206,6 +206,14 @@ fn the_command_writes_a_diagnosed_recipe_that_runs_at_the_floor() {
     assert!(html.contains("href=\"#fig-lobes.svg\"") && html.contains("<table>"));
     let input = std::fs::read_to_string(&recipe).unwrap();
     let diagnosed = std::fs::read_to_string(out.join("diagnosed.yaml")).unwrap();
+    // The fitted value is written to six significant digits, not the sixteen of a double.
+    let mass = diagnosed
+        .lines()
+        .find(|l| l.trim_start().starts_with("added_tip_mass:"))
+        .unwrap_or_else(|| panic!("{diagnosed}"));
+    let number = mass.split(':').nth(1).unwrap().split_whitespace().next().unwrap();
+    let digits = number.split(['e', 'E']).next().unwrap().chars().filter(char::is_ascii_digit).collect::<String>();
+    assert!(digits.trim_start_matches('0').len() <= 6, "{mass}");
     // Every input line is kept, in order, but for a reference rewired through the effect's
     // step; the rest is added.
     let refs = |l: &str| -> String {

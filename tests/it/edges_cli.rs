@@ -200,3 +200,26 @@ fn a_plugin_pin_that_yaml_reads_as_a_number_asks_for_quotes() {
     let o = run_in(tmp.path(), &["check", "r.yaml"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("quote it: `version: \"…\"`"), "{}", text(&o));
 }
+
+/// After a complete run, `plan` counts as "to run" only what a rerun would compute: the
+/// uncached recording an output file reads, not the recordings every consumer of which is
+/// cached (listed as not needed).
+#[test]
+fn plan_after_a_full_run_counts_only_what_would_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let recipe = dir.path().join("phase-lag.yaml");
+    std::fs::copy(root.join("scripts/phase-lag.yaml"), &recipe).unwrap();
+    let run = run_in(dir.path(), &["run", "phase-lag.yaml", "-o", "out", "-q"]);
+    assert!(run.status.success(), "{}", text(&run));
+    let plan = run_in(dir.path(), &["plan", "phase-lag.yaml", "-o", "out"]);
+    assert!(plan.status.success(), "{}", text(&plan));
+    let out = String::from_utf8_lossy(&plan.stdout);
+    let lines: Vec<&str> = out.lines().collect();
+    let last = lines.last().unwrap();
+    let would_run = lines.iter().filter(|l| l.contains(" run: ")).count();
+    let not_needed = lines.iter().filter(|l| l.contains(" skip: ")).count();
+    assert!(would_run >= 1 && not_needed >= 10, "{out}");
+    assert!(last.starts_with(&format!("{would_run} to run, ")), "{out}");
+    assert!(last.contains(&format!(", {not_needed} not needed")), "{out}");
+}

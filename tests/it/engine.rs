@@ -333,3 +333,35 @@ fn a_plot_without_a_renderer_is_refused_before_anything_runs() {
     let left: Vec<_> = std::fs::read_dir(out.path()).unwrap().flatten().map(|e| e.file_name()).collect();
     assert!(left.iter().all(|n| n.to_string_lossy().starts_with('.')), "{left:?}");
 }
+
+/// A file name with a sweep coordinate in braces writes one file per value, each holding that
+/// point's values only and reading back as one block; a coordinate the step does not sweep is
+/// an error at the output before anything runs.
+#[test]
+fn an_output_named_by_a_sweep_coordinate_writes_one_file_per_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(data("noisy-sweep.yaml")).unwrap();
+    let split = text.replace("file: frf.csv", "file: \"frf-{hammer_mass}.csv\"");
+    let recipe = dir.path().join("split.yaml");
+    std::fs::write(&recipe, &split).unwrap();
+    let c = compile(&recipe);
+    let report = run(&c, &dir.path().join("out"), 2, false);
+    for mass in ["0.02kg", "0.04kg", "0.06kg"] {
+        let file = format!("frf-{mass}.csv");
+        assert!(report.written.contains(&file), "{file} not in {:?}", report.written);
+        let bytes = std::fs::read(dir.path().join("out").join(&file)).unwrap();
+        let frfs = engine::formats::csv::read_frf_blocks(&bytes, &file).unwrap();
+        assert_eq!(frfs.len(), 1, "{file}: one sweep point");
+    }
+    assert!(!report.written.contains(&"frf.csv".to_string()));
+
+    let bad = dir.path().join("bad.yaml");
+    std::fs::write(&bad, text.replace("file: frf.csv", "file: \"frf-{speed}.csv\"")).unwrap();
+    let e = engine::compile_file(&bad, &spindlelab::registry()).err().expect("an unknown coordinate is refused");
+    let shown = e.render(false);
+    assert!(
+        shown.contains("`{speed}` in `frf-{speed}.csv` names no sweep of step `frf`; its sweeps: hammer_mass"),
+        "{shown}"
+    );
+    assert!(shown.contains("bad.yaml:"), "{shown}");
+}

@@ -51,7 +51,15 @@ fn a_recipe_imported_into_another_folder_runs_from_a_third_and_writes_the_case_s
     assert_eq!(code, Some(0), "{err}{out}");
     assert!(!format!("{out}{err}").contains("asks for no plot"), "{out}{err}");
     let dir = work.join("out/train_02");
-    for f in ["gap.csv", "model-vs-measured.svg", "lobes.svg", "trial-verdicts.csv", "lobes.csv", "report.html"] {
+    for f in [
+        "gap.csv",
+        "model-vs-measured-frf_x_0rpm.svg",
+        "model-vs-measured-frf_y_0rpm.svg",
+        "lobes.svg",
+        "trial-verdicts.csv",
+        "lobes.csv",
+        "report.html",
+    ] {
         assert!(dir.join(f).is_file(), "{f} not written to {}:\n{out}", dir.display());
     }
 
@@ -69,10 +77,13 @@ fn a_recipe_imported_into_another_folder_runs_from_a_third_and_writes_the_case_s
     let lobes = read_tables(&read("lobes.csv"), "lobes.csv").unwrap();
     let limit = lobes[0].table.columns.iter().find(|c| c.name == "depth_speed_dependent").expect("the limit");
     assert!(limit.values.len() > 100 && limit.values.iter().all(|d| *d > 0.0), "{:?}", &limit.values[..3]);
-    for svg in ["model-vs-measured.svg", "lobes.svg"] {
+    for svg in ["model-vs-measured-frf_x_0rpm.svg", "model-vs-measured-frf_y_0rpm.svg", "lobes.svg"] {
         let text = String::from_utf8(read(svg)).unwrap();
         assert!(text.contains("<svg") && text.contains("</svg>"), "{svg}");
     }
+    // One plot per measured file: the model and the measurement of that file only.
+    let x = String::from_utf8(read("model-vs-measured-frf_x_0rpm.svg")).unwrap();
+    assert!(x.contains("frf_x_0rpm") && !x.contains("frf_y_0rpm"), "the x plot draws the y file");
     let report = String::from_utf8(read("report.html")).unwrap();
     assert!(report.contains("model-vs-measured") && report.contains("lobes.svg"), "the report shows the plots");
 }
@@ -108,4 +119,19 @@ fn a_recipe_and_its_library_written_elsewhere_check_from_anywhere() {
     assert!(text.contains("use: [\"lib/case.yaml\"]") && text.contains("\"../data/frf_y_0rpm.csv\""), "{text}");
     let (code, out, err) = spindlelab(&work, &["check", "../recipes/short.yaml"]);
     assert_eq!(code, Some(0), "{err}{out}");
+}
+
+/// `import -o` into a folder that does not exist yet makes it, as `run -o` does, and the
+/// recipe written there runs.
+#[test]
+fn import_makes_the_folder_it_is_told_to_write_into() {
+    let root = lab();
+    let work = root.path().join("work");
+    let (code, _, err) = spindlelab(&work, &["import", "../data/case.json", "-o", "../recipes/new/deeper/r.yaml"]);
+    assert_eq!(code, Some(0), "{err}");
+    let recipe = root.path().join("recipes/new/deeper/r.yaml");
+    let text = std::fs::read_to_string(&recipe).unwrap();
+    assert!(text.contains("\"../../../data/frf_x_0rpm.csv\""), "{text}");
+    let (code, _, err) = spindlelab(&work, &["check", "../recipes/new/deeper/r.yaml"]);
+    assert_eq!(code, Some(0), "{err}");
 }

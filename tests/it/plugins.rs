@@ -458,8 +458,11 @@ fn command_line_checks_plugins_lists_their_nodes_and_runs_recipes_with_them() {
     // Without the plugin folder the recipe names a plugin that is not there: exit 2, at its line.
     let (code, _, err) = spindlelab(&["check", "scripts/plugin-nodes.yaml"], home.path());
     assert_eq!(code, 2);
+    let text = std::fs::read_to_string("scripts/plugin-nodes.yaml").unwrap();
+    let line = 1 + text.lines().position(|l| l.contains("id: tip-mass")).unwrap();
     assert!(
-        err.contains("plugin-nodes.yaml:9:5") && err.contains("plugin `tip-mass` is not in the plugin folders"),
+        err.contains(&format!("plugin-nodes.yaml:{line}:5"))
+            && err.contains("plugin `tip-mass` is not in the plugin folders"),
         "{err}"
     );
 

@@ -368,3 +368,47 @@ fn beam_receptance_warns_that_a_compliant_tool_joint_is_not_modelled() {
     assert!(warnings("soft").contains("`tool_joint` is not modelled here"), "{}", warnings("soft"));
     assert!(warnings("rigid").is_empty(), "{}", warnings("rigid"));
 }
+
+/// A spindle mode stated modally (`f`, `stiffness`, `damping`) gives the receptance of that
+/// mode: its peak at `f` of height 1/(2ζk) (the single-degree-of-freedom closed form, here
+/// within 3 %: the equivalent beam's higher modes sit above 6 f) and a static compliance of
+/// 1/k within the 3 % those modes add. A mode stated both ways, or half, is refused at its place.
+#[test]
+fn a_spindle_mode_stated_by_stiffness_and_damping_ratio_has_that_peak() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("modal-spindle.yaml");
+    let (f, k, zeta) = (800.0, 5e7, 0.03);
+    let text = format!(
+        "spindlelab: 1\nname: modal-spindle\nmaterials:\n  steel: {{ E: 200 GPa, rho: 7800 kg/m^3 }}\n\
+         machines:\n  m:\n    spindle:\n      material: steel\n      modes:\n        x:\n          \
+         - {{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta} }}\n\
+         steps:\n  nose:\n    kind: spindle.receptance\n    params: {{ machine: m, max_frequency: 1600 Hz, resolution: 0.5 Hz }}\n"
+    );
+    std::fs::write(&recipe, &text).unwrap();
+    let ran = run_at(&recipe, &dir.path().join("out"));
+    let Value::Frf(h) = ran.value("nose", "frf").as_ref().clone() else { panic!("an FRF") };
+    let (peak_at, peak) = h
+        .freq_hz
+        .iter()
+        .zip(&h.values)
+        .map(|(f, v)| (*f, v.norm()))
+        .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    assert!((peak_at - f).abs() <= 1.0, "peak at {peak_at} Hz");
+    let want = 1.0 / (2.0 * zeta * k);
+    assert!((peak / want - 1.0).abs() < 0.03, "peak {peak:e} m/N, closed form {want:e}");
+    let first = h.values[0].norm();
+    assert!(first * k > 1.0 && first * k < 1.04, "static compliance × k = {}", first * k);
+
+    for (mode, says) in [
+        (format!("{{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta}, d: 90 mm, eta: 0.05 }}"), "stated twice"),
+        (format!("{{ f: {f} Hz, stiffness: {k} N/m }}"), "only half stated"),
+        (format!("{{ f: {f} Hz, stiffness: {k} N/m, damping: 1.5 }}"), "must be in [0, 1)"),
+    ] {
+        let bad = dir.path().join("bad.yaml");
+        let line = format!("- {{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta} }}");
+        std::fs::write(&bad, text.replace(&line, &format!("- {mode}"))).unwrap();
+        let e = engine::compile_file(&bad, &spindlelab::registry()).err().expect("refused");
+        let shown = e.render(false);
+        assert_has(&shown, &[says, "bad.yaml:11:"]);
+    }
+}

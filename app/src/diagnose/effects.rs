@@ -39,8 +39,11 @@ impl Free {
     fn log(name: &str, unit: &'static str, start: f64, min: f64, max: f64) -> Free {
         Free { name: name.into(), unit, start, min, max, log: true }
     }
+    /// `v` as the recipe writes it, with the parameter's unit: the shortest text that reads
+    /// back as `v`, in plain decimals where a person would write them (1e-3 to 1e6).
     pub fn text(&self, v: f64) -> String {
-        if self.unit.is_empty() { format!("{v:e}") } else { format!("{v:e} {}", self.unit) }
+        let n = if v == 0.0 || (1e-3..1e6).contains(&v.abs()) { format!("{v}") } else { format!("{v:e}") };
+        if self.unit.is_empty() { n } else { format!("{n} {}", self.unit) }
     }
 }
 

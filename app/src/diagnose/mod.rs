@@ -905,8 +905,11 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         }
     }
 
-    // The augmented recipe, run again.
-    let (diagnosed, _) = augmented(&ctx, &named, &named_values).map_err(recipe_err)?;
+    // The augmented recipe, run again: its values as `diagnosed.yaml` writes them, to the
+    // significant digits a fit resolves, so the file reproduces the gap reported after.
+    let written: Vec<(String, f64)> =
+        named_values.iter().map(|(n, v)| (n.clone(), spindlelab_domain::round_sig(*v, WRITTEN_DIGITS))).collect();
+    let (diagnosed, _) = augmented(&ctx, &named, &written).map_err(recipe_err)?;
     let after = if named.is_empty() {
         baseline.clone()
     } else {
@@ -1276,6 +1279,10 @@ pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
     }
     Ok(crate::render::report::standalone(&format!("diagnosis of {}", dir.display()), &body))
 }
+
+/// Significant digits of a fitted value in `diagnosed.yaml`: far below any fitted σ, so the
+/// written recipe reproduces the gap after, and readable where the fit wrote 16.
+const WRITTEN_DIGITS: i32 = 6;
 
 /// Writes `diagnosis.json`, `diagnosis.md` and `diagnosed.yaml` into `out`, each whole or
 /// not at all.

@@ -58,6 +58,66 @@ pub struct Graph {
     pub by_step: IndexMap<String, Vec<usize>>,
 }
 
+/// The sweep coordinates of an instance label (`file=frf_x.csv, speed=6000 rpm`), as written.
+pub fn coordinates(label: &str) -> Vec<(&str, &str)> {
+    label.split(", ").filter_map(|part| part.split_once('=')).map(|(n, v)| (n.trim(), v.trim())).collect()
+}
+
+/// A coordinate's value as part of a file name: a data file by its stem, a quantity without
+/// its space (`6000rpm`), and anything a file name should not hold as `_`.
+fn file_part(axis: &str, value: &str) -> String {
+    let value = if axis == "file" {
+        std::path::Path::new(value).file_stem().and_then(|s| s.to_str()).unwrap_or(value)
+    } else {
+        value
+    };
+    value
+        .chars()
+        .filter(|c| !c.is_whitespace())
+        .map(|c| if c.is_alphanumeric() || matches!(c, '.' | '-' | '_') { c } else { '_' })
+        .collect()
+}
+
+impl Graph {
+    /// The files an output writes, each with the instances of its `from` step it holds: one
+    /// file for an output named plainly, one per value of the coordinates its name splits by
+    /// (`model-vs-measured-{file}.svg`), in sweep order. An error names a coordinate that
+    /// is not a sweep of the step.
+    pub fn output_files(&self, out: &crate::model::Output) -> Result<Vec<(String, Vec<usize>)>, String> {
+        let ids = self.by_step.get(&out.from.step).cloned().unwrap_or_default();
+        let axes = out.split_by();
+        if axes.is_empty() {
+            return Ok(vec![(out.file.clone(), ids)]);
+        }
+        let mut files: IndexMap<String, Vec<usize>> = IndexMap::new();
+        for &i in &ids {
+            let coords = coordinates(&self.instances[i].label);
+            let mut name = out.file.clone();
+            for axis in &axes {
+                let Some((_, v)) = coords.iter().find(|(n, _)| n == axis) else {
+                    let sweeps: Vec<&str> = coords.iter().map(|(n, _)| *n).collect();
+                    return Err(if sweeps.is_empty() {
+                        format!(
+                            "`{{{axis}}}` in `{}` names a sweep, and step `{}` is not swept",
+                            out.file, out.from.step
+                        )
+                    } else {
+                        format!(
+                            "`{{{axis}}}` in `{}` names no sweep of step `{}`; its sweeps: {}",
+                            out.file,
+                            out.from.step,
+                            sweeps.join(", ")
+                        )
+                    });
+                };
+                name = name.replacen(&format!("{{{axis}}}"), &file_part(axis, v), 1);
+            }
+            files.entry(name).or_default().push(i);
+        }
+        Ok(files.into_iter().collect())
+    }
+}
+
 fn digest(text: &str) -> String {
     blake3::hash(text.as_bytes()).to_hex()[..16].to_string()
 }
@@ -253,5 +313,16 @@ pub fn compile(recipe: &Recipe, registry: &Registry, diags: &mut Diagnostics) ->
         by_step.insert(step.id.clone(), ids);
     }
     // Keep recipe order for display while instances stay topologically ordered.
-    Graph { instances, by_step }
+    let graph = Graph { instances, by_step };
+    // A file name that splits an output by sweep coordinates names sweeps of its step.
+    for out in recipe.outputs.iter().filter(|o| graph.by_step.contains_key(&o.from.step)) {
+        if let Err(e) = graph.output_files(out) {
+            diags.error_help(
+                Some(&out.span),
+                e,
+                "name a sweep of the step in braces (`frf-{speed}.csv`: one file per speed), or leave the braces out",
+            );
+        }
+    }
+    graph
 }

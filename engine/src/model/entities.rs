@@ -34,8 +34,14 @@ pub const JOINT: &[Field] = &[
 
 pub const SPINDLE_MODE: &[Field] = &[
     Field::req("f", T::Quantity(D::FREQUENCY), "natural frequency of the equivalent fixed-free beam at rest"),
-    Field::req("d", T::Quantity(D::LENGTH), "diameter of the equivalent fixed-free beam"),
-    Field::req("eta", RATIO, "structural loss factor"),
+    Field::opt("d", T::Quantity(D::LENGTH), "diameter of the equivalent fixed-free beam (with `eta`)"),
+    Field::opt("eta", RATIO, "structural loss factor (with `d`)"),
+    Field::opt(
+        "stiffness",
+        T::Quantity(D::STIFFNESS),
+        "modal stiffness at the spindle nose, for a mode stated modally (with `damping`, instead of `d` and `eta`)",
+    ),
+    Field::opt("damping", RATIO, "viscous damping ratio ζ of a mode stated modally (with `stiffness`)"),
     Field::def("kf", RATIO, "0", "speed law: f(n) = f (1 + kf (n/ref_speed)^2)"),
     Field::def("keta", RATIO, "0", "speed law: eta(n) = eta (1 + keta (n/ref_speed)^2)"),
 ];

@@ -289,6 +289,19 @@ impl Output {
     pub fn steps(&self) -> impl Iterator<Item = &str> {
         std::iter::once(self.from.step.as_str()).chain(self.with.iter().map(|r| r.step.as_str()))
     }
+
+    /// The sweep coordinates the file name splits the output by, one file per value:
+    /// `model-vs-measured-{file}.svg` gives `["file"]`; empty for one file.
+    pub fn split_by(&self) -> Vec<&str> {
+        let mut out = Vec::new();
+        let mut rest = self.file.as_str();
+        while let Some(open) = rest.find('{') {
+            let Some(close) = rest[open..].find('}') else { break };
+            out.push(&rest[open + 1..open + close]);
+            rest = &rest[open + close + 1..];
+        }
+        out
+    }
 }
 
 /// Reports a node's rejection of a step's parameter values at the parameter's place.

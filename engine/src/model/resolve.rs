@@ -443,6 +443,7 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
             if let Some(jraw) = raw.get("holder_interface") {
                 check_joint(name, jraw, p.object("holder_interface"), diags);
             }
+            check_spindle_modes(name, raw, p, diags);
         }
         EntityKind::Sensor => {}
     }
@@ -450,6 +451,51 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
         && let Some(jraw) = raw.get("tool_joint")
     {
         check_joint(name, jraw, p.object("tool_joint"), diags);
+    }
+}
+
+/// A spindle mode is an equivalent beam (`d` and `eta`) or stated modally (`stiffness` and
+/// `damping`), one or the other, with a stiffness above 0 and a damping ratio in [0, 1).
+fn check_spindle_modes(machine: &str, raw: &Raw, p: &Params, diags: &mut Diagnostics) {
+    let (Some(modes), Some(mraw)) =
+        (p.object("spindle").and_then(|s| s.get("modes")), raw.get("spindle").and_then(|s| s.get("modes")))
+    else {
+        return;
+    };
+    let ParamValue::Map(dirs) = modes else { return };
+    for (dir, list) in dirs {
+        let ParamValue::Objects(list) = list else { continue };
+        let raws: Vec<&Raw> = match mraw.get(dir).map(|r| &r.kind) {
+            Some(RawKind::Seq(items)) => items.iter().collect(),
+            _ => Vec::new(),
+        };
+        for (i, m) in list.iter().enumerate() {
+            let at = raws.get(i).map(|r| r.span.clone());
+            let what = format!("machine `{machine}`: spindle mode {} in {dir}", i + 1);
+            let beam = (m.get("d").is_some(), m.get("eta").is_some());
+            let modal = (m.get("stiffness").is_some(), m.get("damping").is_some());
+            let help = "give `d` and `eta` (an equivalent beam) or `stiffness` and `damping` (the mode's k and ζ)";
+            match (beam, modal) {
+                ((true, true), (false, false)) => {}
+                ((false, false), (true, true)) => {
+                    let (k, zeta) = (m.f64("stiffness").unwrap_or(f64::NAN), m.f64("damping").unwrap_or(f64::NAN));
+                    if !(k.is_finite() && k > 0.0) {
+                        diags.error(at.as_ref(), format!("{what}: `stiffness` = {k} N/m must be above 0"));
+                    }
+                    if !(zeta.is_finite() && (0.0..1.0).contains(&zeta)) {
+                        diags.error_help(
+                            at.as_ref(),
+                            format!("{what}: damping ratio `damping` = {zeta} must be in [0, 1)"),
+                            "a spindle mode's ζ is about 0.01–0.1 (`damping: 3 %`)",
+                        );
+                    }
+                }
+                ((_, _), (false, false)) | ((false, false), (_, _)) => {
+                    diags.error_help(at.as_ref(), format!("{what} is only half stated"), help)
+                }
+                _ => diags.error_help(at.as_ref(), format!("{what} is stated twice, as a beam and modally"), help),
+            }
+        }
     }
 }
 
@@ -481,6 +527,7 @@ fn speeds(list: &[f64]) -> Vec<Speed> {
 }
 
 fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine {
+    let material_of = |s: &Params| material(s, "material", materials).expect("checked material");
     let spindle = p.object("spindle").map(|s| Spindle {
         material: material(s, "material", materials).expect("checked material"),
         ref_speed: Speed::from_rad_s(s.f64("ref_speed").unwrap_or(0.0)),
@@ -491,11 +538,20 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                     let modes = match v {
                         ParamValue::Objects(list) => list
                             .iter()
-                            .map(|m| SpindleMode {
-                                freq_hz: m.f64("f").unwrap_or(0.0),
-                                diameter: m.f64("d").unwrap_or(0.0),
-                                loss_factor: m.f64("eta").unwrap_or(0.0),
-                                law: SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("keta").unwrap_or(0.0) },
+                            .map(|m| {
+                                let freq_hz = m.f64("f").unwrap_or(0.0);
+                                let law = SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("keta").unwrap_or(0.0) };
+                                match (m.f64("stiffness"), m.f64("damping")) {
+                                    (Some(k), Some(zeta)) => {
+                                        SpindleMode::from_modal(freq_hz, k, zeta, &material_of(s), law)
+                                    }
+                                    _ => SpindleMode {
+                                        freq_hz,
+                                        diameter: m.f64("d").unwrap_or(0.0),
+                                        loss_factor: m.f64("eta").unwrap_or(0.0),
+                                        law,
+                                    },
+                                }
                             })
                             .collect(),
                         _ => Vec::new(),

@@ -53,7 +53,8 @@ impl StabilitySd {
                 kind: "stability.sd",
                 // 3: the chatter frequency is the physical one (the harmonic of the Floquet solution with the
                 // largest amplitude), no longer |arg μ|/2π × the tooth frequency folded into [0, f_tooth/2].
-                version: 3,
+                // 4: the table's `kind` is a word (none, Hopf, flip, fold), not a code.
+                version: 4,
                 description: "Limiting depth per speed by first-order semi-discretization (Insperger & Stépán) of tool-point modal models in x (feed) and y, with the kind of chatter (Hopf or flip); spectral radii on a speed × depth grid.",
                 inputs: vec![
                     PortSpec::new("modes_x", PortType::ModalModel, "tool-point modes along x, the feed direction"),
@@ -70,7 +71,7 @@ impl StabilitySd {
                     PortSpec::new(
                         "table",
                         PortType::Table,
-                        "speed (rpm), depth_limit (m), chatter_frequency (Hz), kind (0 none, 1 Hopf, 2 flip, 3 fold), \
+                        "speed (rpm), depth_limit (m), chatter_frequency (Hz), kind (the bifurcation at the limit, as a word: none, Hopf, flip or fold), \
                          restabilises (1 if a larger scanned depth is stable again), steps (per tooth period used)",
                     ),
                     PortSpec::new(
@@ -122,18 +123,19 @@ impl Node for StabilitySd {
             ));
         }
         let kind = |d: &stability::DepthLimit| match d.kind {
-            None => 0.0,
-            Some(Bifurcation::Hopf) => 1.0,
-            Some(Bifurcation::Flip) => 2.0,
-            Some(Bifurcation::Fold) => 3.0,
+            None => "none",
+            Some(Bifurcation::Hopf) => "Hopf",
+            Some(Bifurcation::Flip) => "flip",
+            Some(Bifurcation::Fold) => "fold",
         };
+        let kinds: Vec<&str> = limits.iter().map(kind).collect();
         let depth: Vec<f64> = limits.iter().map(|d| d.depth_m).collect();
         let table = Table {
             columns: vec![
                 Column::new("speed", "rpm", speeds.clone()),
                 Column::new("depth_limit", "m", depth.clone()),
                 Column::new("chatter_frequency", "Hz", chatter.clone()),
-                Column::new("kind", "", limits.iter().map(kind).collect()),
+                Column::text("kind", &kinds),
                 Column::new("restabilises", "", limits.iter().map(|d| f64::from(u8::from(d.restabilises))).collect()),
                 Column::new("steps", "", limits.iter().map(|d| d.steps as f64).collect()),
             ],
