@@ -136,6 +136,25 @@ enum Command {
         /// warnings and the manifest in one self-contained file.
         #[arg(long)]
         report: bool,
+        /// The cache folder (default: the output folder's own), e.g. on storage that several
+        /// machines share.
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
+        /// Compute only shard K of N of the graph's cacheable instances into the cache, and
+        /// write no outputs; a run without `--shard` afterwards commits them
+        /// (docs/scale-out.md).
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
+        /// With `--shard`: only the instances of this level of the graph (the length of their
+        /// longest chain of inputs), so the shards of each level need only those before.
+        #[arg(long, requires = "shard")]
+        level: Option<usize>,
+    },
+    /// Write a workflow that another engine schedules (Snakemake): shards of each level of the
+    /// graph as jobs, then one that commits the outputs.
+    Export {
+        #[command(subcommand)]
+        to: ExportTo,
     },
     /// Write the HTML report of a finished run (or a diagnosis) from its output folder.
     Report {
@@ -211,8 +230,13 @@ enum Command {
     /// `diagnosed.yaml`.
     Diagnose {
         /// A YAML recipe that declares its measurements and compares them (`frf.gap`).
-        recipe: PathBuf,
-        /// Output directory (default: `out/<recipe name>/diagnosis`).
+        #[arg(required_unless_present = "batch", conflicts_with = "batch")]
+        recipe: Option<PathBuf>,
+        /// Diagnose every case file the pattern matches (`'cases/*/case.json'`, quoted): each
+        /// imported and diagnosed into `OUT/<case>/`, with `summary.csv` and `summary.md`.
+        #[arg(long, value_name = "PATTERN")]
+        batch: Option<String>,
+        /// Output directory (default: `out/<recipe name>/diagnosis`; with `--batch`, `out/batch`).
         #[arg(short, long)]
         out: Option<PathBuf>,
         /// Print nothing but errors.
@@ -222,22 +246,76 @@ enum Command {
 }
 
 #[derive(Subcommand)]
+enum ExportTo {
+    /// A Snakefile and a profile for the local executor (docs/scale-out.md).
+    Snakemake {
+        /// Recipe file (`.yaml` or `.rhai`).
+        recipe: PathBuf,
+        /// The folder to write the Snakefile and `profile/` into.
+        #[arg(short = 'o', long = "dir")]
+        dir: PathBuf,
+        /// The output folder the workflow commits to (default: `out/<recipe name>`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The cache the jobs share (default: the output folder's own).
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
+        /// Shards per level of the graph: jobs that run at once.
+        #[arg(long, default_value_t = 4)]
+        shards: usize,
+    },
+}
+
+#[derive(Subcommand)]
 enum CacheAction {
-    /// Show the size of each output folder's cache.
+    /// Show the size of each output folder's cache (or of the shared one, `--cache`).
     Du {
         /// Output folders (default: every folder under `out/`).
         folders: Vec<PathBuf>,
+        /// A cache folder of its own that runs share (`run --cache`), instead of the folders'.
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
     },
-    /// Remove the entries that neither the latest run of the folder nor the one before used.
+    /// Remove the entries that neither the latest run of the folder nor the one before used;
+    /// on a shared cache (`--cache`), those that no named folder's last two runs used, and with
+    /// `--max-size` the oldest entries beyond the size.
     Gc {
-        /// Output folders (default: every folder under `out/`).
+        /// Output folders (default: every folder under `out/`; with `--cache`, none).
         folders: Vec<PathBuf>,
+        /// A cache folder of its own that runs share (`run --cache`), instead of the folders'.
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
+        /// Keep at most this much of the cache, the entries written last (`500MB`, `20GB`).
+        #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+        max_size: Option<u64>,
     },
-    /// Remove the whole cache of each folder (the outputs stay).
+    /// Remove the whole cache of each folder (the outputs stay), or the shared one.
     Clean {
         /// Output folders (default: every folder under `out/`).
         folders: Vec<PathBuf>,
+        /// A cache folder of its own that runs share (`run --cache`), instead of the folders'.
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
     },
+}
+
+/// A size as `--max-size` takes it: bytes, or with kB, MB, GB, TB (powers of 1000).
+fn parse_size(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let scale = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "kb" | "k" => 1e3,
+        "mb" | "m" => 1e6,
+        "gb" | "g" => 1e9,
+        "tb" | "t" => 1e12,
+        _ => return Err(format!("`{text}` is not a size: write e.g. `500MB` or `20GB`")),
+    };
+    match number.parse::<f64>() {
+        Ok(n) if n.is_finite() && n >= 0.0 => Ok((n * scale) as u64),
+        _ => Err(format!("`{text}` is not a size: write e.g. `500MB` or `20GB`")),
+    }
 }
 
 #[derive(Subcommand)]
@@ -369,358 +447,682 @@ fn command(cli: Cli) -> ExitCode {
     let mut registry = spindlelab::registry();
     let mut plugins = Plugins::new(&cli.plugin);
     match cli.command {
-        Command::Check { recipe, set } => match compile_with(&recipe, &set, &mut registry, &mut plugins) {
-            Ok(c) if c.recipe.library => {
-                let r = &c.recipe;
-                let counts: Vec<String> = [
-                    (r.materials.len(), "material", "materials"),
-                    (r.machines.len(), "machine", "machines"),
-                    (r.assemblies.len(), "assembly", "assemblies"),
-                    (r.sensors.len(), "sensor", "sensors"),
-                    (r.cutting.len(), "cutting setup", "cutting setups"),
-                ]
-                .iter()
-                .filter(|(n, ..)| *n > 0)
-                .map(|(n, one, many)| format!("{n} {}", if *n == 1 { one } else { many }))
-                .collect();
-                outln!(
-                    "{}: ok — library of {}",
-                    recipe.display(),
-                    if counts.is_empty() { "nothing".into() } else { counts.join(", ") }
-                );
-                ExitCode::SUCCESS
-            }
-            Ok(c) => {
-                outln!(
-                    "{}: ok — {} steps, {} node instances, {} outputs",
-                    recipe.display(),
-                    c.recipe.steps.len(),
-                    c.graph.instances.len(),
-                    c.recipe.outputs.len()
-                );
-                ExitCode::SUCCESS
-            }
-            Err(code) => code,
-        },
-        Command::Graph { recipe, format } => match compile(&recipe, &mut registry, &mut plugins) {
-            Ok(c) => {
-                let text = match format {
-                    GraphFormat::Dot => engine::graph::to_dot(&c.graph),
-                    GraphFormat::Mermaid => engine::graph::to_mermaid(&c.graph),
-                };
-                out!("{}", esc_lines(&text));
-                ExitCode::SUCCESS
-            }
-            Err(code) => code,
-        },
+        Command::Check { recipe, set } => cmd_check(&recipe, &set, &mut registry, &mut plugins),
+        Command::Graph { recipe, format } => cmd_graph(&recipe, format, &mut registry, &mut plugins),
         Command::Plan { recipe, out, no_cache, set } => {
-            match compile_with(&recipe, &set, &mut registry, &mut plugins) {
-                Ok(c) => {
-                    let out = out.unwrap_or_else(|| default_out(&c));
-                    let opts = RunOptions::new(&out);
-                    let cache = (!no_cache).then(|| opts.cache());
-                    let entries = plan(&c.recipe, &c.graph, &registry, &out, cache.as_ref());
-                    let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
-                    for e in &entries {
-                        outln!("{:width$}  {:18}  {}", esc(&e.id), e.kind, esc(&e.reason));
-                    }
-                    use engine::exec::PlanReason;
-                    let count = |r: fn(&PlanReason) -> bool| entries.iter().filter(|e| r(&e.reason)).count();
-                    let cached = count(|r| *r == PlanReason::Cached);
-                    let skipped = count(|r| *r == PlanReason::NotNeeded);
-                    let skip = if skipped > 0 { format!(", {skipped} not needed") } else { String::new() };
-                    outln!(
-                        "{} to run, {} from cache{skip} (output directory {})",
-                        entries.len() - cached - skipped,
-                        cached,
-                        out.display()
-                    );
-                    ExitCode::SUCCESS
-                }
-                Err(code) => code,
-            }
+            cmd_plan(&recipe, out, no_cache, &set, &mut registry, &mut plugins)
         }
-        Command::Nodes { kind } => {
-            if let Err(e) = plugins.load_always(&mut registry) {
-                eoutln!("error: {}", esc(&e));
-                return ExitCode::from(EXIT_BAD_INPUT);
-            }
-            for (manifest, e) in plugins.load_search_path(&mut registry).1 {
-                eoutln!("warning: {}: {}", esc(manifest.display()), esc(&e));
-            }
-            let mut any = false;
-            for node in registry.kinds() {
-                let spec = node.spec();
-                if kind.as_deref().is_some_and(|k| k != spec.kind) {
-                    continue;
-                }
-                any = true;
-                out!("{}", describe_node(spec, node.effect()));
-            }
-            if !any {
-                let k = kind.unwrap_or_default();
-                let hint = engine::spec::suggest(&k, registry.names())
-                    .map(|s| format!(" (did you mean `{s}`?)"))
-                    .unwrap_or_default();
-                eoutln!("error: unknown node kind `{}`{hint}", esc(&k));
-                return ExitCode::from(EXIT_BAD_INPUT);
-            }
-            ExitCode::SUCCESS
+        Command::Nodes { kind } => cmd_nodes(kind, &mut registry, &mut plugins),
+        Command::Diagnose { recipe: Some(recipe), out, quiet, .. } => {
+            cmd_diagnose(&recipe, out, quiet, &mut registry, &mut plugins)
         }
-        Command::Diagnose { recipe, out, quiet } => {
-            // Loads the plugins the recipe names, so the diagnosis compiles it with them.
-            let compiled = match compile(&recipe, &mut registry, &mut plugins) {
-                Ok(c) => c,
-                Err(code) => return code,
-            };
-            let d = match spindlelab::diagnose::diagnose(&recipe, &registry) {
-                Ok(d) => d,
-                Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
-                    eoutln!("error: {}", esc(&e));
-                    return ExitCode::from(EXIT_FAILURE);
-                }
-                Err(e) => {
-                    eoutln!("error: {}", esc(&e));
-                    return ExitCode::from(EXIT_BAD_INPUT);
-                }
-            };
-            // Beside the run's outputs: `out/<recipe name>/diagnosis`, as `run` names its folder.
-            let out = out.unwrap_or_else(|| default_out(&compiled).join("diagnosis"));
-            if let Err(e) = spindlelab::diagnose::write(&d, &out) {
-                eoutln!("error: {}", esc(&e));
-                let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
-                return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
-            }
-            if !quiet {
-                out!("{}", esc_lines(&spindlelab::diagnose::markdown(&d)));
-                outln!(
-                    "\nwrote diagnosis.json, diagnosis.md and diagnosed.yaml to {} in {:.1} s",
-                    out.display(),
-                    d.seconds
-                );
-            }
-            ExitCode::SUCCESS
+        Command::Diagnose { batch, out, quiet, .. } => {
+            cmd_diagnose_batch(batch.as_deref().unwrap_or_default(), out, quiet, &registry)
         }
-        Command::Import { case, out, library } => {
-            let shown = case.display().to_string();
-            let text = match std::fs::read_to_string(&case) {
-                Ok(t) => t,
-                Err(e) => {
-                    eoutln!("error: cannot read {}: {e}", esc(&shown));
-                    return ExitCode::from(EXIT_BAD_INPUT);
-                }
-            };
-            // The recipe names the case's data files from its own folder (the current one when
-            // it is printed).
-            let recipe_dir = out.as_deref().and_then(Path::parent).unwrap_or(Path::new(""));
-            let folder =
-                |p: &'_ Path| if p.as_os_str().is_empty() { Path::new(".").to_path_buf() } else { p.to_path_buf() };
-            let (case_dir, recipe_folder) = (folder(case.parent().unwrap_or(Path::new(""))), folder(recipe_dir));
-            let placement = spindlelab::import::Placement { case_dir: &case_dir, recipe_dir: &recipe_folder };
-            let imported = match &library {
-                None => spindlelab::import::recipe_from_case_at(&text, &shown, placement).map(|r| (None, r)),
-                Some(lib) => {
-                    let use_path = relative_to(lib, recipe_dir);
-                    spindlelab::import::library_from_case(&text, &shown, &use_path, Some(placement))
-                        .map(|(l, r)| (Some(l), r))
-                }
-            };
-            let (library_text, recipe) = match imported {
-                Ok(r) => r,
-                Err(e) => {
-                    eoutln!("error: {}", esc(&e));
-                    return ExitCode::from(EXIT_BAD_INPUT);
-                }
-            };
-            // Each file is written whole to a temporary name first, and both are renamed into
-            // place only when both are written; a folder named that does not exist yet is made.
-            let stage = |path: &Path, text: &str| {
-                let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-                std::fs::create_dir_all(dir).and_then(|()| tempfile::NamedTempFile::new_in(dir)).and_then(|mut tmp| {
-                    std::io::Write::write_all(&mut tmp, text.as_bytes())?;
-                    Ok(tmp)
-                })
-            };
-            let mut staged = Vec::new();
-            for (path, text) in [(library.as_ref(), library_text.as_deref()), (out.as_ref(), Some(recipe.as_str()))] {
-                let (Some(path), Some(text)) = (path, text) else { continue };
-                match stage(path, text) {
-                    Ok(tmp) => staged.push((path.clone(), tmp)),
-                    Err(e) => {
-                        eoutln!("error: cannot write {}: {e}", path.display());
-                        return ExitCode::from(EXIT_FAILURE);
-                    }
-                }
-            }
-            for (path, tmp) in staged {
-                if let Err(e) = tmp.persist(&path) {
-                    eoutln!("error: cannot write {}: {}", path.display(), e.error);
-                    return ExitCode::from(EXIT_FAILURE);
-                }
-            }
-            if out.is_none() {
-                out!("{recipe}");
-            }
-            ExitCode::SUCCESS
-        }
+        Command::Import { case, out, library } => cmd_import(&case, out, library),
         Command::Cache { action } => cache_command(action),
         Command::Plugin { action } => plugin_command(action, &mut plugins),
-        Command::Schema => {
+        Command::Schema => cmd_schema(&registry),
+        Command::Report { run_dir, out } => report_command(&run_dir, out),
+        Command::Run {
+            recipe,
+            out,
+            keep_going,
+            no_cache,
+            threads,
+            quiet,
+            verbose,
+            set,
+            no_fit,
+            report,
+            cache,
+            shard,
+            level,
+        } => {
+            let args =
+                RunArgs { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report, cache };
+            match shard {
+                Some(shard) => cmd_run_shard(args, &shard, level, &mut registry, &mut plugins),
+                None => cmd_run(args, &mut registry, &mut plugins),
+            }
+        }
+        Command::Export { to: ExportTo::Snakemake { recipe, dir, out, cache, shards } } => {
+            cmd_export_snakemake(&recipe, &dir, out, cache, shards, &mut registry, &mut plugins)
+        }
+    }
+}
+
+/// `spindlelab check RECIPE`: compiles the recipe and says what it holds, or reports its problems.
+fn cmd_check(
+    recipe: &Path,
+    set: &[(String, String)],
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    match compile_with(recipe, set, registry, plugins) {
+        Ok(c) if c.recipe.library => {
+            outln!("{}: ok — library of {}", recipe.display(), library_contents(&c.recipe));
+            ExitCode::SUCCESS
+        }
+        Ok(c) => {
             outln!(
-                "{}",
-                serde_json::to_string_pretty(&engine::schema::recipe_schema(&registry)).expect("schema serialises")
+                "{}: ok — {} steps, {} node instances, {} outputs",
+                recipe.display(),
+                c.recipe.steps.len(),
+                c.graph.instances.len(),
+                c.recipe.outputs.len()
             );
             ExitCode::SUCCESS
         }
-        Command::Report { run_dir, out } => report_command(&run_dir, out),
-        Command::Run { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report } => {
-            let threads = clamp_threads(threads);
-            let mut c = match compile_with(&recipe, &set, &mut registry, &mut plugins) {
-                Ok(c) if c.recipe.library => {
-                    let mut d = engine::diag::Diagnostics::new();
-                    d.error_help(
-                        Some(&c.raw.span),
-                        "the recipe has no `steps`: it holds entities only, which makes it a library, and a library has nothing to run",
-                        format!(
-                            "add `steps:` with at least one analysis step, or take its entities into a recipe with `use: [{}]`",
-                            recipe.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
-                        ),
-                    );
-                    eout!("{}", d.render(&c.sources, color()));
-                    return ExitCode::from(EXIT_BAD_INPUT);
-                }
-                Ok(c) => c,
-                Err(code) => return code,
+        Err(code) => code,
+    }
+}
+
+/// What a library holds, counted by kind of entity (`2 materials, 1 sensor`), or `nothing`.
+fn library_contents(r: &engine::model::Recipe) -> String {
+    let counts: Vec<String> = [
+        (r.materials.len(), "material", "materials"),
+        (r.machines.len(), "machine", "machines"),
+        (r.assemblies.len(), "assembly", "assemblies"),
+        (r.sensors.len(), "sensor", "sensors"),
+        (r.cutting.len(), "cutting setup", "cutting setups"),
+    ]
+    .iter()
+    .filter(|(n, ..)| *n > 0)
+    .map(|(n, one, many)| format!("{n} {}", if *n == 1 { one } else { many }))
+    .collect();
+    if counts.is_empty() { "nothing".into() } else { counts.join(", ") }
+}
+
+/// `spindlelab graph RECIPE`: prints the compiled graph as Graphviz DOT or Mermaid.
+fn cmd_graph(
+    recipe: &Path,
+    format: GraphFormat,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    match compile(recipe, registry, plugins) {
+        Ok(c) => {
+            let text = match format {
+                GraphFormat::Dot => engine::graph::to_dot(&c.graph),
+                GraphFormat::Mermaid => engine::graph::to_mermaid(&c.graph),
             };
+            out!("{}", esc_lines(&text));
+            ExitCode::SUCCESS
+        }
+        Err(code) => code,
+    }
+}
+
+/// `spindlelab plan RECIPE`: lists which nodes a run would compute, which come from the cache, and why.
+fn cmd_plan(
+    recipe: &Path,
+    out: Option<PathBuf>,
+    no_cache: bool,
+    set: &[(String, String)],
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    match compile_with(recipe, set, registry, plugins) {
+        Ok(c) => {
             let out = out.unwrap_or_else(|| default_out(&c));
-            let mut fitted = None;
-            if c.recipe.fit.is_some() && !no_fit {
-                let report = match spindlelab::fit::fit(&c, &set, &registry, threads) {
-                    Ok(r) => r,
-                    Err(e) => {
-                        eoutln!("error: fit: {}", esc(&e));
-                        return ExitCode::from(EXIT_BAD_INPUT);
-                    }
-                };
-                if !quiet {
-                    out!("{}", spindlelab::summary::fit_summary(&report));
-                }
-                // The run that writes the outputs is the recipe with the fitted values.
-                let mut with_fit: Vec<(String, String)> =
-                    set.iter().filter(|(n, _)| !report.params.iter().any(|p| &p.name == n)).cloned().collect();
-                with_fit.extend(report.overrides());
-                c = match compile_with(&recipe, &with_fit, &mut registry, &mut plugins) {
-                    Ok(c) => c,
-                    Err(code) => return code,
-                };
-                fitted = Some(report);
+            let opts = RunOptions::new(&out);
+            let cache = (!no_cache).then(|| opts.cache());
+            let entries = plan(&c.recipe, &c.graph, registry, &out, cache.as_ref());
+            let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);
+            for e in &entries {
+                outln!("{:width$}  {:18}  {}", esc(&e.id), e.kind, esc(&e.reason));
             }
-            let opts = RunOptions {
-                use_cache: !no_cache,
-                keep_going,
-                threads,
-                release_consumed: true,
-                extra_files: fitted.as_ref().map(|r| spindlelab::fit::fit_files(&c, r)).unwrap_or_default(),
-                report,
-                renderer: Some(spindlelab::renderer()),
-                ..RunOptions::new(out.clone())
-            };
-            let bar = if std::io::stderr().is_terminal() && !quiet {
-                let b = ProgressBar::new(c.graph.instances.len() as u64);
-                b.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {wide_msg}").expect("template"));
-                b
+            use engine::exec::PlanReason;
+            let count = |r: fn(&PlanReason) -> bool| entries.iter().filter(|e| r(&e.reason)).count();
+            let cached = count(|r| *r == PlanReason::Cached);
+            let skipped = count(|r| *r == PlanReason::NotNeeded);
+            let skip = if skipped > 0 { format!(", {skipped} not needed") } else { String::new() };
+            outln!(
+                "{} to run, {} from cache{skip} (output directory {})",
+                entries.len() - cached - skipped,
+                cached,
+                out.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(code) => code,
+    }
+}
+
+/// `spindlelab nodes [KIND]`: describes every node kind (built-in and from plugins), or the one named.
+fn cmd_nodes(kind: Option<String>, registry: &mut engine::node::Registry, plugins: &mut Plugins) -> ExitCode {
+    if let Err(e) = plugins.load_always(registry) {
+        eoutln!("error: {}", esc(&e));
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    for (manifest, e) in plugins.load_search_path(registry).1 {
+        eoutln!("warning: {}: {}", esc(manifest.display()), esc(&e));
+    }
+    let mut any = false;
+    for node in registry.kinds() {
+        let spec = node.spec();
+        if kind.as_deref().is_some_and(|k| k != spec.kind) {
+            continue;
+        }
+        any = true;
+        out!("{}", describe_node(spec, node.effect()));
+    }
+    if !any {
+        let k = kind.unwrap_or_default();
+        let hint =
+            engine::spec::suggest(&k, registry.names()).map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default();
+        eoutln!("error: unknown node kind `{}`{hint}", esc(&k));
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab diagnose RECIPE`: finds the missing physical effect and writes the diagnosis folder.
+fn cmd_diagnose(
+    recipe: &Path,
+    out: Option<PathBuf>,
+    quiet: bool,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    // Loads the plugins the recipe names, so the diagnosis compiles it with them.
+    let compiled = match compile(recipe, registry, plugins) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    let d = match spindlelab::diagnose::diagnose(recipe, registry) {
+        Ok(d) => d,
+        Err(spindlelab::diagnose::DiagnoseError::Output(e)) if !e.is_bad_input() => {
+            eoutln!("error: {}", esc(&e));
+            return ExitCode::from(EXIT_FAILURE);
+        }
+        Err(e) => {
+            eoutln!("error: {}", esc(&e));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    // Beside the run's outputs: `out/<recipe name>/diagnosis`, as `run` names its folder.
+    let out = out.unwrap_or_else(|| default_out(&compiled).join("diagnosis"));
+    if let Err(e) = spindlelab::diagnose::write(&d, &out) {
+        eoutln!("error: {}", esc(&e));
+        let bad = matches!(&e, spindlelab::diagnose::DiagnoseError::Output(c) if c.is_bad_input());
+        return ExitCode::from(if bad { EXIT_BAD_INPUT } else { EXIT_FAILURE });
+    }
+    if !quiet {
+        out!("{}", esc_lines(&spindlelab::diagnose::markdown(&d)));
+        outln!("\nwrote diagnosis.json, diagnosis.md and diagnosed.yaml to {} in {:.1} s", out.display(), d.seconds);
+    }
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab diagnose --batch PATTERN`: every case the pattern matches imported and
+/// diagnosed into a folder of its own, one after the other, with a summary of all of them.
+fn cmd_diagnose_batch(pattern: &str, out: Option<PathBuf>, quiet: bool, registry: &engine::node::Registry) -> ExitCode {
+    use spindlelab::diagnose::batch;
+    let cases: Vec<PathBuf> = match glob::glob(pattern) {
+        Ok(paths) => paths.filter_map(Result::ok).filter(|p| p.is_file()).collect(),
+        Err(e) => {
+            eoutln!("error: `{}` is not a file pattern: {e}", esc(pattern));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    if cases.is_empty() {
+        eoutln!(
+            "error: `{}` matches no case file (quote the pattern so the shell leaves it: 'cases/*/case.json')",
+            esc(pattern)
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let out = out.unwrap_or_else(|| PathBuf::from("out/batch"));
+    let mut rows = Vec::new();
+    let mut names = std::collections::HashSet::new();
+    for case in &cases {
+        let mut name = batch::case_name(case);
+        for k in 2.. {
+            if names.insert(name.clone()) {
+                break;
+            }
+            name = format!("{}_{k}", batch::case_name(case));
+        }
+        let row = match batch::diagnose_case(case, &out.join(&name), registry) {
+            Ok(d) => batch::row(&name, &d),
+            Err(e) => batch::failed(&name, e),
+        };
+        if !quiet {
+            let what = if row.error.is_empty() {
+                format!("{} {}", row.verdict, row.effects)
             } else {
-                ProgressBar::hidden()
+                format!("failed: {}", row.error)
             };
-            let progress = |_: usize, id: &str| {
-                bar.inc(1);
-                bar.set_message(esc(id));
-            };
-            let outcome = engine::run(&c, &registry, &opts, &progress);
-            bar.finish_and_clear();
-            let notes = match &outcome {
-                Ok(r) => &r.manifest.notes[..],
-                Err(RunError::NodesFailed { report, .. }) => &report.manifest.notes[..],
-                Err(_) => &[],
-            };
-            for n in notes {
-                eoutln!("warning: {}", esc(n));
-            }
-            if let Some(report) = fitted.as_ref().filter(|r| !r.converged) {
-                eoutln!(
-                    "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
-                    report.evaluations
-                );
-            }
-            match outcome {
-                Ok(report) => {
-                    if verbose {
-                        out!("{}", spindlelab::summary::summarize(&c, &report.result));
-                    } else if !quiet {
-                        out!("{}", spindlelab::summary::short(&c, &report.result));
-                    }
-                    if !quiet {
-                        outln!(
-                            "{} computed, {} from cache in {:.3} s; wrote {} file(s) and manifest.json to {}",
-                            report.manifest.computed,
-                            report.manifest.cache_hits,
-                            report.result.seconds,
-                            report.written.len(),
-                            out.display()
-                        );
-                    }
-                    ExitCode::SUCCESS
-                }
-                Err(RunError::NodesFailed { failures, report }) => {
-                    for (id, e) in &failures {
-                        let at = c
-                            .graph
-                            .instances
-                            .iter()
-                            .find(|i| &i.id == id)
-                            .and_then(|i| c.recipe.step(&i.step))
-                            .map(|s| format!("\n --> {} (step `{}`)", esc(&s.span), s.id))
-                            .unwrap_or_default();
-                        eoutln!("error: node `{}` failed: {}{at}", esc(id), esc(e));
-                    }
-                    {
-                        let r = report;
-                        eoutln!(
-                            "{} instance(s) computed and cached; {}",
-                            r.manifest.computed,
-                            if r.written.is_empty() && keep_going {
-                                "every output depended on the failures, so none was written".to_string()
-                            } else if r.written.is_empty() {
-                                "no outputs written (use --keep-going to write those that succeeded)".to_string()
-                            } else if r.manifest.partial.is_empty() {
-                                format!("wrote {} file(s) that did not depend on the failure", r.written.len())
-                            } else {
-                                let partial: Vec<String> = r
-                                    .manifest
-                                    .partial
-                                    .iter()
-                                    .map(|(file, m)| format!("{} (without {} sweep point(s))", esc(file), m.len()))
-                                    .collect();
-                                format!(
-                                    "wrote {} file(s); {} lack the failed sweep points, which they and manifest.json list",
-                                    r.written.len(),
-                                    partial.join(", ")
-                                )
-                            }
-                        );
-                    }
-                    ExitCode::from(EXIT_BAD_INPUT)
-                }
-                Err(RunError::Output(e)) => {
-                    eoutln!("error: {}", esc(&e));
-                    ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
-                }
-                Err(e @ RunError::NoRenderer(_)) => {
-                    eoutln!("error: {}", esc(&e));
-                    ExitCode::from(EXIT_FAILURE)
-                }
+            outln!("{}: {} ({:.1} s)", esc(&name), esc(what.trim()), row.seconds);
+        }
+        rows.push(row);
+    }
+    let (csv, md) = (out.join("summary.csv"), out.join("summary.md"));
+    let (csv_text, md_text) = (batch::summary_csv(&rows), batch::summary_md(&rows));
+    if let Err(code) = write_together(&[(Some(&csv), Some(csv_text.as_str())), (Some(&md), Some(md_text.as_str()))]) {
+        return code;
+    }
+    let failed = rows.iter().filter(|r| !r.error.is_empty()).count();
+    if !quiet {
+        outln!("wrote {} and summary.md: {} case(s), {failed} failed", esc(&csv.display()), rows.len());
+    }
+    if failed > 0 { ExitCode::from(EXIT_FAILURE) } else { ExitCode::SUCCESS }
+}
+
+/// `spindlelab import CASE`: writes (or prints) the recipe of a baseline case file, and its library if asked.
+fn cmd_import(case: &Path, out: Option<PathBuf>, library: Option<PathBuf>) -> ExitCode {
+    let shown = case.display().to_string();
+    let text = match std::fs::read_to_string(case) {
+        Ok(t) => t,
+        Err(e) => {
+            eoutln!("error: cannot read {}: {e}", esc(&shown));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    // The recipe names the case's data files from its own folder (the current one when
+    // it is printed).
+    let recipe_dir = out.as_deref().and_then(Path::parent).unwrap_or(Path::new(""));
+    let folder = |p: &'_ Path| if p.as_os_str().is_empty() { Path::new(".").to_path_buf() } else { p.to_path_buf() };
+    let (case_dir, recipe_folder) = (folder(case.parent().unwrap_or(Path::new(""))), folder(recipe_dir));
+    let placement = spindlelab::import::Placement { case_dir: &case_dir, recipe_dir: &recipe_folder };
+    let imported = match &library {
+        None => spindlelab::import::recipe_from_case_at(&text, &shown, placement).map(|r| (None, r)),
+        Some(lib) => {
+            let use_path = relative_to(lib, recipe_dir);
+            spindlelab::import::library_from_case(&text, &shown, &use_path, Some(placement)).map(|(l, r)| (Some(l), r))
+        }
+    };
+    let (library_text, recipe) = match imported {
+        Ok(r) => r,
+        Err(e) => {
+            eoutln!("error: {}", esc(&e));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let files = [(library.as_ref(), library_text.as_deref()), (out.as_ref(), Some(recipe.as_str()))];
+    if let Err(code) = write_together(&files) {
+        return code;
+    }
+    if out.is_none() {
+        out!("{recipe}");
+    }
+    ExitCode::SUCCESS
+}
+
+/// Writes the files given both a path and a text, all or none: each whole to a temporary name first,
+/// all renamed into place only when all are written; a folder named that does not exist yet is made.
+fn write_together(files: &[(Option<&PathBuf>, Option<&str>)]) -> Result<(), ExitCode> {
+    let mut staged = Vec::new();
+    for &(path, text) in files {
+        let (Some(path), Some(text)) = (path, text) else { continue };
+        match stage_file(path, text) {
+            Ok(tmp) => staged.push((path.clone(), tmp)),
+            Err(e) => {
+                eoutln!("error: cannot write {}: {e}", path.display());
+                return Err(ExitCode::from(EXIT_FAILURE));
             }
         }
+    }
+    for (path, tmp) in staged {
+        if let Err(e) = tmp.persist(&path) {
+            eoutln!("error: cannot write {}: {}", path.display(), e.error);
+            return Err(ExitCode::from(EXIT_FAILURE));
+        }
+    }
+    Ok(())
+}
+
+/// Writes `text` whole to a temporary file in the folder of `path` (made if missing), to be renamed into place.
+fn stage_file(path: &Path, text: &str) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).and_then(|()| tempfile::NamedTempFile::new_in(dir)).and_then(|mut tmp| {
+        std::io::Write::write_all(&mut tmp, text.as_bytes())?;
+        Ok(tmp)
+    })
+}
+
+/// `spindlelab schema`: prints the JSON Schema of the YAML recipe for the kinds in `registry`.
+fn cmd_schema(registry: &engine::node::Registry) -> ExitCode {
+    outln!("{}", serde_json::to_string_pretty(&engine::schema::recipe_schema(registry)).expect("schema serialises"));
+    ExitCode::SUCCESS
+}
+
+/// The arguments of `spindlelab run`, as the command line gave them.
+struct RunArgs {
+    recipe: PathBuf,
+    out: Option<PathBuf>,
+    keep_going: bool,
+    no_cache: bool,
+    threads: Option<usize>,
+    quiet: bool,
+    verbose: bool,
+    set: Vec<(String, String)>,
+    no_fit: bool,
+    report: bool,
+    cache: Option<PathBuf>,
+}
+
+/// `spindlelab run RECIPE --shard K/N [--level L]`: computes one shard of the graph into the
+/// cache, writes no outputs, and leaves a marker in the cache folder listing what it computed.
+fn cmd_run_shard(
+    args: RunArgs,
+    shard: &str,
+    level: Option<usize>,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    let mut shard = match engine::exec::Shard::parse(shard) {
+        Ok(s) => s,
+        Err(e) => {
+            eoutln!("error: {}", esc(&e));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    shard.level = level;
+    if args.no_cache || args.report || args.keep_going {
+        eoutln!(
+            "error: a shard computes into the cache and writes no outputs: leave out --no-cache, --report and --keep-going"
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let c = match compile_with(&args.recipe, &args.set, registry, plugins) {
+        Ok(c) if c.recipe.library => return refuse_library(&c, &args.recipe),
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    if c.recipe.fit.is_some() && !args.no_fit {
+        eoutln!(
+            "error: {} has a `fit:` block, whose evaluations run in one process: shard it with --no-fit, or run the fitted recipe",
+            esc(&args.recipe.display())
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let out = args.out.clone().unwrap_or_else(|| default_out(&c));
+    let opts = RunOptions {
+        threads: clamp_threads(args.threads),
+        cache_dir: args.cache.clone(),
+        shard: Some(shard),
+        ..RunOptions::new(out)
+    };
+    let bar = progress_bar(c.graph.instances.len() as u64, args.quiet);
+    let progress = |_: usize, id: &str| {
+        bar.inc(1);
+        bar.set_message(esc(id));
+    };
+    let result = engine::exec::execute(&c.recipe, &c.graph, registry, &opts, &progress);
+    bar.finish_and_clear();
+    for n in &result.notes {
+        eoutln!("warning: {}", esc(n));
+    }
+    let failures: Vec<(&str, String)> = result.failures(&c.graph).map(|(id, e)| (id, e.to_string())).collect();
+    if !failures.is_empty() {
+        for (id, e) in &failures {
+            eoutln!("error: {}: {}", esc(id), esc(e));
+        }
+        return ExitCode::from(EXIT_FAILURE);
+    }
+    let computed: Vec<&str> = c
+        .graph
+        .instances
+        .iter()
+        .zip(&result.outcomes)
+        .filter(|(inst, o)| {
+            matches!(o, engine::exec::Outcome::Computed { .. } | engine::exec::Outcome::Released { .. })
+                && registry.get(&inst.kind).is_some_and(|n| n.cacheable())
+        })
+        .map(|(inst, _)| inst.id.as_str())
+        .collect();
+    let cached = result.outcomes.iter().filter(|o| matches!(o, engine::exec::Outcome::Cached { .. })).count();
+    let marker = shard.marker(opts.cache().dir(), &c.graph);
+    let record = serde_json::json!({
+        "recipe": c.recipe.name,
+        "shard": format!("{}/{}", shard.index, shard.count),
+        "level": shard.level,
+        "computed": computed,
+        "from_cache": cached,
+    });
+    let text = serde_json::to_string_pretty(&record).expect("a marker serialises") + "\n";
+    if let Err(code) = write_together(&[(Some(&marker), Some(text.as_str()))]) {
+        return code;
+    }
+    if !args.quiet {
+        let level = shard.level.map(|l| format!(", level {l}")).unwrap_or_default();
+        outln!(
+            "shard {}/{}{level}: {} computed, {} from cache; marker {}",
+            shard.index,
+            shard.count,
+            computed.len(),
+            cached,
+            esc(&marker.display())
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab export snakemake RECIPE -o DIR`: the recipe as a Snakefile of shard jobs per
+/// level and a collect job, with a profile for the local executor.
+fn cmd_export_snakemake(
+    recipe: &Path,
+    dir: &Path,
+    out: Option<PathBuf>,
+    cache: Option<PathBuf>,
+    shards: usize,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    if shards == 0 {
+        eoutln!("error: --shards 0: a workflow needs at least one shard per level");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let c = match compile_with(recipe, &[], registry, plugins) {
+        Ok(c) if c.recipe.library => return refuse_library(&c, recipe),
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    let out = out.unwrap_or_else(|| default_out(&c));
+    let cache = cache.unwrap_or_else(|| engine::exec::cache_dir(&out));
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
+    let (recipe_abs, out_abs, cache_abs) = (abs(recipe), abs(&out), abs(&cache));
+    let places = spindlelab::export::Places { spindlelab: &exe, recipe: &recipe_abs, out: &out_abs, cache: &cache_abs };
+    let wf = spindlelab::export::snakemake(&c, registry, &places, shards);
+    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
+    if let Err(code) =
+        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
+    {
+        return code;
+    }
+    outln!(
+        "wrote {}: {} level(s) × {} shard(s), then collect into {}; run it with `snakemake -s {} --profile {}`",
+        esc(&dir.join("Snakefile").display()),
+        wf.levels,
+        wf.shards,
+        esc(&out_abs.display()),
+        esc(&dir.join("Snakefile").display()),
+        esc(&dir.join("profile").display())
+    );
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab run RECIPE`: compiles the recipe, fits it if it asks, runs it and writes its outputs.
+fn cmd_run(args: RunArgs, registry: &mut engine::node::Registry, plugins: &mut Plugins) -> ExitCode {
+    let RunArgs { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report, cache } = args;
+    let threads = clamp_threads(threads);
+    let mut c = match compile_with(&recipe, &set, registry, plugins) {
+        Ok(c) if c.recipe.library => return refuse_library(&c, &recipe),
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    let out = out.unwrap_or_else(|| default_out(&c));
+    let mut fitted = None;
+    if c.recipe.fit.is_some() && !no_fit {
+        let (refit, report) = match fit_recipe(&c, &recipe, &set, threads, quiet, registry, plugins) {
+            Ok(r) => r,
+            Err(code) => return code,
+        };
+        c = refit;
+        fitted = Some(report);
+    }
+    let opts = RunOptions {
+        use_cache: !no_cache,
+        keep_going,
+        threads,
+        release_consumed: true,
+        extra_files: fitted.as_ref().map(|r| spindlelab::fit::fit_files(&c, r)).unwrap_or_default(),
+        report,
+        renderer: Some(spindlelab::renderer()),
+        cache_dir: cache,
+        ..RunOptions::new(out.clone())
+    };
+    let bar = progress_bar(c.graph.instances.len() as u64, quiet);
+    let progress = |_: usize, id: &str| {
+        bar.inc(1);
+        bar.set_message(esc(id));
+    };
+    let outcome = engine::run(&c, registry, &opts, &progress);
+    bar.finish_and_clear();
+    let notes = match &outcome {
+        Ok(r) => &r.manifest.notes[..],
+        Err(RunError::NodesFailed { report, .. }) => &report.manifest.notes[..],
+        Err(_) => &[],
+    };
+    for n in notes {
+        eoutln!("warning: {}", esc(n));
+    }
+    if let Some(report) = fitted.as_ref().filter(|r| !r.converged) {
+        eoutln!(
+            "warning: the fit did not converge in {} evaluations; the outputs use its best point (raise `max_evaluations` or narrow the bounds)",
+            report.evaluations
+        );
+    }
+    match outcome {
+        Ok(report) => {
+            if verbose {
+                out!("{}", spindlelab::summary::summarize(&c, &report.result));
+            } else if !quiet {
+                out!("{}", spindlelab::summary::short(&c, &report.result));
+            }
+            if !quiet {
+                outln!(
+                    "{} computed, {} from cache in {:.3} s; wrote {} file(s) and manifest.json to {}",
+                    report.manifest.computed,
+                    report.manifest.cache_hits,
+                    report.result.seconds,
+                    report.written.len(),
+                    out.display()
+                );
+            }
+            ExitCode::SUCCESS
+        }
+        Err(RunError::NodesFailed { failures, report }) => {
+            for (id, e) in &failures {
+                eoutln!("error: node `{}` failed: {}{}", esc(id), esc(e), failed_step(&c, id));
+            }
+            eoutln!(
+                "{} instance(s) computed and cached; {}",
+                report.manifest.computed,
+                failed_outputs(&report, keep_going)
+            );
+            ExitCode::from(EXIT_BAD_INPUT)
+        }
+        Err(RunError::Output(e)) => {
+            eoutln!("error: {}", esc(&e));
+            ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
+        }
+        Err(e @ RunError::NoRenderer(_)) => {
+            eoutln!("error: {}", esc(&e));
+            ExitCode::from(EXIT_FAILURE)
+        }
+    }
+}
+
+/// Refuses to run a library (a recipe without steps), saying how to use its entities instead.
+fn refuse_library(c: &Compiled, recipe: &Path) -> ExitCode {
+    let mut d = engine::diag::Diagnostics::new();
+    d.error_help(
+        Some(&c.raw.span),
+        "the recipe has no `steps`: it holds entities only, which makes it a library, and a library has nothing to run",
+        format!(
+            "add `steps:` with at least one analysis step, or take its entities into a recipe with `use: [{}]`",
+            recipe.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+        ),
+    );
+    eout!("{}", d.render(&c.sources, color()));
+    ExitCode::from(EXIT_BAD_INPUT)
+}
+
+/// Runs the recipe's fit and compiles the recipe again with the fitted values (the run that writes the outputs).
+fn fit_recipe(
+    c: &Compiled,
+    recipe: &Path,
+    set: &[(String, String)],
+    threads: Option<usize>,
+    quiet: bool,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> Result<(Compiled, spindlelab::fit::FitReport), ExitCode> {
+    let report = match spindlelab::fit::fit(c, set, registry, threads) {
+        Ok(r) => r,
+        Err(e) => {
+            eoutln!("error: fit: {}", esc(&e));
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
+        }
+    };
+    if !quiet {
+        out!("{}", spindlelab::summary::fit_summary(&report));
+    }
+    // The run that writes the outputs is the recipe with the fitted values.
+    let mut with_fit: Vec<(String, String)> =
+        set.iter().filter(|(n, _)| !report.params.iter().any(|p| &p.name == n)).cloned().collect();
+    with_fit.extend(report.overrides());
+    let c = compile_with(recipe, &with_fit, registry, plugins)?;
+    Ok((c, report))
+}
+
+/// The progress bar of a run on standard error: shown on a terminal unless `quiet`, else hidden.
+fn progress_bar(len: u64, quiet: bool) -> ProgressBar {
+    if std::io::stderr().is_terminal() && !quiet {
+        let b = ProgressBar::new(len);
+        b.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {wide_msg}").expect("template"));
+        b
+    } else {
+        ProgressBar::hidden()
+    }
+}
+
+/// Where a failed node instance comes from in the recipe (`\n --> span (step `id`)`), or nothing if unknown.
+fn failed_step(c: &Compiled, id: &str) -> String {
+    c.graph
+        .instances
+        .iter()
+        .find(|i| i.id == id)
+        .and_then(|i| c.recipe.step(&i.step))
+        .map(|s| format!("\n --> {} (step `{}`)", esc(&s.span), s.id))
+        .unwrap_or_default()
+}
+
+/// What a run with failed nodes wrote: nothing (and why), or its files and those lacking failed sweep points.
+fn failed_outputs(r: &engine::RunReport, keep_going: bool) -> String {
+    if r.written.is_empty() && keep_going {
+        "every output depended on the failures, so none was written".to_string()
+    } else if r.written.is_empty() {
+        "no outputs written (use --keep-going to write those that succeeded)".to_string()
+    } else if r.manifest.partial.is_empty() {
+        format!("wrote {} file(s) that did not depend on the failure", r.written.len())
+    } else {
+        let partial: Vec<String> = r
+            .manifest
+            .partial
+            .iter()
+            .map(|(file, m)| format!("{} (without {} sweep point(s))", esc(file), m.len()))
+            .collect();
+        format!(
+            "wrote {} file(s); {} lack the failed sweep points, which they and manifest.json list",
+            r.written.len(),
+            partial.join(", ")
+        )
     }
 }
 
@@ -833,9 +1235,18 @@ fn human_bytes(b: u64) -> String {
 fn cache_command(action: CacheAction) -> ExitCode {
     use engine::exec::{Cache, Manifest, OutputDir, commit::META_DIR};
     let (folders, verb) = match action {
-        CacheAction::Du { folders } => (cache_folders(folders), "du"),
-        CacheAction::Gc { folders } => (cache_folders(folders), "gc"),
-        CacheAction::Clean { folders } => (cache_folders(folders), "clean"),
+        CacheAction::Du { cache: Some(dir), .. } => return shared_cache_command(&dir, "du", &[], None),
+        CacheAction::Gc { cache: Some(dir), folders, max_size } => {
+            return shared_cache_command(&dir, "gc", &folders, max_size);
+        }
+        CacheAction::Clean { cache: Some(dir), .. } => return shared_cache_command(&dir, "clean", &[], None),
+        CacheAction::Du { folders, .. } => (cache_folders(folders), "du"),
+        CacheAction::Gc { max_size: Some(_), .. } => {
+            eoutln!("error: --max-size bounds a shared cache: name it with --cache DIR");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+        CacheAction::Gc { folders, .. } => (cache_folders(folders), "gc"),
+        CacheAction::Clean { folders, .. } => (cache_folders(folders), "clean"),
     };
     let mut code = ExitCode::SUCCESS;
     for folder in folders {
@@ -872,6 +1283,52 @@ fn cache_command(action: CacheAction) -> ExitCode {
         outln!("{}: removed {n} entries, {}", folder.display(), human_bytes(bytes));
     }
     code
+}
+
+/// `cache du|gc|clean --cache DIR`: the same on a cache folder that runs and machines share.
+/// Nothing is locked (entries are written by rename and checked on read); `gc` keeps what the
+/// latest two runs of each named output folder used and, with `max_size`, the entries written
+/// last that fit.
+fn shared_cache_command(dir: &Path, verb: &str, folders: &[PathBuf], max_size: Option<u64>) -> ExitCode {
+    use engine::exec::{Cache, Manifest, commit::META_DIR};
+    let cache = Cache::new(dir);
+    if !dir.is_dir() {
+        outln!("{}: no cache", esc(&dir.display()));
+        return ExitCode::SUCCESS;
+    }
+    let (n, bytes) = match verb {
+        "du" => {
+            let (n, bytes) = cache.usage();
+            outln!("{}: {n} entries, {}", esc(&dir.display()), human_bytes(bytes));
+            return ExitCode::SUCCESS;
+        }
+        "clean" => cache.retain(|_| false),
+        _ => {
+            if folders.is_empty() && max_size.is_none() {
+                eoutln!(
+                    "error: gc of a shared cache keeps what named output folders used, or what fits a size: name folders, or give --max-size"
+                );
+                return ExitCode::from(EXIT_BAD_INPUT);
+            }
+            let (mut n, mut bytes) = (0, 0);
+            if !folders.is_empty() {
+                let keep: std::collections::HashSet<String> = folders
+                    .iter()
+                    .flat_map(|f| ["current", "previous"].map(|run| f.join(META_DIR).join(run)))
+                    .filter_map(|m| Manifest::read(&m))
+                    .flat_map(|m| m.nodes.into_iter().map(|n| n.key))
+                    .collect();
+                (n, bytes) = cache.retain(|k| keep.contains(k));
+            }
+            if let Some(max) = max_size {
+                let (m, b) = cache.within(max);
+                (n, bytes) = (n + m, bytes + b);
+            }
+            (n, bytes)
+        }
+    };
+    outln!("{}: removed {n} entries, {}", esc(&dir.display()), human_bytes(bytes));
+    ExitCode::SUCCESS
 }
 
 fn describe_node(spec: &engine::node::NodeSpec, effect: Option<&engine::node::EffectSpec>) -> String {

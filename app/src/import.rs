@@ -432,8 +432,6 @@ pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
     Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
 }
 
-/// [`recipe_from_case`] for a recipe written where `placement` says: its data files named
-/// from the recipe's folder.
 /// The canonical form of a folder that may not exist yet (the recipe's, which the command
 /// makes when it writes): its deepest existing ancestor canonicalised, the rest appended.
 fn canonical_to_be(dir: &std::path::Path) -> Option<std::path::PathBuf> {
@@ -449,6 +447,8 @@ fn canonical_to_be(dir: &std::path::Path) -> Option<std::path::PathBuf> {
     }
 }
 
+/// [`recipe_from_case`] for a recipe written where `placement` says: its data files named
+/// from the recipe's folder.
 pub fn recipe_from_case_at(json: &str, path: &str, placement: Placement<'_>) -> Result<String, ImportError> {
     let parts = import_parts(json, path, Some(placement))?;
     Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
@@ -500,19 +500,50 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         None => Ok(file.to_string()),
     };
     let id = case.case_id.clone().unwrap_or_else(|| "case".into());
+    let header = header_section(&id, path);
+
+    let mut entities = String::new();
+    let spindle_material = write_materials(&mut entities, &case);
+    write_machines(&mut entities, &case, &spindle_material).map_err(invalid)?;
+    write_assemblies(&mut entities, &case.holder_tool);
+    if let Some(s) = &case.sensor {
+        write_sensors(&mut entities, s);
+    }
+    if let Some(c) = &case.cutting {
+        write_cutting(&mut entities, c);
+    }
+
+    let mut rest = String::new();
+    let meas = case.measurements.as_ref();
+    let frfs: &[CaseFrf] = meas.map_or(&[], |m| &m.frf);
+    let trials_file = meas.and_then(|m| m.trials.as_deref());
+    write_measurements(&mut rest, frfs, &data_path)?;
+    write_steps(&mut rest, &case, frfs, trials_file, &data_path)?;
+    let cutting = case.cutting.is_some();
+    write_outputs(&mut rest, !frfs.is_empty(), cutting, cutting && trials_file.is_some());
+    if let Some(m) = meas {
+        write_measurement_note(&mut rest, m);
+    }
+    Ok(Parts { id, header, entities, rest })
+}
+
+/// The recipe's header: comments naming the case and its file, the format version and the name.
+fn header_section(id: &str, path: &str) -> String {
     let mut y = String::new();
     let w = &mut y;
     let file_name = path.rsplit('/').next().unwrap_or(path);
-    let _ = writeln!(w, "# Baseline model of case {}, imported from {}.", scalar(&id), scalar(file_name));
+    let _ = writeln!(w, "# Baseline model of case {}, imported from {}.", scalar(id), scalar(file_name));
     let _ = writeln!(w, "# The measured configuration (sensor on the tool) is compared with every measured FRF;");
     let _ = writeln!(w, "# the cutting configuration (no sensor) gives the lobes that score the cutting trials.");
     let _ = writeln!(w, "spindlelab: 1");
-    let _ = writeln!(w, "name: {}", scalar(&id));
+    let _ = writeln!(w, "name: {}", scalar(id));
     let _ = writeln!(w);
+    y
+}
 
-    let mut entities = String::new();
-    let w = &mut entities;
-    // Materials of the holder and tool, then the spindle's, under a name of its own.
+/// Writes `materials:` (the holder's and tool's, then the spindle's under a name of its own)
+/// and returns that name.
+fn write_materials(w: &mut String, case: &Case) -> String {
     let _ = writeln!(w, "materials:");
     for (mname, m) in &case.materials {
         let _ = write!(w, "  {}: {{ E: {} GPa, rho: {} kg/m^3", scalar(mname), num(m.e_pa / 1e9), num(m.rho_kg_m3));
@@ -536,8 +567,11 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         }
     }
     let _ = writeln!(w);
+    spindle_material
+}
 
-    // The machine: spindle modes per direction with their speed laws, and the holder joint.
+/// Writes `machines:`: the spindle's modes per direction, their speed laws and the holder joint.
+fn write_machines(w: &mut String, case: &Case, spindle_material: &str) -> Result<(), String> {
     let dirs: Vec<&String> = case.spindle.modes.keys().collect();
     let _ = writeln!(w, "machines:");
     let _ = writeln!(w, "  test_spindle:");
@@ -563,7 +597,14 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
             let _ = writeln!(w, " }}");
         }
     }
-    let j = &case.holder_spindle_interface;
+    write_holder_interface(w, &case.holder_spindle_interface)?;
+    let _ = writeln!(w);
+    Ok(())
+}
+
+/// Writes the machine's `holder_interface`: rigid, or its stiffness and damping; an error when
+/// the case gives neither.
+fn write_holder_interface(w: &mut String, j: &CaseJoint) -> Result<(), String> {
     match (j.rigid, j.kt_n_per_m, j.ct_ns_per_m, j.kr_nm_per_rad, j.cr_nms_per_rad) {
         (Some(true), ..) => {
             let _ = writeln!(w, "    holder_interface: {{ rigid: true }}");
@@ -578,15 +619,17 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
                 num(cr.unwrap_or(0.0))
             );
         }
-        _ => return Err(invalid("`holder_spindle_interface` is neither rigid nor gives kt and kr".into())),
+        _ => return Err("`holder_spindle_interface` is neither rigid nor gives kt and kr".into()),
     }
-    let _ = writeln!(w);
+    Ok(())
+}
 
-    // The holder and tool, from the spindle end to the tip.
+/// Writes `assemblies:`: the holder and tool, section by section from the spindle end to the tip.
+fn write_assemblies(w: &mut String, holder_tool: &HolderTool) {
     let _ = writeln!(w, "assemblies:");
     let _ = writeln!(w, "  holder_tool:");
     let _ = writeln!(w, "    sections:");
-    for s in &case.holder_tool.sections {
+    for s in &holder_tool.sections {
         let _ = write!(w, "      - {{ name: {}, component: {}", scalar(&s.name), s.component);
         if let Some(k) = s.kind.as_deref().filter(|k| *k != "plain") {
             let _ = write!(w, ", kind: {k}");
@@ -605,192 +648,231 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         let _ = writeln!(w, " }}");
     }
     let _ = writeln!(w);
+}
 
-    let sensor = case.sensor.as_ref();
-    if let Some(s) = sensor {
-        let _ = writeln!(w, "sensors:");
-        let _ = write!(w, "  sensor: {{ kind: {}", s.kind);
-        if let Some(l) = &s.location {
-            let _ = write!(w, ", location: {}", yaml_quoted(l));
-        }
-        let _ = writeln!(w, ", mass: {} g }}", num(s.mass_kg.unwrap_or(0.0) * 1e3));
-        let _ = writeln!(w);
+/// Writes `sensors:`: the case's sensor, its kind, location and mass.
+fn write_sensors(w: &mut String, s: &CaseSensor) {
+    let _ = writeln!(w, "sensors:");
+    let _ = write!(w, "  sensor: {{ kind: {}", s.kind);
+    if let Some(l) = &s.location {
+        let _ = write!(w, ", location: {}", yaml_quoted(l));
     }
+    let _ = writeln!(w, ", mass: {} g }}", num(s.mass_kg.unwrap_or(0.0) * 1e3));
+    let _ = writeln!(w);
+}
 
-    let cutting = case.cutting.as_ref();
-    if let Some(c) = cutting {
-        let _ = writeln!(w, "cutting:");
-        let _ = writeln!(w, "  trials:");
-        let _ = writeln!(w, "    teeth: {}", c.teeth);
-        let _ = writeln!(w, "    radial_immersion: {}   # radial depth / tool diameter", num(c.radial_immersion));
-        let _ = writeln!(w, "    milling: {}", c.milling);
-        let _ = writeln!(w, "    Ks: {} MPa", num(c.ks / 1e6));
-        let _ = writeln!(w, "    beta: {} deg", num(c.beta_deg));
-        if let Some(n) = c.coefficients_calibrated_at_rpm {
-            let _ = writeln!(w, "    calibrated_at: {} rpm", num(n));
-        }
-        if let Some(m) = &c.workpiece_material {
-            let _ = writeln!(w, "    workpiece: {}", yaml_quoted(m));
-        }
-        if let Some([a, b]) = c.trial_rpm_range {
-            let _ = writeln!(w, "    trial_speeds: [{} rpm, {} rpm]", num(a), num(b));
-        }
-        let _ = writeln!(w);
+/// Writes `cutting:`: the trials' setup (teeth, immersion, coefficients and speed range).
+fn write_cutting(w: &mut String, c: &CaseCutting) {
+    let _ = writeln!(w, "cutting:");
+    let _ = writeln!(w, "  trials:");
+    let _ = writeln!(w, "    teeth: {}", c.teeth);
+    let _ = writeln!(w, "    radial_immersion: {}   # radial depth / tool diameter", num(c.radial_immersion));
+    let _ = writeln!(w, "    milling: {}", c.milling);
+    let _ = writeln!(w, "    Ks: {} MPa", num(c.ks / 1e6));
+    let _ = writeln!(w, "    beta: {} deg", num(c.beta_deg));
+    if let Some(n) = c.coefficients_calibrated_at_rpm {
+        let _ = writeln!(w, "    calibrated_at: {} rpm", num(n));
     }
-
-    let mut rest = String::new();
-    let w = &mut rest;
-    let meas = case.measurements.as_ref();
-    let frfs: &[CaseFrf] = meas.map_or(&[], |m| &m.frf);
-    if !frfs.is_empty() {
-        let _ = writeln!(w, "# Every measured FRF; each file's header gives its direction and speed.");
-        let _ = writeln!(w, "measurements:");
-        let _ = writeln!(w, "  tool_tip:");
-        let _ = writeln!(w, "    files:");
-        for f in frfs {
-            let _ = writeln!(
-                w,
-                "      - {}   # {}, {} rpm",
-                yaml_quoted(&data_path(&f.file)?),
-                f.direction,
-                num(f.speed_rpm)
-            );
-        }
-        let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
-        if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
-            let _ = writeln!(w, "    units: {}", scalar(u));
-        }
-        let _ = writeln!(w);
+    if let Some(m) = &c.workpiece_material {
+        let _ = writeln!(w, "    workpiece: {}", yaml_quoted(m));
     }
+    if let Some([a, b]) = c.trial_rpm_range {
+        let _ = writeln!(w, "    trial_speeds: [{} rpm, {} rpm]", num(a), num(b));
+    }
+    let _ = writeln!(w);
+}
 
+/// Writes `measurements:`, one set of every measured FRF named from the recipe's folder, when
+/// the case has any.
+fn write_measurements(
+    w: &mut String,
+    frfs: &[CaseFrf],
+    data_path: &impl Fn(&str) -> Result<String, ImportError>,
+) -> Result<(), ImportError> {
+    if frfs.is_empty() {
+        return Ok(());
+    }
+    let _ = writeln!(w, "# Every measured FRF; each file's header gives its direction and speed.");
+    let _ = writeln!(w, "measurements:");
+    let _ = writeln!(w, "  tool_tip:");
+    let _ = writeln!(w, "    files:");
+    for f in frfs {
+        let _ =
+            writeln!(w, "      - {}   # {}, {} rpm", yaml_quoted(&data_path(&f.file)?), f.direction, num(f.speed_rpm));
+    }
+    let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
+    if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
+        let _ = writeln!(w, "    units: {}", scalar(u));
+    }
+    let _ = writeln!(w);
+    Ok(())
+}
+
+/// Writes `steps:`: the holder and tool model, then the measured and the cutting configurations
+/// where the case has them.
+fn write_steps(
+    w: &mut String,
+    case: &Case,
+    frfs: &[CaseFrf],
+    trials_file: Option<&str>,
+    data_path: &impl Fn(&str) -> Result<String, ImportError>,
+) -> Result<(), ImportError> {
     let _ = writeln!(w, "steps:");
     let _ = writeln!(w, "  # The holder and tool reduced once to their tip and spindle end.");
     let _ = writeln!(w, "  holder_tool_model:");
     let _ = writeln!(w, "    kind: {BEAM_SUBSTRUCTURE}");
     let _ = writeln!(w, "    params: {{ assembly: holder_tool, max_element: 2 mm }}");
     if !frfs.is_empty() {
-        let _ = writeln!(w);
-        let _ = writeln!(w, "  # Measured configuration: on each file's lines, direction and speed.");
-        let _ = writeln!(w, "  spindle:");
-        let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
-        let _ = writeln!(w, "    params: {{ machine: test_spindle }}");
-        let _ = writeln!(w, "    inputs: {{ grid: \"@tool_tip.frf\" }}");
-        let _ = writeln!(w, "  measured_model:");
-        let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
-        if sensor.is_some() {
-            let _ = writeln!(
-                w,
-                "    params: {{ interface: machine, machine: test_spindle, sensor: sensor }}   # the sensor's mass sits on the tool tip"
-            );
-        } else {
-            let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
-        }
-        let _ =
-            writeln!(w, "    inputs: {{ spindle: \"@spindle.receptance\", structure: \"@holder_tool_model.model\" }}");
-        let _ =
-            writeln!(w, "  # Model against measurement, in units of the measurement's noise (about 1 at the floor).");
-        let _ = writeln!(w, "  gap:");
-        let _ = writeln!(w, "    kind: {FRF_GAP}");
-        let _ = writeln!(w, "    inputs: {{ model: \"@measured_model.frf\", measured: \"@tool_tip.frf\" }}");
+        write_measured_steps(w, case.sensor.is_some());
     }
-    if let Some(c) = cutting {
-        let mut speeds: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
-        if let Some([a, b]) = c.trial_rpm_range {
-            speeds.extend([a, b]);
-        }
-        speeds.sort_by(f64::total_cmp);
-        speeds.dedup();
-        let lo = speeds.first().copied().unwrap_or(0.0);
-        let hi = speeds.last().copied().unwrap_or(0.0);
-        // A round step giving at most 40 speeds, the span widened to whole steps so the
-        // ends of the trials' range are on the grid.
-        let step = [100.0, 250.0, 500.0, 1000.0, 2000.0, 2500.0, 5000.0, 10_000.0]
-            .into_iter()
-            .find(|s| (hi - lo) / s <= 40.0)
-            .unwrap_or(((hi - lo) / 40.0).ceil());
-        let (lo, hi) = ((lo / step).floor() * step, (hi / step).ceil() * step);
-        let _ = writeln!(w);
-        let _ = writeln!(w, "  # Cutting configuration: no sensor; x and y over the speeds of the trials.");
-        let _ = writeln!(w, "  spindle_cutting:");
-        let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
-        let _ = writeln!(w, "    params: {{ machine: test_spindle, max_frequency: 10 kHz, resolution: 2.5 Hz }}");
-        let _ = writeln!(w, "    sweep:");
-        let _ = writeln!(w, "      direction: [x, y]");
-        let _ = writeln!(w, "      speed: {}..{} step {} rpm", num(lo), num(hi), num(step));
-        let _ = writeln!(w, "  cutting_model:");
-        let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
+    if let Some(c) = &case.cutting {
+        write_cutting_steps(w, c, frfs, trials_file, data_path)?;
+    }
+    Ok(())
+}
+
+/// Writes the measured configuration's steps: the spindle on the files' lines, the coupled
+/// model and its gap.
+fn write_measured_steps(w: &mut String, with_sensor: bool) {
+    let _ = writeln!(w);
+    let _ = writeln!(w, "  # Measured configuration: on each file's lines, direction and speed.");
+    let _ = writeln!(w, "  spindle:");
+    let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
+    let _ = writeln!(w, "    params: {{ machine: test_spindle }}");
+    let _ = writeln!(w, "    inputs: {{ grid: \"@tool_tip.frf\" }}");
+    let _ = writeln!(w, "  measured_model:");
+    let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
+    if with_sensor {
+        let _ = writeln!(
+            w,
+            "    params: {{ interface: machine, machine: test_spindle, sensor: sensor }}   # the sensor's mass sits on the tool tip"
+        );
+    } else {
         let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
+    }
+    let _ = writeln!(w, "    inputs: {{ spindle: \"@spindle.receptance\", structure: \"@holder_tool_model.model\" }}");
+    let _ = writeln!(w, "  # Model against measurement, in units of the measurement's noise (about 1 at the floor).");
+    let _ = writeln!(w, "  gap:");
+    let _ = writeln!(w, "    kind: {FRF_GAP}");
+    let _ = writeln!(w, "    inputs: {{ model: \"@measured_model.frf\", measured: \"@tool_tip.frf\" }}");
+}
+
+/// The speed sweep of the cutting configuration, `(lo, hi, step)` in rpm: over the measured and
+/// the trials' speeds.
+fn cutting_speed_grid(frfs: &[CaseFrf], c: &CaseCutting) -> (f64, f64, f64) {
+    let mut speeds: Vec<f64> = frfs.iter().map(|f| f.speed_rpm).collect();
+    if let Some([a, b]) = c.trial_rpm_range {
+        speeds.extend([a, b]);
+    }
+    speeds.sort_by(f64::total_cmp);
+    speeds.dedup();
+    let lo = speeds.first().copied().unwrap_or(0.0);
+    let hi = speeds.last().copied().unwrap_or(0.0);
+    // A round step giving at most 40 speeds, the span widened to whole steps so the
+    // ends of the trials' range are on the grid.
+    let step = [100.0, 250.0, 500.0, 1000.0, 2000.0, 2500.0, 5000.0, 10_000.0]
+        .into_iter()
+        .find(|s| (hi - lo) / s <= 40.0)
+        .unwrap_or(((hi - lo) / 40.0).ceil());
+    let (lo, hi) = ((lo / step).floor() * step, (hi / step).ceil() * step);
+    (lo, hi, step)
+}
+
+/// Writes the cutting configuration's steps: the spindle swept over speed, the coupled model,
+/// its lobes and the trials.
+fn write_cutting_steps(
+    w: &mut String,
+    c: &CaseCutting,
+    frfs: &[CaseFrf],
+    trials_file: Option<&str>,
+    data_path: &impl Fn(&str) -> Result<String, ImportError>,
+) -> Result<(), ImportError> {
+    let (lo, hi, step) = cutting_speed_grid(frfs, c);
+    let _ = writeln!(w);
+    let _ = writeln!(w, "  # Cutting configuration: no sensor; x and y over the speeds of the trials.");
+    let _ = writeln!(w, "  spindle_cutting:");
+    let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
+    let _ = writeln!(w, "    params: {{ machine: test_spindle, max_frequency: 10 kHz, resolution: 2.5 Hz }}");
+    let _ = writeln!(w, "    sweep:");
+    let _ = writeln!(w, "      direction: [x, y]");
+    let _ = writeln!(w, "      speed: {}..{} step {} rpm", num(lo), num(hi), num(step));
+    let _ = writeln!(w, "  cutting_model:");
+    let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
+    let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
+    let _ = writeln!(
+        w,
+        "    inputs: {{ spindle: \"@spindle_cutting.receptance\", structure: \"@holder_tool_model.model\" }}"
+    );
+    let _ = writeln!(w, "  lobes:");
+    let _ = writeln!(w, "    kind: {STABILITY_SPEED_DEPENDENT}");
+    match c.trial_rpm_range {
+        Some([a, b]) => {
+            let _ = writeln!(w, "    params: {{ cutting: trials, speeds: {}..{} step 5 rpm }}", num(a), num(b));
+        }
+        None => {
+            let _ = writeln!(w, "    params: {{ cutting: trials }}");
+        }
+    }
+    let _ = writeln!(w, "    inputs: {{ frfs: \"@cutting_model.frf\" }}");
+    if let Some(t) = trials_file {
+        let _ = writeln!(w, "  trials:");
+        let _ = writeln!(w, "    kind: {TRIALS_SCORE}");
+        let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(&data_path(t)?));
+        let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
+    }
+    Ok(())
+}
+
+/// Writes `outputs:`: the gap table and model-over-measurement plots, then the lobes with the
+/// trials, as the steps exist.
+fn write_outputs(w: &mut String, measured: bool, cutting: bool, trials: bool) {
+    if !measured && !cutting {
+        return;
+    }
+    let _ = writeln!(w);
+    let _ = writeln!(w, "outputs:");
+    if measured {
         let _ = writeln!(
             w,
-            "    inputs: {{ spindle: \"@spindle_cutting.receptance\", structure: \"@holder_tool_model.model\" }}"
+            "  # The gap per measured file, and the measured configuration over each measurement, one plot per file."
         );
-        let _ = writeln!(w, "  lobes:");
-        let _ = writeln!(w, "    kind: {STABILITY_SPEED_DEPENDENT}");
-        match c.trial_rpm_range {
-            Some([a, b]) => {
-                let _ = writeln!(w, "    params: {{ cutting: trials, speeds: {}..{} step 5 rpm }}", num(a), num(b));
-            }
-            None => {
-                let _ = writeln!(w, "    params: {{ cutting: trials }}");
-            }
-        }
-        let _ = writeln!(w, "    inputs: {{ frfs: \"@cutting_model.frf\" }}");
-        if let Some(t) = meas.and_then(|m| m.trials.as_deref()) {
-            let _ = writeln!(w, "  trials:");
-            let _ = writeln!(w, "    kind: {TRIALS_SCORE}");
-            let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(&data_path(t)?));
-            let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
-        }
-    }
-    let trials = cutting.is_some() && meas.and_then(|m| m.trials.as_deref()).is_some();
-    if !frfs.is_empty() || cutting.is_some() {
-        let _ = writeln!(w);
-        let _ = writeln!(w, "outputs:");
-        if !frfs.is_empty() {
-            let _ = writeln!(
-                w,
-                "  # The gap per measured file, and the measured configuration over each measurement, one plot per file."
-            );
-            let _ = writeln!(w, "  - {{ from: \"@gap.summary\", file: gap.csv }}");
-            let _ = writeln!(
-                w,
-                "  - {{ from: \"@measured_model.frf\", label: model, with: [{{ from: \"@tool_tip.frf\", label: measured }}], \
-                 file: \"model-vs-measured-{{file}}.svg\" }}"
-            );
-        }
-        if cutting.is_some() {
-            if trials {
-                let _ = writeln!(
-                    w,
-                    "  # The lobes of the cutting configuration with the trials on them, and the verdicts."
-                );
-                let _ = writeln!(
-                    w,
-                    "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, with: [{{ from: \"@trials.verdicts\", \
-                     label: cutting trials }}], file: lobes.svg }}"
-                );
-                let _ = writeln!(w, "  - {{ from: \"@trials.verdicts\", file: trial-verdicts.csv }}");
-            } else {
-                let _ = writeln!(w, "  # The lobes of the cutting configuration.");
-                let _ =
-                    writeln!(w, "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, file: lobes.svg }}");
-            }
-            let _ = writeln!(w, "  - {{ from: \"@lobes.table\", file: lobes.csv }}");
-        }
-    }
-    if let Some(m) = meas {
-        let _ = writeln!(w);
+        let _ = writeln!(w, "  - {{ from: \"@gap.summary\", file: gap.csv }}");
         let _ = writeln!(
             w,
-            "# {} measured FRFs{}.",
-            frfs.len(),
-            match (m.frequency_lines, m.frequency_step_hz) {
-                (Some(n), Some(df)) => format!(", {n} lines every {} Hz", num(df)),
-                _ => String::new(),
-            }
+            "  - {{ from: \"@measured_model.frf\", label: model, with: [{{ from: \"@tool_tip.frf\", label: measured }}], \
+             file: \"model-vs-measured-{{file}}.svg\" }}"
         );
     }
-    Ok(Parts { id, header: y, entities, rest })
+    if cutting {
+        if trials {
+            let _ =
+                writeln!(w, "  # The lobes of the cutting configuration with the trials on them, and the verdicts.");
+            let _ = writeln!(
+                w,
+                "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, with: [{{ from: \"@trials.verdicts\", \
+                 label: cutting trials }}], file: lobes.svg }}"
+            );
+            let _ = writeln!(w, "  - {{ from: \"@trials.verdicts\", file: trial-verdicts.csv }}");
+        } else {
+            let _ = writeln!(w, "  # The lobes of the cutting configuration.");
+            let _ = writeln!(w, "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, file: lobes.svg }}");
+        }
+        let _ = writeln!(w, "  - {{ from: \"@lobes.table\", file: lobes.csv }}");
+    }
+}
+
+/// Writes the closing comment: how many FRFs were measured, and on which frequency lines.
+fn write_measurement_note(w: &mut String, m: &CaseMeasurements) {
+    let _ = writeln!(w);
+    let _ = writeln!(
+        w,
+        "# {} measured FRFs{}.",
+        m.frf.len(),
+        match (m.frequency_lines, m.frequency_step_hz) {
+            (Some(n), Some(df)) => format!(", {n} lines every {} Hz", num(df)),
+            _ => String::new(),
+        }
+    );
 }
 
 #[cfg(test)]

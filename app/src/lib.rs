@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 
 pub mod diagnose;
+pub mod export;
 pub mod fit;
 pub mod import;
 pub mod plugins;

@@ -294,3 +294,53 @@ fn a_recipe_with_a_fit_block_is_refused() {
     assert!(err.contains("joint-fit.yaml") && err.contains("`fit:` block"), "{err}");
     assert!(!dir.path().join("o").exists());
 }
+
+/// `diagnose --batch` diagnoses every case a pattern matches, each into a folder of its own,
+/// and writes a summary that reads back through the table reader; a broken case is a row with
+/// its error (exit 1) and the others are still diagnosed.
+#[test]
+#[ignore = "slow: two full diagnoses (about a minute)"]
+fn a_batch_diagnoses_every_case_and_summarises_them() {
+    let dir = tempfile::tempdir().unwrap();
+    for case in ["train_01", "train_04"] {
+        let to = dir.path().join("cases").join(case);
+        std::fs::create_dir_all(&to).unwrap();
+        for e in std::fs::read_dir(training(case)).unwrap().flatten() {
+            let name = e.file_name();
+            if name != "truth.json" {
+                std::fs::copy(e.path(), to.join(name)).unwrap();
+            }
+        }
+    }
+    std::fs::create_dir_all(dir.path().join("cases/broken")).unwrap();
+    std::fs::write(dir.path().join("cases/broken/case.json"), "{ not json").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
+        .args(["diagnose", "--batch", "cases/*/case.json", "-o", "batch"])
+        .current_dir(dir.path())
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    let shown = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.status.code(), Some(1), "one case is broken:\n{shown}");
+    let out = dir.path().join("batch");
+    let csv = std::fs::read(out.join("summary.csv")).unwrap();
+    let blocks = spindlelab::engine::formats::csv::read_tables(&csv, "summary.csv").unwrap();
+    let t = &blocks[0].table;
+    let col = |name: &str| t.columns.iter().find(|c| c.name == name).unwrap_or_else(|| panic!("no {name}"));
+    let words = |name: &str| -> Vec<String> {
+        let c = col(name);
+        c.values.iter().map(|&v| c.levels[v as usize].clone()).collect()
+    };
+    assert_eq!(words("case"), ["broken", "train_01", "train_04"]);
+    assert_eq!(words("verdict")[0], "failed");
+    assert!(!words("error")[0].is_empty());
+    for (i, case) in [(1, "train_01"), (2, "train_04")] {
+        assert_eq!(words("verdict")[i], "effects", "{case}:\n{shown}");
+        assert!(col("gap_after").values[i] < col("gap_before").values[i], "{case}: the gap shrinks");
+        assert!(out.join(case).join("diagnosis/diagnosis.md").is_file());
+        assert!(out.join(case).join("recipe.yaml").is_file());
+    }
+    assert!(words("effects")[2].contains("mass_loading"), "{:?}", words("effects"));
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(md.contains("[train_04](train_04/diagnosis/diagnosis.md)"), "{md}");
+}

@@ -33,6 +33,7 @@ mod registry;
 mod report;
 mod reuse;
 mod scripts;
+mod shards;
 mod stability;
 mod structure;
 mod truth_simulator;

@@ -20,6 +20,7 @@
 //! 4. **Add** and **show.** The named effects are written into the recipe at their fitted
 //!    values (`diagnosed.yaml`), which runs again for the gap after.
 
+pub mod batch;
 pub mod edit;
 pub mod effects;
 pub mod roles;
@@ -722,31 +723,65 @@ fn try_candidate(
 pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseError> {
     let t0 = Instant::now();
     let shown = path.display().to_string();
-    let recipe_err = |message: String| DiagnoseError::Recipe { path: shown.clone(), message };
+    let (base, compiled, mut roles) = load_recipe(path, &shown, registry)?;
+    let (baseline, memo) = evaluate_baseline(path, &shown, &base, &compiled, &mut roles, registry)?;
+    let ctx = Ctx {
+        path,
+        base: &base,
+        compiled: &compiled,
+        roles: &roles,
+        registry,
+        baseline: &baseline,
+        memo: Arc::new(memo),
+    };
+    let lib = effects::library(registry);
+    let search = search_effects(&ctx, &lib);
+    let (diagnosed, after) = evaluate_diagnosed(&ctx, &shown, &search)?;
+    Ok(assemble_report(&ctx, search, &diagnosed, &after, shown, t0))
+}
+
+/// Reads and compiles the recipe at `path` and finds its roles, refusing a recipe a diagnosis
+/// cannot edit, fit or judge.
+fn load_recipe(path: &Path, shown: &str, registry: &Registry) -> Result<(RecipeText, Compiled, Roles), DiagnoseError> {
+    let recipe_err = |message: String| DiagnoseError::Recipe { path: shown.to_string(), message };
     if path.extension().is_some_and(|e| e == "rhai") {
         return Err(recipe_err(
             "a diagnosis edits the recipe's text; give a YAML recipe (a Rhai script builds its recipe in code)".into(),
         ));
     }
     let text = std::fs::read_to_string(path).map_err(|e| recipe_err(format!("cannot read the recipe: {e}")))?;
-    let base = RecipeText::new(&shown, text).map_err(|e| recipe_err(e.to_string()))?;
+    let base = RecipeText::new(shown, text).map_err(|e| recipe_err(e.to_string()))?;
     let compiled = compile_text(&base, path, &[], registry).map_err(DiagnoseError::Input)?;
     if compiled.recipe.fit.is_some() {
         return Err(recipe_err(
             "the recipe has a `fit:` block; a diagnosis fits its own parameters: remove the block (or run the fitted recipe)".into(),
         ));
     }
-    let mut roles = Roles::find(&compiled);
+    let roles = Roles::find(&compiled);
     if roles.gaps.is_empty() {
         return Err(recipe_err(
             "nothing compares a model with a measurement: declare the measured FRFs (`measurements:`) and an `frf.gap` step whose `model` is the prediction (see `spindlelab import`)".into(),
         ));
     }
+    Ok((base, compiled, roles))
+}
+
+/// Evaluates the recipe as written (its lobes at the trials' speeds), refuses it when every
+/// measurement is noise, and tells `roles` the measured directions.
+fn evaluate_baseline(
+    path: &Path,
+    shown: &str,
+    base: &RecipeText,
+    compiled: &Compiled,
+    roles: &mut Roles,
+    registry: &Registry,
+) -> Result<(Evaluation, Memo), DiagnoseError> {
+    let recipe_err = |message: String| DiagnoseError::Recipe { path: shown.to_string(), message };
     // The trials' speeds, so every evaluation computes the lobes there only.
-    let trial_speeds = trial_speeds(&compiled, &roles);
-    let at_trials = at_trial_speeds(&base, &roles, &trial_speeds).map_err(recipe_err)?;
+    let trial_speeds = trial_speeds(compiled, roles);
+    let at_trials = at_trial_speeds(base, roles, &trial_speeds).map_err(recipe_err)?;
     let evaluated = compile_text(&at_trials, path, &[], registry)
-        .and_then(|c| evaluate(&c, &roles, registry, None))
+        .and_then(|c| evaluate(&c, roles, registry, None))
         .map_err(|e| recipe_err(format!("the model as written does not run: {e}")))?;
     let (mut baseline, memo) = evaluated;
     baseline.trial_speeds_rpm = trial_speeds;
@@ -759,166 +794,245 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         )));
     }
     roles.measured(&baseline);
-    let ctx = Ctx {
-        path,
-        base: &base,
-        compiled: &compiled,
-        roles: &roles,
-        registry,
-        baseline: &baseline,
-        memo: Arc::new(memo),
-    };
-    let lib = effects::library(registry);
-    let mut candidates: Vec<Candidate> = Vec::new();
-    let mut named: Vec<&dyn Effect> = Vec::new();
-    let mut named_values: Vec<(String, f64)> = Vec::new();
-    let mut current = baseline.clone();
-    let mut unknown_fit: Option<UnknownMode> = None;
+    Ok((baseline, memo))
+}
 
-    // Structural and measurement effects, when the FRFs disagree.
-    if !baseline.at_floor() {
-        let singles: Vec<&dyn Effect> =
-            lib.iter().map(|e| e.as_ref()).filter(|e| e.scope() != Scope::Cutting).collect();
-        let fitted: Vec<Candidate> =
-            singles.par_iter().map(|e| try_candidate(&ctx, &[*e], &[], &[], &[], &baseline)).collect();
-        let mut ranked: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].skipped.is_none()).collect();
-        ranked.sort_by(|&a, &b| fitted[a].bic.total_cmp(&fitted[b].bic));
-        let best_single = ranked.first().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG && fitted[i].explains);
-        let mut chosen: Option<Candidate> = best_single.map(|i| fitted[i].clone());
-        if chosen.is_none() {
-            // Pairs of the best three that each explain something.
-            let top: Vec<usize> =
-                ranked.iter().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG).take(3).collect();
-            let mut pairs = Vec::new();
-            for a in 0..top.len() {
-                for b in a + 1..top.len() {
-                    pairs.push((top[a], top[b]));
-                }
-            }
-            let best_single_bic = ranked.first().map_or(f64::INFINITY, |&i| fitted[i].bic);
-            let tried: Vec<Candidate> = pairs
-                .par_iter()
-                .map(|&(a, b)| {
-                    let starts: Vec<(String, f64)> =
-                        fitted[a].values.iter().chain(&fitted[b].values).cloned().collect();
-                    let mut c = try_candidate(&ctx, &[singles[a], singles[b]], &[], &[], &starts, &baseline);
-                    // A pair must also beat the best single effect.
-                    if c.skipped.is_none() && best_single_bic - c.bic <= BIC_STRONG {
-                        c.explains = false;
-                    }
-                    c
-                })
-                .collect();
-            let best_pair = tried
-                .iter()
-                .filter(|c| c.skipped.is_none() && c.explains && c.delta_bic > BIC_STRONG)
-                .min_by(|a, b| a.bic.total_cmp(&b.bic))
-                .cloned();
-            candidates.extend(tried);
-            // A pair is kept only if neither of its effects alone, refitted from the pair's
-            // values, explains the data as well (a single fit can miss its basin).
-            if let Some(pair) = &best_pair {
-                let members: Vec<&dyn Effect> =
-                    pair.effects.iter().filter_map(|n| singles.iter().copied().find(|e| e.name() == *n)).collect();
-                let pruned: Vec<Candidate> =
-                    members.par_iter().map(|e| try_candidate(&ctx, &[*e], &[], &[], &pair.values, &baseline)).collect();
-                let simpler = pruned
-                    .iter()
-                    .filter(|c| {
-                        c.skipped.is_none() && c.explains && c.delta_bic > BIC_STRONG && c.bic - pair.bic <= BIC_STRONG
-                    })
-                    .min_by(|a, b| a.bic.total_cmp(&b.bic))
-                    .cloned();
-                candidates.extend(pruned);
-                chosen = simpler.or(best_pair);
-            } else {
-                chosen = None;
+/// A cutting effect is named, and trials listed as unexplained, when at least this many
+/// trials are misclassified.
+const MIN_FIXED: usize = 3;
+
+/// What the search for effects found: every candidate tried, the effects named with their
+/// values, and the mode outside the library that stands in for what they leave.
+struct Search<'l> {
+    candidates: Vec<Candidate>,
+    named: Vec<&'l dyn Effect>,
+    named_values: Vec<(String, f64)>,
+    unknown_fit: Option<UnknownMode>,
+}
+
+/// Searches the library for the effects the model lacks: structural and measurement effects
+/// when the FRFs disagree, then cutting effects when the trials still do.
+fn search_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>]) -> Search<'l> {
+    let mut search = Search { candidates: Vec::new(), named: Vec::new(), named_values: Vec::new(), unknown_fit: None };
+    let mut current = ctx.baseline.clone();
+    if !ctx.baseline.at_floor() {
+        search_frf_effects(ctx, lib, &mut search, &mut current);
+    }
+    search_cutting_effects(ctx, lib, &mut search, &current);
+    search
+}
+
+/// Fits each structural and measurement effect alone, then pairs, then a mode outside the
+/// library, and names the effects of the first that explains the FRFs (`current` becomes its
+/// evaluation).
+fn search_frf_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>], search: &mut Search<'l>, current: &mut Evaluation) {
+    let singles: Vec<&dyn Effect> = lib.iter().map(|e| e.as_ref()).filter(|e| e.scope() != Scope::Cutting).collect();
+    let fitted: Vec<Candidate> =
+        singles.par_iter().map(|e| try_candidate(ctx, &[*e], &[], &[], &[], ctx.baseline)).collect();
+    let mut ranked: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].skipped.is_none()).collect();
+    ranked.sort_by(|&a, &b| fitted[a].bic.total_cmp(&fitted[b].bic));
+    let best_single = ranked.first().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG && fitted[i].explains);
+    let mut chosen: Option<Candidate> = best_single.map(|i| fitted[i].clone());
+    if chosen.is_none() {
+        chosen = try_pairs(ctx, &singles, &fitted, &ranked, &mut search.candidates);
+    }
+    if chosen.is_none() {
+        chosen = try_unknown_mode(ctx, &singles, &fitted, &ranked, search);
+    }
+    search.candidates.splice(0..0, fitted);
+    if let Some(ch) = &chosen {
+        for name in &ch.effects {
+            if let Some(e) = lib.iter().find(|e| e.name() == *name) {
+                search.named.push(e.as_ref());
             }
         }
-        if chosen.is_none() {
-            // Something outside the library: one mode stands in for it where the largest
-            // discrepancy remains (after the best effect with strong evidence, else as written),
-            // and a known effect is named beside it when the two explain every file and beat
-            // that mode alone by ΔBIC > 10.
-            let best = ranked.first().filter(|&&i| fitted[i].delta_bic > BIC_STRONG);
-            let from = best.and_then(|&i| fitted[i].evaluation.as_ref()).unwrap_or(&baseline);
-            if let Some(unknown) = locate_unknown(from) {
-                let alone = try_candidate(&ctx, &[&unknown], &[], &[], &[], &baseline);
-                let top: Vec<usize> =
-                    ranked.iter().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG).take(3).collect();
-                let beside: Vec<Candidate> = top
-                    .par_iter()
-                    .map(|&i| {
-                        let starts: Vec<(String, f64)> =
-                            fitted[i].values.iter().chain(&alone.values).cloned().collect();
-                        try_candidate(&ctx, &[singles[i], &unknown], &[], &[], &starts, &baseline)
-                    })
-                    .collect();
-                let known = beside
-                    .iter()
-                    .filter(|c| c.skipped.is_none() && c.explains)
-                    .filter(|c| alone.skipped.is_some() || alone.bic - c.bic > BIC_STRONG)
-                    .min_by(|a, b| a.bic.total_cmp(&b.bic))
-                    .cloned();
-                let located = known.as_ref().or((alone.skipped.is_none() && alone.explains).then_some(&alone));
-                if let Some(c) = located {
-                    let at = |n: &str| c.values.iter().find(|(k, _)| k == n).map_or(f64::NAN, |v| v.1);
-                    unknown_fit = Some(UnknownMode {
-                        direction: unknown.direction.clone(),
-                        f_hz: at("unknown_f"),
-                        zeta: at("unknown_zeta"),
-                        stiffness_n_per_m: at("unknown_k"),
-                    });
-                }
-                chosen = known;
-                candidates.push(alone);
-                candidates.extend(beside);
-            }
-        }
-        candidates.splice(0..0, fitted);
-        if let Some(ch) = &chosen {
-            for name in &ch.effects {
-                if let Some(e) = lib.iter().find(|e| e.name() == *name) {
-                    named.push(e.as_ref());
-                }
-            }
-            named_values = ch.values.clone();
-            current = ch.evaluation.clone().expect("evaluated");
+        search.named_values = ch.values.clone();
+        *current = ch.evaluation.clone().expect("evaluated");
+    }
+}
+
+/// Fits pairs of the three best single effects with strong evidence and returns the best pair
+/// that explains the FRFs and beats every single effect, or its simpler member.
+fn try_pairs(
+    ctx: &Ctx,
+    singles: &[&dyn Effect],
+    fitted: &[Candidate],
+    ranked: &[usize],
+    candidates: &mut Vec<Candidate>,
+) -> Option<Candidate> {
+    // Pairs of the best three that each explain something.
+    let top: Vec<usize> = ranked.iter().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG).take(3).collect();
+    let mut pairs = Vec::new();
+    for a in 0..top.len() {
+        for b in a + 1..top.len() {
+            pairs.push((top[a], top[b]));
         }
     }
-
-    // Cutting effects, when the trials disagree with the model so far.
-    let min_fixed = 3;
-    if current.misclassified() >= min_fixed {
-        for e in lib.iter().filter(|e| e.scope() == Scope::Cutting) {
-            let c = try_candidate(&ctx, &[e.as_ref()], &named, &named_values, &[], &current);
-            let fixes = c
-                .trials_misclassified_after
-                .is_some_and(|m| current.misclassified() - m.min(current.misclassified()) >= min_fixed);
-            if c.skipped.is_none() && c.delta_bic > BIC_STRONG && fixes {
-                named.push(e.as_ref());
-                named_values = c.values.clone();
-                candidates.push(c);
-                break;
+    let best_single_bic = ranked.first().map_or(f64::INFINITY, |&i| fitted[i].bic);
+    let tried: Vec<Candidate> = pairs
+        .par_iter()
+        .map(|&(a, b)| {
+            let starts: Vec<(String, f64)> = fitted[a].values.iter().chain(&fitted[b].values).cloned().collect();
+            let mut c = try_candidate(ctx, &[singles[a], singles[b]], &[], &[], &starts, ctx.baseline);
+            // A pair must also beat the best single effect.
+            if c.skipped.is_none() && best_single_bic - c.bic <= BIC_STRONG {
+                c.explains = false;
             }
-            candidates.push(c);
-        }
-    }
+            c
+        })
+        .collect();
+    let best_pair = tried
+        .iter()
+        .filter(|c| c.skipped.is_none() && c.explains && c.delta_bic > BIC_STRONG)
+        .min_by(|a, b| a.bic.total_cmp(&b.bic))
+        .cloned();
+    candidates.extend(tried);
+    Some(pruned_pair(ctx, singles, best_pair?, candidates))
+}
 
+/// The pair, unless one of its effects alone, refitted from the pair's values, explains the
+/// data as well (a single fit can miss its basin): then the best such effect.
+fn pruned_pair(ctx: &Ctx, singles: &[&dyn Effect], pair: Candidate, candidates: &mut Vec<Candidate>) -> Candidate {
+    let members: Vec<&dyn Effect> =
+        pair.effects.iter().filter_map(|n| singles.iter().copied().find(|e| e.name() == *n)).collect();
+    let pruned: Vec<Candidate> =
+        members.par_iter().map(|e| try_candidate(ctx, &[*e], &[], &[], &pair.values, ctx.baseline)).collect();
+    let simpler = pruned
+        .iter()
+        .filter(|c| c.skipped.is_none() && c.explains && c.delta_bic > BIC_STRONG && c.bic - pair.bic <= BIC_STRONG)
+        .min_by(|a, b| a.bic.total_cmp(&b.bic))
+        .cloned();
+    candidates.extend(pruned);
+    simpler.unwrap_or(pair)
+}
+
+/// Fits one mode outside the library where the largest discrepancy remains, alone and beside
+/// each strong single effect, and returns the known effect named beside it, if any.
+fn try_unknown_mode(
+    ctx: &Ctx,
+    singles: &[&dyn Effect],
+    fitted: &[Candidate],
+    ranked: &[usize],
+    search: &mut Search<'_>,
+) -> Option<Candidate> {
+    // Something outside the library: one mode stands in for it where the largest
+    // discrepancy remains (after the best effect with strong evidence, else as written),
+    // and a known effect is named beside it when the two explain every file and beat
+    // that mode alone by ΔBIC > 10.
+    let best = ranked.first().filter(|&&i| fitted[i].delta_bic > BIC_STRONG);
+    let from = best.and_then(|&i| fitted[i].evaluation.as_ref()).unwrap_or(ctx.baseline);
+    let unknown = locate_unknown(from)?;
+    let alone = try_candidate(ctx, &[&unknown], &[], &[], &[], ctx.baseline);
+    let top: Vec<usize> = ranked.iter().copied().filter(|&i| fitted[i].delta_bic > BIC_STRONG).take(3).collect();
+    let beside: Vec<Candidate> = top
+        .par_iter()
+        .map(|&i| {
+            let starts: Vec<(String, f64)> = fitted[i].values.iter().chain(&alone.values).cloned().collect();
+            try_candidate(ctx, &[singles[i], &unknown], &[], &[], &starts, ctx.baseline)
+        })
+        .collect();
+    let known = beside
+        .iter()
+        .filter(|c| c.skipped.is_none() && c.explains)
+        .filter(|c| alone.skipped.is_some() || alone.bic - c.bic > BIC_STRONG)
+        .min_by(|a, b| a.bic.total_cmp(&b.bic))
+        .cloned();
+    let located = known.as_ref().or((alone.skipped.is_none() && alone.explains).then_some(&alone));
+    if let Some(c) = located {
+        let at = |n: &str| c.values.iter().find(|(k, _)| k == n).map_or(f64::NAN, |v| v.1);
+        search.unknown_fit = Some(UnknownMode {
+            direction: unknown.direction.clone(),
+            f_hz: at("unknown_f"),
+            zeta: at("unknown_zeta"),
+            stiffness_n_per_m: at("unknown_k"),
+        });
+    }
+    search.candidates.push(alone);
+    search.candidates.extend(beside);
+    known
+}
+
+/// Fits each cutting effect on top of the named ones when the trials disagree with the model
+/// so far (`current`), and names the first that fixes enough of them.
+fn search_cutting_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>], search: &mut Search<'l>, current: &Evaluation) {
+    if current.misclassified() < MIN_FIXED {
+        return;
+    }
+    for e in lib.iter().filter(|e| e.scope() == Scope::Cutting) {
+        let c = try_candidate(ctx, &[e.as_ref()], &search.named, &search.named_values, &[], current);
+        let fixes = c
+            .trials_misclassified_after
+            .is_some_and(|m| current.misclassified() - m.min(current.misclassified()) >= MIN_FIXED);
+        if c.skipped.is_none() && c.delta_bic > BIC_STRONG && fixes {
+            search.named.push(e.as_ref());
+            search.named_values = c.values.clone();
+            search.candidates.push(c);
+            break;
+        }
+        search.candidates.push(c);
+    }
+}
+
+/// The augmented recipe and its evaluation: the named effects written in at their values as
+/// `diagnosed.yaml` rounds them, run again (the baseline when nothing was named).
+fn evaluate_diagnosed(ctx: &Ctx, shown: &str, search: &Search) -> Result<(RecipeText, Evaluation), DiagnoseError> {
+    let recipe_err = |message: String| DiagnoseError::Recipe { path: shown.to_string(), message };
     // The augmented recipe, run again: its values as `diagnosed.yaml` writes them, to the
     // significant digits a fit resolves, so the file reproduces the gap reported after.
-    let written: Vec<(String, f64)> =
-        named_values.iter().map(|(n, v)| (n.clone(), spindlelab_domain::round_sig(*v, WRITTEN_DIGITS))).collect();
-    let (diagnosed, _) = augmented(&ctx, &named, &written).map_err(recipe_err)?;
-    let after = if named.is_empty() {
-        baseline.clone()
+    let written: Vec<(String, f64)> = search
+        .named_values
+        .iter()
+        .map(|(n, v)| (n.clone(), spindlelab_domain::round_sig(*v, WRITTEN_DIGITS)))
+        .collect();
+    let (diagnosed, _) = augmented(ctx, &search.named, &written).map_err(recipe_err)?;
+    let after = if search.named.is_empty() {
+        ctx.baseline.clone()
     } else {
-        at_trial_speeds(&diagnosed, &roles, &baseline.trial_speeds_rpm)
-            .and_then(|t| compile_text(&t, path, &[], registry))
-            .and_then(|c| evaluate(&c, &roles, registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0))
+        at_trial_speeds(&diagnosed, ctx.roles, &ctx.baseline.trial_speeds_rpm)
+            .and_then(|t| compile_text(&t, ctx.path, &[], ctx.registry))
+            .and_then(|c| evaluate(&c, ctx.roles, ctx.registry, Some(Arc::clone(&ctx.memo))).map(|e| e.0))
             .map_err(|e| recipe_err(format!("the diagnosed recipe does not run: {e}")))?
     };
+    Ok((diagnosed, after))
+}
 
+/// Assembles the diagnosis: what stays unexplained, the verdict, the named effects, the gap
+/// before and after, the pictures and the diagnosed recipe with its header.
+fn assemble_report(
+    ctx: &Ctx,
+    search: Search,
+    diagnosed: &RecipeText,
+    after: &Evaluation,
+    shown: String,
+    t0: Instant,
+) -> Diagnosis {
+    let unexplained = unexplained(after, search.unknown_fit.as_ref());
+    let verdict = match (unexplained.is_empty(), search.named.is_empty()) {
+        (false, true) => VERDICT_UNEXPLAINED,
+        (false, false) => VERDICT_PARTIAL,
+        (true, true) => VERDICT_NONE,
+        (true, false) => VERDICT_EFFECTS,
+    };
+    let effects = named_effects(ctx, &search);
+    let gap = gap_report(ctx.baseline, after);
+    let pictures = picture_values(ctx, diagnosed, after, !search.named.is_empty());
+    let header = diagnosed_header(&search.named, &search.named_values, ctx.roles, ctx.compiled, verdict, &effects);
+    Diagnosis {
+        verdict,
+        effects,
+        unexplained,
+        gap,
+        candidates: search.candidates,
+        recipe: shown,
+        seconds: t0.elapsed().as_secs_f64(),
+        diagnosed_recipe: format!("{header}{}", diagnosed.text),
+        pictures,
+    }
+}
+
+/// What the diagnosed model leaves: every file off the floor (with the unknown mode along its
+/// direction), and the trials still wrong when there are enough of them.
+fn unexplained(after: &Evaluation, unknown_fit: Option<&UnknownMode>) -> Vec<Unexplained> {
     let mut unexplained: Vec<Unexplained> = after
         .files
         .iter()
@@ -930,24 +1044,25 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 near_hz: f.max_discrepancy_hz,
                 band_hz: f.band_hz,
                 ratio: f.ratio,
-                resonance: unknown_fit.clone().filter(|u| u.direction == f.direction),
+                resonance: unknown_fit.cloned().filter(|u| u.direction == f.direction),
             })
         })
         .collect();
     // Trials that stay wrong are listed one by one: where the lobes and the cuts disagree.
-    if after.misclassified() >= min_fixed {
+    if after.misclassified() >= MIN_FIXED {
         unexplained.extend(after.wrong_trials.iter().cloned().map(Unexplained::Trial));
     }
-    let verdict = match (unexplained.is_empty(), named.is_empty()) {
-        (false, true) => VERDICT_UNEXPLAINED,
-        (false, false) => VERDICT_PARTIAL,
-        (true, true) => VERDICT_NONE,
-        (true, false) => VERDICT_EFFECTS,
-    };
-    let effects: Vec<NamedEffect> = named
+    unexplained
+}
+
+/// The named effects as reported: their parameters, fitted uncertainties and evidence (from
+/// the last candidate fitted with each).
+fn named_effects(ctx: &Ctx, search: &Search) -> Vec<NamedEffect> {
+    search
+        .named
         .iter()
         .map(|e| {
-            let c = candidates.iter().rev().find(|c| c.effects.contains(&e.name()) && c.skipped.is_none());
+            let c = search.candidates.iter().rev().find(|c| c.effects.contains(&e.name()) && c.skipped.is_none());
             let uncertainty: Map<String, Json> = c
                 .map(|c| {
                     c.fitted
@@ -960,7 +1075,7 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 .unwrap_or_default();
             NamedEffect {
                 name: e.name(),
-                params: Json::Object(e.report(&named_values, &roles, &compiled)),
+                params: Json::Object(e.report(&search.named_values, ctx.roles, ctx.compiled)),
                 uncertainty: Json::Object(uncertainty),
                 evidence: serde_json::json!({
                     "delta_bic": c.map(|c| c.delta_bic),
@@ -969,7 +1084,11 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
                 }),
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The gap before and after, per measured file and for the trials.
+fn gap_report(baseline: &Evaluation, after: &Evaluation) -> GapReport {
     let files = baseline
         .files
         .iter()
@@ -990,39 +1109,35 @@ pub fn diagnose(path: &Path, registry: &Registry) -> Result<Diagnosis, DiagnoseE
         misclassified_before: m,
         misclassified_after: after.misclassified(),
     });
+    GapReport { files, trials }
+}
+
+/// The values behind the pictures: each file's measurement with the model before and (when
+/// effects were `added`) after, and the full stability diagrams drawn before and after.
+fn picture_values(ctx: &Ctx, diagnosed: &RecipeText, after: &Evaluation, added: bool) -> Pictures {
     let mut pictures = Pictures {
-        files: baseline
+        files: ctx
+            .baseline
             .files
             .iter()
             .zip(&after.files)
             .filter_map(|(b, a)| {
                 let (model, measured) = b.frfs.clone()?;
-                let model_after = if named.is_empty() { None } else { a.frfs.as_ref().map(|f| f.0.clone()) };
+                let model_after = if added { a.frfs.as_ref().map(|f| f.0.clone()) } else { None };
                 Some(FilePicture { file: b.file.clone(), measured, before: model, after: model_after })
             })
             .collect(),
         ..Pictures::default()
     };
     let drawn = |r: &RecipeText| {
-        let r = at_picture_speeds(r, &roles, &compiled, &baseline.trial_speeds_rpm);
-        diagram(&r, path, &roles, registry, Arc::clone(&ctx.memo))
+        let r = at_picture_speeds(r, ctx.roles, ctx.compiled, &ctx.baseline.trial_speeds_rpm);
+        diagram(&r, ctx.path, ctx.roles, ctx.registry, Arc::clone(&ctx.memo))
     };
-    pictures.lobes_before = drawn(&base);
-    if !named.is_empty() {
-        pictures.lobes_after = drawn(&diagnosed);
+    pictures.lobes_before = drawn(ctx.base);
+    if added {
+        pictures.lobes_after = drawn(diagnosed);
     }
-    let header = diagnosed_header(&named, &named_values, &roles, &compiled, verdict, &effects);
-    Ok(Diagnosis {
-        verdict,
-        effects,
-        unexplained,
-        gap: GapReport { files, trials },
-        candidates,
-        recipe: shown,
-        seconds: t0.elapsed().as_secs_f64(),
-        diagnosed_recipe: format!("{header}{}", diagnosed.text),
-        pictures,
-    })
+    pictures
 }
 
 fn diagnosed_header(

@@ -200,6 +200,34 @@ impl Cache {
     }
 }
 
+impl Cache {
+    /// Bounds the cache to `max_bytes`: the entries written last are kept while they fit, the
+    /// older ones removed (ties by key, so the choice does not depend on listing order); returns
+    /// how many and how many bytes went. Works on a cache others use at the same time: an entry
+    /// removed under a running job is a miss there, and recomputed.
+    pub fn within(&self, max_bytes: u64) -> (usize, u64) {
+        let mut entries: Vec<(std::time::SystemTime, String, u64)> = self
+            .entries()
+            .into_iter()
+            .map(|(key, path, size)| {
+                let at = std::fs::metadata(&path).and_then(|m| m.modified()).unwrap_or(std::time::UNIX_EPOCH);
+                (at, key, size)
+            })
+            .collect();
+        entries.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+        let mut total = 0u64;
+        let keep: std::collections::HashSet<String> = entries
+            .into_iter()
+            .take_while(|(_, _, size)| {
+                total += size;
+                total <= max_bytes
+            })
+            .map(|(_, key, _)| key)
+            .collect();
+        self.retain(|k| keep.contains(k))
+    }
+}
+
 /// What [`Cache::lookup`] found.
 pub enum Lookup {
     Hit(Entry),

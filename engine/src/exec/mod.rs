@@ -6,11 +6,13 @@ mod cache;
 pub mod commit;
 pub mod files;
 pub mod manifest;
+pub mod shard;
 pub mod write;
 
 pub use cache::{Cache, Lookup};
 pub use commit::{CommitError, OutputDir};
 pub use manifest::{Manifest, ManifestNode, PlanEntry, PlanReason, plan};
+pub use shard::Shard;
 
 use crate::graph::Graph;
 use crate::model::Recipe;
@@ -48,6 +50,11 @@ pub struct RunOptions {
     pub report: bool,
     /// Draws the plots and the report; a run that asks for either needs one.
     pub renderer: Option<Arc<dyn crate::render::Renderer>>,
+    /// The cache folder when it is not the output folder's own (`--cache DIR`,
+    /// `SPINDLELAB_CACHE`): one that runs, shards and machines share.
+    pub cache_dir: Option<PathBuf>,
+    /// Settle only this shard's instances and what they need ([`shard`]).
+    pub shard: Option<Shard>,
 }
 
 /// Outputs and warnings of computed instances, by cache key, kept in memory.
@@ -66,6 +73,8 @@ impl RunOptions {
             extra_files: Vec::new(),
             report: false,
             renderer: None,
+            cache_dir: None,
+            shard: None,
         }
     }
 
@@ -77,7 +86,7 @@ impl RunOptions {
 
     /// The cache directory for this output directory.
     pub fn cache(&self) -> Cache {
-        Cache::new(cache_dir(&self.out_dir))
+        Cache::new(self.cache_dir.clone().unwrap_or_else(|| cache_dir(&self.out_dir)))
     }
 }
 
@@ -197,7 +206,7 @@ pub fn execute(
     let n = graph.instances.len();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
     let mut notes = Vec::new();
-    if cache.is_some() || opts.memo.is_some() || opts.targets.is_some() {
+    if cache.is_some() || opts.memo.is_some() || opts.targets.is_some() || opts.shard.is_some() {
         settle_known(recipe, graph, registry, cache.as_ref(), opts, &mut outcomes, &mut notes);
     }
     let mut stop = false;
@@ -320,6 +329,18 @@ pub fn needed_for(recipe: &Recipe, graph: &Graph, cached: &[bool], targets: Opti
     needed
 }
 
+/// The instances `roots` need: themselves, and the inputs of every needed one not cached.
+fn needed_from(graph: &Graph, cached: &[bool], mut needed: Vec<bool>) -> Vec<bool> {
+    for i in (0..graph.instances.len()).rev() {
+        if needed[i] && !cached[i] {
+            for d in graph.instances[i].deps() {
+                needed[d] = true;
+            }
+        }
+    }
+    needed
+}
+
 /// Reads the cache entry of every cacheable instance and settles what need not run: needed
 /// instances with an entry are loaded from it, the others are marked unneeded. So a rerun
 /// does not remake large uncached intermediates (simulated raw records) whose consumers
@@ -380,7 +401,10 @@ fn settle_known(
         })
         .collect();
     let cached: Vec<bool> = entries.iter().map(Option::is_some).collect();
-    let needed = needed_for(recipe, graph, &cached, opts.targets.as_deref());
+    let needed = match &opts.shard {
+        Some(s) => needed_from(graph, &cached, shard::roots(graph, registry, s)),
+        None => needed_for(recipe, graph, &cached, opts.targets.as_deref()),
+    };
     for i in 0..n {
         match (needed[i], entries[i].take()) {
             (true, Some((outputs, warnings))) => outcomes[i] = Some(Outcome::Cached { outputs, warnings }),

@@ -5,10 +5,10 @@ use super::entities::{
 };
 use super::{Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis};
 use crate::diag::{Diagnostics, Span};
-use crate::node::Registry;
+use crate::node::{Node, NodeSpec, PortSpec, Registry};
 use crate::plot::PlotFormat;
 use crate::spec::{self, Ctx, EntityKind, EntityNames, Field, FieldType, ParamValue, Params, suggest};
-use crate::syntax::{Raw, RawKind};
+use crate::syntax::{Key, Raw, RawKind};
 use crate::value::PortType;
 use indexmap::IndexMap;
 use spindlelab_domain::{Speed, SpeedLaw};
@@ -641,301 +641,402 @@ pub(super) fn parse_port_ref(text: &str) -> Option<PortRef> {
     (valid_step_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
 }
 
+/// Resolves the recipe's `steps` one entry at a time, collecting every diagnostic instead of stopping at the first.
 fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx, diags: &mut Diagnostics) -> Vec<Step> {
-    let Some(raw) = raw else {
-        diags.error_help(Some(root), "the recipe has no `steps`", "add `steps:` with at least one analysis step");
-        return Vec::new();
-    };
-    let Some(entries) = raw.as_map() else {
-        diags.error(
-            Some(&raw.span),
-            format!("`steps` must be a mapping of step names to steps, found {}", raw.describe()),
-        );
-        return Vec::new();
-    };
+    let Some(entries) = step_entries(raw, root, diags) else { return Vec::new() };
     // Kinds first, so input references can be checked against the producer's ports.
-    let kinds: IndexMap<&str, Option<&str>> = entries
-        .iter()
-        .map(|(k, v)| {
-            (k.name.as_str(), v.get("kind").and_then(Raw::as_str).filter(|kind| registry.get(kind).is_some()))
-        })
-        .collect();
+    let kinds = known_step_kinds(entries, registry);
     let mut steps = Vec::new();
     for (key, sraw) in entries {
         // File parameters are relative to the file the step is written in (a recipe run as a
         // step reads its data beside itself).
         let folder = super::source_folder(&key.span.file);
         let step_ctx = Ctx { entities: ctx.entities, base_dir: Some(&folder) };
-        let ctx = &step_ctx;
-        let id = key.name.clone();
-        if !valid_step_name(&id) {
-            diags.error_help(
-                Some(&key.span),
-                format!("`{id}` is not a valid step name"),
-                "use letters, digits, `_` and `-`, starting with a letter",
-            );
-        }
-        if sraw.as_map().is_none() {
-            diags.error(
-                Some(&sraw.span),
-                format!("step `{id}` must be a mapping with `kind`, found {}", sraw.describe()),
-            );
-            continue;
-        }
-        unknown_keys(sraw, STEP_KEYS, &format!("step `{id}`"), diags);
-        let Some(kind_raw) = sraw.get("kind") else {
-            diags.error_help(
-                Some(&key.span),
-                format!("step `{id}` has no `kind`"),
-                "add `kind: …`; `spindlelab nodes` lists the kinds",
-            );
-            continue;
-        };
-        let Some(kind) = kind_raw.as_str() else {
-            diags.error(Some(&kind_raw.span), format!("`kind` of step `{id}` must be text"));
-            continue;
-        };
-        let Some(node) = registry.get(kind) else {
-            let msg = format!("unknown step kind `{kind}`");
-            match suggest(kind, registry.names()) {
-                Some(s) => diags.error_help(Some(&kind_raw.span), msg, format!("did you mean `{s}`?")),
-                None => diags.error_help(Some(&kind_raw.span), msg, "`spindlelab nodes` lists the kinds"),
-            }
-            continue;
-        };
-        let spec = node.spec();
-
-        // Sweeps: each axis names a parameter and its values.
-        let mut sweep = Vec::new();
-        if let Some(sw) = sraw.get("sweep") {
-            match sw.as_map() {
-                Some(axes) => {
-                    for (pk, pv) in axes {
-                        let Some(field) = spec.param(&pk.name) else {
-                            let msg = format!("step `{id}` sweeps `{}`, which is not a parameter of `{kind}`", pk.name);
-                            match suggest(&pk.name, spec.params.iter().map(|f| f.name)) {
-                                Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
-                                None => diags.error(Some(&pk.span), msg),
-                            }
-                            continue;
-                        };
-                        let what = format!("sweep `{}` of step `{id}`", pk.name);
-                        let unit = match (&field.ty, &pv.kind) {
-                            (FieldType::Quantity(dim), RawKind::Seq(items)) => {
-                                items.first().and_then(|it| it.as_str()).and_then(|t| super::written_unit(t, *dim))
-                            }
-                            (FieldType::Quantity(dim), _) => pv.as_str().and_then(|t| super::written_unit(t, *dim)),
-                            _ => None,
-                        };
-                        let values = match field.ty {
-                            FieldType::Quantity(dim) => {
-                                match spec::check_value(pv, &FieldType::QuantityList(dim), &what, ctx, diags) {
-                                    Some(ParamValue::List { values, dim }) => {
-                                        values.into_iter().map(|value| ParamValue::Quantity { value, dim }).collect()
-                                    }
-                                    _ => continue,
-                                }
-                            }
-                            ty => match &pv.kind {
-                                RawKind::Seq(items) => {
-                                    let vals: Option<Vec<_>> =
-                                        items.iter().map(|it| spec::check_value(it, &ty, &what, ctx, diags)).collect();
-                                    match vals {
-                                        Some(v) => v,
-                                        None => continue,
-                                    }
-                                }
-                                _ => {
-                                    diags.error(Some(&pv.span), format!("{what} must be a list of values"));
-                                    continue;
-                                }
-                            },
-                        };
-                        if values.is_empty() {
-                            diags.error(Some(&pv.span), format!("{what} has no values"));
-                            continue;
-                        }
-                        sweep.push(SweepAxis { param: pk.name.clone(), values, unit });
-                    }
-                }
-                None => {
-                    diags.error(Some(&sw.span), format!("`sweep` of step `{id}` must map parameter names to values"))
-                }
-            }
-        }
-
-        // Parameters: a swept parameter is neither required nor defaulted here, even when
-        // its sweep values were rejected (that error is already reported).
-        let swept: Vec<&str> = sraw
-            .get("sweep")
-            .and_then(Raw::as_map)
-            .map(|m| m.iter().map(|(k, _)| k.name.as_str()).collect())
-            .unwrap_or_default();
-        let fields: Vec<Field> = spec
-            .params
-            .iter()
-            .map(|f| if swept.contains(&f.name) { Field { required: false, default: None, ..*f } } else { *f })
-            .collect();
-        let empty = Raw { span: key.span.clone(), kind: RawKind::Map(Vec::new()) };
-        let praw = sraw.get("params").unwrap_or(&empty);
-        let params = spec::check_object(praw, &fields, &format!("params of step `{id}` ({kind})"), ctx, diags);
-        for axis in &sweep {
-            if params.as_ref().is_some_and(|p| p.get(&axis.param).is_some()) {
-                let at = praw.get(&axis.param).map(|r| r.span.clone());
-                diags.error_help(
-                    at.as_ref(),
-                    format!("step `{id}` both sets and sweeps `{}`", axis.param),
-                    "keep one of them",
-                );
-            }
-        }
-
-        // Inputs.
-        let mut inputs = Vec::new();
-        if let Some(iraw) = sraw.get("inputs") {
-            match iraw.as_map() {
-                Some(bindings) => {
-                    for (pk, pv) in bindings {
-                        let Some(port) = spec.input(&pk.name) else {
-                            let msg = format!("`{kind}` has no input `{}`", pk.name);
-                            let known: Vec<&str> = spec.inputs.iter().map(|p| p.name).collect();
-                            match suggest(&pk.name, known.iter().copied()) {
-                                Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
-                                None => diags.error_help(
-                                    Some(&pk.span),
-                                    msg,
-                                    format!(
-                                        "its inputs: {}",
-                                        if known.is_empty() { "none".into() } else { known.join(", ") }
-                                    ),
-                                ),
-                            }
-                            continue;
-                        };
-                        let Some(text) = pv.as_str() else {
-                            diags.error(
-                                Some(&pv.span),
-                                format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name),
-                            );
-                            continue;
-                        };
-                        let Some(r) = parse_port_ref(text) else {
-                            diags.error_help(
-                                Some(&pv.span),
-                                format!("`{text}` is not a reference"),
-                                "write `@step.port`, e.g. `@hit.force`",
-                            );
-                            continue;
-                        };
-                        if r.step == id {
-                            diags.error(
-                                Some(&pv.span),
-                                format!("step `{id}` takes its own output `{r}` as input: a cycle"),
-                            );
-                            continue;
-                        }
-                        let Some(producer_kind) = kinds.get(r.step.as_str()) else {
-                            let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
-                            match suggest(&r.step, kinds.keys().copied()) {
-                                Some(s) => {
-                                    diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port))
-                                }
-                                None => diags.error_help(
-                                    Some(&pv.span),
-                                    msg,
-                                    format!("steps: {}", kinds.keys().copied().collect::<Vec<_>>().join(", ")),
-                                ),
-                            }
-                            continue;
-                        };
-                        let Some(producer_kind) = producer_kind else { continue };
-                        let pspec = registry.get(producer_kind).expect("checked kind").spec();
-                        let Some(out) = pspec.output(&r.port) else {
-                            let msg = format!("step `{}` ({producer_kind}) has no output `{}`", r.step, r.port);
-                            let known: Vec<&str> = pspec.outputs.iter().map(|p| p.name).collect();
-                            match suggest(&r.port, known.iter().copied()) {
-                                Some(s) => {
-                                    diags.error_help(Some(&pv.span), msg, format!("did you mean `@{}.{s}`?", r.step))
-                                }
-                                None => {
-                                    diags.error_help(Some(&pv.span), msg, format!("its outputs: {}", known.join(", ")))
-                                }
-                            }
-                            continue;
-                        };
-                        if out.ty != port.ty {
-                            diags.error_help(
-                                Some(&pv.span),
-                                format!(
-                                    "type mismatch: input `{}` of step `{id}` takes a {}, but `{r}` is a {}",
-                                    pk.name, port.ty, out.ty
-                                ),
-                                format!("connect an output of type {}", port.ty),
-                            );
-                            continue;
-                        }
-                        inputs.push(Binding { port: pk.name.clone(), from: r, span: pv.span.clone() });
-                    }
-                }
-                None => {
-                    diags.error(Some(&iraw.span), format!("`inputs` of step `{id}` must map input names to references"))
-                }
-            }
-        }
-        for port in &spec.inputs {
-            let given = sraw.get("inputs").and_then(|i| i.get(port.name)).is_some();
-            if !port.optional && !given {
-                diags.error_help(
-                    Some(&key.span),
-                    format!("step `{id}` ({kind}) needs input `{}` ({})", port.name, port.ty),
-                    format!("add `inputs: {{ {}: \"@step.port\" }}`", port.name),
-                );
-            }
-        }
-        let mut param_spans: IndexMap<String, Span> = praw
-            .as_map()
-            .map(|m| m.iter().map(|(k, v)| (k.name.clone(), v.span.clone())).collect())
-            .unwrap_or_default();
-        if let Some(axes) = sraw.get("sweep").and_then(Raw::as_map) {
-            param_spans.extend(axes.iter().map(|(k, v)| (k.name.clone(), v.span.clone())));
-        }
-        // A node's own checks on values (ranges, combinations); swept steps are checked per
-        // instance when the graph is built.
-        if let Some(p) = params.as_ref().filter(|_| swept.is_empty())
-            && let Err(e) = node.validate(p)
-        {
-            super::report_invalid(diags, (&id, kind, &key.span), "", &e, spec, &param_spans);
-        }
-        let label = match sraw.get("label") {
-            Some(l) => match l.as_str() {
-                Some(t) => Some(t.to_string()),
-                None => {
-                    diags.error_help(
-                        Some(&l.span),
-                        format!("`label` must be text, found {}", l.describe()),
-                        "write the name its curves get in a plot's legend, e.g. `label: measured`",
-                    );
-                    None
-                }
-            },
-            None => None,
-        };
-        if let Some(params) = params {
-            steps.push(Step {
-                id,
-                kind: kind.to_string(),
-                span: key.span.clone(),
-                params,
-                inputs,
-                sweep,
-                param_spans,
-                label,
-            });
+        if let Some(step) = resolve_step(key, sraw, &kinds, registry, &step_ctx, diags) {
+            steps.push(step);
         }
     }
     steps
 }
 
+/// The entries of `steps`, reporting a missing or malformed section so the rest of the recipe can still be checked.
+fn step_entries<'a>(raw: Option<&'a Raw>, root: &Span, diags: &mut Diagnostics) -> Option<&'a [(Key, Raw)]> {
+    let Some(raw) = raw else {
+        diags.error_help(Some(root), "the recipe has no `steps`", "add `steps:` with at least one analysis step");
+        return None;
+    };
+    let Some(entries) = raw.as_map() else {
+        diags.error(
+            Some(&raw.span),
+            format!("`steps` must be a mapping of step names to steps, found {}", raw.describe()),
+        );
+        return None;
+    };
+    Some(entries)
+}
+
+/// Each step's kind when the registry knows it, so references can be checked before their producer is resolved.
+fn known_step_kinds<'a>(entries: &'a [(Key, Raw)], registry: &Registry) -> IndexMap<&'a str, Option<&'a str>> {
+    entries
+        .iter()
+        .map(|(k, v)| {
+            (k.name.as_str(), v.get("kind").and_then(Raw::as_str).filter(|kind| registry.get(kind).is_some()))
+        })
+        .collect()
+}
+
+/// Resolves one step entry, reporting every problem in it; `None` when it has errors that leave no step to build.
+fn resolve_step(
+    key: &Key,
+    sraw: &Raw,
+    kinds: &IndexMap<&str, Option<&str>>,
+    registry: &Registry,
+    ctx: &Ctx,
+    diags: &mut Diagnostics,
+) -> Option<Step> {
+    let id = key.name.clone();
+    let (kind, node) = step_node(key, sraw, registry, diags)?;
+    let spec = node.spec();
+    let sweep = resolve_sweep(&id, kind, spec, sraw, ctx, diags);
+    let empty = Raw { span: key.span.clone(), kind: RawKind::Map(Vec::new()) };
+    let praw = sraw.get("params").unwrap_or(&empty);
+    let swept = swept_params(sraw);
+    let params = check_step_params(&id, kind, spec, praw, &swept, ctx, diags);
+    report_set_and_swept(&id, &sweep, params.as_ref(), praw, diags);
+    let inputs = resolve_inputs(&id, kind, spec, sraw, kinds, registry, diags);
+    report_missing_inputs(key, kind, spec, sraw, diags);
+    let param_spans = step_param_spans(praw, sraw);
+    // A node's own checks on values (ranges, combinations); swept steps are checked per
+    // instance when the graph is built.
+    if let Some(p) = params.as_ref().filter(|_| swept.is_empty())
+        && let Err(e) = node.validate(p)
+    {
+        super::report_invalid(diags, (&id, kind, &key.span), "", &e, spec, &param_spans);
+    }
+    let label = step_label(sraw, diags);
+    let params = params?;
+    Some(Step { id, kind: kind.to_string(), span: key.span.clone(), params, inputs, sweep, param_spans, label })
+}
+
+/// Checks a step's name and shape and looks up its node kind, which everything else in the step is checked against.
+fn step_node<'a, 'r>(
+    key: &Key,
+    sraw: &'a Raw,
+    registry: &'r Registry,
+    diags: &mut Diagnostics,
+) -> Option<(&'a str, &'r dyn Node)> {
+    let id = &key.name;
+    if !valid_step_name(id) {
+        diags.error_help(
+            Some(&key.span),
+            format!("`{id}` is not a valid step name"),
+            "use letters, digits, `_` and `-`, starting with a letter",
+        );
+    }
+    if sraw.as_map().is_none() {
+        diags.error(Some(&sraw.span), format!("step `{id}` must be a mapping with `kind`, found {}", sraw.describe()));
+        return None;
+    }
+    unknown_keys(sraw, STEP_KEYS, &format!("step `{id}`"), diags);
+    let Some(kind_raw) = sraw.get("kind") else {
+        diags.error_help(
+            Some(&key.span),
+            format!("step `{id}` has no `kind`"),
+            "add `kind: …`; `spindlelab nodes` lists the kinds",
+        );
+        return None;
+    };
+    let Some(kind) = kind_raw.as_str() else {
+        diags.error(Some(&kind_raw.span), format!("`kind` of step `{id}` must be text"));
+        return None;
+    };
+    let Some(node) = registry.get(kind) else {
+        let msg = format!("unknown step kind `{kind}`");
+        match suggest(kind, registry.names()) {
+            Some(s) => diags.error_help(Some(&kind_raw.span), msg, format!("did you mean `{s}`?")),
+            None => diags.error_help(Some(&kind_raw.span), msg, "`spindlelab nodes` lists the kinds"),
+        }
+        return None;
+    };
+    Some((kind, node.as_ref()))
+}
+
+/// A step's `sweep` axes, each naming a parameter and its values; rejected axes are reported and left out.
+fn resolve_sweep(
+    id: &str,
+    kind: &str,
+    spec: &NodeSpec,
+    sraw: &Raw,
+    ctx: &Ctx,
+    diags: &mut Diagnostics,
+) -> Vec<SweepAxis> {
+    let mut sweep = Vec::new();
+    if let Some(sw) = sraw.get("sweep") {
+        match sw.as_map() {
+            Some(axes) => {
+                for (pk, pv) in axes {
+                    if let Some(axis) = resolve_sweep_axis(id, kind, spec, pk, pv, ctx, diags) {
+                        sweep.push(axis);
+                    }
+                }
+            }
+            None => diags.error(Some(&sw.span), format!("`sweep` of step `{id}` must map parameter names to values")),
+        }
+    }
+    sweep
+}
+
+/// One sweep axis: the swept parameter must exist and its values must be a non-empty list of valid values.
+fn resolve_sweep_axis(
+    id: &str,
+    kind: &str,
+    spec: &NodeSpec,
+    pk: &Key,
+    pv: &Raw,
+    ctx: &Ctx,
+    diags: &mut Diagnostics,
+) -> Option<SweepAxis> {
+    let Some(field) = spec.param(&pk.name) else {
+        let msg = format!("step `{id}` sweeps `{}`, which is not a parameter of `{kind}`", pk.name);
+        match suggest(&pk.name, spec.params.iter().map(|f| f.name)) {
+            Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
+            None => diags.error(Some(&pk.span), msg),
+        }
+        return None;
+    };
+    let what = format!("sweep `{}` of step `{id}`", pk.name);
+    let unit = match (&field.ty, &pv.kind) {
+        (FieldType::Quantity(dim), RawKind::Seq(items)) => {
+            items.first().and_then(|it| it.as_str()).and_then(|t| super::written_unit(t, *dim))
+        }
+        (FieldType::Quantity(dim), _) => pv.as_str().and_then(|t| super::written_unit(t, *dim)),
+        _ => None,
+    };
+    let values = sweep_values(field.ty, pv, &what, ctx, diags)?;
+    if values.is_empty() {
+        diags.error(Some(&pv.span), format!("{what} has no values"));
+        return None;
+    }
+    Some(SweepAxis { param: pk.name.clone(), values, unit })
+}
+
+/// Checks the values of one sweep axis against the parameter's type, so each is a value the parameter takes.
+fn sweep_values(ty: FieldType, pv: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<Vec<ParamValue>> {
+    match ty {
+        FieldType::Quantity(dim) => match spec::check_value(pv, &FieldType::QuantityList(dim), what, ctx, diags) {
+            Some(ParamValue::List { values, dim }) => {
+                Some(values.into_iter().map(|value| ParamValue::Quantity { value, dim }).collect())
+            }
+            _ => None,
+        },
+        ty => match &pv.kind {
+            RawKind::Seq(items) => items.iter().map(|it| spec::check_value(it, &ty, what, ctx, diags)).collect(),
+            _ => {
+                diags.error(Some(&pv.span), format!("{what} must be a list of values"));
+                None
+            }
+        },
+    }
+}
+
+/// The names a step's `sweep` maps, including rejected axes, whose errors are already reported.
+fn swept_params(sraw: &Raw) -> Vec<&str> {
+    sraw.get("sweep")
+        .and_then(Raw::as_map)
+        .map(|m| m.iter().map(|(k, _)| k.name.as_str()).collect())
+        .unwrap_or_default()
+}
+
+/// Checks a step's `params`; a swept parameter is neither required nor defaulted here, as the sweep supplies it.
+fn check_step_params(
+    id: &str,
+    kind: &str,
+    spec: &NodeSpec,
+    praw: &Raw,
+    swept: &[&str],
+    ctx: &Ctx,
+    diags: &mut Diagnostics,
+) -> Option<Params> {
+    let fields: Vec<Field> = spec
+        .params
+        .iter()
+        .map(|f| if swept.contains(&f.name) { Field { required: false, default: None, ..*f } } else { *f })
+        .collect();
+    spec::check_object(praw, &fields, &format!("params of step `{id}` ({kind})"), ctx, diags)
+}
+
+/// Reports each parameter a step both sets and sweeps, since only one of the two can give its value.
+fn report_set_and_swept(id: &str, sweep: &[SweepAxis], params: Option<&Params>, praw: &Raw, diags: &mut Diagnostics) {
+    for axis in sweep {
+        if params.is_some_and(|p| p.get(&axis.param).is_some()) {
+            let at = praw.get(&axis.param).map(|r| r.span.clone());
+            diags.error_help(
+                at.as_ref(),
+                format!("step `{id}` both sets and sweeps `{}`", axis.param),
+                "keep one of them",
+            );
+        }
+    }
+}
+
+/// A step's `inputs` as bindings; each rejected binding is reported and left out.
+fn resolve_inputs(
+    id: &str,
+    kind: &str,
+    spec: &NodeSpec,
+    sraw: &Raw,
+    kinds: &IndexMap<&str, Option<&str>>,
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Vec<Binding> {
+    let mut inputs = Vec::new();
+    if let Some(iraw) = sraw.get("inputs") {
+        match iraw.as_map() {
+            Some(bindings) => {
+                for (pk, pv) in bindings {
+                    let Some(port) = input_port(kind, spec, pk, diags) else { continue };
+                    let Some(r) = input_ref(id, pk, pv, diags) else { continue };
+                    let Some(out) = producer_output(&r, pv, kinds, registry, diags) else { continue };
+                    if out.ty != port.ty {
+                        diags.error_help(
+                            Some(&pv.span),
+                            format!(
+                                "type mismatch: input `{}` of step `{id}` takes a {}, but `{r}` is a {}",
+                                pk.name, port.ty, out.ty
+                            ),
+                            format!("connect an output of type {}", port.ty),
+                        );
+                        continue;
+                    }
+                    inputs.push(Binding { port: pk.name.clone(), from: r, span: pv.span.clone() });
+                }
+            }
+            None => {
+                diags.error(Some(&iraw.span), format!("`inputs` of step `{id}` must map input names to references"))
+            }
+        }
+    }
+    inputs
+}
+
+/// The input port an `inputs` key names, reporting a name the step's kind does not take.
+fn input_port<'s>(kind: &str, spec: &'s NodeSpec, pk: &Key, diags: &mut Diagnostics) -> Option<&'s PortSpec> {
+    let Some(port) = spec.input(&pk.name) else {
+        let msg = format!("`{kind}` has no input `{}`", pk.name);
+        let known: Vec<&str> = spec.inputs.iter().map(|p| p.name).collect();
+        match suggest(&pk.name, known.iter().copied()) {
+            Some(s) => diags.error_help(Some(&pk.span), msg, format!("did you mean `{s}`?")),
+            None => diags.error_help(
+                Some(&pk.span),
+                msg,
+                format!("its inputs: {}", if known.is_empty() { "none".into() } else { known.join(", ") }),
+            ),
+        }
+        return None;
+    };
+    Some(port)
+}
+
+/// Parses the reference an input is bound to, refusing text that is not one and a step's own outputs.
+fn input_ref(id: &str, pk: &Key, pv: &Raw, diags: &mut Diagnostics) -> Option<PortRef> {
+    let Some(text) = pv.as_str() else {
+        diags
+            .error(Some(&pv.span), format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name));
+        return None;
+    };
+    let Some(r) = parse_port_ref(text) else {
+        diags.error_help(
+            Some(&pv.span),
+            format!("`{text}` is not a reference"),
+            "write `@step.port`, e.g. `@hit.force`",
+        );
+        return None;
+    };
+    if r.step == id {
+        diags.error(Some(&pv.span), format!("step `{id}` takes its own output `{r}` as input: a cycle"));
+        return None;
+    }
+    Some(r)
+}
+
+/// The output port a reference points at, reporting a missing step or port; silent when the producer's kind is
+/// itself in error.
+fn producer_output<'r>(
+    r: &PortRef,
+    pv: &Raw,
+    kinds: &IndexMap<&str, Option<&str>>,
+    registry: &'r Registry,
+    diags: &mut Diagnostics,
+) -> Option<&'r PortSpec> {
+    let Some(producer_kind) = kinds.get(r.step.as_str()) else {
+        let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
+        match suggest(&r.step, kinds.keys().copied()) {
+            Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
+            None => diags.error_help(
+                Some(&pv.span),
+                msg,
+                format!("steps: {}", kinds.keys().copied().collect::<Vec<_>>().join(", ")),
+            ),
+        }
+        return None;
+    };
+    let producer_kind = (*producer_kind)?;
+    let pspec = registry.get(producer_kind).expect("checked kind").spec();
+    let Some(out) = pspec.output(&r.port) else {
+        let msg = format!("step `{}` ({producer_kind}) has no output `{}`", r.step, r.port);
+        let known: Vec<&str> = pspec.outputs.iter().map(|p| p.name).collect();
+        match suggest(&r.port, known.iter().copied()) {
+            Some(s) => diags.error_help(Some(&pv.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
+            None => diags.error_help(Some(&pv.span), msg, format!("its outputs: {}", known.join(", "))),
+        }
+        return None;
+    };
+    Some(out)
+}
+
+/// Reports each required input a step leaves unbound, whether or not its `inputs` resolved.
+fn report_missing_inputs(key: &Key, kind: &str, spec: &NodeSpec, sraw: &Raw, diags: &mut Diagnostics) {
+    let id = &key.name;
+    for port in &spec.inputs {
+        let given = sraw.get("inputs").and_then(|i| i.get(port.name)).is_some();
+        if !port.optional && !given {
+            diags.error_help(
+                Some(&key.span),
+                format!("step `{id}` ({kind}) needs input `{}` ({})", port.name, port.ty),
+                format!("add `inputs: {{ {}: \"@step.port\" }}`", port.name),
+            );
+        }
+    }
+}
+
+/// Where each parameter of a step is written, set or swept, so later errors can point at it.
+fn step_param_spans(praw: &Raw, sraw: &Raw) -> IndexMap<String, Span> {
+    let mut param_spans: IndexMap<String, Span> =
+        praw.as_map().map(|m| m.iter().map(|(k, v)| (k.name.clone(), v.span.clone())).collect()).unwrap_or_default();
+    if let Some(axes) = sraw.get("sweep").and_then(Raw::as_map) {
+        param_spans.extend(axes.iter().map(|(k, v)| (k.name.clone(), v.span.clone())));
+    }
+    param_spans
+}
+
+/// A step's `label`, the name its curves get in a plot's legend; a label that is not text is reported and dropped.
+fn step_label(sraw: &Raw, diags: &mut Diagnostics) -> Option<String> {
+    let l = sraw.get("label")?;
+    match l.as_str() {
+        Some(t) => Some(t.to_string()),
+        None => {
+            diags.error_help(
+                Some(&l.span),
+                format!("`label` must be text, found {}", l.describe()),
+                "write the name its curves get in a plot's legend, e.g. `label: measured`",
+            );
+            None
+        }
+    }
+}
+
+/// Resolves the recipe's `outputs` against the resolved steps, collecting every diagnostic instead of stopping at
+/// the first.
 fn resolve_outputs(
     raw: Option<&Raw>,
     steps: &[Step],
@@ -954,319 +1055,405 @@ fn resolve_outputs(
     };
     let mut outputs = Vec::new();
     for item in items {
-        if item.as_map().is_none() {
-            diags.error(
-                Some(&item.span),
-                format!("an output must be a mapping with `from` and `file`, found {}", item.describe()),
-            );
-            continue;
+        if let Some(output) = resolve_output(item, &outputs, steps, step_names, registry, diags) {
+            outputs.push(output);
         }
-        unknown_keys(item, OUTPUT_KEYS, "an output", diags);
-        let (Some(from), Some(file)) = (item.get("from"), item.get("file")) else {
-            diags.error_help(
-                Some(&item.span),
-                "an output needs `from` and `file`",
-                "e.g. `{ from: \"@hit.force\", file: force.csv }`",
-            );
-            continue;
-        };
-        let Some(r) = from.as_str().and_then(parse_port_ref) else {
-            diags.error_help(Some(&from.span), "`from` must be a reference", "write `@step.port`");
-            continue;
-        };
-        let Some(fname) = file.as_str() else {
-            diags.error(Some(&file.span), "`file` must be a file name");
-            continue;
-        };
-        let path = std::path::Path::new(fname);
-        if path.is_absolute()
-            || path.components().any(|c| matches!(c, std::path::Component::ParentDir))
-            || fname.is_empty()
-        {
-            diags.error_help(
-                Some(&file.span),
-                format!("output file `{fname}` must stay inside the output directory"),
-                "use a relative name without `..`",
-            );
-            continue;
-        }
-        // Names no file system takes fail only when the file is written, after the whole
-        // computation: refused here instead.
-        if let Some(problem) = unwritable_name(fname) {
-            diags.error_help(
-                Some(&file.span),
-                format!("output file `{}` {problem}", shorten(fname)),
-                "choose a shorter name without NUL characters",
-            );
-            continue;
-        }
-        // One spelling per file: `./t.csv` and `t.csv` are the same file.
-        let normal: std::path::PathBuf =
-            path.components().filter(|c| matches!(c, std::path::Component::Normal(_))).collect();
-        let fname_owned = normal.to_string_lossy().to_string();
-        let fname = fname_owned.as_str();
-        if RESERVED_OUTPUTS.contains(&fname) || fname.starts_with(".spindlelab") {
-            diags.error_help(
-                Some(&file.span),
-                format!("`{fname}` is a file spindlelab writes itself"),
-                "choose another file name",
-            );
-            continue;
-        }
-        let format = match path.extension().and_then(|e| e.to_str()) {
-            Some("csv") => OutputFormat::Csv,
-            Some("json") => OutputFormat::Json,
-            Some("uff") => OutputFormat::Uff,
-            Some("svg") => OutputFormat::Plot(PlotFormat::Svg),
-            Some("png") => OutputFormat::Plot(PlotFormat::Png),
-            other => {
-                diags.error_help(
-                    Some(&file.span),
-                    format!("unsupported output format `{}`", other.unwrap_or("")),
-                    "name the file `.csv`, `.json`, `.uff`, or `.svg` / `.png` for a plot",
-                );
-                continue;
-            }
-        };
-        let is_plot = matches!(format, OutputFormat::Plot(_));
-        // The unit a scalar is written in (`unit: deg/kHz`), as the recipe's people read it.
-        let unit = match item.get("unit") {
-            None => None,
-            Some(u) if matches!(format, OutputFormat::Csv | OutputFormat::Json) => {
-                match u.as_str().map(|t| (t, spindlelab_grammar::parse_unit(t))) {
-                    Some((t, Ok(_))) => Some((t.to_string(), u.span.clone())),
-                    Some((t, Err(e))) => {
-                        diags.error_help(
-                            Some(&u.span),
-                            format!("`unit: {t}` is not a unit: {e}"),
-                            "e.g. `unit: deg/kHz`",
-                        );
-                        continue;
-                    }
-                    None => {
-                        diags.error_help(Some(&u.span), "`unit` takes a unit", "e.g. `unit: deg/kHz`");
-                        continue;
-                    }
-                }
-            }
-            Some(u) => {
-                diags.error_help(
-                    Some(&u.span),
-                    format!("`unit` is for a scalar written to `.csv` or `.json`; `{fname}` is not one"),
-                    "leave `unit` out",
-                );
-                continue;
-            }
-        };
-        for key in ["with", "plot", "label"] {
-            if let (Some(v), false) = (item.get(key), is_plot) {
-                diags.error_help(
-                    Some(&v.span),
-                    format!("`{key}` is for plots; `{fname}` is not one"),
-                    format!("name the file `.svg` or `.png` to plot it, or leave `{key}` out"),
-                );
-            }
-        }
-        // References drawn over the plot: one `@step.port` or a list of them.
-        let mut with: Vec<(PortRef, Span, Option<String>)> = Vec::new();
-        if let Some(w) = item.get("with").filter(|_| is_plot) {
-            let items: Vec<&Raw> = match &w.kind {
-                RawKind::Seq(items) => items.iter().collect(),
-                _ => vec![w],
-            };
-            for it in items {
-                // `@step.port`, or `{ from: "@step.port", label: measured }` to name it.
-                let (reference, label) = match &it.kind {
-                    RawKind::Map(_) => (it.get("from"), it.get("label")),
-                    _ => (Some(it), None),
-                };
-                if let RawKind::Map(entries) = &it.kind
-                    && let Some((k, _)) = entries.iter().find(|(k, _)| k.name != "from" && k.name != "label")
-                {
-                    diags.error_help(
-                        Some(&k.span),
-                        format!("unknown key `{}` in a `with` entry", k.name),
-                        "a `with` entry takes `from` and `label`",
-                    );
-                    continue;
-                }
-                let label = match label.map(|l| (l.as_str(), &l.span)) {
-                    Some((Some(t), _)) => Some(t.to_string()),
-                    Some((None, span)) => {
-                        diags.error_help(Some(span), "`label` takes text", "e.g. `label: measured`");
-                        continue;
-                    }
-                    None => None,
-                };
-                match reference.and_then(Raw::as_str).and_then(parse_port_ref) {
-                    Some(r) => with.push((r, it.span.clone(), label)),
-                    None => diags.error_help(
-                        Some(&it.span),
-                        "`with` takes references",
-                        "write `@step.port`, or `{ from: \"@step.port\", label: measured }`",
-                    ),
-                }
-            }
-        }
-        let label = match item.get("label").filter(|_| is_plot) {
-            Some(v) => match v.as_str() {
-                Some(t) => Some(t.to_string()),
-                None => {
-                    diags.error_help(Some(&v.span), "`label` takes text", "e.g. `label: model`");
-                    continue;
-                }
-            },
-            None => None,
-        };
-        let plot = match item.get("plot").filter(|_| is_plot) {
-            Some(v) => match v.as_str() {
-                Some(t) => Some((t.to_string(), v.span.clone())),
-                None => {
-                    diags.error_help(Some(&v.span), "`plot` takes the name of a view", "e.g. `plot: real-imag`");
-                    continue;
-                }
-            },
-            None => None,
-        };
-        match steps.iter().find(|s| s.id == r.step) {
-            Some(step) => {
-                let spec = registry.get(&step.kind).expect("checked kind").spec();
-                let Some(port) = spec.output(&r.port) else {
-                    let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
-                    let msg = format!("step `{}` has no output `{}`", r.step, r.port);
-                    match suggest(&r.port, known.iter().copied()) {
-                        Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
-                        None => diags.error_help(Some(&from.span), msg, format!("its outputs: {}", known.join(", "))),
-                    }
-                    continue;
-                };
-                if let Some((_, span)) = &unit
-                    && port.ty != PortType::Scalar
-                {
-                    diags.error_help(
-                        Some(span),
-                        format!("`unit` is for a scalar output; `{r}` is a {}", port.ty),
-                        "leave `unit` out",
-                    );
-                    continue;
-                }
-                if format == OutputFormat::Uff
-                    && !matches!(
-                        port.ty,
-                        PortType::Frf | PortType::TimeSeries | PortType::ReceptanceSet | PortType::FrfSet
-                    )
-                {
-                    diags.error_help(
-                        Some(&file.span),
-                        format!("a UFF file holds FRFs and time series; `{r}` is a {}", port.ty),
-                        "name the file `.csv` or `.json`",
-                    );
-                    continue;
-                }
-                if is_plot {
-                    let views = crate::plot::variants(&port.ty);
-                    if views.is_empty() {
-                        diags.error_help(
-                            Some(&file.span),
-                            format!("a {} has no plot", port.ty),
-                            "name the file `.json` to write it",
-                        );
-                        continue;
-                    }
-                    if let Some((v, span)) = &plot
-                        && !views.contains(&v.as_str())
-                    {
-                        diags.error_help(
-                            Some(span),
-                            format!("a {} has no view `{v}`", port.ty),
-                            format!("its views: {}", views.join(", ")),
-                        );
-                        continue;
-                    }
-                }
-            }
-            // The step exists but has errors of its own, already reported.
-            None if step_names.contains(&r.step) => continue,
-            None => {
-                let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
-                match suggest(&r.step, step_names.iter().map(String::as_str)) {
-                    Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
-                    None => diags.error_help(Some(&from.span), msg, format!("steps: {}", step_names.join(", "))),
-                }
-                continue;
-            }
-        }
-        if outputs.iter().any(|o: &Output| o.file == fname) {
-            diags.error(Some(&file.span), format!("two outputs write `{fname}`"));
-            continue;
-        }
-        if let Some(o) = outputs
-            .iter()
-            .find(|o: &&Output| fname.starts_with(&format!("{}/", o.file)) || o.file.starts_with(&format!("{fname}/")))
-        {
-            diags.error(
-                Some(&file.span),
-                format!("`{fname}` and `{}` cannot both be written: one is inside the other", o.file),
-            );
-            continue;
-        }
-        // Every value drawn over the plot must exist and have a plot of its own kind.
-        let mut with_ok = true;
-        for (w, span, _) in &with {
-            let Some(step) = steps.iter().find(|s| s.id == w.step) else {
-                if !step_names.contains(&w.step) {
-                    let msg = format!("dangling reference `{w}`: there is no step `{}`", w.step);
-                    match suggest(&w.step, step_names.iter().map(String::as_str)) {
-                        Some(s) => diags.error_help(Some(span), msg, format!("did you mean `@{s}.{}`?", w.port)),
-                        None => diags.error_help(Some(span), msg, format!("steps: {}", step_names.join(", "))),
-                    }
-                }
-                with_ok = false;
-                continue;
-            };
-            let spec = registry.get(&step.kind).expect("checked kind").spec();
-            let Some(port) = spec.output(&w.port) else {
-                let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
-                diags.error_help(
-                    Some(span),
-                    format!("step `{}` has no output `{}`", w.step, w.port),
-                    format!("its outputs: {}", known.join(", ")),
-                );
-                with_ok = false;
-                continue;
-            };
-            let main_ty = steps
-                .iter()
-                .find(|s| s.id == r.step)
-                .and_then(|s| registry.get(&s.kind))
-                .and_then(|n| n.spec().output(&r.port).map(|p| p.ty));
-            if let Some(main_ty) = main_ty
-                && !crate::plot::accepts(&main_ty, &port.ty)
-            {
-                diags.error_help(
-                    Some(span),
-                    format!("a {} cannot be drawn over a plot of a {main_ty}", port.ty),
-                    "FRFs take FRFs and modal models, lobes take lobes and trial tables, tables take tables",
-                );
-                with_ok = false;
-            }
-        }
-        if !with_ok {
-            continue;
-        }
-        outputs.push(Output {
-            from: r,
-            file: fname.to_string(),
-            format,
-            with_labels: with.iter().map(|(_, _, l)| l.clone()).collect(),
-            with: with.into_iter().map(|(r, _, _)| r).collect(),
-            plot: plot.map(|(v, _)| v),
-            label,
-            unit: unit.map(|(t, _)| t),
-            span: item.span.clone(),
-        });
     }
     outputs
+}
+
+/// Resolves one `outputs` entry against the steps and the outputs before it; `None` once it is found in error.
+fn resolve_output(
+    item: &Raw,
+    outputs: &[Output],
+    steps: &[Step],
+    step_names: &[String],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Option<Output> {
+    let (from, file, r) = output_source(item, diags)?;
+    let (written, fname) = output_file_name(file, diags)?;
+    let format = output_format(written, file, diags)?;
+    let is_plot = matches!(format, OutputFormat::Plot(_));
+    let unit = output_unit(item, format, &fname, diags)?;
+    report_plot_only_keys(item, is_plot, &fname, diags);
+    let with = plot_overlays(item, is_plot, diags);
+    let label = plot_label(item, is_plot, diags)?;
+    let plot = plot_view(item, is_plot, diags)?;
+    let ty = output_port_type(&r, from, steps, step_names, registry, diags)?;
+    check_port_fits_file(&r, ty, file, format, unit.as_ref(), plot.as_ref(), diags)?;
+    check_distinct_file(&fname, file, outputs, diags)?;
+    check_overlays(&r, &with, steps, step_names, registry, diags)?;
+    Some(Output {
+        from: r,
+        file: fname,
+        format,
+        with_labels: with.iter().map(|(_, _, l)| l.clone()).collect(),
+        with: with.into_iter().map(|(r, _, _)| r).collect(),
+        plot: plot.map(|(v, _)| v),
+        label,
+        unit: unit.map(|(t, _)| t),
+        span: item.span.clone(),
+    })
+}
+
+/// An output's `from` and `file` entries and the reference in `from`, which every later check needs.
+fn output_source<'a>(item: &'a Raw, diags: &mut Diagnostics) -> Option<(&'a Raw, &'a Raw, PortRef)> {
+    if item.as_map().is_none() {
+        diags.error(
+            Some(&item.span),
+            format!("an output must be a mapping with `from` and `file`, found {}", item.describe()),
+        );
+        return None;
+    }
+    unknown_keys(item, OUTPUT_KEYS, "an output", diags);
+    let (Some(from), Some(file)) = (item.get("from"), item.get("file")) else {
+        diags.error_help(
+            Some(&item.span),
+            "an output needs `from` and `file`",
+            "e.g. `{ from: \"@hit.force\", file: force.csv }`",
+        );
+        return None;
+    };
+    let Some(r) = from.as_str().and_then(parse_port_ref) else {
+        diags.error_help(Some(&from.span), "`from` must be a reference", "write `@step.port`");
+        return None;
+    };
+    Some((from, file, r))
+}
+
+/// The output's file name as written and in its one normal spelling, refusing names that escape the output
+/// directory, that no file system takes, or that spindlelab writes itself.
+fn output_file_name<'a>(file: &'a Raw, diags: &mut Diagnostics) -> Option<(&'a str, String)> {
+    let Some(fname) = file.as_str() else {
+        diags.error(Some(&file.span), "`file` must be a file name");
+        return None;
+    };
+    let path = std::path::Path::new(fname);
+    if path.is_absolute() || path.components().any(|c| matches!(c, std::path::Component::ParentDir)) || fname.is_empty()
+    {
+        diags.error_help(
+            Some(&file.span),
+            format!("output file `{fname}` must stay inside the output directory"),
+            "use a relative name without `..`",
+        );
+        return None;
+    }
+    // Names no file system takes fail only when the file is written, after the whole
+    // computation: refused here instead.
+    if let Some(problem) = unwritable_name(fname) {
+        diags.error_help(
+            Some(&file.span),
+            format!("output file `{}` {problem}", shorten(fname)),
+            "choose a shorter name without NUL characters",
+        );
+        return None;
+    }
+    // One spelling per file: `./t.csv` and `t.csv` are the same file.
+    let normal: std::path::PathBuf =
+        path.components().filter(|c| matches!(c, std::path::Component::Normal(_))).collect();
+    let normal = normal.to_string_lossy().to_string();
+    if RESERVED_OUTPUTS.contains(&normal.as_str()) || normal.starts_with(".spindlelab") {
+        diags.error_help(
+            Some(&file.span),
+            format!("`{normal}` is a file spindlelab writes itself"),
+            "choose another file name",
+        );
+        return None;
+    }
+    Some((fname, normal))
+}
+
+/// The output's format, from the extension of the file name as written.
+fn output_format(written: &str, file: &Raw, diags: &mut Diagnostics) -> Option<OutputFormat> {
+    match std::path::Path::new(written).extension().and_then(|e| e.to_str()) {
+        Some("csv") => Some(OutputFormat::Csv),
+        Some("json") => Some(OutputFormat::Json),
+        Some("uff") => Some(OutputFormat::Uff),
+        Some("svg") => Some(OutputFormat::Plot(PlotFormat::Svg)),
+        Some("png") => Some(OutputFormat::Plot(PlotFormat::Png)),
+        other => {
+            diags.error_help(
+                Some(&file.span),
+                format!("unsupported output format `{}`", other.unwrap_or("")),
+                "name the file `.csv`, `.json`, `.uff`, or `.svg` / `.png` for a plot",
+            );
+            None
+        }
+    }
+}
+
+/// The unit a scalar is written in (`unit: deg/kHz`), as the recipe's people read it; the outer `None` means a
+/// rejected `unit`.
+fn output_unit(
+    item: &Raw,
+    format: OutputFormat,
+    fname: &str,
+    diags: &mut Diagnostics,
+) -> Option<Option<(String, Span)>> {
+    let Some(u) = item.get("unit") else { return Some(None) };
+    if !matches!(format, OutputFormat::Csv | OutputFormat::Json) {
+        diags.error_help(
+            Some(&u.span),
+            format!("`unit` is for a scalar written to `.csv` or `.json`; `{fname}` is not one"),
+            "leave `unit` out",
+        );
+        return None;
+    }
+    match u.as_str().map(|t| (t, spindlelab_grammar::parse_unit(t))) {
+        Some((t, Ok(_))) => Some(Some((t.to_string(), u.span.clone()))),
+        Some((t, Err(e))) => {
+            diags.error_help(Some(&u.span), format!("`unit: {t}` is not a unit: {e}"), "e.g. `unit: deg/kHz`");
+            None
+        }
+        None => {
+            diags.error_help(Some(&u.span), "`unit` takes a unit", "e.g. `unit: deg/kHz`");
+            None
+        }
+    }
+}
+
+/// Reports `with`, `plot` and `label` on an output that is not a plot, where they would be silently ignored.
+fn report_plot_only_keys(item: &Raw, is_plot: bool, fname: &str, diags: &mut Diagnostics) {
+    for key in ["with", "plot", "label"] {
+        if let (Some(v), false) = (item.get(key), is_plot) {
+            diags.error_help(
+                Some(&v.span),
+                format!("`{key}` is for plots; `{fname}` is not one"),
+                format!("name the file `.svg` or `.png` to plot it, or leave `{key}` out"),
+            );
+        }
+    }
+}
+
+/// References drawn over the plot: one `@step.port` or a list of them; rejected entries are reported and left out.
+fn plot_overlays(item: &Raw, is_plot: bool, diags: &mut Diagnostics) -> Vec<(PortRef, Span, Option<String>)> {
+    let mut with = Vec::new();
+    if let Some(w) = item.get("with").filter(|_| is_plot) {
+        let items: Vec<&Raw> = match &w.kind {
+            RawKind::Seq(items) => items.iter().collect(),
+            _ => vec![w],
+        };
+        for it in items {
+            if let Some(overlay) = plot_overlay(it, diags) {
+                with.push(overlay);
+            }
+        }
+    }
+    with
+}
+
+/// One `with` entry: `@step.port`, or `{ from: "@step.port", label: measured }` to name it in the legend.
+fn plot_overlay(it: &Raw, diags: &mut Diagnostics) -> Option<(PortRef, Span, Option<String>)> {
+    let (reference, label) = match &it.kind {
+        RawKind::Map(_) => (it.get("from"), it.get("label")),
+        _ => (Some(it), None),
+    };
+    if let RawKind::Map(entries) = &it.kind
+        && let Some((k, _)) = entries.iter().find(|(k, _)| k.name != "from" && k.name != "label")
+    {
+        diags.error_help(
+            Some(&k.span),
+            format!("unknown key `{}` in a `with` entry", k.name),
+            "a `with` entry takes `from` and `label`",
+        );
+        return None;
+    }
+    let label = match label.map(|l| (l.as_str(), &l.span)) {
+        Some((Some(t), _)) => Some(t.to_string()),
+        Some((None, span)) => {
+            diags.error_help(Some(span), "`label` takes text", "e.g. `label: measured`");
+            return None;
+        }
+        None => None,
+    };
+    match reference.and_then(Raw::as_str).and_then(parse_port_ref) {
+        Some(r) => Some((r, it.span.clone(), label)),
+        None => {
+            diags.error_help(
+                Some(&it.span),
+                "`with` takes references",
+                "write `@step.port`, or `{ from: \"@step.port\", label: measured }`",
+            );
+            None
+        }
+    }
+}
+
+/// A plot's `label` for its main value; the outer `None` means a label that is not text.
+fn plot_label(item: &Raw, is_plot: bool, diags: &mut Diagnostics) -> Option<Option<String>> {
+    let Some(v) = item.get("label").filter(|_| is_plot) else { return Some(None) };
+    match v.as_str() {
+        Some(t) => Some(Some(t.to_string())),
+        None => {
+            diags.error_help(Some(&v.span), "`label` takes text", "e.g. `label: model`");
+            None
+        }
+    }
+}
+
+/// A plot's `plot` view name with where it is written, checked against the port's views later; the outer `None`
+/// means a view that is not text.
+fn plot_view(item: &Raw, is_plot: bool, diags: &mut Diagnostics) -> Option<Option<(String, Span)>> {
+    let Some(v) = item.get("plot").filter(|_| is_plot) else { return Some(None) };
+    match v.as_str() {
+        Some(t) => Some(Some((t.to_string(), v.span.clone()))),
+        None => {
+            diags.error_help(Some(&v.span), "`plot` takes the name of a view", "e.g. `plot: real-imag`");
+            None
+        }
+    }
+}
+
+/// The type of the step output an output writes, reporting a missing step or port; silent when the step exists
+/// but has errors of its own, already reported.
+fn output_port_type(
+    r: &PortRef,
+    from: &Raw,
+    steps: &[Step],
+    step_names: &[String],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Option<PortType> {
+    let Some(step) = steps.iter().find(|s| s.id == r.step) else {
+        if !step_names.contains(&r.step) {
+            let msg = format!("dangling reference `{r}`: there is no step `{}`", r.step);
+            match suggest(&r.step, step_names.iter().map(String::as_str)) {
+                Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{s}.{}`?", r.port)),
+                None => diags.error_help(Some(&from.span), msg, format!("steps: {}", step_names.join(", "))),
+            }
+        }
+        return None;
+    };
+    let spec = registry.get(&step.kind).expect("checked kind").spec();
+    let Some(port) = spec.output(&r.port) else {
+        let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
+        let msg = format!("step `{}` has no output `{}`", r.step, r.port);
+        match suggest(&r.port, known.iter().copied()) {
+            Some(s) => diags.error_help(Some(&from.span), msg, format!("did you mean `@{}.{s}`?", r.step)),
+            None => diags.error_help(Some(&from.span), msg, format!("its outputs: {}", known.join(", "))),
+        }
+        return None;
+    };
+    Some(port.ty)
+}
+
+/// Checks the port's type suits the output: a `unit` only for scalars, UFF only for FRFs and time series, and a
+/// plot only for types with a plot and the chosen view.
+fn check_port_fits_file(
+    r: &PortRef,
+    ty: PortType,
+    file: &Raw,
+    format: OutputFormat,
+    unit: Option<&(String, Span)>,
+    plot: Option<&(String, Span)>,
+    diags: &mut Diagnostics,
+) -> Option<()> {
+    if let Some((_, span)) = unit
+        && ty != PortType::Scalar
+    {
+        diags.error_help(Some(span), format!("`unit` is for a scalar output; `{r}` is a {ty}"), "leave `unit` out");
+        return None;
+    }
+    if format == OutputFormat::Uff
+        && !matches!(ty, PortType::Frf | PortType::TimeSeries | PortType::ReceptanceSet | PortType::FrfSet)
+    {
+        diags.error_help(
+            Some(&file.span),
+            format!("a UFF file holds FRFs and time series; `{r}` is a {ty}"),
+            "name the file `.csv` or `.json`",
+        );
+        return None;
+    }
+    if matches!(format, OutputFormat::Plot(_)) {
+        let views = crate::plot::variants(&ty);
+        if views.is_empty() {
+            diags.error_help(Some(&file.span), format!("a {ty} has no plot"), "name the file `.json` to write it");
+            return None;
+        }
+        if let Some((v, span)) = plot
+            && !views.contains(&v.as_str())
+        {
+            diags.error_help(
+                Some(span),
+                format!("a {ty} has no view `{v}`"),
+                format!("its views: {}", views.join(", ")),
+            );
+            return None;
+        }
+    }
+    Some(())
+}
+
+/// Refuses a file another output already writes, or one inside (or containing) another output's file.
+fn check_distinct_file(fname: &str, file: &Raw, outputs: &[Output], diags: &mut Diagnostics) -> Option<()> {
+    if outputs.iter().any(|o: &Output| o.file == fname) {
+        diags.error(Some(&file.span), format!("two outputs write `{fname}`"));
+        return None;
+    }
+    if let Some(o) = outputs
+        .iter()
+        .find(|o: &&Output| fname.starts_with(&format!("{}/", o.file)) || o.file.starts_with(&format!("{fname}/")))
+    {
+        diags.error(
+            Some(&file.span),
+            format!("`{fname}` and `{}` cannot both be written: one is inside the other", o.file),
+        );
+        return None;
+    }
+    Some(())
+}
+
+/// Every value drawn over the plot must exist and have a plot of its own kind; all are checked before refusing.
+fn check_overlays(
+    r: &PortRef,
+    with: &[(PortRef, Span, Option<String>)],
+    steps: &[Step],
+    step_names: &[String],
+    registry: &Registry,
+    diags: &mut Diagnostics,
+) -> Option<()> {
+    let mut with_ok = true;
+    for (w, span, _) in with {
+        let Some(step) = steps.iter().find(|s| s.id == w.step) else {
+            if !step_names.contains(&w.step) {
+                let msg = format!("dangling reference `{w}`: there is no step `{}`", w.step);
+                match suggest(&w.step, step_names.iter().map(String::as_str)) {
+                    Some(s) => diags.error_help(Some(span), msg, format!("did you mean `@{s}.{}`?", w.port)),
+                    None => diags.error_help(Some(span), msg, format!("steps: {}", step_names.join(", "))),
+                }
+            }
+            with_ok = false;
+            continue;
+        };
+        let spec = registry.get(&step.kind).expect("checked kind").spec();
+        let Some(port) = spec.output(&w.port) else {
+            let known: Vec<&str> = spec.outputs.iter().map(|p| p.name).collect();
+            diags.error_help(
+                Some(span),
+                format!("step `{}` has no output `{}`", w.step, w.port),
+                format!("its outputs: {}", known.join(", ")),
+            );
+            with_ok = false;
+            continue;
+        };
+        let main_ty = steps
+            .iter()
+            .find(|s| s.id == r.step)
+            .and_then(|s| registry.get(&s.kind))
+            .and_then(|n| n.spec().output(&r.port).map(|p| p.ty));
+        if let Some(main_ty) = main_ty
+            && !crate::plot::accepts(&main_ty, &port.ty)
+        {
+            diags.error_help(
+                Some(span),
+                format!("a {} cannot be drawn over a plot of a {main_ty}", port.ty),
+                "FRFs take FRFs and modal models, lobes take lobes and trial tables, tables take tables",
+            );
+            with_ok = false;
+        }
+    }
+    with_ok.then_some(())
 }
 
 /// A recipe's `exports` (what it hands back when run as a step) name outputs of its steps.

@@ -1,0 +1,162 @@
+//! Many cases diagnosed in one go (`spindlelab diagnose --batch 'cases/*/case.json' -o DIR`):
+//! each case imported to `DIR/<case>/recipe.yaml` and diagnosed into `DIR/<case>/diagnosis`,
+//! one after the other (each diagnosis uses every core), and a summary of all of them —
+//! verdicts, effects with their parameters, the gap before and after — as `summary.csv`
+//! (read back by the project's table reader) and `summary.md`. A case that fails is a row with
+//! its error; the others still run.
+
+use super::{Diagnosis, value_pm};
+use crate::engine::exec::write::{Row, render};
+use crate::engine::model::OutputFormat;
+use crate::engine::node::Registry;
+use crate::engine::value::{Column, Table, Value};
+use crate::import::{Placement, recipe_from_case_at};
+use std::path::{Path, PathBuf};
+
+/// One case's line of the summary.
+#[derive(Debug, Clone)]
+pub struct BatchRow {
+    pub case: String,
+    pub verdict: String,
+    /// The named effects with their fitted parameters (`mass_loading: added_tip_mass = 12.1 ± 0.3 g`).
+    pub effects: String,
+    /// The largest gap over the measured files, in units of the noise floor, before and after.
+    pub gap_before: f64,
+    pub gap_after: f64,
+    /// Cutting trials the lobes misclassify, before and after (NaN without trials).
+    pub misclassified_before: f64,
+    pub misclassified_after: f64,
+    pub seconds: f64,
+    /// Why the case was not diagnosed; empty when it was.
+    pub error: String,
+}
+
+/// A case's name: its folder (`cases/train_01/case.json` → `train_01`), or the file's stem.
+pub fn case_name(case: &Path) -> String {
+    let stem = case.file_stem().and_then(|s| s.to_str()).unwrap_or("case");
+    match case.parent().and_then(Path::file_name).and_then(|s| s.to_str()) {
+        Some(folder) if stem == "case" => folder.to_string(),
+        _ => stem.to_string(),
+    }
+}
+
+/// Imports `case` into `dir/recipe.yaml` and diagnoses it into `dir/diagnosis`.
+pub fn diagnose_case(case: &Path, dir: &Path, registry: &Registry) -> Result<Diagnosis, String> {
+    let text = std::fs::read_to_string(case).map_err(|e| format!("cannot read {}: {e}", case.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot make {}: {e}", dir.display()))?;
+    let case_dir = match case.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let placement = Placement { case_dir: &case_dir, recipe_dir: dir };
+    let recipe = recipe_from_case_at(&text, &case.display().to_string(), placement).map_err(|e| e.to_string())?;
+    let path = dir.join("recipe.yaml");
+    std::fs::write(&path, recipe).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    let d = super::diagnose(&path, registry).map_err(|e| e.to_string())?;
+    super::write(&d, &dir.join("diagnosis")).map_err(|e| e.to_string())?;
+    Ok(d)
+}
+
+/// The summary line of a diagnosis of `case`.
+pub fn row(case: &str, d: &Diagnosis) -> BatchRow {
+    let worst = |f: fn(&super::GapFile) -> f64| d.gap.files.iter().map(f).fold(f64::NAN, f64::max);
+    let effects: Vec<String> = d
+        .effects
+        .iter()
+        .map(|e| {
+            // The fitted parameters as diagnosis.md gives them: value ± σ and unit.
+            let params: Vec<String> = e
+                .uncertainty
+                .as_object()
+                .into_iter()
+                .flatten()
+                .map(|(name, p)| {
+                    let v = p["value"].as_f64().unwrap_or(f64::NAN);
+                    let unit =
+                        p["unit"].as_str().filter(|u| !u.is_empty()).map(|u| format!(" {u}")).unwrap_or_default();
+                    format!("{name} = {}{unit}", value_pm(v, p["sigma"].as_f64()))
+                })
+                .collect();
+            if params.is_empty() { e.name.to_string() } else { format!("{}: {}", e.name, params.join(", ")) }
+        })
+        .collect();
+    let trials = d.gap.trials.as_ref();
+    BatchRow {
+        case: case.to_string(),
+        verdict: d.verdict.to_string(),
+        effects: effects.join("; "),
+        gap_before: worst(|f| f.ratio_before),
+        gap_after: worst(|f| f.ratio_after),
+        misclassified_before: trials.map_or(f64::NAN, |t| t.misclassified_before as f64),
+        misclassified_after: trials.map_or(f64::NAN, |t| t.misclassified_after as f64),
+        seconds: d.seconds,
+        error: String::new(),
+    }
+}
+
+/// The line of a case that could not be diagnosed.
+pub fn failed(case: &str, error: String) -> BatchRow {
+    BatchRow {
+        case: case.to_string(),
+        verdict: "failed".into(),
+        effects: String::new(),
+        gap_before: f64::NAN,
+        gap_after: f64::NAN,
+        misclassified_before: f64::NAN,
+        misclassified_after: f64::NAN,
+        seconds: 0.0,
+        error,
+    }
+}
+
+/// The summary as a table: text columns for the case, verdict, effects and error.
+pub fn table(rows: &[BatchRow]) -> Table {
+    let text = |f: fn(&BatchRow) -> &str| rows.iter().map(f).collect::<Vec<_>>();
+    let num = |f: fn(&BatchRow) -> f64| rows.iter().map(f).collect::<Vec<_>>();
+    Table {
+        columns: vec![
+            Column::text("case", &text(|r| &r.case)),
+            Column::text("verdict", &text(|r| &r.verdict)),
+            Column::text("effects", &text(|r| &r.effects)),
+            Column::new("gap_before", "", num(|r| r.gap_before)),
+            Column::new("gap_after", "", num(|r| r.gap_after)),
+            Column::new("trials_misclassified_before", "", num(|r| r.misclassified_before)),
+            Column::new("trials_misclassified_after", "", num(|r| r.misclassified_after)),
+            Column::new("time", "s", num(|r| r.seconds)),
+            Column::text("error", &text(|r| &r.error)),
+        ],
+    }
+}
+
+/// `summary.csv`: the table as the project writes tables.
+pub fn summary_csv(rows: &[BatchRow]) -> String {
+    let value = Value::Table(table(rows));
+    render(OutputFormat::Csv, &[Row { label: "", value: &value }])
+}
+
+/// `summary.md`: one line per case, linking its diagnosis.
+pub fn summary_md(rows: &[BatchRow]) -> String {
+    let mut s = String::from(
+        "# Batch diagnosis\n\n| case | verdict | effects | gap before → after (× noise) | trials misclassified | s |\n|---|---|---|---|---|---|\n",
+    );
+    let n = |v: f64| if v.is_finite() { format!("{}", spindlelab_domain::round_sig(v, 3)) } else { "–".into() };
+    for r in rows {
+        let what = if r.error.is_empty() {
+            r.effects.replace('|', "/")
+        } else {
+            format!("error: {}", r.error.replace('|', "/"))
+        };
+        let case =
+            if r.error.is_empty() { format!("[{0}]({0}/diagnosis/diagnosis.md)", r.case) } else { r.case.clone() };
+        s.push_str(&format!(
+            "| {case} | {} | {what} | {} → {} | {} → {} | {:.1} |\n",
+            r.verdict,
+            n(r.gap_before),
+            n(r.gap_after),
+            n(r.misclassified_before),
+            n(r.misclassified_after),
+            r.seconds
+        ));
+    }
+    s
+}

@@ -1,0 +1,120 @@
+//! A recipe as a workflow another engine schedules: `spindlelab export snakemake` writes a
+//! Snakefile whose jobs are the shards of each level of the recipe's graph (each computes its
+//! part into a shared cache and leaves a marker file there) and a final job that runs the
+//! recipe, finds every result in the cache and commits the outputs. A job of level `L` waits
+//! for every job of level `L − 1` through the workflow engine, so no instance runs twice and
+//! nothing polls. The same Snakefile runs with the local executor, on a cluster
+//! (`--executor cluster-generic`, Slurm, Kubernetes) given a shared folder for the cache.
+
+use crate::engine::Compiled;
+use crate::engine::exec::{Shard, shard};
+use crate::engine::node::Registry;
+use std::path::Path;
+
+/// Where the exported workflow runs things: the command, the recipe, the output folder and
+/// the shared cache, each as the jobs will see it (absolute paths on shared storage).
+pub struct Places<'a> {
+    pub spindlelab: &'a Path,
+    pub recipe: &'a Path,
+    pub out: &'a Path,
+    pub cache: &'a Path,
+}
+
+/// The files of an exported workflow: the Snakefile and a profile for the local executor.
+pub struct Workflow {
+    pub snakefile: String,
+    pub profile: String,
+    pub levels: usize,
+    pub shards: usize,
+}
+
+/// Python's string literal of `s` (the Snakefile names paths with it).
+fn py(s: &str) -> String {
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            '"' => out.push_str("\\\""),
+            '\n' => out.push_str("\\n"),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// The Snakefile of `compiled` split into `shards` shards per level.
+pub fn snakemake(compiled: &Compiled, registry: &Registry, places: &Places<'_>, shards: usize) -> Workflow {
+    let shards = shards.max(1);
+    let levels = shard::levels(&compiled.graph, registry);
+    let one = Shard { index: 1, count: shards, level: Some(0) };
+    let markers = one.marker(places.cache, &compiled.graph);
+    let markers = markers.parent().expect("a marker lies in a folder");
+    let show = |p: &Path| py(&p.display().to_string());
+    let snakefile = format!(
+        r#"# The workflow of recipe {recipe_name}, written by `spindlelab export snakemake`.
+# {levels} level(s) of its graph × {shards} shard(s): each job computes its shard's instances into
+# the shared cache and leaves a marker there; `collect` then runs the recipe, which finds every
+# result in the cache, and commits the outputs to OUT. Run it with
+#   snakemake --profile PROFILE_DIR            (the local executor: ./profile)
+# or with a cluster executor (`--executor cluster-generic`, `slurm`, `kubernetes`) when OUT and
+# CACHE are on storage every node sees.
+
+SPINDLELAB = {exe}
+RECIPE = {recipe}
+OUT = {out}
+CACHE = {cache}
+MARKERS = {markers}
+LEVELS = {levels}
+SHARDS = {shards}
+
+wildcard_constraints:
+    level=r"\d+",
+    shard=r"\d+",
+
+
+def marker(level, shard):
+    return f"{{MARKERS}}/level-{{level}}-shard-{{shard}}-of-{{SHARDS}}.done"
+
+
+def level_done(level):
+    return [marker(level, k) for k in range(1, SHARDS + 1)] if level >= 0 else []
+
+
+rule all:
+    input:
+        f"{{MARKERS}}/collected",
+
+
+rule collect:
+    input:
+        level_done(LEVELS - 1),
+    output:
+        f"{{MARKERS}}/collected",
+    threads: 1
+    shell:
+        "{{SPINDLELAB:q}} run {{RECIPE:q}} -o {{OUT:q}} --cache {{CACHE:q}} -q && touch {{output:q}}"
+
+
+rule shard:
+    input:
+        lambda wc: level_done(int(wc.level) - 1),
+    output:
+        MARKERS + "/level-{{level}}-shard-{{shard}}-of-" + str(SHARDS) + ".done",
+    threads: 1
+    resources:
+        mem_mb=2000,
+    shell:
+        "{{SPINDLELAB:q}} run {{RECIPE:q}} -o {{OUT:q}} --cache {{CACHE:q}} --shard {{wildcards.shard}}/{{SHARDS}} --level {{wildcards.level}} -q"
+"#,
+        recipe_name = compiled.recipe.name,
+        exe = show(places.spindlelab),
+        recipe = show(places.recipe),
+        out = show(places.out),
+        cache = show(places.cache),
+        markers = show(markers),
+    );
+    let profile =
+        "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n".to_string();
+    Workflow { snakefile, profile, levels, shards }
+}

@@ -1,0 +1,231 @@
+//! Sharded runs: shards of each graph level computed by separate processes into one cache,
+//! then a plain run that finds everything there and commits the outputs. Checked by hand
+//! (one process per shard, in level order) in the default tier, and through Snakemake's local
+//! and cluster-generic executors in the slow tier.
+
+use crate::common::binary::{bin, text};
+use serde_json::Value as Json;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A small swept recipe of two levels (simulated impacts, then their FRFs and a collected table).
+fn recipe(dir: &Path) -> PathBuf {
+    let r = dir.join("noisy-sweep.yaml");
+    std::fs::copy(root().join("tests/data/noisy-sweep.yaml"), &r).unwrap();
+    r
+}
+
+fn ok(args: &[&str], cwd: &Path) -> String {
+    let o = bin().args(args).current_dir(cwd).output().expect("the binary starts");
+    assert!(o.status.success(), "spindlelab {args:?}:\n{}", text(&o));
+    String::from_utf8_lossy(&o.stdout).to_string()
+}
+
+/// The files a run committed, by name, without the manifest (it records times and paths).
+fn committed(out: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(out)
+        .unwrap()
+        .flatten()
+        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+        .filter(|e| e.file_name() != "manifest.json")
+        .map(|e| (e.file_name().to_string_lossy().to_string(), std::fs::read(e.path()).unwrap()))
+        .collect()
+}
+
+fn manifest(out: &Path) -> Json {
+    serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap()
+}
+
+/// The markers the shard jobs left, read as JSON.
+fn markers(cache: &Path) -> Vec<Json> {
+    let mut found = Vec::new();
+    for d in std::fs::read_dir(cache.join("shards")).unwrap().flatten() {
+        for m in std::fs::read_dir(d.path()).unwrap().flatten() {
+            if m.file_name().to_string_lossy().ends_with(".done") {
+                found.push(serde_json::from_str(&std::fs::read_to_string(m.path()).unwrap()).unwrap());
+            }
+        }
+    }
+    found
+}
+
+fn computed(markers: &[Json]) -> Vec<String> {
+    let mut ids: Vec<String> = markers
+        .iter()
+        .flat_map(|m| m["computed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()))
+        .collect();
+    ids.sort();
+    ids
+}
+
+/// The one-process run's committed files and its instance count, for comparison.
+fn one_process(dir: &Path, recipe: &Path) -> (BTreeMap<String, Vec<u8>>, usize) {
+    let out = dir.join("one");
+    ok(&["run", recipe.to_str().unwrap(), "-o", out.to_str().unwrap(), "-q"], dir);
+    let m = manifest(&out);
+    (committed(&out), m["nodes"].as_array().unwrap().len())
+}
+
+fn levels_of(snakefile: &str) -> usize {
+    snakefile.lines().find_map(|l| l.strip_prefix("LEVELS = ")).unwrap().trim().parse().unwrap()
+}
+
+#[test]
+fn shards_run_level_by_level_compute_each_instance_once_and_commit_the_same_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = recipe(dir.path());
+    let (want, instances) = one_process(dir.path(), &recipe);
+    let (out, cache, wf) = (dir.path().join("out"), dir.path().join("cache"), dir.path().join("wf"));
+    let r = recipe.to_str().unwrap();
+    let (o, c) = (out.to_str().unwrap(), cache.to_str().unwrap());
+    ok(&["export", "snakemake", r, "-o", wf.to_str().unwrap(), "--out", o, "--cache", c, "--shards", "3"], dir.path());
+    let levels = levels_of(&std::fs::read_to_string(wf.join("Snakefile")).unwrap());
+    assert!(levels >= 2, "{levels} levels");
+    for level in 0..levels {
+        for k in 1..=3 {
+            ok(
+                &["run", r, "-o", o, "--cache", c, "--shard", &format!("{k}/3"), "--level", &level.to_string(), "-q"],
+                dir.path(),
+            );
+        }
+    }
+    let m = markers(&cache);
+    assert_eq!(m.len(), 3 * levels, "a marker per shard and level");
+    let ids = computed(&m);
+    let mut unique = ids.clone();
+    unique.dedup();
+    assert_eq!(ids, unique, "an instance computed by two shards");
+    assert_eq!(ids.len(), instances, "every instance computed once: {ids:?}");
+    // The plain run afterwards computes nothing and commits the one-process run's files.
+    ok(&["run", r, "-o", o, "--cache", c, "-q"], dir.path());
+    let after = manifest(&out);
+    assert_eq!(after["computed"], 0, "{after}");
+    assert_eq!(committed(&out), want);
+
+    // A shard killed before it left its marker runs again from the cache: nothing recomputed.
+    let marker = std::fs::read_dir(cache.join("shards"))
+        .unwrap()
+        .flatten()
+        .next()
+        .unwrap()
+        .path()
+        .join("level-1-shard-2-of-3.done");
+    std::fs::remove_file(&marker).unwrap();
+    ok(&["run", r, "-o", o, "--cache", c, "--shard", "2/3", "--level", "1", "-q"], dir.path());
+    let again: Json = serde_json::from_str(&std::fs::read_to_string(&marker).unwrap()).unwrap();
+    assert_eq!(again["computed"].as_array().unwrap().len(), 0, "{again}");
+}
+
+#[test]
+fn a_shard_is_refused_when_it_is_not_k_of_n() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = recipe(dir.path());
+    let o = bin().args(["run", recipe.to_str().unwrap(), "--shard", "4/3"]).current_dir(dir.path()).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("`4/3` is not a shard"), "{}", text(&o));
+}
+
+/// Snakemake on PATH (or `SPINDLELAB_SNAKEMAKE`); without it the test says so and passes,
+/// except where `SPINDLELAB_REQUIRE_SNAKEMAKE` is set (CI installs it), where it fails.
+fn snakemake() -> Option<String> {
+    let exe = std::env::var("SPINDLELAB_SNAKEMAKE").unwrap_or_else(|_| "snakemake".into());
+    if Command::new(&exe).arg("--version").output().is_ok_and(|o| o.status.success()) {
+        return Some(exe);
+    }
+    assert!(
+        std::env::var_os("SPINDLELAB_REQUIRE_SNAKEMAKE").is_none(),
+        "SPINDLELAB_REQUIRE_SNAKEMAKE is set and `{exe}` does not run: pip install snakemake snakemake-executor-plugin-cluster-generic"
+    );
+    eprintln!("no Snakemake on this machine: the workflow check is skipped");
+    None
+}
+
+/// The exported workflow run by Snakemake, with the local executor and with cluster-generic
+/// (each job submitted as a separate process): the committed files are the one-process run's,
+/// byte for byte, and no instance is computed twice.
+#[test]
+#[ignore = "slow: runs Snakemake twice (about a minute)"]
+fn the_exported_workflow_runs_in_snakemake_locally_and_as_cluster_jobs() {
+    let Some(snakemake) = snakemake() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = recipe(dir.path());
+    let (want, instances) = one_process(dir.path(), &recipe);
+    for (name, executor) in [
+        ("local", &[][..]),
+        ("cluster", &["--executor", "cluster-generic", "--cluster-generic-submit-cmd", "bash", "--jobs", "4"][..]),
+    ] {
+        let (out, cache, wf) = (
+            dir.path().join(format!("out-{name}")),
+            dir.path().join(format!("cache-{name}")),
+            dir.path().join(format!("wf-{name}")),
+        );
+        ok(
+            &[
+                "export",
+                "snakemake",
+                recipe.to_str().unwrap(),
+                "-o",
+                wf.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--cache",
+                cache.to_str().unwrap(),
+                "--shards",
+                "2",
+            ],
+            dir.path(),
+        );
+        let o = Command::new(&snakemake)
+            .arg("-s")
+            .arg(wf.join("Snakefile"))
+            .arg("--profile")
+            .arg(wf.join("profile"))
+            .args(["--cores", "2"])
+            .args(executor)
+            .current_dir(&wf)
+            .env(
+                "PATH",
+                format!(
+                    "{}:{}",
+                    Path::new(env!("CARGO_BIN_EXE_spindlelab")).parent().unwrap().display(),
+                    std::env::var("PATH").unwrap_or_default()
+                ),
+            )
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        let ids = computed(&markers(&cache));
+        let mut unique = ids.clone();
+        unique.dedup();
+        assert_eq!((ids.len(), unique.len()), (instances, instances), "{name}: {ids:?}");
+        assert_eq!(manifest(&out)["computed"], 0, "{name}");
+        assert_eq!(committed(&out), want, "{name}");
+    }
+}
+
+/// `cache du|gc|clean --cache DIR` work on a shared cache: gc keeps what a named output
+/// folder's last runs used, and `--max-size` bounds it to the entries written last.
+#[test]
+fn a_shared_cache_is_measured_and_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = recipe(dir.path());
+    let (r, cache) = (recipe.to_str().unwrap(), dir.path().join("cache"));
+    let c = cache.to_str().unwrap();
+    ok(&["run", r, "-o", "a", "--cache", c, "-q"], dir.path());
+    let entries = |du: &str| -> usize { du.split(": ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap() };
+    let before = entries(&ok(&["cache", "du", "--cache", c], dir.path()));
+    assert!(before >= 7, "{before}");
+    assert!(!dir.path().join("a/.spindlelab-cache").exists(), "the run used the folder's own cache");
+    // What folder `a` used stays; a size of nothing leaves nothing.
+    ok(&["cache", "gc", "--cache", c, "a"], dir.path());
+    assert_eq!(entries(&ok(&["cache", "du", "--cache", c], dir.path())), before);
+    let o = bin().args(["cache", "gc", "--cache", c]).current_dir(dir.path()).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    ok(&["cache", "gc", "--cache", c, "--max-size", "0"], dir.path());
+    assert_eq!(entries(&ok(&["cache", "du", "--cache", c], dir.path())), 0);
+}
