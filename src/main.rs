@@ -706,7 +706,7 @@ fn cmd_diagnose_batch(pattern: &str, out: Option<PathBuf>, quiet: bool, registry
     }
     let failed = rows.iter().filter(|r| !r.error.is_empty()).count();
     if !quiet {
-        outln!("wrote {} and summary.md: {} case(s), {failed} failed", esc(&csv.display()), rows.len());
+        outln!("wrote {} and summary.md: {} case(s), {failed} failed", esc(csv.display()), rows.len());
     }
     if failed > 0 { ExitCode::from(EXIT_FAILURE) } else { ExitCode::SUCCESS }
 }
@@ -835,7 +835,7 @@ fn cmd_run_shard(
     if c.recipe.fit.is_some() && !args.no_fit {
         eoutln!(
             "error: {} has a `fit:` block, whose evaluations run in one process: shard it with --no-fit, or run the fitted recipe",
-            esc(&args.recipe.display())
+            esc(args.recipe.display())
         );
         return ExitCode::from(EXIT_BAD_INPUT);
     }
@@ -895,7 +895,7 @@ fn cmd_run_shard(
             shard.count,
             computed.len(),
             cached,
-            esc(&marker.display())
+            esc(marker.display())
         );
     }
     ExitCode::SUCCESS
@@ -936,12 +936,12 @@ fn cmd_export_snakemake(
     }
     outln!(
         "wrote {}: {} level(s) × {} shard(s), then collect into {}; run it with `snakemake -s {} --profile {}`",
-        esc(&dir.join("Snakefile").display()),
+        esc(dir.join("Snakefile").display()),
         wf.levels,
         wf.shards,
-        esc(&out_abs.display()),
-        esc(&dir.join("Snakefile").display()),
-        esc(&dir.join("profile").display())
+        esc(out_abs.display()),
+        esc(dir.join("Snakefile").display()),
+        esc(dir.join("profile").display())
     );
     ExitCode::SUCCESS
 }
@@ -1293,13 +1293,13 @@ fn shared_cache_command(dir: &Path, verb: &str, folders: &[PathBuf], max_size: O
     use engine::exec::{Cache, Manifest, commit::META_DIR};
     let cache = Cache::new(dir);
     if !dir.is_dir() {
-        outln!("{}: no cache", esc(&dir.display()));
+        outln!("{}: no cache", esc(dir.display()));
         return ExitCode::SUCCESS;
     }
     let (n, bytes) = match verb {
         "du" => {
             let (n, bytes) = cache.usage();
-            outln!("{}: {n} entries, {}", esc(&dir.display()), human_bytes(bytes));
+            outln!("{}: {n} entries, {}", esc(dir.display()), human_bytes(bytes));
             return ExitCode::SUCCESS;
         }
         "clean" => cache.retain(|_| false),
@@ -1327,7 +1327,7 @@ fn shared_cache_command(dir: &Path, verb: &str, folders: &[PathBuf], max_size: O
             (n, bytes)
         }
     };
-    outln!("{}: removed {n} entries, {}", esc(&dir.display()), human_bytes(bytes));
+    outln!("{}: removed {n} entries, {}", esc(dir.display()), human_bytes(bytes));
     ExitCode::SUCCESS
 }
 

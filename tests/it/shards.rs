@@ -145,19 +145,29 @@ fn snakemake() -> Option<String> {
     None
 }
 
-/// The exported workflow run by Snakemake, with the local executor and with cluster-generic
-/// (each job submitted as a separate process): the committed files are the one-process run's,
-/// byte for byte, and no instance is computed twice.
+/// The tool-crib example (200 holder × tool × stickout combinations) beside the library it uses.
+fn tool_crib(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir.join("lib")).unwrap();
+    std::fs::copy(root().join("scripts/lib/materials.yaml"), dir.join("lib/materials.yaml")).unwrap();
+    let r = dir.join("tool-crib.rhai");
+    std::fs::copy(root().join("scripts/tool-crib.rhai"), &r).unwrap();
+    r
+}
+
+/// The exported tool crib run by Snakemake, with the local executor (3 shards per level) and
+/// with cluster-generic (2, each job submitted as a separate process): the committed files are
+/// the one-process run's, byte for byte, and no instance is computed twice.
 #[test]
 #[ignore = "slow: runs Snakemake twice (about a minute)"]
 fn the_exported_workflow_runs_in_snakemake_locally_and_as_cluster_jobs() {
     let Some(snakemake) = snakemake() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let recipe = recipe(dir.path());
+    let recipe = tool_crib(dir.path());
     let (want, instances) = one_process(dir.path(), &recipe);
-    for (name, executor) in [
-        ("local", &[][..]),
-        ("cluster", &["--executor", "cluster-generic", "--cluster-generic-submit-cmd", "bash", "--jobs", "4"][..]),
+    assert_eq!(want.len(), 5, "a best-cut table per end mill");
+    for (name, shards, executor) in [
+        ("local", "3", &[][..]),
+        ("cluster", "2", &["--executor", "cluster-generic", "--cluster-generic-submit-cmd", "bash", "--jobs", "4"][..]),
     ] {
         let (out, cache, wf) = (
             dir.path().join(format!("out-{name}")),
@@ -176,7 +186,7 @@ fn the_exported_workflow_runs_in_snakemake_locally_and_as_cluster_jobs() {
                 "--cache",
                 cache.to_str().unwrap(),
                 "--shards",
-                "2",
+                shards,
             ],
             dir.path(),
         );

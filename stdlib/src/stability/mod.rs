@@ -13,6 +13,7 @@
 //! [`cutting::Milling::force_matrix`]. Coefficients are `Kt = Ks sin β`, `Kn = Ks cos β`. Up-milling cuts
 //! `φ ∈ [0, arccos(1 − 2a_e/D)]`, down-milling `φ ∈ [arccos(2a_e/D − 1), π]`.
 
+pub mod best;
 pub mod cutting;
 mod linalg;
 pub mod sdm;

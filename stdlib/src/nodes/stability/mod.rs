@@ -5,6 +5,7 @@
 //! The cut comes from a recipe `cutting` entity (teeth, radial immersion, up/down, `Kt = Ks sin β`,
 //! `Kn = Ks cos β`); `x` is the feed direction (force convention in [`crate::stability`]).
 
+mod best;
 mod chatter;
 mod lobes;
 mod modal_model;
@@ -12,6 +13,7 @@ mod sd;
 mod speed_dependent;
 mod trials;
 
+pub use best::StabilityBest;
 pub use chatter::ChatterDetect;
 pub use lobes::StabilityLobes;
 pub use modal_model::ModalModelNode;
