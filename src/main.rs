@@ -1143,6 +1143,16 @@ fn relative_to(path: &Path, dir: &Path) -> String {
 /// files the manifest lists (each read through the data-file cap).
 fn report_command(run_dir: &Path, out: Option<PathBuf>) -> ExitCode {
     let target_for = |out: Option<PathBuf>| out.unwrap_or_else(|| report_beside(run_dir));
+    // A batch of diagnoses: the summary, and each case's diagnosis on the same page.
+    if run_dir.join("summary.md").is_file() && run_dir.join("summary.csv").is_file() {
+        return match spindlelab::diagnose::batch::report_html(run_dir) {
+            Ok(html) => write_report(&target_for(out), html),
+            Err(e) => {
+                eoutln!("error: {}; rerun `spindlelab diagnose --batch` into that folder", esc(&e));
+                ExitCode::from(EXIT_BAD_INPUT)
+            }
+        };
+    }
     // A diagnosis folder: its page and pictures.
     if run_dir.join("diagnosis.md").is_file() && run_dir.join("diagnosis.json").is_file() {
         return match spindlelab::diagnose::report_html(run_dir) {

@@ -13,7 +13,8 @@ use std::fmt::Write as _;
 /// Tables of at most this many rows are shown in the report; longer ones are listed by name.
 const MAX_TABLE_ROWS: usize = 40;
 
-fn esc(s: &str) -> String {
+/// Text escaped for HTML.
+pub fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 

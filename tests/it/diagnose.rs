@@ -299,7 +299,6 @@ fn a_recipe_with_a_fit_block_is_refused() {
 /// and writes a summary that reads back through the table reader; a broken case is a row with
 /// its error (exit 1) and the others are still diagnosed.
 #[test]
-#[ignore = "slow: two full diagnoses (about a minute)"]
 fn a_batch_diagnoses_every_case_and_summarises_them() {
     let dir = tempfile::tempdir().unwrap();
     for case in ["train_01", "train_04"] {
@@ -343,4 +342,12 @@ fn a_batch_diagnoses_every_case_and_summarises_them() {
     assert!(words("effects")[2].contains("mass_loading"), "{:?}", words("effects"));
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.contains("[train_04](train_04/diagnosis/diagnosis.md)"), "{md}");
+    // `report` makes the batch one page: the summary, each case's diagnosis and its pictures.
+    let page = dir.path().join("batch.html");
+    let o = spindlelab(&["report".as_ref(), out.as_os_str(), "-o".as_ref(), page.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(&page).unwrap();
+    for needle in ["href=\"#case-train_01\"", "<section id=\"case-train_04\">", "id=\"train_04-fig-lobes.svg\""] {
+        assert!(html.contains(needle), "{needle} not in the page");
+    }
 }

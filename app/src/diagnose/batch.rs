@@ -160,3 +160,42 @@ pub fn summary_md(rows: &[BatchRow]) -> String {
     }
     s
 }
+
+/// The page of a batch folder (`spindlelab report DIR`): the summary table, each case linked
+/// to its diagnosis below it on the same page, pictures inline.
+pub fn report_html(dir: &Path) -> Result<String, super::DiagnoseError> {
+    use crate::engine::formats::{MAX_DATA_BYTES, read_capped};
+    use pulldown_cmark::{Event, Options, Parser, Tag, html};
+    let path = dir.join("summary.md");
+    let md = read_capped(&path, MAX_DATA_BYTES)
+        .ok()
+        .and_then(|b| String::from_utf8(b).ok())
+        .ok_or_else(|| super::DiagnoseError::Input(format!("{}: cannot read it as text", path.display())))?;
+    let mut cases = Vec::new();
+    let events: Vec<Event> = Parser::new_ext(&md, Options::ENABLE_TABLES)
+        .map(|ev| match ev {
+            // `case/diagnosis/diagnosis.md` → the case's section on this page.
+            Event::Start(Tag::Link { link_type, dest_url, title, id })
+                if dest_url.ends_with("/diagnosis/diagnosis.md") && !dest_url.starts_with(['.', '/']) =>
+            {
+                let case = dest_url.trim_end_matches("/diagnosis/diagnosis.md").to_string();
+                let anchor = format!("#case-{case}").into();
+                cases.push(case);
+                Event::Start(Tag::Link { link_type, dest_url: anchor, title, id })
+            }
+            other => other,
+        })
+        .collect();
+    let mut body = String::new();
+    html::push_html(&mut body, events.into_iter());
+    for case in cases.iter().filter(|c| !c.contains(['/', '\\']) && *c != "..") {
+        let shown = crate::render::report::esc(case);
+        body.push_str(&format!("<section id=\"case-{shown}\"><h2>{shown}</h2>\n"));
+        match super::report_body(&dir.join(case).join("diagnosis"), &format!("{case}-")) {
+            Ok(b) => body.push_str(&b),
+            Err(e) => body.push_str(&format!("<p class=\"warn\">{}</p>", crate::render::report::esc(&e.to_string()))),
+        }
+        body.push_str("</section>\n");
+    }
+    Ok(crate::render::report::standalone(&format!("batch diagnosis of {}", dir.display()), &body))
+}

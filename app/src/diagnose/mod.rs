@@ -1361,6 +1361,12 @@ pub fn pictures(d: &Diagnosis) -> Vec<(String, Vec<u8>)> {
 /// The HTML page of a diagnosis folder: `diagnosis.md` with the pictures it links drawn in
 /// place of the links (each read through the data-file cap), one self-contained file.
 pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
+    Ok(crate::render::report::standalone(&format!("diagnosis of {}", dir.display()), &report_body(dir, "")?))
+}
+
+/// The body of a diagnosis folder's page: `diagnosis.md` as HTML with its pictures inline, each
+/// figure's anchor led by `prefix` (so several diagnoses share one page).
+pub fn report_body(dir: &Path, prefix: &str) -> Result<String, DiagnoseError> {
     use crate::engine::formats::{MAX_DATA_BYTES, read_capped};
     use pulldown_cmark::{Event, Options, Parser, Tag, TagEnd, html};
     let read = |name: &str| {
@@ -1378,8 +1384,8 @@ pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
                 if dest_url.ends_with(".svg") && !dest_url.contains(['/', '\\']) && !dest_url.starts_with('.') =>
             {
                 let bytes = read(&dest_url)?;
-                figures.push(crate::render::report::svg_figure(&format!("fig-{dest_url}"), &dest_url, &bytes));
-                let dest_url = format!("#fig-{dest_url}").into();
+                figures.push(crate::render::report::svg_figure(&format!("{prefix}fig-{dest_url}"), &dest_url, &bytes));
+                let dest_url = format!("#{prefix}fig-{dest_url}").into();
                 events.push(Event::Start(Tag::Link { link_type, dest_url, title, id }));
             }
             Event::End(TagEnd::Link) => events.push(ev),
@@ -1392,7 +1398,7 @@ pub fn report_html(dir: &Path) -> Result<String, DiagnoseError> {
         body.push_str(&f);
         body.push('\n');
     }
-    Ok(crate::render::report::standalone(&format!("diagnosis of {}", dir.display()), &body))
+    Ok(body)
 }
 
 /// Significant digits of a fitted value in `diagnosed.yaml`: far below any fitted σ, so the
