@@ -236,6 +236,13 @@ enum Command {
         /// imported and diagnosed into `OUT/<case>/`, with `summary.csv` and `summary.md`.
         #[arg(long, value_name = "PATTERN")]
         batch: Option<String>,
+        /// With `--batch`: diagnose the cases and write no summary (a workflow's case jobs).
+        #[arg(long, requires = "batch", conflicts_with = "summary_only")]
+        no_summary: bool,
+        /// With `--batch`: diagnose nothing; gather the rows the cases' diagnoses left
+        /// (`OUT/<case>/row.csv`) into the summary (a workflow's last job).
+        #[arg(long, requires = "batch")]
+        summary_only: bool,
         /// Output directory (default: `out/<recipe name>/diagnosis`; with `--batch`, `out/batch`).
         #[arg(short, long)]
         out: Option<PathBuf>,
@@ -250,7 +257,12 @@ enum ExportTo {
     /// A Snakefile and a profile for the local executor (docs/scale-out.md).
     Snakemake {
         /// Recipe file (`.yaml` or `.rhai`).
-        recipe: PathBuf,
+        #[arg(required_unless_present = "batch", conflicts_with = "batch")]
+        recipe: Option<PathBuf>,
+        /// Instead of a recipe, a batch of diagnoses (`'cases/*/case.json'`): one job per case
+        /// (`diagnose --batch CASE --no-summary`), then one that gathers the summary.
+        #[arg(long, value_name = "PATTERN")]
+        batch: Option<String>,
         /// The folder to write the Snakefile and `profile/` into.
         #[arg(short = 'o', long = "dir")]
         dir: PathBuf,
@@ -456,8 +468,9 @@ fn command(cli: Cli) -> ExitCode {
         Command::Diagnose { recipe: Some(recipe), out, quiet, .. } => {
             cmd_diagnose(&recipe, out, quiet, &mut registry, &mut plugins)
         }
-        Command::Diagnose { batch, out, quiet, .. } => {
-            cmd_diagnose_batch(batch.as_deref().unwrap_or_default(), out, quiet, &registry)
+        Command::Diagnose { batch, out, quiet, no_summary, summary_only, .. } => {
+            let mode = BatchMode { summary: !no_summary, diagnose: !summary_only };
+            cmd_diagnose_batch(batch.as_deref().unwrap_or_default(), out, quiet, mode, &registry)
         }
         Command::Import { case, out, library } => cmd_import(&case, out, library),
         Command::Cache { action } => cache_command(action),
@@ -486,8 +499,11 @@ fn command(cli: Cli) -> ExitCode {
                 None => cmd_run(args, &mut registry, &mut plugins),
             }
         }
-        Command::Export { to: ExportTo::Snakemake { recipe, dir, out, cache, shards } } => {
+        Command::Export { to: ExportTo::Snakemake { recipe: Some(recipe), dir, out, cache, shards, .. } } => {
             cmd_export_snakemake(&recipe, &dir, out, cache, shards, &mut registry, &mut plugins)
+        }
+        Command::Export { to: ExportTo::Snakemake { batch, dir, out, .. } } => {
+            cmd_export_batch(batch.as_deref().unwrap_or_default(), &dir, out)
         }
     }
 }
@@ -658,13 +674,22 @@ fn cmd_diagnose(
 
 /// `spindlelab diagnose --batch PATTERN`: every case the pattern matches imported and
 /// diagnosed into a folder of its own, one after the other, with a summary of all of them.
-fn cmd_diagnose_batch(pattern: &str, out: Option<PathBuf>, quiet: bool, registry: &engine::node::Registry) -> ExitCode {
+/// What `diagnose --batch` does: diagnose the cases, write the summary, or both.
+#[derive(Clone, Copy)]
+struct BatchMode {
+    diagnose: bool,
+    summary: bool,
+}
+
+/// The case files `pattern` matches, each with its folder name under the batch's output
+/// (a name two cases share gets `_2`, `_3`, …, in the pattern's order).
+fn batch_cases(pattern: &str) -> Result<Vec<(PathBuf, String)>, ExitCode> {
     use spindlelab::diagnose::batch;
     let cases: Vec<PathBuf> = match glob::glob(pattern) {
         Ok(paths) => paths.filter_map(Result::ok).filter(|p| p.is_file()).collect(),
         Err(e) => {
             eoutln!("error: `{}` is not a file pattern: {e}", esc(pattern));
-            return ExitCode::from(EXIT_BAD_INPUT);
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
         }
     };
     if cases.is_empty() {
@@ -672,23 +697,59 @@ fn cmd_diagnose_batch(pattern: &str, out: Option<PathBuf>, quiet: bool, registry
             "error: `{}` matches no case file (quote the pattern so the shell leaves it: 'cases/*/case.json')",
             esc(pattern)
         );
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
+    let mut names = std::collections::HashSet::new();
+    Ok(cases
+        .into_iter()
+        .map(|case| {
+            let mut name = batch::case_name(&case);
+            for k in 2.. {
+                if names.insert(name.clone()) {
+                    break;
+                }
+                name = format!("{}_{k}", batch::case_name(&case));
+            }
+            (case, name)
+        })
+        .collect())
+}
+
+fn cmd_diagnose_batch(
+    pattern: &str,
+    out: Option<PathBuf>,
+    quiet: bool,
+    mode: BatchMode,
+    registry: &engine::node::Registry,
+) -> ExitCode {
+    use spindlelab::diagnose::batch;
+    let cases = match batch_cases(pattern) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
     let out = out.unwrap_or_else(|| PathBuf::from("out/batch"));
     let mut rows = Vec::new();
-    let mut names = std::collections::HashSet::new();
-    for case in &cases {
-        let mut name = batch::case_name(case);
-        for k in 2.. {
-            if names.insert(name.clone()) {
-                break;
+    for (case, name) in &cases {
+        let row_file = out.join(name).join(batch::ROW_FILE);
+        if !mode.diagnose {
+            // The row the case's diagnosis left; a case not diagnosed yet is a failed row.
+            let read = std::fs::read(&row_file).map_err(|e| e.to_string());
+            let row = read.and_then(|b| batch::rows_from_csv(&b, &row_file.display().to_string()));
+            match row {
+                Ok(r) if r.len() == 1 => rows.extend(r),
+                Ok(_) => rows.push(batch::failed(name, format!("{} holds no single row", row_file.display()))),
+                Err(e) => rows.push(batch::failed(name, format!("not diagnosed: {e}"))),
             }
-            name = format!("{}_{k}", batch::case_name(case));
+            continue;
         }
-        let row = match batch::diagnose_case(case, &out.join(&name), registry) {
-            Ok(d) => batch::row(&name, &d),
-            Err(e) => batch::failed(&name, e),
+        let row = match batch::diagnose_case(case, &out.join(name), registry) {
+            Ok(d) => batch::row(name, &d),
+            Err(e) => batch::failed(name, e),
         };
+        let text = batch::summary_csv(std::slice::from_ref(&row));
+        if let Err(code) = write_together(&[(Some(&row_file), Some(text.as_str()))]) {
+            return code;
+        }
         if !quiet {
             let what = if row.error.is_empty() {
                 format!("{} {}", row.verdict, row.effects)
@@ -699,16 +760,20 @@ fn cmd_diagnose_batch(pattern: &str, out: Option<PathBuf>, quiet: bool, registry
         }
         rows.push(row);
     }
-    let (csv, md) = (out.join("summary.csv"), out.join("summary.md"));
-    let (csv_text, md_text) = (batch::summary_csv(&rows), batch::summary_md(&rows));
-    if let Err(code) = write_together(&[(Some(&csv), Some(csv_text.as_str())), (Some(&md), Some(md_text.as_str()))]) {
-        return code;
-    }
     let failed = rows.iter().filter(|r| !r.error.is_empty()).count();
-    if !quiet {
-        outln!("wrote {} and summary.md: {} case(s), {failed} failed", esc(csv.display()), rows.len());
+    if mode.summary {
+        let (csv, md) = (out.join("summary.csv"), out.join("summary.md"));
+        let (csv_text, md_text) = (batch::summary_csv(&rows), batch::summary_md(&rows));
+        if let Err(code) = write_together(&[(Some(&csv), Some(csv_text.as_str())), (Some(&md), Some(md_text.as_str()))])
+        {
+            return code;
+        }
+        if !quiet {
+            outln!("wrote {} and summary.md: {} case(s), {failed} failed", esc(csv.display()), rows.len());
+        }
     }
-    if failed > 0 { ExitCode::from(EXIT_FAILURE) } else { ExitCode::SUCCESS }
+    // Gathering the summary succeeds whatever the cases did: their rows say it.
+    if failed > 0 && mode.diagnose { ExitCode::from(EXIT_FAILURE) } else { ExitCode::SUCCESS }
 }
 
 /// `spindlelab import CASE`: writes (or prints) the recipe of a baseline case file, and its library if asked.
@@ -941,6 +1006,47 @@ fn cmd_export_snakemake(
         wf.shards,
         esc(out_abs.display()),
         esc(dir.join("Snakefile").display()),
+        esc(dir.join("profile").display())
+    );
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab export snakemake --batch PATTERN -o DIR`: a batch of diagnoses as a Snakefile,
+/// one job per case and one that gathers the summary.
+fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) -> ExitCode {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let pattern_abs = if Path::new(pattern).is_absolute() {
+        pattern.to_string()
+    } else {
+        abs(Path::new(".")).join(pattern).display().to_string()
+    };
+    let cases = match batch_cases(&pattern_abs) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    if let Some((case, name)) = cases.iter().find(|(c, n)| spindlelab::diagnose::batch::case_name(c) != *n) {
+        eoutln!(
+            "error: {} would be named `{}` like another case; a workflow names each case's folder by it alone: give the cases distinct folders",
+            esc(case.display()),
+            esc(name)
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let out = abs(&out.unwrap_or_else(|| PathBuf::from("out/batch")));
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
+    let wf = spindlelab::export::snakemake_batch(&exe, &pattern_abs, &cases, &out);
+    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
+    if let Err(code) =
+        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
+    {
+        return code;
+    }
+    outln!(
+        "wrote {}: {} case job(s), then the summary into {}; run it with `snakemake -s {} --profile {}`",
+        esc(snakefile.display()),
+        cases.len(),
+        esc(out.display()),
+        esc(snakefile.display()),
         esc(dir.join("profile").display())
     );
     ExitCode::SUCCESS

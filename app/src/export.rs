@@ -118,3 +118,59 @@ rule shard:
         "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n".to_string();
     Workflow { snakefile, profile, levels, shards }
 }
+
+/// A batch of diagnoses as a Snakefile: one job per case (`diagnose --batch CASE --no-summary`,
+/// which leaves the case's row beside its diagnosis) and one that gathers the summary
+/// (`--summary-only`). A case that fails is a row with its error, so its job still succeeds.
+pub fn snakemake_batch(
+    spindlelab: &Path,
+    pattern: &str,
+    cases: &[(std::path::PathBuf, String)],
+    out: &Path,
+) -> Workflow {
+    let show = |p: &Path| py(&p.display().to_string());
+    let list: String = cases.iter().map(|(case, name)| format!("    {}: {},\n", py(name), show(case))).collect();
+    let snakefile = format!(
+        r#"# A batch of diagnoses, written by `spindlelab export snakemake --batch`: one job per case
+# (import and diagnose it into OUT/<case>/), then one that gathers OUT/summary.csv and
+# summary.md. Run it with `snakemake --profile PROFILE_DIR` or a cluster executor.
+
+SPINDLELAB = {exe}
+PATTERN = {pattern}
+OUT = {out}
+CASES = {{
+{list}}}
+
+
+rule all:
+    input:
+        f"{{OUT}}/summary.csv",
+
+
+rule summary:
+    input:
+        expand(f"{{OUT}}/{{{{name}}}}/row.csv", name=CASES),
+    output:
+        f"{{OUT}}/summary.csv",
+        f"{{OUT}}/summary.md",
+    shell:
+        "{{SPINDLELAB:q}} diagnose --batch {{PATTERN:q}} -o {{OUT:q}} --summary-only -q"
+
+
+rule case:
+    output:
+        OUT + "/{{name}}/row.csv",
+    params:
+        case=lambda wc: CASES[wc.name],
+    threads: 2
+    shell:
+        "{{SPINDLELAB:q}} diagnose --batch {{params.case:q}} -o {{OUT:q}} --no-summary -q || test -f {{output:q}}"
+"#,
+        exe = show(spindlelab),
+        pattern = py(pattern),
+        out = show(out),
+    );
+    let profile =
+        "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n".to_string();
+    Workflow { snakefile, profile, levels: 1, shards: cases.len() }
+}

@@ -239,3 +239,50 @@ fn a_shared_cache_is_measured_and_bounded() {
     ok(&["cache", "gc", "--cache", c, "--max-size", "0"], dir.path());
     assert_eq!(entries(&ok(&["cache", "du", "--cache", c], dir.path())), 0);
 }
+
+/// A batch of diagnoses exported to Snakemake (one job per case, then the summary) gives the
+/// summary the one-process batch gives, but for the times; a broken case is a row there too.
+#[test]
+#[ignore = "slow: Snakemake over two diagnoses"]
+fn an_exported_batch_of_diagnoses_gives_the_one_process_summary() {
+    let Some(snakemake) = snakemake() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for case in ["train_01", "train_04"] {
+        let to = dir.path().join("cases").join(case);
+        std::fs::create_dir_all(&to).unwrap();
+        for e in std::fs::read_dir(root().join("tests/data/training").join(case)).unwrap().flatten() {
+            if e.file_name() != "truth.json" {
+                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+            }
+        }
+    }
+    std::fs::create_dir_all(dir.path().join("cases/broken")).unwrap();
+    std::fs::write(dir.path().join("cases/broken/case.json"), "{ not json").unwrap();
+    let o = bin()
+        .args(["diagnose", "--batch", "cases/*/case.json", "-o", "one", "-q"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    ok(&["export", "snakemake", "--batch", "cases/*/case.json", "-o", "wf", "--out", "flow"], dir.path());
+    let o = Command::new(&snakemake)
+        .args(["-s", "wf/Snakefile", "--profile", "wf/profile", "--cores", "2"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let rows = |folder: &str| {
+        let bytes = std::fs::read(dir.path().join(folder).join("summary.csv")).unwrap();
+        let mut r = spindlelab::diagnose::batch::rows_from_csv(&bytes, "summary.csv").unwrap();
+        // The workflow names the cases by absolute paths; the times differ.
+        for row in &mut r {
+            row.seconds = 0.0;
+            if let Some(at) = row.error.find("cases/") {
+                row.error = row.error[at..].to_string();
+            }
+        }
+        format!("{r:?}")
+    };
+    assert_eq!(rows("flow"), rows("one"));
+    assert!(rows("flow").contains("train_04") && rows("flow").contains("broken"));
+}

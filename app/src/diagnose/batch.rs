@@ -134,6 +134,42 @@ pub fn summary_csv(rows: &[BatchRow]) -> String {
     render(OutputFormat::Csv, &[Row { label: "", value: &value }])
 }
 
+/// The file beside a case's diagnosis that holds its summary row (`DIR/<case>/row.csv`), so
+/// the summary can be gathered again without diagnosing (`--summary-only`), as a workflow
+/// engine's last job does.
+pub const ROW_FILE: &str = "row.csv";
+
+/// The summary rows of a `summary.csv` or `row.csv` as [`summary_csv`] writes them.
+pub fn rows_from_csv(bytes: &[u8], path: &str) -> Result<Vec<BatchRow>, String> {
+    let blocks = crate::engine::formats::csv::read_tables(bytes, path).map_err(|e| e.to_string())?;
+    let mut rows = Vec::new();
+    for b in blocks {
+        let t = &b.table;
+        let col =
+            |name: &str| t.columns.iter().find(|c| c.name == name).ok_or_else(|| format!("{path}: no column `{name}`"));
+        let word = |name: &str, i: usize| -> Result<String, String> {
+            let c = col(name)?;
+            Ok(c.values.get(i).and_then(|&v| c.levels.get(v as usize)).cloned().unwrap_or_default())
+        };
+        let num =
+            |name: &str, i: usize| -> Result<f64, String> { Ok(col(name)?.values.get(i).copied().unwrap_or(f64::NAN)) };
+        for i in 0..col("case")?.values.len() {
+            rows.push(BatchRow {
+                case: word("case", i)?,
+                verdict: word("verdict", i)?,
+                effects: word("effects", i)?,
+                gap_before: num("gap_before", i)?,
+                gap_after: num("gap_after", i)?,
+                misclassified_before: num("trials_misclassified_before", i)?,
+                misclassified_after: num("trials_misclassified_after", i)?,
+                seconds: num("time", i)?,
+                error: word("error", i)?,
+            });
+        }
+    }
+    Ok(rows)
+}
+
 /// `summary.md`: one line per case, linking its diagnosis.
 pub fn summary_md(rows: &[BatchRow]) -> String {
     let mut s = String::from(
