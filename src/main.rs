@@ -756,7 +756,7 @@ fn cmd_diagnose_batch(
             } else {
                 format!("failed: {}", row.error)
             };
-            outln!("{}: {} ({:.1} s)", esc(&name), esc(what.trim()), row.seconds);
+            outln!("{}: {} ({:.1} s)", esc(name), esc(what.trim()), row.seconds);
         }
         rows.push(row);
     }
