@@ -374,6 +374,14 @@ pub struct Ctx<'a> {
     pub base_dir: Option<&'a Path>,
 }
 
+/// Keys a mode once had and the one name each has now (`f` a natural frequency, `zeta` a
+/// viscous damping ratio, `eta` a loss factor, `damping` only a viscous coefficient in N·s/m),
+/// so an old recipe is told what to write.
+const RENAMED: &[(&str, &str, &str)] = &[
+    ("frequency", "f", "a mode's natural frequency is `f` everywhere"),
+    ("damping", "zeta", "a mode's viscous damping ratio is `zeta` everywhere (`damping` is a coefficient in N*s/m)"),
+];
+
 /// Checks a raw mapping against a field table, pushing every problem; unknown keys, missing
 /// fields and wrong values are all reported, not only the first.
 pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<Params> {
@@ -389,6 +397,12 @@ pub fn check_object(raw: &Raw, fields: &[Field], what: &str, ctx: &Ctx, diags: &
             ok = false;
             let known: Vec<&str> = fields.iter().map(|f| f.name).collect();
             let msg = format!("unknown key `{}` in {what}", key.name);
+            let renamed = RENAMED.iter().find(|(old, new, _)| *old == key.name && known.contains(new));
+            if let Some((_, new, why)) = renamed {
+                diags.error_help(Some(&key.span), msg, format!("write `{new}`: {why}"));
+                suggested.push(new.to_string());
+                continue;
+            }
             match suggest(&key.name, known.iter().copied()) {
                 Some(s) => {
                     diags.error_help(Some(&key.span), msg, format!("did you mean `{s}`?"));

@@ -24,8 +24,8 @@ steps:
   tool:
     kind: modal.model
     params:
-      x: [{ frequency: 600 Hz, damping: 0.04, mass: 0.4 kg }]
-      y: [{ frequency: 650 Hz, damping: 0.03, mass: 0.3 kg }]
+      x: [{ f: 600 Hz, zeta: 0.04, mass: 0.4 kg }]
+      y: [{ f: 650 Hz, zeta: 0.03, mass: 0.3 kg }]
 ";
 
 const SPEEDS: [f64; 2] = [6000.0, 12_000.0];

@@ -18,8 +18,8 @@ steps:
   tool:
     kind: modal.model
     params:
-      x: [{ frequency: 600 Hz, damping: 0.04, mass: 0.4 kg }]
-      y: [{ frequency: 650 Hz, damping: 0.03, stiffness: 5e6 N/m }]
+      x: [{ f: 600 Hz, zeta: 0.04, mass: 0.4 kg }]
+      y: [{ f: 650 Hz, zeta: 0.03, stiffness: 5e6 N/m }]
   tool_frf:
     kind: modal.frf
     params: { max_frequency: 2 kHz, resolution: 0.5 Hz }
@@ -72,4 +72,22 @@ fn modes_become_receptances_the_zoa_lobes_take() {
     }
     let lobes = std::fs::read_to_string(out_dir.join("lobes.csv")).unwrap();
     assert!(lobes.lines().filter(|l| !l.starts_with('#')).count() > 100, "{lobes}");
+}
+
+/// A mode is `{f, zeta, …}` wherever a recipe states one; a recipe written with the old
+/// names is told which to write, at the key.
+#[test]
+fn a_mode_written_with_the_old_names_is_told_the_one_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("old.yaml");
+    std::fs::write(
+        &recipe,
+        "spindlelab: 1\nname: old\nsteps:\n  tool:\n    kind: modal.model\n    params:\n      x: [{ frequency: 600 Hz, damping: 0.04, mass: 0.4 kg }]\n",
+    )
+    .unwrap();
+    let e = spindlelab::engine::compile_file(&recipe, &spindlelab::registry()).err().expect("old names are refused");
+    let shown = e.render(false);
+    for needle in ["old.yaml:7:13", "unknown key `frequency`", "write `f`", "unknown key `damping`", "write `zeta`"] {
+        assert!(shown.contains(needle), "{needle} not in:\n{shown}");
+    }
 }

@@ -427,9 +427,9 @@ fn modal_model_node_states_the_benchmark_tool_for_sd() {
     let k = 0.03993 * (TAU * 922.0f64).powi(2);
     let recipe = format!(
         "spindlelab: 1\n{CUTTING}steps:\n  tool:\n    kind: modal.model\n    \
-         params: {{ x: [{{ frequency: 922 Hz, damping: 0.011, mass: 0.03993 kg }}] }}\n  \
+         params: {{ x: [{{ f: 922 Hz, zeta: 0.011, mass: 0.03993 kg }}] }}\n  \
          tool_k:\n    kind: modal.model\n    \
-         params: {{ x: [{{ frequency: 922 Hz, damping: 0.011, stiffness: {k} N/m }}] }}\n  \
+         params: {{ x: [{{ f: 922 Hz, zeta: 0.011, stiffness: {k} N/m }}] }}\n  \
          sd:\n    kind: stability.sd\n    params: {{ cutting: slot, speeds: 7000..17000 step 2500 rpm, max_depth: 2 mm }}\n    \
          inputs: {{ modes_x: \"@tool.modes_x\", modes_y: \"@tool.modes_y\" }}\n  \
          sd_k:\n    kind: stability.sd\n    params: {{ cutting: slot, speeds: 7000..17000 step 2500 rpm, max_depth: 2 mm }}\n    \
@@ -477,9 +477,9 @@ fn modal_model_node_refuses_bad_modes() {
     std::fs::write(
         &path,
         "spindlelab: 1\nsteps:\n  negative:\n    kind: modal.model\n    \
-         params: { x: [{ frequency: 922 Hz, damping: 0.011, mass: -0.04 kg }] }\n  \
+         params: { x: [{ f: 922 Hz, zeta: 0.011, mass: -0.04 kg }] }\n  \
          overdamped:\n    kind: modal.model\n    \
-         params: { y: [{ frequency: 500 Hz, damping: 0.02, mass: 1 kg }, { frequency: 922 Hz, damping: 1, mass: 0.04 kg }] }\n",
+         params: { y: [{ f: 500 Hz, zeta: 0.02, mass: 1 kg }, { f: 922 Hz, zeta: 1, mass: 0.04 kg }] }\n",
     )
     .unwrap();
     let e = rejected(path.to_str().unwrap(), false);

@@ -381,7 +381,7 @@ fn a_spindle_mode_stated_by_stiffness_and_damping_ratio_has_that_peak() {
     let text = format!(
         "spindlelab: 1\nname: modal-spindle\nmaterials:\n  steel: {{ E: 200 GPa, rho: 7800 kg/m^3 }}\n\
          machines:\n  m:\n    spindle:\n      material: steel\n      modes:\n        x:\n          \
-         - {{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta} }}\n\
+         - {{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta} }}\n\
          steps:\n  nose:\n    kind: spindle.receptance\n    params: {{ machine: m, max_frequency: 1600 Hz, resolution: 0.5 Hz }}\n"
     );
     std::fs::write(&recipe, &text).unwrap();
@@ -400,12 +400,12 @@ fn a_spindle_mode_stated_by_stiffness_and_damping_ratio_has_that_peak() {
     assert!(first * k > 1.0 && first * k < 1.04, "static compliance × k = {}", first * k);
 
     for (mode, says) in [
-        (format!("{{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta}, d: 90 mm, eta: 0.05 }}"), "stated twice"),
+        (format!("{{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta}, d: 90 mm, eta: 0.05 }}"), "stated twice"),
         (format!("{{ f: {f} Hz, stiffness: {k} N/m }}"), "only half stated"),
-        (format!("{{ f: {f} Hz, stiffness: {k} N/m, damping: 1.5 }}"), "must be in [0, 1)"),
+        (format!("{{ f: {f} Hz, stiffness: {k} N/m, zeta: 1.5 }}"), "must be in [0, 1)"),
     ] {
         let bad = dir.path().join("bad.yaml");
-        let line = format!("- {{ f: {f} Hz, stiffness: {k} N/m, damping: {zeta} }}");
+        let line = format!("- {{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta} }}");
         std::fs::write(&bad, text.replace(&line, &format!("- {mode}"))).unwrap();
         let e = engine::compile_file(&bad, &spindlelab::registry()).err().expect("refused");
         let shown = e.render(false);

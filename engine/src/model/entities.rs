@@ -39,9 +39,9 @@ pub const SPINDLE_MODE: &[Field] = &[
     Field::opt(
         "stiffness",
         T::Quantity(D::STIFFNESS),
-        "modal stiffness at the spindle nose, for a mode stated modally (with `damping`, instead of `d` and `eta`)",
+        "modal stiffness at the spindle nose, for a mode stated modally (with `zeta`, instead of `d` and `eta`)",
     ),
-    Field::opt("damping", RATIO, "viscous damping ratio ζ of a mode stated modally (with `stiffness`)"),
+    Field::opt("zeta", RATIO, "viscous damping ratio ζ of a mode stated modally (with `stiffness`)"),
     Field::def("kf", RATIO, "0", "speed law: f(n) = f (1 + kf (n/ref_speed)^2)"),
     Field::def("keta", RATIO, "0", "speed law: eta(n) = eta (1 + keta (n/ref_speed)^2)"),
 ];

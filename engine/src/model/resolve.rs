@@ -455,7 +455,7 @@ fn check_entity_rules(kind: EntityKind, name: &str, raw: &Raw, p: &Params, diags
 }
 
 /// A spindle mode is an equivalent beam (`d` and `eta`) or stated modally (`stiffness` and
-/// `damping`), one or the other, with a stiffness above 0 and a damping ratio in [0, 1).
+/// `zeta`), one or the other, with a stiffness above 0 and a damping ratio in [0, 1).
 fn check_spindle_modes(machine: &str, raw: &Raw, p: &Params, diags: &mut Diagnostics) {
     let (Some(modes), Some(mraw)) =
         (p.object("spindle").and_then(|s| s.get("modes")), raw.get("spindle").and_then(|s| s.get("modes")))
@@ -473,20 +473,20 @@ fn check_spindle_modes(machine: &str, raw: &Raw, p: &Params, diags: &mut Diagnos
             let at = raws.get(i).map(|r| r.span.clone());
             let what = format!("machine `{machine}`: spindle mode {} in {dir}", i + 1);
             let beam = (m.get("d").is_some(), m.get("eta").is_some());
-            let modal = (m.get("stiffness").is_some(), m.get("damping").is_some());
-            let help = "give `d` and `eta` (an equivalent beam) or `stiffness` and `damping` (the mode's k and ζ)";
+            let modal = (m.get("stiffness").is_some(), m.get("zeta").is_some());
+            let help = "give `d` and `eta` (an equivalent beam) or `stiffness` and `zeta` (the mode's k and ζ)";
             match (beam, modal) {
                 ((true, true), (false, false)) => {}
                 ((false, false), (true, true)) => {
-                    let (k, zeta) = (m.f64("stiffness").unwrap_or(f64::NAN), m.f64("damping").unwrap_or(f64::NAN));
+                    let (k, zeta) = (m.f64("stiffness").unwrap_or(f64::NAN), m.f64("zeta").unwrap_or(f64::NAN));
                     if !(k.is_finite() && k > 0.0) {
                         diags.error(at.as_ref(), format!("{what}: `stiffness` = {k} N/m must be above 0"));
                     }
                     if !(zeta.is_finite() && (0.0..1.0).contains(&zeta)) {
                         diags.error_help(
                             at.as_ref(),
-                            format!("{what}: damping ratio `damping` = {zeta} must be in [0, 1)"),
-                            "a spindle mode's ζ is about 0.01–0.1 (`damping: 3 %`)",
+                            format!("{what}: damping ratio `zeta` = {zeta} must be in [0, 1)"),
+                            "a spindle mode's ζ is about 0.01–0.1 (`zeta: 3 %`)",
                         );
                     }
                 }
@@ -541,7 +541,7 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                             .map(|m| {
                                 let freq_hz = m.f64("f").unwrap_or(0.0);
                                 let law = SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("keta").unwrap_or(0.0) };
-                                match (m.f64("stiffness"), m.f64("damping")) {
+                                match (m.f64("stiffness"), m.f64("zeta")) {
                                     (Some(k), Some(zeta)) => {
                                         SpindleMode::from_modal(freq_hz, k, zeta, &material_of(s), law)
                                     }

@@ -21,8 +21,8 @@ impl Default for ModalModelNode {
 }
 
 const MODE_ROW: &[Field] = &[
-    Field::req("frequency", T::Quantity(D::FREQUENCY), "natural frequency"),
-    Field::req("damping", T::Quantity(D::DIMENSIONLESS), "viscous damping ratio ζ, in [0, 1)"),
+    Field::req("f", T::Quantity(D::FREQUENCY), "natural frequency"),
+    Field::req("zeta", T::Quantity(D::DIMENSIONLESS), "viscous damping ratio ζ, in [0, 1)"),
     Field::opt("mass", T::Quantity(D::MASS), "modal mass (or give stiffness)"),
     Field::opt("stiffness", T::Quantity(D::STIFFNESS), "modal stiffness k = m (2πf)² (or give mass)"),
 ];
@@ -32,8 +32,7 @@ node_params! {
     pub struct ModalModelParams<'a> {
         x: opt &'a [Params] = (
             T::ObjectList(MODE_ROW),
-            "modes along x, rows {frequency, damping, mass} or {frequency, damping, stiffness} (none: \
-             rigid)",
+            "modes along x, rows {f, zeta, mass} or {f, zeta, stiffness} (none: rigid)",
         ),
         y: opt &'a [Params] = (T::ObjectList(MODE_ROW), "modes along y, rows as for x (none: rigid)"),
     }
@@ -44,7 +43,8 @@ impl ModalModelNode {
         ModalModelNode {
             spec: NodeSpec {
                 kind: "modal.model",
-                version: 1,
+                // 2: a mode's rows are {f, zeta, …}, the names every mode has.
+                version: 2,
                 description: "Tool-point modes stated directly, per direction: natural frequency, damping ratio and modal mass or modal stiffness of each mode (receptance Eq. 5.8); the modal models x (feed) and y for stability.sd.",
                 inputs: vec![],
                 outputs: vec![
@@ -58,13 +58,13 @@ impl ModalModelNode {
 }
 
 /// The modes of the `x` and `y` parameters, checked: each row gives a mass or a stiffness (not both, positive),
-/// and [`stability::ModalModel::new`] checks frequency, damping and mass.
+/// and [`stability::ModalModel::new`] checks frequency, damping ratio and mass.
 fn stated_modes(p: &ModalModelParams) -> Result<stability::ModalModel, NodeError> {
     let mut dirs: [Vec<stability::Mode>; 2] = Default::default();
     for ((dir, rows), modes) in [("x", p.x), ("y", p.y)].into_iter().zip(dirs.iter_mut()) {
         for (index, r) in rows.unwrap_or_default().iter().enumerate() {
             let bad = |what: String| NodeError::param(dir, format!("mode {index} along {dir}: {what}"));
-            let (f, zeta) = (r.f64("frequency").unwrap_or(f64::NAN), r.f64("damping").unwrap_or(f64::NAN));
+            let (f, zeta) = (r.f64("f").unwrap_or(f64::NAN), r.f64("zeta").unwrap_or(f64::NAN));
             let mode = match (r.f64("mass"), r.f64("stiffness")) {
                 (Some(m), None) => stability::Mode { freq_hz: f, damping_ratio: zeta, modal_mass: m },
                 (None, Some(k)) if !(k.is_finite() && k > 0.0) => {
