@@ -286,3 +286,25 @@ fn an_exported_batch_of_diagnoses_gives_the_one_process_summary() {
     assert_eq!(rows("flow"), rows("one"));
     assert!(rows("flow").contains("train_04") && rows("flow").contains("broken"));
 }
+
+/// The new command-line inputs refuse what they cannot use, with exit 2 and what to write: a
+/// size that is not one, a batch pattern that matches nothing, a workflow of no shards.
+#[test]
+fn bad_scale_out_inputs_are_refused_with_what_to_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = recipe(dir.path());
+    let r = recipe.to_str().unwrap();
+    for (args, says) in [
+        (vec!["cache", "gc", "--cache", "c", "--max-size", "10XB"], "is not a size"),
+        (vec!["cache", "gc", "--max-size", "1GB"], "name it with --cache DIR"),
+        (vec!["diagnose", "--batch", "nothing/*/case.json", "-o", "b"], "matches no case file"),
+        (vec!["diagnose", "--batch", "[", "-o", "b"], "is not a file pattern"),
+        (vec!["export", "snakemake", r, "-o", "wf", "--shards", "0"], "at least one shard"),
+        (vec!["run", r, "--shard", "1/2", "--no-cache"], "writes no outputs"),
+    ] {
+        let o = bin().args(&args).current_dir(dir.path()).output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o));
+        assert!(String::from_utf8_lossy(&o.stderr).contains(says), "{args:?}: {}", text(&o));
+        assert!(!dir.path().join("wf").exists() && !dir.path().join("b").exists(), "{args:?} wrote something");
+    }
+}
