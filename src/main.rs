@@ -182,6 +182,9 @@ enum Command {
         /// Plan as if the cache were empty.
         #[arg(long)]
         no_cache: bool,
+        /// The cache folder the runs use, when it is not the output folder's own (`run --cache`).
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
         /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
         set: Vec<(String, String)>,
@@ -461,8 +464,8 @@ fn command(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Check { recipe, set } => cmd_check(&recipe, &set, &mut registry, &mut plugins),
         Command::Graph { recipe, format } => cmd_graph(&recipe, format, &mut registry, &mut plugins),
-        Command::Plan { recipe, out, no_cache, set } => {
-            cmd_plan(&recipe, out, no_cache, &set, &mut registry, &mut plugins)
+        Command::Plan { recipe, out, no_cache, cache, set } => {
+            cmd_plan(&recipe, out, no_cache, cache, &set, &mut registry, &mut plugins)
         }
         Command::Nodes { kind } => cmd_nodes(kind, &mut registry, &mut plugins),
         Command::Diagnose { recipe: Some(recipe), out, quiet, .. } => {
@@ -575,6 +578,7 @@ fn cmd_plan(
     recipe: &Path,
     out: Option<PathBuf>,
     no_cache: bool,
+    cache_dir: Option<PathBuf>,
     set: &[(String, String)],
     registry: &mut engine::node::Registry,
     plugins: &mut Plugins,
@@ -582,7 +586,7 @@ fn cmd_plan(
     match compile_with(recipe, set, registry, plugins) {
         Ok(c) => {
             let out = out.unwrap_or_else(|| default_out(&c));
-            let opts = RunOptions::new(&out);
+            let opts = RunOptions { cache_dir, ..RunOptions::new(&out) };
             let cache = (!no_cache).then(|| opts.cache());
             let entries = plan(&c.recipe, &c.graph, registry, &out, cache.as_ref());
             let width = entries.iter().map(|e| e.id.len()).max().unwrap_or(0);

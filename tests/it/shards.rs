@@ -231,6 +231,9 @@ fn a_shared_cache_is_measured_and_bounded() {
     let before = entries(&ok(&["cache", "du", "--cache", c], dir.path()));
     assert!(before >= 7, "{before}");
     assert!(!dir.path().join("a/.spindlelab-cache").exists(), "the run used the folder's own cache");
+    // `plan` reads the same cache: nothing to run.
+    let plan = ok(&["plan", r, "-o", "a", "--cache", c], dir.path());
+    assert!(plan.lines().last().unwrap().starts_with("0 to run, "), "{plan}");
     // What folder `a` used stays; a size of nothing leaves nothing.
     ok(&["cache", "gc", "--cache", c, "a"], dir.path());
     assert_eq!(entries(&ok(&["cache", "du", "--cache", c], dir.path())), before);
