@@ -315,22 +315,18 @@ pub fn needed_for(recipe: &Recipe, graph: &Graph, cached: &[bool], targets: Opti
             needed[i] = true;
         }
     }
-    // Instances are in topological order: consumers come after their inputs.
-    for i in (0..n).rev() {
-        if !consumed[i] && targets.is_none() {
-            needed[i] = true;
-        }
-        if needed[i] && !cached[i] {
-            for d in graph.instances[i].deps() {
-                needed[d] = true;
-            }
+    // Without targets, the leaves are needed too: nothing consumes them, so nothing else asks.
+    if targets.is_none() {
+        for (need, consumed) in needed.iter_mut().zip(&consumed) {
+            *need |= !consumed;
         }
     }
-    needed
+    needed_from(graph, cached, needed)
 }
 
 /// The instances `roots` need: themselves, and the inputs of every needed one not cached.
 fn needed_from(graph: &Graph, cached: &[bool], mut needed: Vec<bool>) -> Vec<bool> {
+    // Instances are in topological order: consumers come after their inputs.
     for i in (0..graph.instances.len()).rev() {
         if needed[i] && !cached[i] {
             for d in graph.instances[i].deps() {
