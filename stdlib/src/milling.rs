@@ -12,9 +12,20 @@
 //! step for a force held constant during it (zero-order hold), so the step only has to
 //! resolve the cut, not keep an integrator stable.
 //!
+//! Variable pitch and helix: tooth `j` sits at its own angle ([`Milling::tooth_offset`]) and
+//! cuts the feed of its pitch, `f_j = N f_t pitch_j/2π` (the workpiece advances `N f_t` per
+//! revolution). With a helix the depth is cut in [`Milling::helix_slices`] axial slices of
+//! `a_p/n` each (at most 1° of lag apart); the slice at height `z` lags the tip by
+//! `ψ(z) = 2 z tan η/D` and cuts its own chip on its own tooth path, and the forces of all
+//! slices add. An edge that does not sit on an angle bin of the tooth path (unequal pitch,
+//! helix) reads the surface interpolated linearly between the two bins around it, and leaves
+//! its surface on the bin it passed, the tool's motion taken back to the moment it passed
+//! it. Equal pitch and straight teeth keep edges on the bins (the same numbers as before).
+//!
 //! The verdict uses periodic sampling: in a stable cut the motion is periodic at the tooth
-//! period (the revolution with runout), so samples taken once per period stand still; in
-//! chatter they wander as much as the motion itself.
+//! period (with unequal pitch the period of the pitch pattern, [`pattern_teeth`]; the
+//! revolution with runout), so samples taken once per period stand still; in chatter they
+//! wander as much as the motion itself.
 
 use crate::stability::{Milling, MillingDirection, ModalModel};
 use num_complex::Complex64;
@@ -23,7 +34,7 @@ use std::f64::consts::TAU;
 /// What to simulate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MillingSimulation {
-    /// The cut: teeth, radial immersion, direction and cutting coefficients.
+    /// The cut: teeth, radial immersion, direction and cutting coefficients, pitch and helix.
     pub cut: Milling,
     /// Axial depth of cut `a_p`, m.
     pub depth: f64,
@@ -37,8 +48,8 @@ pub struct MillingSimulation {
     pub runout: Vec<f64>,
     /// Length of the simulation in revolutions.
     pub revolutions: usize,
-    /// Time steps per tooth period; `None` chooses at least 100 and at least 20 per period of
-    /// the highest mode.
+    /// Time steps per (mean) tooth period; `None` chooses at least 100 and at least 20 per
+    /// period of the highest mode.
     pub steps_per_tooth: Option<usize>,
 }
 
@@ -54,7 +65,8 @@ pub struct MillingResult {
     pub force_y: Vec<f64>,
     pub disp_x: Vec<f64>,
     pub disp_y: Vec<f64>,
-    /// Displacements sampled once per period (tooth period; revolution with runout).
+    /// Displacements sampled once per period: the tooth period; with unequal pitch the
+    /// [`pattern_teeth`] tooth periods after which the pitch repeats; the revolution with runout.
     pub samples_x: Vec<f64>,
     pub samples_y: Vec<f64>,
     /// Period of the samples, s.
@@ -185,7 +197,12 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
             (s, c, phi >= st - 1e-12 && phi <= ex + 1e-12)
         })
         .collect();
-    let mut surface = vec![0.0; per_rev];
+    let edges = edges(&sim.cut, sim.depth, sim.feed_per_tooth, spt);
+    let slices = edges.iter().map(|e| e.slice + 1).max().unwrap_or(1);
+    let slice_depth = sim.depth / slices as f64;
+    let bin_angle = TAU / per_rev as f64;
+    // The tooth path of each axial slice, one after the other.
+    let mut surface = vec![0.0; per_rev * slices];
     let runout = |j: usize| sim.runout.get(j).copied().unwrap_or(0.0);
 
     let mut out = MillingResult {
@@ -209,22 +226,56 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
     for step in 0..total {
         let (xm, ym) = (x + vx * half, y + vy * half);
         let (mut fx, mut fy) = (0.0, 0.0);
-        for j in 0..n_teeth {
-            let bin = (step + j * spt) % per_rev;
-            let (s, c, engaged) = bins[bin];
-            if !engaged {
+        for e in &edges {
+            let bin = (step + e.shift) % per_rev;
+            let surface = &mut surface[e.slice * per_rev..(e.slice + 1) * per_rev];
+            let rho = runout(e.tooth);
+            if e.frac == 0.0 {
+                let (s, c, engaged) = bins[bin];
+                if !engaged {
+                    continue;
+                }
+                let n = xm * s + ym * c + rho;
+                let h = e.feed * s + surface[bin] - n;
+                if h > 0.0 {
+                    let f = slice_depth * h;
+                    fx += f * (kt * c + kn * s);
+                    fy += f * (-kt * s + kn * c);
+                    surface[bin] = n;
+                } else {
+                    // Out of the cut: the surface stays, and the next tooth meets one more feed.
+                    surface[bin] += e.feed * s;
+                }
                 continue;
             }
-            let n = xm * s + ym * c + runout(j);
-            let h = sim.feed_per_tooth * s + surface[bin] - n;
-            if h > 0.0 {
-                let f = sim.depth * h;
-                fx += f * (kt * c + kn * s);
-                fy += f * (-kt * s + kn * c);
-                surface[bin] = n;
-            } else {
-                // Out of the cut: the surface stays, and the next tooth meets one more feed.
-                surface[bin] += sim.feed_per_tooth * s;
+            // An edge between bins: its chip on the surface interpolated at its angle (only from bins in the
+            // cut, which the edges ahead have written) ...
+            let phi = ((bin as f64 + 0.5 + e.frac) * bin_angle).rem_euclid(TAU);
+            if phi >= st - 1e-12 && phi <= ex + 1e-12 {
+                let (s, c) = phi.sin_cos();
+                let next = if bin + 1 == per_rev { 0 } else { bin + 1 };
+                let left = match (bins[bin].2, bins[next].2) {
+                    (true, true) => (1.0 - e.frac) * surface[bin] + e.frac * surface[next],
+                    (false, true) => surface[next],
+                    _ => surface[bin],
+                };
+                let h = e.feed * s + left - (xm * s + ym * c + rho);
+                if h > 0.0 {
+                    let f = slice_depth * h;
+                    fx += f * (kt * c + kn * s);
+                    fy += f * (-kt * s + kn * c);
+                }
+            }
+            // ... and the surface it leaves on the bin it passed `frac` steps ago.
+            let (s, c, engaged) = bins[bin];
+            if engaged {
+                let back = e.frac * dt;
+                let n = (xm - back * vx) * s + (ym - back * vy) * c + rho;
+                if e.feed * s + surface[bin] - n > 0.0 {
+                    surface[bin] = n;
+                } else {
+                    surface[bin] += e.feed * s;
+                }
             }
         }
         for (m, st) in steps_x.iter().zip(state_x.iter_mut()) {
@@ -243,8 +294,11 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         out.disp_y.push(y);
     }
 
-    // Once per period: the tooth period, or the revolution when runout makes teeth differ.
-    let period_steps = if sim.runout.iter().any(|&r| r != 0.0) { per_rev } else { spt };
+    // Once per period: the tooth period; with unequal pitch the shortest block of teeth whose pitch
+    // pattern repeats (half a revolution for 70°/110°/70°/110°: sampled once a revolution a
+    // period doubling of that pattern would stand still); the revolution when runout makes
+    // every tooth differ.
+    let period_steps = if sim.runout.iter().any(|&r| r != 0.0) { per_rev } else { pattern_teeth(&sim.cut) * spt };
     out.sample_period = period_steps as f64 * dt;
     for k in (period_steps - 1..total).step_by(period_steps) {
         out.samples_x.push(out.disp_x[k]);
@@ -272,10 +326,20 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         MillingDirection::Up => (st / TAU * per_rev as f64).round() as usize % per_rev,
         MillingDirection::Down => (ex / TAU * per_rev as f64).round() as usize % per_rev,
     };
+    // The tip of each tooth (no helix lag), on its nearest bin.
+    let tips: Vec<usize> = (0..n_teeth)
+        .map(|j| {
+            if sim.cut.has_equal_pitch() {
+                j * spt
+            } else {
+                (sim.cut.tooth_offset(j) / bin_angle).round() as usize % per_rev
+            }
+        })
+        .collect();
     let mut sum = 0.0;
     let mut count = 0usize;
     for step in steady..total {
-        if (0..n_teeth).any(|j| (step + j * spt) % per_rev == wall_bin) {
+        if tips.iter().any(|&t| (step + t) % per_rev == wall_bin) {
             sum += out.disp_y[step];
             count += 1;
         }
@@ -336,19 +400,94 @@ pub fn stability_map(
         .collect()
 }
 
-/// Force on the tool at `θ` (rotation angle of tooth 0) for the nominal chip `f_t sin φ` on
-/// every engaged tooth: the steady force of a stable cut on a rigid tool.
+/// The fewest teeth `k` (a divisor of `N`) after which the pitch angles repeat: 1 for equal
+/// pitch, 2 for alternating pitch, `N` for a pattern without symmetry. The cut is periodic over
+/// `k` tooth periods.
+pub fn pattern_teeth(cut: &Milling) -> usize {
+    let n = cut.teeth;
+    if cut.has_equal_pitch() {
+        return 1;
+    }
+    let pitch = cut.pitch_angles();
+    (1..=n)
+        .find(|&k| n.is_multiple_of(k) && (0..n).all(|j| (pitch[j] - pitch[(j + k) % n]).abs() <= 1e-12))
+        .unwrap_or(n)
+}
+
+/// One cutting edge of the simulation: an axial slice of a tooth.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    tooth: usize,
+    slice: usize,
+    /// The bin the edge passed at the start of step 0 (its angle ahead of tooth 0's tip, in bins, rounded
+    /// down)...
+    shift: usize,
+    /// ... and how far past it the edge sits, in bins, `[0, 1)`.
+    frac: f64,
+    /// Feed of the tooth, `N f_t pitch_j/2π`, m.
+    feed: f64,
+}
+
+/// The edges of a cut at `depth`: every tooth at its pitch angle, and with a helix every axial slice at its
+/// lag (the slice's middle), on a tooth path of `spt` bins per tooth.
+fn edges(cut: &Milling, depth: f64, feed_per_tooth: f64, spt: usize) -> Vec<Edge> {
+    let teeth = cut.teeth;
+    let per_rev = spt * teeth;
+    let slices = cut.helix_slices(depth);
+    let lag = cut.helix_lag(depth);
+    let mut out = Vec::with_capacity(teeth * slices);
+    for tooth in 0..teeth {
+        let feed = if cut.has_equal_pitch() {
+            feed_per_tooth
+        } else {
+            feed_per_tooth * teeth as f64 * cut.pitch_angle(tooth) / TAU
+        };
+        for slice in 0..slices {
+            let (shift, frac) = if cut.has_equal_pitch() && lag == 0.0 {
+                (tooth * spt, 0.0)
+            } else {
+                let angle = cut.tooth_offset(tooth) - lag * (slice as f64 + 0.5) / slices as f64;
+                let at = (angle / TAU * per_rev as f64).rem_euclid(per_rev as f64);
+                let (whole, frac) = (at.floor(), at - at.floor());
+                if frac < 1e-9 {
+                    (whole as usize % per_rev, 0.0)
+                } else if frac > 1.0 - 1e-9 {
+                    ((whole as usize + 1) % per_rev, 0.0)
+                } else {
+                    (whole as usize % per_rev, frac)
+                }
+            };
+            out.push(Edge { tooth, slice, shift, frac, feed });
+        }
+    }
+    out
+}
+
+/// Force on the tool at `θ` (rotation angle of tooth 0) for the nominal chip `f_j sin φ` on
+/// every engaged tooth (every axial slice with a helix, as [`simulate`] cuts them): the steady
+/// force of a stable cut on a rigid tool.
 pub fn static_chip_force(cut: &Milling, depth: f64, feed_per_tooth: f64, theta: f64) -> [f64; 2] {
     let (st, ex) = cut.engagement();
     let (kt, kn) = (cut.coefficients.kt, cut.coefficients.kn);
+    let slices = cut.helix_slices(depth);
+    let lag = cut.helix_lag(depth);
+    let slice_depth = depth / slices as f64;
     let mut f = [0.0; 2];
     for j in 0..cut.teeth {
-        let phi = (theta + TAU * j as f64 / cut.teeth as f64).rem_euclid(TAU);
-        if phi >= st - 1e-12 && phi <= ex + 1e-12 {
-            let (s, c) = phi.sin_cos();
-            let h = depth * feed_per_tooth * s;
-            f[0] += h * (kt * c + kn * s);
-            f[1] += h * (-kt * s + kn * c);
+        let feed = if cut.has_equal_pitch() {
+            feed_per_tooth
+        } else {
+            feed_per_tooth * cut.teeth as f64 * cut.pitch_angle(j) / TAU
+        };
+        for slice in 0..slices {
+            let psi = if lag == 0.0 { 0.0 } else { lag * (slice as f64 + 0.5) / slices as f64 };
+            let phi = (theta + cut.tooth_offset(j) - psi).rem_euclid(TAU);
+            if phi >= st - 1e-12 && phi <= ex + 1e-12 {
+                let (s, c) = phi.sin_cos();
+                let h = slice_depth * feed * s;
+                f[0] += h * (kt * c + kn * s);
+                f[1] += h * (-kt * s + kn * c);
+            }
         }
     }
     f

@@ -1,6 +1,9 @@
 //! `milling.simulate`: the time-domain milling simulation ([`crate::milling`]) as a node.
 
-use super::stability::{COEFFICIENT_ROW, CUTTING, coefficient_table, milling, modal, pairs, read_trials};
+use super::stability::{
+    COEFFICIENT_ROW, CUTTING, DIAMETER, HELIX, PITCH, coefficient_table, milling, modal, pairs, read_trials,
+    with_geometry,
+};
 use crate::milling::{MillingSimulation, simulate};
 use crate::stability::{self, SpeedFrf, Trial};
 use spindlelab_domain::Speed;
@@ -30,6 +33,9 @@ node_params! {
             T::QuantityList(D::LENGTH),
             "radial runout of each tooth, one value per tooth (e.g. `[10, 0, 0, 0] um`)",
         ),
+        pitch: opt &'a [f64] = PITCH,
+        helix: opt f64 = HELIX,
+        diameter: opt f64 = DIAMETER,
     }
 }
 
@@ -50,9 +56,11 @@ impl MillingSimulate {
                 kind: "milling.simulate",
                 version: 1,
                 description: "Time-domain milling simulation (Schmitz & Smith): regenerative chip thickness by the tooth path, \
-                              straight teeth with the lobes' force model, tool-point modes in x (feed) and y advanced exactly \
-                              per step, optional runout; stable or chatter by once-per-period sampling, the chatter \
-                              frequency and the surface location error. Sweep speed and depth for a stability map.",
+                              teeth with the lobes' force model, tool-point modes in x (feed) and y advanced exactly \
+                              per step, optional runout, variable pitch (each tooth at its angle, cutting the feed of its \
+                              pitch) and helix (axial slices at most 1° of lag apart, each on its own tooth path); stable \
+                              or chatter by once-per-period sampling, the chatter frequency and the surface location error. \
+                              Sweep speed and depth for a stability map.",
                 inputs: vec![
                     PortSpec::new("modes_x", PortType::ModalModel, "tool-point modes along x, the feed direction"),
                     PortSpec::new("modes_y", PortType::ModalModel, "tool-point modes along y"),
@@ -66,7 +74,8 @@ impl MillingSimulate {
                     PortSpec::new(
                         "samples",
                         PortType::TimeSeries,
-                        "x and y once per tooth period (once per revolution with runout): still in a stable cut",
+                        "x and y once per tooth period (with unequal pitch once per period of the pitch pattern, once per \
+                         revolution with runout): still in a stable cut",
                     ),
                     PortSpec::new(
                         "summary",
@@ -97,7 +106,7 @@ impl Node for MillingSimulate {
             .map_err(|e| NodeError::input("modes_x", e.to_string()))?;
         let speed_rpm = Speed::from_rad_s(p.speed).rpm();
         let sim = MillingSimulation {
-            cut: milling(ctx)?,
+            cut: with_geometry(milling(ctx)?, p.pitch, p.helix, p.diameter)?,
             depth: p.depth,
             feed_per_tooth: feed_per_tooth(ctx, p.feed_per_tooth, p.cutting)?,
             speed_rpm,
@@ -311,7 +320,11 @@ impl Node for TrialsSimulate {
             let (mx, my) = (modes(&frf.xx, "x")?, modes(&frf.yy, "y")?);
             let counts = [mx.len(), my.len()];
             let sim = MillingSimulation {
-                cut: stability::Milling { coefficients: c, ..mill },
+                cut: {
+                    let mut m = mill.clone();
+                    m.coefficients = c;
+                    m
+                },
                 depth: t.depth_m,
                 feed_per_tooth: feed,
                 speed_rpm: t.speed_rpm,

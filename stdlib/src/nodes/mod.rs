@@ -50,8 +50,8 @@ pub use rig::{RigShaker, RigSimulate};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use stability::{
-    ChatterDetect, ModalModelNode, StabilityBest, StabilityLobes, StabilitySd, StabilitySpeedDependent, TrialsScore,
-    parse_trials,
+    ChatterDetect, ModalModelNode, StabilityBest, StabilityLobes, StabilityProbability, StabilitySd,
+    StabilitySpeedDependent, TrialsScore, parse_trials,
 };
 pub use structure::{BeamCampbell, BeamReceptance, BeamSubstructure, RcsaCouple, RcsaDecouple, SpindleReceptance};
 pub use table::TableCollect;

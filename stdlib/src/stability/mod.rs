@@ -12,19 +12,32 @@
 //! the regenerative force is `F(t) = −a_p H(t) Δq` with the specific cutting force matrix `H(t)` of
 //! [`cutting::Milling::force_matrix`]. Coefficients are `Kt = Ks sin β`, `Kn = Ks cos β`. Up-milling cuts
 //! `φ ∈ [0, arccos(1 − 2a_e/D)]`, down-milling `φ ∈ [arccos(2a_e/D − 1), π]`.
+//!
+//! Variable pitch and helix ([`cutting::Milling::with_pitch`], [`cutting::Milling::with_helix`]): tooth `j`
+//! regenerates over its own delay `τ_j = pitch_j/Ω`, `F = −a_p Σ_j H_j(t) [q(t) − q(t − τ_j)]`, and with helical
+//! flutes `H` is averaged over the depth of cut; [`sdm`] and the time-domain simulation take both, the ZOA neither
+//! ([`pitch`] is the zero-order solution for variable pitch).
 
 pub mod best;
 pub mod cutting;
 mod linalg;
+pub mod pitch;
+pub mod process_damping;
 pub mod sdm;
 pub mod speed;
 pub mod trials;
+pub mod uncertainty;
 pub mod zoa;
 
 #[cfg(test)]
 mod tests;
 
-pub use cutting::{CuttingCoefficients, Milling, MillingDirection};
+pub use cutting::{CuttingCoefficients, MAX_LAG_PER_SLICE, Milling, MillingDirection};
+pub use pitch::{PitchLimit, alternating_pitch, variable_pitch_limits};
+pub use process_damping::{
+    ProcessDampedLimit, ProcessDamping, ProcessDampingOptions, engagement_matrix, with_damper,
+    zoa_lobes_with_process_damping,
+};
 pub use sdm::{
     AUTO_STEPS_PER_NATURAL_PERIOD, Bifurcation, DepthLimit, ModalModel, Mode, SdOptions, SdPoint, StabilityMap,
     StepCount, sd_depth_limit, sd_depth_limits, sd_spectral_radius, sd_stability_map, sd_steps,

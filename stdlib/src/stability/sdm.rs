@@ -12,6 +12,17 @@
 //! below one. Modal velocities are scaled by `1/ω_r` so that the matrices are balanced. The dominant multiplier
 //! comes from an Arnoldi iteration on the step-by-step operator (the matrix is never formed), accepted on a Ritz
 //! residual below 1e-11 relative, with the dense QR eigen-solve of the formed matrix as fallback.
+//!
+//! Variable pitch and helix (Insperger & Stépán 2004; Sims, Mann & Huyanan 2008, JSV 317:664–686): with unequal
+//! pitch tooth `j` regenerates over its own delay `τ_j = pitch_j/Ω` ([`Milling::tooth_delay`]), the equation
+//! becomes `M q̈ + C q̇ + K q = −a_p Σ_j H_j(t) [q(t) − q(t − τ_j)]` and its period is the spindle revolution. The
+//! revolution is then split into `N m` steps of the same length as for equal pitch; each step's delayed term is
+//! split per tooth (teeth of equal pitch together), tooth `j`'s delayed position interpolated linearly between
+//! the recorded positions around `t − τ_j` (`τ_j/Δt` need not be an integer: the ends of the step fall between
+//! grid points, each end interpolated between its two neighbours), and the state holds the positions back to the
+//! longest delay. Equal pitch keeps the single delay and the tooth period (the same numbers as before). With a
+//! helix the step means come from the depth-averaged force matrix ([`Milling::force_matrix_integral_at`], exact
+//! along the flute), which depends on the depth, so they are rebuilt at every depth.
 
 use super::linalg::{eigenvalues, hessenberg_eigenvalues};
 use super::zoa::ToolPointFrf;
@@ -229,23 +240,41 @@ pub struct DepthLimit {
     /// True if a larger scanned depth (≤ the maximum) is stable again: the stable depths at this speed are not
     /// one interval, and `depth_m` is the lower end of the first unstable one.
     pub restabilises: bool,
-    /// Steps per tooth period used.
+    /// Steps per tooth period used (per mean tooth period for unequal pitch, whose revolution takes `N` times as
+    /// many).
     pub steps: usize,
 }
 
-/// The step operators of one period at one depth: `y_{i+1} = Φ_i y_i + Ra_i q_{i−m} + Rb_i q_{i−m+1}`.
+/// One regenerative delay of the discretized equation, `τ = (lag + frac) Δt`: over step `i` the delayed
+/// position runs from `q(t_i − τ)` to `q(t_{i+1} − τ)`, each interpolated linearly between the recorded
+/// positions around it (`q_{i−lag}` and `q_{i−lag+1}` exactly when `frac = 0`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Delay {
+    lag: usize,
+    frac: f64,
+}
+
+/// The step operators of one period at one depth:
+/// `y_{i+1} = Φ_i y_i + Σ_g (Ra_ig q(t_i − τ_g) + Rb_ig q(t_{i+1} − τ_g))`.
 struct Steps {
     n: usize,
     d: usize,
     nq: usize,
+    /// Steps per period (the tooth period for equal pitch, the revolution otherwise).
     m: usize,
+    /// Recorded positions the state holds, `q_{−1} … q_{−hist}` (`m` for equal pitch).
+    hist: usize,
     /// Active-direction column of each mode (`q = T y` sums the modal displacements of a direction).
     qcol: Vec<usize>,
     /// Steps with no tooth in the cut: `Φ_i = e^{A0 Δt}` and no delayed term.
     free: Vec<bool>,
+    /// The delays (one for equal pitch).
+    delays: Vec<Delay>,
+    /// Whether delay `g` acts on step `i` (some tooth of that delay is in the cut), `m × delays`.
+    active: Vec<bool>,
     /// `Φ_i`, `m × d × d`.
     phis: Vec<f64>,
-    /// `Ra_i = (F0 − F1) B_i` and `Rb_i = F1 B_i`, `m × d × nq` each.
+    /// `Ra_ig = (F0 − F1) B_ig` and `Rb_ig = F1 B_ig`, `m × delays × d × nq` each.
     ra: Vec<f64>,
     rb: Vec<f64>,
 }
@@ -255,25 +284,28 @@ struct ApplyScratch {
     hist: Vec<f64>,
     y: Vec<f64>,
     y2: Vec<f64>,
+    qa: Vec<f64>,
+    qb: Vec<f64>,
 }
 
 impl Steps {
-    /// Order of the monodromy matrix: the state `y_0` and the delayed positions `q_{−1} … q_{−m}`.
+    /// Order of the monodromy matrix: the state `y_0` and the delayed positions `q_{−1} … q_{−hist}`.
     fn size(&self) -> usize {
-        self.d + self.nq * self.m
+        self.d + self.nq * self.hist
     }
 
-    /// `out = M z` for the monodromy matrix `M` without forming it: `z = (y_0, q_{−1}, …, q_{−m})`,
-    /// `out = (y_m, q_{m−1}, …, q_0)`, the positions `q_i = T y_i` recorded as the period is stepped through.
+    /// `out = M z` for the monodromy matrix `M` without forming it: `z = (y_0, q_{−1}, …, q_{−L})`,
+    /// `out = (y_m, q_{m−1}, …, q_{m−L})` with `L` = [`Steps::hist`], the positions `q_i = T y_i` recorded as the
+    /// period is stepped through (left in the scratch's `hist`, `q_t` at `(t + L) nq` for `t = −L … m − 1`).
     fn apply(&self, z: &[f64], out: &mut [f64], s: &mut ApplyScratch) {
-        let (n, d, nq, m) = (self.n, self.d, self.nq, self.m);
-        // hist holds q_t at (t + m) nq for t = −m … m − 1.
-        for slot in 1..=m {
-            s.hist[(m - slot) * nq..(m - slot + 1) * nq].copy_from_slice(&z[d + (slot - 1) * nq..d + slot * nq]);
+        let (n, d, nq, m, l) = (self.n, self.d, self.nq, self.m, self.hist);
+        let groups = self.delays.len();
+        for slot in 1..=l {
+            s.hist[(l - slot) * nq..(l - slot + 1) * nq].copy_from_slice(&z[d + (slot - 1) * nq..d + slot * nq]);
         }
         s.y.copy_from_slice(&z[..d]);
         for i in 0..m {
-            let qi = &mut s.hist[(i + m) * nq..(i + m + 1) * nq];
+            let qi = &mut s.hist[(i + l) * nq..(i + l + 1) * nq];
             qi.fill(0.0);
             for r in 0..n {
                 qi[self.qcol[r]] += s.y[r];
@@ -283,20 +315,43 @@ impl Steps {
                 *o = phi[row * d..(row + 1) * d].iter().zip(&s.y).map(|(p, v)| p * v).sum();
             }
             if !self.free[i] {
-                let (qa, qb) = (&s.hist[i * nq..(i + 1) * nq], &s.hist[(i + 1) * nq..(i + 2) * nq]);
-                let (ra, rb) = (&self.ra[i * d * nq..(i + 1) * d * nq], &self.rb[i * d * nq..(i + 1) * d * nq]);
-                for (row, o) in s.y2.iter_mut().enumerate() {
-                    for c in 0..nq {
-                        *o += ra[row * nq + c] * qa[c] + rb[row * nq + c] * qb[c];
+                for (g, delay) in self.delays.iter().enumerate() {
+                    let at = i * groups + g;
+                    if !self.active[at] {
+                        continue;
+                    }
+                    // q_{i−lag} sits at (i − lag + l) nq.
+                    let base = i + l - delay.lag;
+                    let (ra, rb) = (&self.ra[at * d * nq..(at + 1) * d * nq], &self.rb[at * d * nq..(at + 1) * d * nq]);
+                    if delay.frac == 0.0 {
+                        let (qa, qb) = (&s.hist[base * nq..(base + 1) * nq], &s.hist[(base + 1) * nq..(base + 2) * nq]);
+                        for (row, o) in s.y2.iter_mut().enumerate() {
+                            for c in 0..nq {
+                                *o += ra[row * nq + c] * qa[c] + rb[row * nq + c] * qb[c];
+                            }
+                        }
+                    } else {
+                        let f = delay.frac;
+                        for c in 0..nq {
+                            let (q0, q1, q2) =
+                                (s.hist[(base - 1) * nq + c], s.hist[base * nq + c], s.hist[(base + 1) * nq + c]);
+                            s.qa[c] = f * q0 + (1.0 - f) * q1;
+                            s.qb[c] = f * q1 + (1.0 - f) * q2;
+                        }
+                        for (row, o) in s.y2.iter_mut().enumerate() {
+                            for c in 0..nq {
+                                *o += ra[row * nq + c] * s.qa[c] + rb[row * nq + c] * s.qb[c];
+                            }
+                        }
                     }
                 }
             }
             std::mem::swap(&mut s.y, &mut s.y2);
         }
         out[..d].copy_from_slice(&s.y);
-        for slot in 1..=m {
+        for slot in 1..=l {
             out[d + (slot - 1) * nq..d + slot * nq]
-                .copy_from_slice(&s.hist[(2 * m - slot) * nq..(2 * m - slot + 1) * nq]);
+                .copy_from_slice(&s.hist[(m + l - slot) * nq..(m + l - slot + 1) * nq]);
         }
     }
 }
@@ -307,6 +362,9 @@ const KRYLOV_MAX: usize = 60;
 const KRYLOV_CHECKS: [usize; 7] = [12, 18, 24, 32, 40, 50, 60];
 /// Monodromy matrices up to this order are solved densely.
 const DENSE_MAX: usize = 32;
+/// Largest monodromy order whose eigenvector is found densely (inverse iteration) when the Krylov iteration
+/// gives none.
+const DENSE_VECTOR_MAX: usize = 600;
 /// Accepted relative residual `‖M x − θ x‖/|θ|` of the dominant Ritz pair.
 const RITZ_TOLERANCE: f64 = 1e-11;
 
@@ -322,12 +380,23 @@ struct Krylov {
     ritz: Vec<(f64, f64)>,
     lu: Vec<Complex64>,
     x: Vec<Complex64>,
+    /// Krylov dimension and `‖H‖` of the last accepted Ritz pair (for its vector).
+    accepted: usize,
+    hnorm: f64,
 }
 
 /// Scratch and per-speed data of one semi-discretization.
 struct Sd {
     /// Skip the Krylov iteration (to check it against the dense solve).
     dense_only: bool,
+    /// The period is the revolution with one delay per pitch (else the tooth period with one delay).
+    multi: bool,
+    /// The cut (the step means are rebuilt per depth with a helix).
+    milling: Milling,
+    /// Spindle speed, rad/s.
+    rate: f64,
+    /// Delay group of each tooth.
+    group: Vec<usize>,
     dt: f64,
     /// Per mode: `ω_r`, `ζ_r`, `1/(m_r ω_r)`, direction (0 x, 1 y).
     omega: Vec<f64>,
@@ -335,8 +404,12 @@ struct Sd {
     gain: Vec<f64>,
     dir: Vec<usize>,
     dirs: Vec<usize>,
-    /// Mean `H` per step.
+    /// Mean `H` per step and delay group, `m × delays`.
     h: Vec<[[f64; 2]; 2]>,
+    /// Mean `H` per step, all teeth.
+    h_total: Vec<[[f64; 2]; 2]>,
+    /// `e^{A0 Δt}`, the step with no tooth in the cut.
+    phi0: Vec<f64>,
     steps: Steps,
     apply: ApplyScratch,
     krylov: Krylov,
@@ -355,7 +428,15 @@ struct Sd {
 }
 
 impl Sd {
-    fn new(model: &ModalModel, milling: &Milling, speed_rpm: f64, steps: usize) -> Result<Self, StabilityError> {
+    /// The semi-discretization at `speed_rpm` with `steps` per tooth period; `multi` forces the revolution and
+    /// one delay per pitch even for equal pitch (unequal pitch always takes it).
+    fn new(
+        model: &ModalModel,
+        milling: &Milling,
+        speed_rpm: f64,
+        steps: usize,
+        multi: bool,
+    ) -> Result<Self, StabilityError> {
         if !(speed_rpm.is_finite() && speed_rpm > 0.0) {
             return Err(StabilityError::InvalidParameter {
                 name: "spindle speed",
@@ -391,42 +472,80 @@ impl Sd {
         let n = omega.len();
         let d = 2 * n;
         let nq = dirs.len();
-        let m = steps;
+        let multi = multi || !milling.has_equal_pitch();
         let tau = milling.tooth_period(speed_rpm);
         let dt = tau / steps as f64;
         let rate = TAU * speed_rpm / 60.0;
-        let h: Vec<[[f64; 2]; 2]> = (0..steps)
-            .map(|i| {
-                let (ta, tb) = (rate * dt * i as f64, rate * dt * (i + 1) as f64);
-                let mut s = milling.force_matrix_integral(ta, tb);
-                let scale = 1.0 / (tb - ta);
-                s.iter_mut().flatten().for_each(|v| *v *= scale);
-                s
-            })
-            .collect();
-        let free = h.iter().map(|s| s.iter().flatten().all(|v| *v == 0.0)).collect();
-        let big = d + nq * m;
+        // Equal pitch: one delay of m steps over the tooth period. Otherwise the revolution of N m steps and one
+        // delay per distinct pitch angle, τ_j/Δt = pitch_j N m/2π steps (an integer within 1e-9 is taken as one).
+        let (m, delays, group) = if multi {
+            let m = steps * milling.teeth;
+            let mut delays: Vec<Delay> = Vec::new();
+            let mut group = Vec::with_capacity(milling.teeth);
+            for j in 0..milling.teeth {
+                let r = milling.pitch_angle(j) * m as f64 / TAU;
+                let near = r.round();
+                let (lag, frac) = if (r - near).abs() <= 1e-9 * r {
+                    (near as usize, 0.0)
+                } else {
+                    (r.floor() as usize, r - r.floor())
+                };
+                if lag < 1 {
+                    return Err(StabilityError::InvalidParameter {
+                        name: "steps per tooth period",
+                        value: steps as f64,
+                        requirement: "enough that the narrowest pitch spans at least one step",
+                    });
+                }
+                let delay = Delay { lag, frac };
+                group.push(delays.iter().position(|&g| g == delay).unwrap_or_else(|| {
+                    delays.push(delay);
+                    delays.len() - 1
+                }));
+            }
+            (m, delays, group)
+        } else {
+            (steps, vec![Delay { lag: steps, frac: 0.0 }], vec![0; milling.teeth])
+        };
+        let hist = delays.iter().map(|g| g.lag + usize::from(g.frac > 0.0)).max().unwrap_or(m);
+        let groups = delays.len();
+        let big = d + nq * hist;
         let mut sd = Sd {
             dense_only: false,
+            multi,
+            milling: milling.clone(),
+            rate,
+            group,
             dt,
             omega,
             zeta,
             gain,
             dir,
             dirs,
-            h,
+            h: vec![[[0.0; 2]; 2]; m * groups],
+            h_total: vec![[[0.0; 2]; 2]; m],
+            phi0: vec![0.0; d * d],
             steps: Steps {
                 n,
                 d,
                 nq,
                 m,
+                hist,
                 qcol,
-                free,
+                free: vec![false; m],
+                delays,
+                active: vec![false; m * groups],
                 phis: vec![0.0; m * d * d],
-                ra: vec![0.0; m * d * nq],
-                rb: vec![0.0; m * d * nq],
+                ra: vec![0.0; m * groups * d * nq],
+                rb: vec![0.0; m * groups * d * nq],
             },
-            apply: ApplyScratch { hist: vec![0.0; 2 * m * nq], y: vec![0.0; d], y2: vec![0.0; d] },
+            apply: ApplyScratch {
+                hist: vec![0.0; (m + hist) * nq],
+                y: vec![0.0; d],
+                y2: vec![0.0; d],
+                qa: vec![0.0; nq],
+                qb: vec![0.0; nq],
+            },
             krylov: Krylov {
                 v: vec![0.0; (KRYLOV_MAX + 1) * big],
                 h: vec![0.0; (KRYLOV_MAX + 1) * KRYLOV_MAX],
@@ -436,6 +555,8 @@ impl Sd {
                 ritz: Vec::with_capacity(KRYLOV_MAX),
                 lu: vec![Complex64::new(0.0, 0.0); KRYLOV_MAX * KRYLOV_MAX],
                 x: vec![Complex64::new(0.0, 0.0); KRYLOV_MAX],
+                accepted: 0,
+                hnorm: 0.0,
             },
             a: vec![0.0; d * d],
             phi: vec![0.0; d * d],
@@ -448,17 +569,60 @@ impl Sd {
             col: vec![0.0; big],
             eig: Vec::with_capacity(big),
         };
+        sd.fill_h(0.0);
         // Free steps do not depend on the depth: e^{A0 Δt} once per speed.
-        if sd.steps.free.iter().any(|&f| f) {
-            sd.fill_a(0.0, &[[0.0; 2]; 2]);
-            sd.exponentials();
-            for i in 0..m {
-                if sd.steps.free[i] {
-                    sd.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&sd.phi);
-                }
+        sd.fill_a(0.0, &[[0.0; 2]; 2]);
+        sd.exponentials();
+        sd.phi0.copy_from_slice(&sd.phi);
+        for i in 0..m {
+            if sd.steps.free[i] {
+                sd.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&sd.phi0);
             }
         }
         Ok(sd)
+    }
+
+    /// The step means of `H` per delay group and in total at depth `depth_m` (the depth matters with a helix
+    /// only), and which steps are free of the cut.
+    fn fill_h(&mut self, depth_m: f64) {
+        let (m, groups) = (self.steps.m, self.steps.delays.len());
+        let (rate, dt) = (self.rate, self.dt);
+        for i in 0..m {
+            let (ta, tb) = (rate * dt * i as f64, rate * dt * (i + 1) as f64);
+            let scale = 1.0 / (tb - ta);
+            let hs = &mut self.h[i * groups..(i + 1) * groups];
+            if self.multi {
+                hs.iter_mut().for_each(|h| *h = [[0.0; 2]; 2]);
+                for j in 0..self.milling.teeth {
+                    let t = self.milling.tooth_force_integral(j, ta, tb, depth_m);
+                    let h = &mut hs[self.group[j]];
+                    for r in 0..2 {
+                        for c in 0..2 {
+                            h[r][c] += t[r][c] * scale;
+                        }
+                    }
+                }
+                let mut total = [[0.0; 2]; 2];
+                for h in hs.iter() {
+                    for r in 0..2 {
+                        for c in 0..2 {
+                            total[r][c] += h[r][c];
+                        }
+                    }
+                }
+                self.h_total[i] = total;
+            } else {
+                let mut s = self.milling.force_matrix_integral_at(ta, tb, depth_m);
+                s.iter_mut().flatten().for_each(|v| *v *= scale);
+                hs[0] = s;
+                self.h_total[i] = s;
+            }
+            for (g, h) in hs.iter().enumerate() {
+                self.steps.active[i * groups + g] = !h.iter().flatten().all(|v| *v == 0.0);
+            }
+            self.steps.free[i] = self.h_total[i].iter().flatten().all(|v| *v == 0.0)
+                && !self.steps.active[i * groups..(i + 1) * groups].iter().any(|&a| a);
+        }
     }
 
     /// `A = A0 + a_p C` in the scaled state `(η, η̇/ω)` with the mean force matrix `hm` of a step.
@@ -527,31 +691,47 @@ impl Sd {
         }
     }
 
-    /// The step operators at depth `depth_m` (free steps were set once per speed).
+    /// The step operators at depth `depth_m` (free steps were set once per speed; with a helix the step means
+    /// and the free steps are rebuilt for the depth first).
     fn set_depth(&mut self, depth_m: f64) {
         let (n, d, nq) = (self.steps.n, self.steps.d, self.steps.nq);
+        let groups = self.steps.delays.len();
         let inv_dt = 1.0 / self.dt;
+        let rebuilt = self.milling.has_helix();
+        if rebuilt {
+            self.fill_h(depth_m);
+        }
         for i in 0..self.steps.m {
             if self.steps.free[i] {
+                if rebuilt {
+                    self.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&self.phi0);
+                }
                 continue;
             }
-            let hm = self.h[i];
+            let hm = self.h_total[i];
             self.fill_a(depth_m, &hm);
             self.exponentials();
             self.steps.phis[i * d * d..(i + 1) * d * d].copy_from_slice(&self.phi);
-            // B (d × nq): rows n + r, column c: a_p H[dir r][dirs c]/(m_r ω_r); Ra = (F0 − F1) B, Rb = F1 B.
-            let (ra, rb) = (&mut self.steps.ra[i * d * nq..(i + 1) * d * nq], &mut self.steps.rb[i * d * nq..]);
-            for row in 0..d {
-                for c in 0..nq {
-                    let (mut sa, mut sb) = (0.0, 0.0);
-                    for r in 0..n {
-                        let b = depth_m * self.gain[r] * hm[self.dir[r]][self.dirs[c]];
-                        let (f0, f1) = (self.f0[row * d + n + r], self.g[row * d + n + r] * inv_dt);
-                        sa += (f0 - f1) * b;
-                        sb += f1 * b;
+            for g in 0..groups {
+                let at = i * groups + g;
+                if !self.steps.active[at] {
+                    continue;
+                }
+                let hg = self.h[at];
+                // B (d × nq): rows n + r, column c: a_p H_g[dir r][dirs c]/(m_r ω_r); Ra = (F0 − F1) B, Rb = F1 B.
+                let (ra, rb) = (&mut self.steps.ra[at * d * nq..(at + 1) * d * nq], &mut self.steps.rb[at * d * nq..]);
+                for row in 0..d {
+                    for c in 0..nq {
+                        let (mut sa, mut sb) = (0.0, 0.0);
+                        for r in 0..n {
+                            let b = depth_m * self.gain[r] * hg[self.dir[r]][self.dirs[c]];
+                            let (f0, f1) = (self.f0[row * d + n + r], self.g[row * d + n + r] * inv_dt);
+                            sa += (f0 - f1) * b;
+                            sb += f1 * b;
+                        }
+                        ra[row * nq + c] = sa;
+                        rb[row * nq + c] = sb;
                     }
-                    ra[row * nq + c] = sa;
-                    rb[row * nq + c] = sb;
                 }
             }
         }
@@ -586,7 +766,8 @@ impl Sd {
 
     fn arnoldi(&mut self, big: usize) -> Option<(f64, f64)> {
         let kmax = KRYLOV_MAX.min(big - 1);
-        let Krylov { v, h, w, coef, hk, ritz, lu, x } = &mut self.krylov;
+        let Krylov { v, h, w, coef, hk, ritz, lu, x, accepted, hnorm: accepted_hnorm } = &mut self.krylov;
+        *accepted = 0;
         h.fill(0.0);
         // A fixed, generic start vector (no zero components, not aligned with any structure).
         for (i, e) in v[..big].iter_mut().enumerate() {
@@ -621,11 +802,15 @@ impl Sd {
                 hessenberg_eigenvalues(&mut hk[..k * k], k, ritz)?;
                 let (re, im) = largest(ritz);
                 if breakdown {
+                    *accepted = k;
+                    *accepted_hnorm = hnorm;
                     return Some((re, im));
                 }
                 let theta = Complex64::new(re, im);
                 let residual = beta * ritz_last_component(h, k, theta, hnorm, lu, x);
                 if residual <= RITZ_TOLERANCE * theta.norm() {
+                    *accepted = k;
+                    *accepted_hnorm = hnorm;
                     return Some((re, im));
                 }
             }
@@ -764,6 +949,114 @@ impl Sd {
             }
         }
         best.0.is_finite().then_some(best.1)
+    }
+
+    /// The dominant eigenpair `(μ, z)` of the monodromy matrix at the current depth: the Ritz pair of the Arnoldi
+    /// iteration, or for small matrices (and when it does not converge, up to [`DENSE_VECTOR_MAX`]) `μ` from the
+    /// dense eigen-solve and `z` by inverse iteration on the formed matrix. `None` if neither gives one.
+    fn eigenpair(&mut self) -> Option<(Complex64, Vec<Complex64>)> {
+        let big = self.steps.size();
+        let zero = Complex64::new(0.0, 0.0);
+        if big > DENSE_MAX
+            && let Some((re, im)) = self.arnoldi(big)
+        {
+            let k = self.krylov.accepted;
+            let theta = Complex64::new(re, im);
+            let Krylov { v, h, lu, x, hnorm, .. } = &mut self.krylov;
+            ritz_last_component(h, k, theta, *hnorm, lu, x);
+            let mut z = vec![zero; big];
+            for (i, xi) in x[..k].iter().enumerate() {
+                for (o, e) in z.iter_mut().zip(&v[i * big..(i + 1) * big]) {
+                    *o += xi * e;
+                }
+            }
+            return Some((theta, z));
+        }
+        if big > DENSE_VECTOR_MAX {
+            return None;
+        }
+        self.mono.resize(big * big, 0.0);
+        for j in 0..big {
+            self.col.fill(0.0);
+            self.col[j] = 1.0;
+            self.steps.apply(&self.col, &mut self.krylov.w, &mut self.apply);
+            for (r, v) in self.krylov.w.iter().enumerate() {
+                self.mono[r * big + j] = *v;
+            }
+        }
+        let formed: Vec<Complex64> = self.mono.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+        eigenvalues(&mut self.mono, big, &mut self.eig)?;
+        let (re, im) = largest(&self.eig);
+        let mu = Complex64::new(re, im);
+        let scale = formed.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let mut z = vec![Complex64::new(1.0, 0.0); big];
+        for _ in 0..2 {
+            let mut a = formed.clone();
+            for r in 0..big {
+                a[r * big + r] -= mu;
+            }
+            solve_regularised(&mut a, &mut z, big, scale)?;
+            let norm = z.iter().map(|v| v.norm_sqr()).sum::<f64>().sqrt();
+            if !(norm.is_finite() && norm > 0.0) {
+                return None;
+            }
+            z.iter_mut().for_each(|v| *v /= norm);
+        }
+        Some((mu, z))
+    }
+
+    /// The chatter frequency at the current depth for the revolution-periodic (multi-delay) equation, Hz: as
+    /// [`Sd::chatter_frequency`] but from the monodromy eigenvector, which holds the history over the longest
+    /// delay; one revolution is stepped from it, the growth `μ^{i/m}` taken out, and of the harmonics
+    /// `arg μ/(2πT) + k/T` (`T` the revolution) the one with the largest x plus y amplitude is returned. `None`
+    /// if no eigenvector is found.
+    fn chatter_frequency_multi(&mut self) -> Option<f64> {
+        let (mu, z) = self.eigenpair()?;
+        if !(mu.norm() > 0.0 && mu.is_finite()) {
+            return None;
+        }
+        let (nq, m, l) = (self.steps.nq, self.steps.m, self.steps.hist);
+        let big = self.steps.size();
+        let zero = Complex64::new(0.0, 0.0);
+        let mut q = vec![zero; m * nq];
+        let mut part = vec![0.0; big];
+        let mut out = vec![0.0; big];
+        for imaginary in [false, true] {
+            for (p, v) in part.iter_mut().zip(&z) {
+                *p = if imaginary { v.im } else { v.re };
+            }
+            self.steps.apply(&part, &mut out, &mut self.apply);
+            let unit = if imaginary { Complex64::new(0.0, 1.0) } else { Complex64::new(1.0, 0.0) };
+            for (o, h) in q.iter_mut().zip(&self.apply.hist[l * nq..(l + m) * nq]) {
+                *o += unit * h;
+            }
+        }
+        let step = (-mu.ln() / m as f64).exp();
+        let mut growth = Complex64::new(1.0, 0.0);
+        for i in 0..m {
+            for c in 0..nq {
+                q[i * nq + c] *= growth;
+            }
+            growth *= step;
+        }
+        let fft = rustfft::FftPlanner::new().plan_fft_forward(m);
+        let mut amplitude = vec![0.0; m];
+        let mut buf = vec![zero; m];
+        for c in 0..nq {
+            for i in 0..m {
+                buf[i] = q[i * nq + c];
+            }
+            fft.process(&mut buf);
+            for (a, b) in amplitude.iter_mut().zip(&buf) {
+                *a += b.norm();
+            }
+        }
+        let period = self.dt * m as f64;
+        let base = mu.arg() / (TAU * period);
+        let (k, best) =
+            amplitude.iter().enumerate().fold((0, f64::NEG_INFINITY), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
+        let signed = if k <= m / 2 { k as f64 } else { k as f64 - m as f64 };
+        best.is_finite().then_some((base + signed / period).abs())
     }
 }
 
@@ -990,7 +1283,7 @@ pub fn sd_spectral_radius(
 ) -> Result<SdPoint, StabilityError> {
     check_depth(depth_m)?;
     let m = sd_steps(model, milling, speed_rpm, options.steps)?;
-    Sd::new(model, milling, speed_rpm, m)?.point(depth_m, speed_rpm)
+    Sd::new(model, milling, speed_rpm, m, false)?.point(depth_m, speed_rpm)
 }
 
 /// [`sd_spectral_radius`] by the dense eigen-solve of the formed monodromy matrix only.
@@ -1002,7 +1295,7 @@ pub(crate) fn sd_spectral_radius_dense(
     depth_m: f64,
     options: &SdOptions,
 ) -> Result<SdPoint, StabilityError> {
-    let mut sd = Sd::new(model, milling, speed_rpm, sd_steps(model, milling, speed_rpm, options.steps)?)?;
+    let mut sd = Sd::new(model, milling, speed_rpm, sd_steps(model, milling, speed_rpm, options.steps)?, false)?;
     sd.dense_only = true;
     sd.point(depth_m, speed_rpm)
 }
@@ -1023,7 +1316,7 @@ pub fn sd_stability_map(
         .par_iter()
         .map(|&speed| {
             let m = sd_steps(model, milling, speed, options.steps)?;
-            let mut sd = Sd::new(model, milling, speed, m)?;
+            let mut sd = Sd::new(model, milling, speed, m, false)?;
             let row: Result<Vec<f64>, _> =
                 depths_m.iter().map(|&b| sd.point(b, speed).map(|p| p.spectral_radius)).collect();
             row.map(|r| (m, r))
@@ -1041,12 +1334,39 @@ pub fn sd_stability_map(
 /// stable one below it are bisected to `depth_tolerance_m`. The lowest loss of stability is returned; at low
 /// immersion the stable set in depth can be several intervals (stability returns above a flip lobe), which
 /// [`DepthLimit::restabilises`] reports for the scanned depths (use [`sd_stability_map`] for the full picture).
+///
+/// With unequal pitch the multiplier is that of the revolution map (its Hopf/flip/fold kind too), and the
+/// chatter frequency comes from the Floquet solution over the revolution.
 pub fn sd_depth_limit(
     model: &ModalModel,
     milling: &Milling,
     speed_rpm: f64,
     max_depth_m: f64,
     options: &SdOptions,
+) -> Result<DepthLimit, StabilityError> {
+    depth_limit(model, milling, speed_rpm, max_depth_m, options, false)
+}
+
+/// [`sd_depth_limit`] through the revolution-periodic multi-delay discretization even for equal pitch (to check
+/// it against the single-delay one).
+#[cfg(test)]
+pub(crate) fn sd_depth_limit_multi_delay(
+    model: &ModalModel,
+    milling: &Milling,
+    speed_rpm: f64,
+    max_depth_m: f64,
+    options: &SdOptions,
+) -> Result<DepthLimit, StabilityError> {
+    depth_limit(model, milling, speed_rpm, max_depth_m, options, true)
+}
+
+fn depth_limit(
+    model: &ModalModel,
+    milling: &Milling,
+    speed_rpm: f64,
+    max_depth_m: f64,
+    options: &SdOptions,
+    multi: bool,
 ) -> Result<DepthLimit, StabilityError> {
     if !(max_depth_m.is_finite() && max_depth_m > 0.0) {
         return Err(StabilityError::InvalidParameter {
@@ -1063,7 +1383,7 @@ pub fn sd_depth_limit(
         });
     }
     let steps = sd_steps(model, milling, speed_rpm, options.steps)?;
-    let mut sd = Sd::new(model, milling, speed_rpm, steps)?;
+    let mut sd = Sd::new(model, milling, speed_rpm, steps, multi)?;
     let scan = options.scan_points;
     let mut first = None;
     for i in 1..=scan {
@@ -1104,8 +1424,13 @@ pub fn sd_depth_limit(
         }
     }
     sd.set_depth(hi);
-    let tau = milling.tooth_period(speed_rpm);
-    let chatter_hz = sd.chatter_frequency(p_hi.multiplier).unwrap_or(p_hi.multiplier.arg().abs() / (TAU * tau));
+    let chatter_hz = if sd.multi {
+        let revolution = 60.0 / speed_rpm;
+        sd.chatter_frequency_multi().unwrap_or(p_hi.multiplier.arg().abs() / (TAU * revolution))
+    } else {
+        let tau = milling.tooth_period(speed_rpm);
+        sd.chatter_frequency(p_hi.multiplier).unwrap_or(p_hi.multiplier.arg().abs() / (TAU * tau))
+    };
     Ok(DepthLimit {
         speed_rpm,
         depth_m: 0.5 * (lo + hi),

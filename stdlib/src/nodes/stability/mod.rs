@@ -9,6 +9,7 @@ mod best;
 mod chatter;
 mod lobes;
 mod modal_model;
+mod probability;
 mod sd;
 mod speed_dependent;
 mod trials;
@@ -17,6 +18,7 @@ pub use best::StabilityBest;
 pub use chatter::ChatterDetect;
 pub use lobes::StabilityLobes;
 pub use modal_model::ModalModelNode;
+pub use probability::StabilityProbability;
 pub use sd::StabilitySd;
 pub use speed_dependent::StabilitySpeedDependent;
 pub use trials::TrialsScore;
@@ -50,6 +52,52 @@ pub(super) const RESOLUTION: Field = Field::def(
     "1 Hz",
     "coarsest line spacing the lobes are resolved at: FRFs on a coarser grid are interpolated (cubic Hermite of the complex receptance) so a lobe's minimum is not cut off between two lines",
 );
+
+/// Tooth pitch of `stability.sd` and `milling.simulate`.
+pub(super) const PITCH: Field = Field::opt(
+    "pitch",
+    T::QuantityList(D::ANGLE),
+    "variable (unequal) tooth pitch: one angle per tooth, summing to 360°, each the angle from a tooth forward to the next one (the tooth that passed the same angle just before it, so tooth j regenerates over pitch_j/Ω), e.g. `[80 deg, 100 deg, 80 deg, 100 deg]` (default: equally spaced, 360°/N)",
+);
+/// Helix angle of `stability.sd` and `milling.simulate`.
+pub(super) const HELIX: Field = Field::opt(
+    "helix",
+    T::Quantity(D::ANGLE),
+    "helix angle η of the flutes, below 90°, with `diameter`: the edge at height z above the tip lags it by 2 z tan η/D, and the force is averaged over the depth (default 0°: straight teeth)",
+);
+/// Tool diameter for the helix lag.
+pub(super) const DIAMETER: Field = Field::opt(
+    "diameter",
+    T::Quantity(D::LENGTH),
+    "tool diameter D, for the helix lag 2 z tan η/D (needed with `helix`)",
+);
+
+/// `mill` with the tool geometry of a node's `pitch` (rad, one per tooth), `helix` (rad) and `diameter` (m)
+/// parameters; errors name the parameter.
+pub(super) fn with_geometry(
+    mill: Milling,
+    pitch: Option<&[f64]>,
+    helix: Option<f64>,
+    diameter: Option<f64>,
+) -> Result<Milling, NodeError> {
+    let mut mill = mill;
+    if let Some(p) = pitch {
+        let teeth = mill.teeth;
+        mill = mill
+            .with_pitch(p.to_vec())
+            .map_err(|e| NodeError::param("pitch", format!("{e} (the cutting setup has {teeth} teeth)")))?;
+    }
+    if let Some(h) = helix.filter(|h| *h != 0.0) {
+        let d = diameter.ok_or_else(|| {
+            NodeError::param(
+                "diameter",
+                "give the tool diameter with `helix` (e.g. `diameter: 12 mm`): the helix lag is 2 z tan η/D",
+            )
+        })?;
+        mill = mill.with_helix(h, d).map_err(|e| NodeError::param("helix", e.to_string()))?;
+    }
+    Ok(mill)
+}
 
 /// The kind name of `stability.speed_dependent`: lobes from tool-point FRFs that change with speed.
 pub const STABILITY_SPEED_DEPENDENT: &str = "stability.speed_dependent";

@@ -1,7 +1,7 @@
 //! `stability.sd`: the limiting depth per speed by semi-discretization of modal models.
 
-use super::{CUTTING, SPEEDS};
-use super::{milling_named, modal, outputs, speeds_rpm, stab_err};
+use super::{CUTTING, DIAMETER, HELIX, PITCH, SPEEDS};
+use super::{milling_named, modal, outputs, speeds_rpm, stab_err, with_geometry};
 use crate::stability::{self, Bifurcation, SdOptions, StepCount};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
@@ -31,11 +31,15 @@ node_params! {
             "0",
             "depths of the map, evenly from max_depth/map_depths to max_depth (0: no map rows)",
         ),
+        pitch: opt &'a [f64] = PITCH,
+        helix: opt f64 = HELIX,
+        diameter: opt f64 = DIAMETER,
     }
 }
 
 /// `stability.sd`: the limiting depth per speed by first-order semi-discretization (Insperger & Stépán 2002,
-/// 2004) of the tool-point modal models.
+/// 2004) of the tool-point modal models; with `pitch` the multi-delay semi-discretization over the revolution
+/// (Sims, Mann & Huyanan 2008), with `helix` the force averaged over the depth.
 pub struct StabilitySd {
     spec: NodeSpec,
 }
@@ -55,7 +59,7 @@ impl StabilitySd {
                 // largest amplitude), no longer |arg μ|/2π × the tooth frequency folded into [0, f_tooth/2].
                 // 4: the table's `kind` is a word (none, Hopf, flip, fold), not a code.
                 version: 4,
-                description: "Limiting depth per speed by first-order semi-discretization (Insperger & Stépán) of tool-point modal models in x (feed) and y, with the kind of chatter (Hopf or flip); spectral radii on a speed × depth grid.",
+                description: "Limiting depth per speed by first-order semi-discretization (Insperger & Stépán) of tool-point modal models in x (feed) and y, with the kind of chatter (Hopf or flip); spectral radii on a speed × depth grid. Variable tooth pitch (one delay per tooth over the revolution) and helical flutes (force averaged over the depth) optional.",
                 inputs: vec![
                     PortSpec::new("modes_x", PortType::ModalModel, "tool-point modes along x, the feed direction"),
                     PortSpec::new("modes_y", PortType::ModalModel, "tool-point modes along y"),
@@ -71,8 +75,9 @@ impl StabilitySd {
                     PortSpec::new(
                         "table",
                         PortType::Table,
-                        "speed (rpm), depth_limit (m), chatter_frequency (Hz), kind (the bifurcation at the limit, as a word: none, Hopf, flip or fold), \
-                         restabilises (1 if a larger scanned depth is stable again), steps (per tooth period used)",
+                        "speed (rpm), depth_limit (m), chatter_frequency (Hz), kind (the bifurcation at the limit, as a word: none, Hopf, flip or fold; \
+                         of the revolution map with unequal pitch), restabilises (1 if a larger scanned depth is stable again), steps (per \
+                         (mean) tooth period used)",
                     ),
                     PortSpec::new(
                         "map",
@@ -93,7 +98,10 @@ impl Node for StabilitySd {
 
     fn validate(&self, params: &Params) -> Result<(), NodeError> {
         let p = SdParams::read(params)?;
-        super::positive(params, &["max_depth", "tolerance"])?;
+        super::positive(params, &["max_depth", "tolerance", "diameter"])?;
+        if p.helix.is_some_and(|h| h != 0.0) && p.diameter.is_none() {
+            return Err(NodeError::param("diameter", "give the tool diameter with `helix` (e.g. `diameter: 12 mm`)"));
+        }
         speeds_rpm(p.speeds).map(|_| ())
     }
 
@@ -104,7 +112,7 @@ impl Node for StabilitySd {
         if model.x.is_empty() && model.y.is_empty() {
             return Err(NodeError::input("modes_x", "neither modes_x nor modes_y holds a mode: nothing can chatter"));
         }
-        let mill = milling_named(ctx, p.cutting)?;
+        let mill = with_geometry(milling_named(ctx, p.cutting)?, p.pitch, p.helix, p.diameter)?;
         let speeds = speeds_rpm(p.speeds)?;
         let max_depth = p.max_depth;
         let opts = SdOptions {
@@ -163,5 +171,109 @@ impl Node for StabilitySd {
         };
         let lobes = Lobes { speed_rpm: speeds, depth_limit: depth, chatter_hz: chatter };
         Ok(outputs(vec![("lobes", Value::Lobes(lobes)), ("table", Value::Table(table)), ("map", Value::Table(map))]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stability::{CuttingCoefficients, Milling, MillingDirection, Mode};
+    use indexmap::IndexMap;
+    use spindlelab_engine::diag::{Diagnostics, SourceFile};
+    use spindlelab_engine::model::Recipe;
+    use spindlelab_engine::node::{Labelled, Registry};
+    use spindlelab_engine::value::ModalModel;
+    use std::sync::Arc;
+
+    /// A four-flute slot and the step `step` of kind `kind` with `params`, resolved; `stability.lobes` gets the
+    /// FRFs of the modes, every other kind the modes.
+    fn recipe(kind: &str, params: &str) -> Result<Recipe, String> {
+        let inputs = if kind == "stability.lobes" {
+            "{ frf_x: \"@frf.frf_x\", frf_y: \"@frf.frf_y\" }"
+        } else {
+            "{ modes_x: \"@modes.modes_x\", modes_y: \"@modes.modes_y\" }"
+        };
+        let text = format!(
+            "spindlelab: 1\ncutting:\n  slot: {{ teeth: 4, radial_immersion: 100 %, milling: down, Kt: 600 MPa, Kn: 200 MPa }}\n\
+             steps:\n  modes: {{ kind: modal.model, params: {{ x: [{{ f: 1 kHz, zeta: 0.02, stiffness: 2e7 N/m }}] }} }}\n  \
+             frf: {{ kind: modal.frf, inputs: {{ modes_x: \"@modes.modes_x\", modes_y: \"@modes.modes_y\" }}, params: {{ max_frequency: 3 kHz }} }}\n  \
+             step:\n    kind: {kind}\n    params: {{ {params} }}\n    inputs: {inputs}\n"
+        );
+        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
+        let mut diags = Diagnostics::new();
+        let mut registry = Registry::new();
+        crate::register(&mut registry);
+        let raw = spindlelab_engine::syntax::load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
+        let r = spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags);
+        match r {
+            Some(r) if !diags.has_errors() => Ok(r),
+            _ => Err(diags.to_string()),
+        }
+    }
+
+    fn modes() -> (Vec<Mode>, Vec<Mode>) {
+        (
+            vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
+            vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
+        )
+    }
+
+    /// Runs `stability.sd` with `params` on the modes of [`modes`]: the table.
+    fn run(params: &str) -> Result<Table, NodeError> {
+        let r = recipe("stability.sd", params).map_err(NodeError::Failed)?;
+        let params = r.step("step").unwrap().params.clone();
+        let entities = r.entities_named_by(&params);
+        let (x, y) = modes();
+        let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
+        for (port, m) in [("modes_x", x), ("modes_y", y)] {
+            let value = Arc::new(Value::ModalModel(ModalModel { modes: m }));
+            inputs.insert(port.into(), vec![Labelled { label: String::new(), coords: vec![], value }]);
+        }
+        let node = StabilitySd::new();
+        node.validate(&params)?;
+        let ctx = NodeContext::new("step", &params, &inputs, &entities);
+        let out = node.run(&ctx)?;
+        let Value::Table(t) = &out["table"] else { panic!("no table") };
+        Ok(t.clone())
+    }
+
+    /// `pitch` (deg) and `helix` with `diameter` reach the kernel: the node's limits are the kernel's on the same
+    /// tool; a pitch of the wrong count, a helix without diameter and an unequal pitch on `stability.lobes` are
+    /// refused with the parameter named.
+    #[test]
+    fn pitch_and_helix_reach_the_semi_discretization() {
+        let base = "cutting: slot, speeds: [6000 rpm, 9000 rpm], max_depth: 5 mm, steps: 40";
+        let t =
+            run(&format!("{base}, pitch: [70 deg, 110 deg, 70 deg, 110 deg], helix: 30 deg, diameter: 12 mm")).unwrap();
+        let mill = Milling::new(4, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap())
+            .unwrap()
+            .with_pitch_deg(&[70.0, 110.0, 70.0, 110.0])
+            .unwrap()
+            .with_helix(30f64.to_radians(), 0.012)
+            .unwrap();
+        let (x, y) = modes();
+        let model = stability::ModalModel::new(x, y).unwrap();
+        let opts = SdOptions { steps: StepCount::Fixed(40), scan_points: 40, depth_tolerance_m: 1e-7 };
+        let kernel = stability::sd_depth_limits(&model, &mill, &[6000.0, 9000.0], 5e-3, &opts).unwrap();
+        for (a, k) in t.columns[1].values.iter().zip(&kernel) {
+            assert!((a / k.depth_m - 1.0).abs() < 1e-12, "{a} vs {}", k.depth_m);
+        }
+        let plain = run(base).unwrap();
+        assert_ne!(plain.columns[1].values, t.columns[1].values);
+
+        let e = run(&format!("{base}, pitch: [90 deg, 90 deg, 180 deg]")).unwrap_err().to_string();
+        assert!(e.contains("pitch") && e.contains("4 teeth"), "{e}");
+        let e = run(&format!("{base}, helix: 30 deg")).unwrap_err().to_string();
+        assert!(e.contains("diameter"), "{e}");
+        let e = run(&format!("{base}, helix: 95 deg, diameter: 12 mm")).unwrap_err().to_string();
+        assert!(e.contains("helix"), "{e}");
+
+        let e =
+            recipe("stability.lobes", "cutting: slot, speeds: [6000 rpm], pitch: [70 deg, 110 deg, 70 deg, 110 deg]")
+                .unwrap_err();
+        assert!(e.contains("pitch") && e.contains("use stability.sd"), "{e}");
+        let r = recipe("stability.lobes", "cutting: slot, speeds: [6000 rpm], pitch: [90 deg, 90 deg, 90 deg, 90 deg]")
+            .unwrap();
+        super::super::StabilityLobes::new().validate(&r.step("step").unwrap().params).unwrap();
     }
 }
