@@ -515,3 +515,52 @@ fn milling_simulation_failures_say_what_and_what_to_do() {
         ],
     );
 }
+
+/// `scripts/stability-uncertainty.yaml`: the trials file holds the time-domain simulation's verdicts on the
+/// rig's true modes, and the posterior maps predict the five trials better than the prior ones.
+#[test]
+fn stability_uncertainty_trials_are_the_simulations_and_the_posterior_predicts_them_better() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ran = run(&root.join("scripts/stability-uncertainty.yaml"));
+    // One simulated cut per sweep point, in the sweep's order.
+    let (mut speed, mut depth, mut stable) = (Vec::new(), Vec::new(), Vec::new());
+    for &i in &ran.compiled.graph.by_step["truth_cuts"] {
+        let outputs = ran.report.result.outcomes[i].outputs().expect("truth_cuts ran");
+        let spindlelab::engine::value::Value::Table(t) = outputs["summary"].as_ref() else { panic!("a table") };
+        speed.extend_from_slice(column(t, "speed"));
+        depth.extend_from_slice(column(t, "depth"));
+        stable.extend_from_slice(column(t, "stable"));
+    }
+    let text = std::fs::read_to_string(root.join("scripts/data/uncertainty-trials.csv")).expect("trials file");
+    let trials = spindlelab::stdlib::nodes::parse_trials(&text, "uncertainty-trials.csv").expect("trials parse");
+    assert_eq!(trials.len(), speed.len());
+    for (i, t) in trials.iter().enumerate() {
+        assert!((t.speed_rpm - speed[i]).abs() < 1e-6 && (t.depth_m - depth[i]).abs() < 1e-12, "trial {i}");
+        let chatter = t.outcome == stability::Outcome::Chatter;
+        assert_eq!(chatter, stable[i] == 0.0, "trial {i} ({} rpm): the file is not the simulation's", t.speed_rpm);
+    }
+    for step in ["measured_map", "modal_map"] {
+        let map = ran.table(step, "map");
+        let (s, d) = (column(&map, "speed"), column(&map, "depth"));
+        let (prior, post) = (column(&map, "probability"), column(&map, "posterior_probability"));
+        // The posterior predicts what the trials showed better than the prior: the log probability of the five
+        // outcomes at their own cells rises (one cell alone may move against its trial, as the trials pull on
+        // the same few parameters together).
+        let (mut before, mut after) = (0.0, 0.0);
+        for t in &trials {
+            let k = (0..s.len())
+                .find(|&k| (s[k] - t.speed_rpm).abs() < 1e-6 && (d[k] - t.depth_m).abs() < 1e-9)
+                .unwrap_or_else(|| panic!("{step}: no map cell at {} rpm, {} m", t.speed_rpm, t.depth_m));
+            let seen = |p: f64| if t.outcome == stability::Outcome::Chatter { 1.0 - p } else { p };
+            before += seen(prior[k]).max(1e-3).ln();
+            after += seen(post[k]).max(1e-3).ln();
+        }
+        assert!(after > before, "{step}: log probability of the trials {before} → {after}");
+        let lobes = ran.table(step, "lobes");
+        let (p05, p50, p95) =
+            (column(&lobes, "posterior_p05"), column(&lobes, "posterior_p50"), column(&lobes, "posterior_p95"));
+        assert!((0..p05.len()).all(|i| p05[i] <= p50[i] && p50[i] <= p95[i]), "{step}: quantiles out of order");
+        let ess = ran.scalar(step, "effective_samples").value;
+        assert!(ess >= 20.0, "{step}: {ess} effective samples");
+    }
+}
