@@ -34,6 +34,7 @@ fn base() -> MillingSimulation {
         runout: Vec::new(),
         revolutions: 50,
         steps_per_tooth: Some(100),
+        process_damping: None,
     }
 }
 

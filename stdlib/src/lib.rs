@@ -20,6 +20,7 @@ pub mod optimize;
 pub mod phase;
 pub mod rcsa;
 pub mod rig;
+pub mod rotor;
 pub mod runout;
 pub mod segment;
 pub mod signal;

@@ -22,12 +22,21 @@
 //! its surface on the bin it passed, the tool's motion taken back to the moment it passed
 //! it. Equal pitch and straight teeth keep edges on the bins (the same numbers as before).
 //!
+//! Process damping (optional, [`MillingSimulation::process_damping`]): at low speed the flank of
+//! each tooth rubs the wavy surface it cuts, a viscous force along the surface normal (Wu 1989;
+//! Chiou & Liang 1998; Schmitz & Smith §4.8, Eq. 4.108), the model of
+//! [`crate::stability::process_damping`]: `F_d = −(C b/V) ṅ`, `C = K_d w²/4`, `V = π D n/60`.
+//! Every edge that is cutting in a step (chip `h > 0`) adds `−(C a/V)(r·v) r`, `a` its axial
+//! length (`a_p`, or `a_p/n` for a helix slice), `r = (sin φ, cos φ)` its normal and `v` the tool's
+//! velocity at the start of the step, held over the step with the cutting force. The linear
+//! damping of the ZOA with process damping is this force averaged over the tooth period.
+//!
 //! The verdict uses periodic sampling: in a stable cut the motion is periodic at the tooth
 //! period (with unequal pitch the period of the pitch pattern, [`pattern_teeth`]; the
 //! revolution with runout), so samples taken once per period stand still; in chatter they
 //! wander as much as the motion itself.
 
-use crate::stability::{Milling, MillingDirection, ModalModel};
+use crate::stability::{Milling, MillingDirection, ModalModel, ProcessDamping};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -51,6 +60,17 @@ pub struct MillingSimulation {
     /// Time steps per (mean) tooth period; `None` chooses at least 100 and at least 20 per
     /// period of the highest mode.
     pub steps_per_tooth: Option<usize>,
+    /// Process damping at low speed (`None`: none). Each edge in the cut (chip `h > 0`) adds the
+    /// viscous force `F_d = −(C a/V)(r·v) r` of the flank rubbing the wavy surface (Wu 1989;
+    /// Chiou & Liang 1998; Tyler & Schmitz 2013; Schmitz & Smith, *Machining Dynamics*, §4.8,
+    /// Eq. 4.108): `C = K_d w²/4` ([`ProcessDamping::coefficient`]), `V = π D n/60`
+    /// ([`ProcessDamping::cutting_speed`]), `a` the edge's axial length (`a_p`, or the helix
+    /// slice's `a_p/n`), `r = (sin φ, cos φ)` its surface normal and `v` the tool's velocity (the
+    /// modes summed in `x` and `y`) at the start of the step, held over the step with the
+    /// cutting force. Averaged over the tooth period it is the damping `(C a_p/V) E` of
+    /// [`crate::stability::zoa_lobes_with_process_damping`] (see
+    /// [`crate::stability::process_damping`]). A zero `K_d` or `w` is allowed and adds nothing.
+    pub process_damping: Option<ProcessDamping>,
 }
 
 /// What a simulation gives.
@@ -60,7 +80,8 @@ pub struct MillingResult {
     pub dt: f64,
     /// Steps per tooth period used.
     pub steps_per_tooth: usize,
-    /// Cutting force on the tool, N, and the tool's displacement, m, at every step.
+    /// Cutting force on the tool (with the process damping force when it is given), N, and the
+    /// tool's displacement, m, at every step.
     pub force_x: Vec<f64>,
     pub force_y: Vec<f64>,
     pub disp_x: Vec<f64>,
@@ -72,18 +93,22 @@ pub struct MillingResult {
     /// Period of the samples, s.
     pub sample_period: f64,
     /// Spread of the once-per-period samples over the spread of the motion, steady half of the
-    /// simulation: about 0 in a stable cut, of order 1 in chatter.
+    /// simulation: about 0 in a stable cut, of order 1 in chatter; `+∞` when the motion overflowed.
     pub chatter_metric: f64,
     /// Whether [`MillingResult::chatter_metric`] stays under [`CHATTER_THRESHOLD`].
     pub stable: bool,
     /// The strongest frequency of the motion that is not a harmonic of the sampling period,
-    /// Hz (chatter only).
+    /// Hz (chatter only; `None` when the motion overflowed).
     pub chatter_frequency_hz: Option<f64>,
     /// Surface location error, m: the tool's `y` displacement each time a tooth passes the wall
     /// it finishes (entry in up-milling, exit in down-milling), averaged over the steady
     /// half; positive when the wall lies towards `+y` of its nominal place.
     pub surface_location_error: f64,
 }
+
+/// The smallest spread of motion the chatter metric divides by, relative to the largest displacement: below it
+/// the motion is a static deflection plus rounding noise.
+const MOTION_FLOOR: f64 = 1e-9;
 
 /// Above this [`MillingResult::chatter_metric`] a cut is called chatter.
 pub const CHATTER_THRESHOLD: f64 = 0.05;
@@ -166,6 +191,12 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
     for &r in &sim.runout {
         check("runout", r, r.is_finite(), "finite (m)")?;
     }
+    if let Some(pd) = &sim.process_damping {
+        let (kd, w, d) = (pd.indentation_n_per_m3, pd.wear_land_m, pd.diameter_m);
+        check("specific indentation force K_d", kd, kd.is_finite() && kd >= 0.0, "finite and ≥ 0 N/m³")?;
+        check("wear land w", w, w.is_finite() && w >= 0.0, "finite and ≥ 0 m")?;
+        check("tool diameter D", d, d.is_finite() && d > 0.0, "finite and > 0 m")?;
+    }
     let tau = sim.cut.tooth_period(sim.speed_rpm);
     let f_max = sim.modes.x.iter().chain(&sim.modes.y).map(|m| m.freq_hz).fold(0.0, f64::max);
     let spt = sim.steps_per_tooth.unwrap_or_else(|| 100.max((20.0 * f_max * tau).ceil() as usize));
@@ -204,6 +235,8 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
     // The tooth path of each axial slice, one after the other.
     let mut surface = vec![0.0; per_rev * slices];
     let runout = |j: usize| sim.runout.get(j).copied().unwrap_or(0.0);
+    // Process damping of one cutting edge, `C a/V` (N·s/m); `None` leaves the force untouched.
+    let rub = sim.process_damping.map(|pd| pd.damping(slice_depth, sim.speed_rpm));
 
     let mut out = MillingResult {
         dt,
@@ -241,6 +274,11 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
                     let f = slice_depth * h;
                     fx += f * (kt * c + kn * s);
                     fy += f * (-kt * s + kn * c);
+                    if let Some(cd) = rub {
+                        let fd = -cd * (vx * s + vy * c);
+                        fx += fd * s;
+                        fy += fd * c;
+                    }
                     surface[bin] = n;
                 } else {
                     // Out of the cut: the surface stays, and the next tooth meets one more feed.
@@ -264,6 +302,11 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
                     let f = slice_depth * h;
                     fx += f * (kt * c + kn * s);
                     fy += f * (-kt * s + kn * c);
+                    if let Some(cd) = rub {
+                        let fd = -cd * (vx * s + vy * c);
+                        fx += fd * s;
+                        fy += fd * c;
+                    }
                 }
             }
             // ... and the surface it leaves on the bin it passed `frac` steps ago.
@@ -310,14 +353,25 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         if hi >= lo { hi - lo } else { 0.0 }
     };
     let first_sample = out.samples_x.len() / 2;
+    // A cut whose force is constant (a straight, equally spaced slot with as many teeth in the cut at every
+    // angle) stands still: its motion's spread is rounding noise, and so is its samples'. The spread is
+    // floored at 1e-9 of the largest displacement so that such a cut reads as the still cut it is.
+    let scale = out.disp_x[steady..].iter().chain(&out.disp_y[steady..]).fold(0.0f64, |a, v| a.max(v.abs()));
     let metric = |samples: &[f64], motion: &[f64]| {
-        let m = spread(motion);
+        let m = spread(motion).max(MOTION_FLOOR * scale);
         if m > 0.0 { spread(&samples[first_sample..]) / m } else { 0.0 }
     };
-    out.chatter_metric =
-        metric(&out.samples_x, &out.disp_x[steady..]).max(metric(&out.samples_y, &out.disp_y[steady..]));
+    // A motion that overflowed (a cut so far past the limit that the chatter outgrows the floating point
+    // range before the teeth leave the cut) is chatter: its spreads, taken over the finite values only, say
+    // nothing.
+    let finite = out.disp_x[steady..].iter().chain(&out.disp_y[steady..]).all(|v| v.is_finite());
+    out.chatter_metric = if finite {
+        metric(&out.samples_x, &out.disp_x[steady..]).max(metric(&out.samples_y, &out.disp_y[steady..]))
+    } else {
+        f64::INFINITY
+    };
     out.stable = out.chatter_metric.is_finite() && out.chatter_metric < CHATTER_THRESHOLD;
-    if !out.stable {
+    if !out.stable && finite {
         out.chatter_frequency_hz =
             chatter_frequency(&out.disp_x[steady..], &out.disp_y[steady..], dt, out.sample_period);
     }

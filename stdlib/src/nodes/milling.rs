@@ -5,14 +5,33 @@ use super::stability::{
     with_geometry,
 };
 use crate::milling::{MillingSimulation, simulate};
-use crate::stability::{self, SpeedFrf, Trial};
+use crate::stability::{self, ProcessDamping, SpeedFrf, Trial};
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{FieldType as T, Params};
+use spindlelab_engine::spec::{Field, FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::path::Path;
+
+/// The dimension of the specific indentation force `K_d`: force per volume, N/m³.
+const FORCE_PER_VOLUME: D = D::new(-2, 1, -2, 0);
+
+/// The fields of `process_damping`, as `stability.lobes` declares them: the flank contact of the process damping
+/// model of [`crate::stability::process_damping`], all three together.
+const PROCESS_DAMPING: &[Field] = &[
+    Field::req(
+        "indentation",
+        T::Quantity(FORCE_PER_VOLUME),
+        "specific indentation force K_d (force per indented volume), e.g. `30000 N/mm^3`; steels: of order 10⁴ N/mm³",
+    ),
+    Field::req(
+        "wear_land",
+        T::Quantity(D::LENGTH),
+        "flank wear land w: the width of the flank that rubs the wavy surface, e.g. `0.05 mm`",
+    ),
+    Field::req("diameter", T::Quantity(D::LENGTH), "tool diameter D, for the cutting speed V = π D n/60"),
+];
 
 node_params! {
     /// Parameters of `milling.simulate`.
@@ -36,7 +55,33 @@ node_params! {
         pitch: opt &'a [f64] = PITCH,
         helix: opt f64 = HELIX,
         diameter: opt f64 = DIAMETER,
+        process_damping: opt &'a Params = (
+            T::Object(PROCESS_DAMPING),
+            "process damping at low speed (Tyler & Schmitz 2013): `{ indentation, wear_land, diameter }`; every tooth \
+             (every helix slice) in the cut adds the viscous force −(C a/V)(r·v) r of its flank rubbing the wavy \
+             surface, along its surface normal r, C = K_d w²/4, V = π D n/60, a its axial length, v the tool velocity: \
+             the model of stability.lobes' `process_damping`",
+        ),
     }
+}
+
+/// The `process_damping` object as the kernel's contact (errors name the parameter and the field).
+fn process_damping(p: &Params) -> Result<ProcessDamping, NodeError> {
+    let field = |name: &str| {
+        p.f64(name).ok_or_else(|| {
+            NodeError::param(
+                "process_damping",
+                format!("`{name}` is missing: give `indentation`, `wear_land` and `diameter` together"),
+            )
+        })
+    };
+    let (kd, w, d) = (field("indentation")?, field("wear_land")?, field("diameter")?);
+    for (name, v) in [("indentation", kd), ("wear_land", w), ("diameter", d)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(NodeError::param("process_damping", format!("`{name}` must be positive, got {v}")));
+        }
+    }
+    ProcessDamping::new(kd, w, d).map_err(|e| NodeError::param("process_damping", e.to_string()))
 }
 
 pub struct MillingSimulate {
@@ -58,7 +103,8 @@ impl MillingSimulate {
                 description: "Time-domain milling simulation (Schmitz & Smith): regenerative chip thickness by the tooth path, \
                               teeth with the lobes' force model, tool-point modes in x (feed) and y advanced exactly \
                               per step, optional runout, variable pitch (each tooth at its angle, cutting the feed of its \
-                              pitch) and helix (axial slices at most 1° of lag apart, each on its own tooth path); stable \
+                              pitch) and helix (axial slices at most 1° of lag apart, each on its own tooth path), optional \
+                              process damping at low speed (the flank's viscous force along each cutting edge's normal); stable \
                               or chatter by once-per-period sampling, the chatter frequency and the surface location error. \
                               Sweep speed and depth for a stability map.",
                 inputs: vec![
@@ -100,6 +146,14 @@ impl Node for MillingSimulate {
         &self.spec
     }
 
+    fn validate(&self, params: &Params) -> Result<(), NodeError> {
+        let p = MillingSimulateParams::read(params)?;
+        if let Some(pd) = p.process_damping {
+            process_damping(pd)?;
+        }
+        Ok(())
+    }
+
     fn run(&self, ctx: &NodeContext) -> Result<Outputs, NodeError> {
         let p = MillingSimulateParams::read(ctx.params)?;
         let modes = stability::ModalModel::new(modal(ctx, "modes_x")?, modal(ctx, "modes_y")?)
@@ -114,6 +168,7 @@ impl Node for MillingSimulate {
             runout: p.runout.map(<[f64]>::to_vec).unwrap_or_default(),
             revolutions: p.revolutions,
             steps_per_tooth: p.steps_per_tooth,
+            process_damping: p.process_damping.map(process_damping).transpose()?,
         };
         let r = simulate(&sim).map_err(|e| match e {
             crate::milling::MillingError::Runout { .. } => NodeError::param("runout", e.to_string()),
@@ -333,6 +388,7 @@ impl Node for TrialsSimulate {
                 runout: vec![],
                 revolutions,
                 steps_per_tooth: None,
+                process_damping: None,
             };
             let r = simulate(&sim).map_err(|e| NodeError::Failed(format!("{at}: {e}")))?;
             Ok(Some(Simulated {
@@ -390,5 +446,128 @@ impl Node for TrialsSimulate {
         out.insert("verdicts".into(), Value::Table(verdicts));
         out.insert("agreement".into(), Value::Scalar(Scalar { value: agreement, unit: UnitLabel::new("") }));
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::milling::MillingResult;
+    use indexmap::IndexMap;
+    use spindlelab_engine::diag::{Diagnostics, SourceFile};
+    use spindlelab_engine::model::Recipe;
+    use spindlelab_engine::node::{Labelled, Registry};
+    use spindlelab_engine::value::ModalModel;
+    use std::sync::Arc;
+
+    const PD: &str = "process_damping: { indentation: 30000 N/mm^3, wear_land: 0.1 mm, diameter: 10 mm }";
+
+    /// The recipe of a four-tooth slot with `params` for the `cut` step (`milling.simulate`), resolved.
+    fn recipe(params: &str) -> Result<Recipe, String> {
+        let text = format!(
+            "spindlelab: 1\ncutting:\n  \
+             slot: {{ teeth: 4, radial_immersion: 100 %, milling: down, Kt: 600 MPa, Kn: 200 MPa, \
+             feed_per_tooth: 0.1 mm }}\nsteps:\n  \
+             modes: {{ kind: modal.model, params: {{ x: [{{ f: 1 kHz, zeta: 0.025, stiffness: 2e7 N/m }}] }} }}\n  \
+             cut:\n    kind: milling.simulate\n    params: {{ {params} }}\n    \
+             inputs: {{ modes_x: \"@modes.modes_x\", modes_y: \"@modes.modes_y\" }}\n"
+        );
+        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
+        let mut diags = Diagnostics::new();
+        let mut registry = Registry::new();
+        crate::register(&mut registry);
+        let raw = spindlelab_engine::syntax::load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
+        let r = spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags);
+        match r {
+            Some(r) if !diags.has_errors() => Ok(r),
+            _ => Err(diags.to_string()),
+        }
+    }
+
+    /// The tool: one mode along x (1 kHz, ζ = 0.025, 20 N/µm), one along y (1080 Hz, ζ = 0.02, 24 N/µm).
+    fn modes() -> (Vec<stability::Mode>, Vec<stability::Mode>) {
+        (
+            vec![stability::Mode::from_stiffness(1000.0, 0.025, 2e7)],
+            vec![stability::Mode::from_stiffness(1080.0, 0.02, 2.4e7)],
+        )
+    }
+
+    /// Runs the step `cut` of the recipe on [`modes`]: its summary, its signals and its parameters.
+    fn run(params: &str) -> (Table, TimeSeries, Params) {
+        let r = recipe(params).unwrap();
+        let params = r.step("cut").unwrap().params.clone();
+        let entities = r.entities_named_by(&params);
+        let (x, y) = modes();
+        let mut inputs: IndexMap<String, Vec<Labelled>> = IndexMap::new();
+        for (port, m) in [("modes_x", x), ("modes_y", y)] {
+            let value = Arc::new(Value::ModalModel(ModalModel { modes: m }));
+            inputs.insert(port.into(), vec![Labelled { label: String::new(), coords: vec![], value }]);
+        }
+        let node = MillingSimulate::new();
+        node.validate(&params).unwrap();
+        let ctx = NodeContext::new("cut", &params, &inputs, &entities);
+        let out = node.run(&ctx).unwrap();
+        let Value::Table(t) = out["summary"].clone() else { panic!("no summary") };
+        let Value::TimeSeries(s) = out["signals"].clone() else { panic!("no signals") };
+        (t, s, params)
+    }
+
+    /// The kernel's run of the same slot at 1500 rpm and `depth`, with `process_damping`.
+    fn kernel(depth: f64, process_damping: Option<ProcessDamping>) -> MillingResult {
+        let (x, y) = modes();
+        let sim = MillingSimulation {
+            cut: stability::Milling::new(
+                4,
+                1.0,
+                stability::MillingDirection::Down,
+                stability::CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap(),
+            )
+            .unwrap(),
+            depth,
+            feed_per_tooth: 1e-4,
+            speed_rpm: 1500.0,
+            modes: stability::ModalModel::new(x, y).unwrap(),
+            runout: vec![5e-6, 0.0, 0.0, 0.0],
+            revolutions: 100,
+            steps_per_tooth: None,
+            process_damping,
+        };
+        simulate(&sim).unwrap()
+    }
+
+    /// `process_damping` reaches the kernel in SI (`30000 N/mm^3` is 3·10¹³ N/m³): at 1500 rpm a 2 mm slot, above
+    /// the undamped limit (1.6 mm) and below the limit with process damping (2.5 mm), chatters without it and
+    /// is stable with it, with the kernel's numbers.
+    #[test]
+    fn process_damping_reaches_the_simulation() {
+        let base = "cutting: slot, speed: 1500 rpm, depth: 2 mm, runout: \"[5, 0, 0, 0] um\"";
+        let (plain, plain_signals, _) = run(base);
+        let (damped, damped_signals, params) = run(&format!("{base}, {PD}"));
+        let pd = params.object("process_damping").unwrap();
+        assert!((pd.f64("indentation").unwrap() / 3e13 - 1.0).abs() < 1e-12);
+        assert!((pd.f64("wear_land").unwrap() / 1e-4 - 1.0).abs() < 1e-12);
+        assert!((pd.f64("diameter").unwrap() / 1e-2 - 1.0).abs() < 1e-12);
+        let stable = |t: &Table| t.columns.iter().find(|c| c.name == "stable").unwrap().values[0];
+        assert_eq!(stable(&plain), 0.0);
+        assert_eq!(stable(&damped), 1.0);
+        let depth = params.f64("depth").unwrap();
+        let contact = ProcessDamping::new(3e13, 1e-4, 0.01).unwrap();
+        for (signals, r) in [(&plain_signals, kernel(depth, None)), (&damped_signals, kernel(depth, Some(contact)))] {
+            assert_eq!(signals.channels[0].samples, r.force_x);
+            assert_eq!(signals.channels[3].samples, r.disp_y);
+        }
+    }
+
+    /// The three fields go together, and a value out of range is refused naming the parameter.
+    #[test]
+    fn process_damping_fields_are_checked() {
+        let with =
+            |pd: &str| recipe(&format!("cutting: slot, speed: 1500 rpm, depth: 2 mm, process_damping: {{ {pd} }}"));
+        let e = with("indentation: 30000 N/mm^3, wear_land: 0.1 mm").unwrap_err();
+        assert!(e.contains("diameter"), "{e}");
+        let e = with("indentation: 30 MPa, wear_land: 0.1 mm, diameter: 10 mm").unwrap_err();
+        assert!(e.contains("indentation"), "{e}");
+        let e = with("indentation: 30000 N/mm^3, wear_land: 0 mm, diameter: 10 mm").unwrap_err();
+        assert!(e.contains("process_damping") && e.contains("`wear_land` must be positive"), "{e}");
     }
 }

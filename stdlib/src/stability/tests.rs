@@ -31,6 +31,7 @@ fn simulated_stable(model: &ModalModel, mill: &Milling, speed_rpm: f64, depth: f
         runout: vec![],
         revolutions: 400,
         steps_per_tooth: None,
+        process_damping: None,
     };
     crate::milling::simulate(&sim).unwrap().stable
 }
@@ -337,6 +338,7 @@ fn sd_chatter_frequency_is_the_physical_alias() {
             runout: vec![],
             revolutions: 400,
             steps_per_tooth: None,
+            process_damping: None,
         })
         .unwrap();
         let heard = sim.chatter_frequency_hz.expect("chatter 5 % above the limit");
