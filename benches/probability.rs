@@ -7,13 +7,13 @@ mod alloc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use spindlelab_stdlib::stability::uncertainty::{
-    Dynamics, Gaussian, UncertainCut, UncertainMode, modal_grid, probability_map, sample_ensemble,
+    Dynamics, Gaussian, ModePrior, UncertainCut, modal_grid, probability_map, sample_ensemble,
 };
 use spindlelab_stdlib::stability::{CuttingCoefficients, Milling, MillingDirection};
 use std::hint::black_box;
 
 fn cut() -> UncertainCut {
-    let mode = |f: f64, zeta: f64, k: f64| UncertainMode {
+    let mode = |f: f64, zeta: f64, k: f64| ModePrior {
         freq_hz: Gaussian { mean: f, sigma: 0.01 * f },
         damping_ratio: Gaussian { mean: zeta, sigma: 0.15 * zeta },
         stiffness: Gaussian { mean: k, sigma: 0.08 * k },

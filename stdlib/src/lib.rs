@@ -67,6 +67,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::ChatterDetect::new()));
     registry.register(Arc::new(nodes::StabilityBest::new()));
     registry.register(Arc::new(nodes::StabilityProbability::new()));
+    registry.register(Arc::new(nodes::RotorCampbell::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));
     registry.register(Arc::new(nodes::ModalModelNode::new()));
     registry.register(Arc::new(nodes::ModalFrf::new()));

@@ -412,3 +412,27 @@ fn a_spindle_mode_stated_by_stiffness_and_damping_ratio_has_that_peak() {
         assert_has(&shown, &[says, "bad.yaml:11:"]);
     }
 }
+
+/// `scripts/rotor-campbell.yaml` (Friswell et al. Example 5.9.1) through the `rotor.campbell` node: the
+/// frequencies at rest are the ROSS project's (`test_campbell`, rad/s) to 1e-5, and with speed each
+/// backward whirl falls and each forward whirl rises.
+#[test]
+fn rotor_campbell_recipe_gives_the_ross_frequencies_of_friswell_example_5_9_1() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ran = common::run(&root.join("scripts/rotor-campbell.yaml"));
+    let t = ran.table("campbell", "whirl");
+    let col = |n: &str| t.columns.iter().find(|c| c.name == n).unwrap_or_else(|| panic!("no {n}")).values.clone();
+    let (speed, freq, whirl) = (col("speed"), col("frequency"), col("whirl"));
+    let ross = [82.65303734, 86.65811435, 254.52047828, 274.31285391, 679.48903239];
+    let at_rest: Vec<f64> =
+        (0..speed.len()).filter(|&i| speed[i] == 0.0).map(|i| freq[i] * std::f64::consts::TAU).collect();
+    for w in ross {
+        let near = at_rest.iter().map(|f| (f / w - 1.0).abs()).fold(f64::INFINITY, f64::min);
+        assert!(near < 1e-5, "{w} rad/s: nearest at rest off by {near}");
+    }
+    let first = |s: f64, sense: f64| {
+        (0..speed.len()).filter(|&i| speed[i] == s && whirl[i] == sense).map(|i| freq[i]).fold(f64::INFINITY, f64::min)
+    };
+    assert!(first(5000.0, -1.0) < first(1000.0, -1.0), "the first backward whirl falls with speed");
+    assert!(first(5000.0, 1.0) > first(1000.0, 1.0), "the first forward whirl rises with speed");
+}

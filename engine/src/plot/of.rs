@@ -847,6 +847,12 @@ fn campbell(speed: &[f64], freq: &[f64], whirl: &[f64]) -> Panel {
             p.series.push(Series::new(if k == 0 { name } else { "" }, pts, Style::Line, color));
         }
     }
+    // Modes without one whirl sense (straight orbits at rest on anisotropic bearings, or nodes
+    // whirling both ways) as points.
+    let mixed: Vec<(f64, f64)> = (0..speed.len()).filter(|&i| whirl[i] == 0.0).map(|i| (speed[i], freq[i])).collect();
+    if !mixed.is_empty() {
+        p.series.push(Series::new("no single whirl sense", mixed, Style::Dots, 2));
+    }
     let top = freq.iter().copied().fold(0.0, f64::max);
     let one: Vec<(f64, f64)> = speeds.iter().map(|s| (*s, s / 60.0)).filter(|(_, f)| *f <= top).collect();
     p.series.push(Series::new("1× rotation", one, Style::Dashed, 7));

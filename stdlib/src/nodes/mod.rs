@@ -15,6 +15,7 @@ mod phase;
 mod read;
 mod read_set;
 mod rig;
+mod rotor;
 mod runout;
 mod segment;
 mod stability;
@@ -47,6 +48,7 @@ pub use phase::{PhaseCorrect, PhaseMeasure};
 pub use read::{READ_FRF, ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use read_set::ReadFrfSet;
 pub use rig::{RigShaker, RigSimulate};
+pub use rotor::RotorCampbell;
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use stability::{

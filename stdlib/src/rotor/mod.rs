@@ -207,9 +207,10 @@ pub enum Whirl {
     Mixed,
 }
 
-/// One mode of the rotor at a spin speed.
+/// One whirl of the rotor at a spin speed: an eigen-solution of the gyroscopic system (damped and undamped
+/// frequency, damping, whirl sense and the orbit ratio at each node), not a modal triple of a tool point.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RotorMode {
+pub struct RotorWhirl {
     /// Undamped natural frequency |λ|, rad/s.
     pub wn_rad_s: f64,
     /// Damped natural frequency Im λ, rad/s.
@@ -223,7 +224,7 @@ pub struct RotorMode {
     pub kappa: Vec<f64>,
 }
 
-impl RotorMode {
+impl RotorWhirl {
     /// Damped natural frequency, Hz.
     pub fn freq_hz(&self) -> f64 {
         self.wd_rad_s / TAU
@@ -236,7 +237,7 @@ pub struct CampbellRow {
     /// Spin speed, rad/s.
     pub speed_rad_s: f64,
     /// The lowest modes, ascending in damped frequency.
-    pub modes: Vec<RotorMode>,
+    pub modes: Vec<RotorWhirl>,
 }
 
 /// Orbits with |kappa| below this are straight lines (no whirl sense).
@@ -244,7 +245,7 @@ const LINE_KAPPA: f64 = 1e-6;
 
 /// The assembled rotor: M, K, C and G (row-major, 4 dof per node).
 #[derive(Debug, Clone, PartialEq)]
-pub struct RotorModel {
+pub struct RotorWhirll {
     n_nodes: usize,
     nodes_z: Vec<f64>,
     m: Vec<f64>,
@@ -332,11 +333,11 @@ impl Rotor {
     }
 
     /// Validates and assembles M, K, C and G.
-    pub fn assemble(&self) -> Result<RotorModel, RotorError> {
+    pub fn assemble(&self) -> Result<RotorWhirll, RotorError> {
         self.validate()?;
         let nn = self.n_nodes();
         let n = DOF_PER_NODE * nn;
-        let mut model = RotorModel {
+        let mut model = RotorWhirll {
             n_nodes: nn,
             nodes_z: Vec::with_capacity(nn),
             m: vec![0.0; n * n],
@@ -394,12 +395,12 @@ impl Rotor {
         Ok(model)
     }
 
-    /// Modes at a spin speed (rad/s), ascending in damped frequency; see [`RotorModel::modes_at`].
-    pub fn modes_at(&self, speed_rad_s: f64) -> Result<Vec<RotorMode>, RotorError> {
+    /// Modes at a spin speed (rad/s), ascending in damped frequency; see [`RotorWhirll::modes_at`].
+    pub fn modes_at(&self, speed_rad_s: f64) -> Result<Vec<RotorWhirl>, RotorError> {
         self.assemble()?.modes_at(speed_rad_s)
     }
 
-    /// Campbell table; see [`RotorModel::campbell`].
+    /// Campbell table; see [`RotorWhirll::campbell`].
     pub fn campbell(&self, speeds_rad_s: &[f64], n_modes: usize) -> Result<Vec<CampbellRow>, RotorError> {
         self.assemble()?.campbell(speeds_rad_s, n_modes)
     }
@@ -446,7 +447,7 @@ impl Rotor {
         Ok(w)
     }
 
-    /// Receptance at a node; see [`RotorModel::receptance`].
+    /// Receptance at a node; see [`RotorWhirll::receptance`].
     pub fn receptance(
         &self,
         node: usize,
@@ -459,7 +460,7 @@ impl Rotor {
     }
 }
 
-impl RotorModel {
+impl RotorWhirll {
     /// Number of nodes.
     pub fn n_nodes(&self) -> usize {
         self.n_nodes
@@ -523,7 +524,7 @@ impl RotorModel {
     /// Modes at spin speed Ω (rad/s) from the state-space eigenproblem (Friswell et al.
     /// ch. 3): the eigenvalues λ with Im λ > 0, ascending in Im λ (overdamped real
     /// roots are left out). Whirl and kappa from the translations of the eigenvector.
-    pub fn modes_at(&self, speed_rad_s: f64) -> Result<Vec<RotorMode>, RotorError> {
+    pub fn modes_at(&self, speed_rad_s: f64) -> Result<Vec<RotorWhirl>, RotorError> {
         if !speed_rad_s.is_finite() {
             return Err(RotorError::BadSpeed(speed_rad_s));
         }
@@ -569,7 +570,7 @@ impl RotorModel {
                     orbit_kappa(x, y)
                 })
                 .collect();
-            modes.push(RotorMode {
+            modes.push(RotorWhirl {
                 wn_rad_s: wn,
                 wd_rad_s: lambda.im,
                 damping_ratio: -lambda.re / wn,

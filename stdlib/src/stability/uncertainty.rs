@@ -48,7 +48,7 @@ impl Gaussian {
 
 /// One tool-point mode with uncertain natural frequency (Hz), damping ratio and modal stiffness (N/m).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct UncertainMode {
+pub struct ModePrior {
     /// Natural frequency, Hz.
     pub freq_hz: Gaussian,
     /// Viscous damping ratio.
@@ -63,9 +63,9 @@ pub enum Dynamics {
     /// Modes along `x` (feed) and `y` with uncertain parameters; their receptances are evaluated on `freqs_hz`.
     Modes {
         /// Modes along `x`.
-        x: Vec<UncertainMode>,
+        x: Vec<ModePrior>,
         /// Modes along `y`.
-        y: Vec<UncertainMode>,
+        y: Vec<ModePrior>,
         /// Frequency lines of the receptances, Hz ([`modal_grid`]).
         freqs_hz: Vec<f64>,
     },
@@ -309,7 +309,7 @@ fn invalid(name: &'static str, value: f64, requirement: &'static str) -> Stabili
 /// Frequency lines on which uncertain modes are evaluated: from `Δf` to twice the highest natural frequency
 /// (and at least the highest plus ten half-power bandwidths) with `Δf` a fifth of the narrowest half-power
 /// half-width `ζ f` (between 0.05 and 2 Hz), at most 40,000 lines; the ZOA then resolves every lobe's minimum.
-pub fn modal_grid(modes: &[UncertainMode]) -> Vec<f64> {
+pub fn modal_grid(modes: &[ModePrior]) -> Vec<f64> {
     let f_max = modes.iter().map(|m| m.freq_hz.mean + 3.0 * m.freq_hz.sigma).fold(0.0, f64::max);
     let half = modes.iter().map(|m| (m.damping_ratio.mean * m.freq_hz.mean).max(1e-9)).fold(f64::INFINITY, f64::min);
     let zeta_max = modes.iter().map(|m| m.damping_ratio.mean).fold(0.0, f64::max);

@@ -4,7 +4,7 @@
 use super::{CUTTING, SPEEDS};
 use super::{milling_named, outputs, receptance, speeds_rpm, stab_err, trials_in};
 use crate::stability::uncertainty::{
-    self, Dynamics, Ensemble, Gaussian, QUANTILES, UncertainCut, UncertainMode, modal_grid,
+    self, Dynamics, Ensemble, Gaussian, ModePrior, QUANTILES, UncertainCut, modal_grid,
 };
 use crate::stability::{ToolPointFrf, TrialLikelihood};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
@@ -165,7 +165,7 @@ fn uncertain_modes(
     rows: Option<&[Params]>,
     rel: [f64; 3],
     param: &str,
-) -> Result<Vec<UncertainMode>, NodeError> {
+) -> Result<Vec<ModePrior>, NodeError> {
     if let Some(rows) = rows
         && rows.len() != modes.len()
     {
@@ -187,7 +187,7 @@ fn uncertain_modes(
                 ],
                 None => [rel[0] * m.freq_hz, rel[1] * m.damping_ratio, rel[2] * k],
             };
-            UncertainMode {
+            ModePrior {
                 freq_hz: Gaussian { mean: m.freq_hz, sigma: s[0] },
                 damping_ratio: Gaussian { mean: m.damping_ratio, sigma: s[1] },
                 stiffness: Gaussian { mean: k, sigma: s[2] },
@@ -215,7 +215,7 @@ fn dynamics(ctx: &NodeContext, p: &ProbabilityParams) -> Result<Dynamics, NodeEr
             let rel = [p.f_sigma, p.zeta_sigma, p.stiffness_sigma];
             let x = uncertain_modes(&get("modes_x")?, p.sigma_x, rel, "sigma_x")?;
             let y = uncertain_modes(&get("modes_y")?, p.sigma_y, rel, "sigma_y")?;
-            let all: Vec<UncertainMode> = x.iter().chain(&y).copied().collect();
+            let all: Vec<ModePrior> = x.iter().chain(&y).copied().collect();
             if all.is_empty() {
                 return Err(NodeError::input(
                     "modes_x",

@@ -5,7 +5,7 @@ use rand::SeedableRng;
 /// Two modes per direction near the lab tool of the ZOA validation (1243/1747 Hz), Ks 2160 MPa, β 68°, 4 teeth,
 /// 50 % down-milling; σ: 1 % on f, 10 % on ζ, 5 % on k, 5 % on Ks, 2° on β.
 fn cut(scale_sigma: f64) -> UncertainCut {
-    let mode = |f: f64, zeta: f64, k: f64| UncertainMode {
+    let mode = |f: f64, zeta: f64, k: f64| ModePrior {
         freq_hz: Gaussian { mean: f, sigma: 0.01 * f * scale_sigma },
         damping_ratio: Gaussian { mean: zeta, sigma: 0.1 * zeta * scale_sigma },
         stiffness: Gaussian { mean: k, sigma: 0.05 * k * scale_sigma },
