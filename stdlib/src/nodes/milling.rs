@@ -1,37 +1,18 @@
 //! `milling.simulate`: the time-domain milling simulation ([`crate::milling`]) as a node.
 
 use super::stability::{
-    COEFFICIENT_ROW, CUTTING, DIAMETER, HELIX, PITCH, coefficient_table, milling, modal, pairs, read_trials,
-    with_geometry,
+    COEFFICIENT_ROW, CUTTING, DIAMETER, HELIX, PITCH, PROCESS_DAMPING, coefficient_table, milling, modal, pairs,
+    process_damping, read_trials, with_geometry,
 };
 use crate::milling::{MillingSimulation, simulate};
-use crate::stability::{self, ProcessDamping, SpeedFrf, Trial};
+use crate::stability::{self, SpeedFrf, Trial};
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Channel, Column, PortType, Scalar, Table, TimeSeries, UnitLabel, Value};
 use spindlelab_grammar::Dimension as D;
 use std::path::Path;
-
-/// The dimension of the specific indentation force `K_d`: force per volume, N/m³.
-const FORCE_PER_VOLUME: D = D::new(-2, 1, -2, 0);
-
-/// The fields of `process_damping`, as `stability.lobes` declares them: the flank contact of the process damping
-/// model of [`crate::stability::process_damping`], all three together.
-const PROCESS_DAMPING: &[Field] = &[
-    Field::req(
-        "indentation",
-        T::Quantity(FORCE_PER_VOLUME),
-        "specific indentation force K_d (force per indented volume), e.g. `30000 N/mm^3`; steels: of order 10⁴ N/mm³",
-    ),
-    Field::req(
-        "wear_land",
-        T::Quantity(D::LENGTH),
-        "flank wear land w: the width of the flank that rubs the wavy surface, e.g. `0.05 mm`",
-    ),
-    Field::req("diameter", T::Quantity(D::LENGTH), "tool diameter D, for the cutting speed V = π D n/60"),
-];
 
 node_params! {
     /// Parameters of `milling.simulate`.
@@ -63,25 +44,6 @@ node_params! {
              the model of stability.lobes' `process_damping`",
         ),
     }
-}
-
-/// The `process_damping` object as the kernel's contact (errors name the parameter and the field).
-fn process_damping(p: &Params) -> Result<ProcessDamping, NodeError> {
-    let field = |name: &str| {
-        p.f64(name).ok_or_else(|| {
-            NodeError::param(
-                "process_damping",
-                format!("`{name}` is missing: give `indentation`, `wear_land` and `diameter` together"),
-            )
-        })
-    };
-    let (kd, w, d) = (field("indentation")?, field("wear_land")?, field("diameter")?);
-    for (name, v) in [("indentation", kd), ("wear_land", w), ("diameter", d)] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(NodeError::param("process_damping", format!("`{name}` must be positive, got {v}")));
-        }
-    }
-    ProcessDamping::new(kd, w, d).map_err(|e| NodeError::param("process_damping", e.to_string()))
 }
 
 pub struct MillingSimulate {
@@ -513,7 +475,7 @@ mod tests {
     }
 
     /// The kernel's run of the same slot at 1500 rpm and `depth`, with `process_damping`.
-    fn kernel(depth: f64, process_damping: Option<ProcessDamping>) -> MillingResult {
+    fn kernel(depth: f64, process_damping: Option<crate::stability::ProcessDamping>) -> MillingResult {
         let (x, y) = modes();
         let sim = MillingSimulation {
             cut: stability::Milling::new(
@@ -551,7 +513,7 @@ mod tests {
         assert_eq!(stable(&plain), 0.0);
         assert_eq!(stable(&damped), 1.0);
         let depth = params.f64("depth").unwrap();
-        let contact = ProcessDamping::new(3e13, 1e-4, 0.01).unwrap();
+        let contact = crate::stability::ProcessDamping::new(3e13, 1e-4, 0.01).unwrap();
         for (signals, r) in [(&plain_signals, kernel(depth, None)), (&damped_signals, kernel(depth, Some(contact)))] {
             assert_eq!(signals.channels[0].samples, r.force_x);
             assert_eq!(signals.channels[3].samples, r.disp_y);

@@ -1,35 +1,16 @@
 //! `stability.lobes`: the ZOA stability limit on tool-point FRFs, optionally with process damping at low speed.
 
-use super::{CUTTING, LOBES, RESOLUTION, SPEEDS};
+use super::{CUTTING, LOBES, PROCESS_DAMPING, RESOLUTION, SPEEDS, process_damping};
 use super::{
     lobes_value, milling_named, outputs, receptance, speeds_rpm, stab_err, warn_lobes_short, warn_unlimited,
     with_geometry,
 };
-use crate::stability::{self, ProcessDamping, ProcessDampingOptions, StabilityLimit, ToolPointFrf, ZoaOptions};
+use crate::stability::{self, ProcessDampingOptions, StabilityLimit, ToolPointFrf, ZoaOptions};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
-use spindlelab_engine::spec::{Field, FieldType as T, Params};
+use spindlelab_engine::spec::{FieldType as T, Params};
 use spindlelab_engine::value::{Column, PortType, Table, Value};
 use spindlelab_grammar::Dimension as D;
-
-/// The dimension of the specific indentation force `K_d`: force per volume, N/m³.
-const FORCE_PER_VOLUME: D = D::new(-2, 1, -2, 0);
-
-/// The fields of `process_damping`: the flank contact of the process damping model of
-/// [`crate::stability::process_damping`], all three together.
-const PROCESS_DAMPING: &[Field] = &[
-    Field::req(
-        "indentation",
-        T::Quantity(FORCE_PER_VOLUME),
-        "specific indentation force K_d (force per indented volume), e.g. `30000 N/mm^3`; steels: of order 10⁴ N/mm³",
-    ),
-    Field::req(
-        "wear_land",
-        T::Quantity(D::LENGTH),
-        "flank wear land w: the width of the flank that rubs the wavy surface, e.g. `0.05 mm`",
-    ),
-    Field::req("diameter", T::Quantity(D::LENGTH), "tool diameter D, for the cutting speed V = π D n/60"),
-];
 
 node_params! {
     /// Parameters of `stability.lobes`.
@@ -96,25 +77,6 @@ fn unequal_pitch() -> NodeError {
         "stability.lobes (the zero-order approximation) assumes equally spaced teeth, one regenerative delay; for \
          unequal pitch use stability.sd, whose semi-discretization gives every tooth its own delay",
     )
-}
-
-/// The `process_damping` object as the kernel's contact (errors name the parameter and the field).
-fn process_damping(p: &Params) -> Result<ProcessDamping, NodeError> {
-    let field = |name: &str| {
-        p.f64(name).ok_or_else(|| {
-            NodeError::param(
-                "process_damping",
-                format!("`{name}` is missing: give `indentation`, `wear_land` and `diameter` together"),
-            )
-        })
-    };
-    let (kd, w, d) = (field("indentation")?, field("wear_land")?, field("diameter")?);
-    for (name, v) in [("indentation", kd), ("wear_land", w), ("diameter", d)] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(NodeError::param("process_damping", format!("`{name}` must be positive, got {v}")));
-        }
-    }
-    ProcessDamping::new(kd, w, d).map_err(|e| NodeError::param("process_damping", e.to_string()))
 }
 
 /// `a–b rpm`, or `a rpm` for one speed.
@@ -332,7 +294,7 @@ mod tests {
         let mut five = four.to_vec();
         five.push(("depth_limit_without_process_damping", "m"));
         assert_eq!(names(&damped), five);
-        let contact = ProcessDamping::new(3e13, 5e-5, 0.01).unwrap();
+        let contact = crate::stability::ProcessDamping::new(3e13, 5e-5, 0.01).unwrap();
         let k = stability::zoa_lobes_with_process_damping(&tool, &mill, &contact, &opts, &Default::default()).unwrap();
         assert_eq!(damped.columns[1].values, k.limit.depth_m);
         assert_eq!(damped.columns[2].values, k.limit.chatter_hz);

@@ -26,8 +26,8 @@ pub use trials::TrialsScore;
 // The kinds' `super::positive` and `super::non_negative` are the checks of `nodes`.
 use super::{non_negative, positive};
 use crate::stability::{
-    self, CoefficientTable, CuttingCoefficients, Milling, MillingDirection, Outcome, StabilityError, StabilityLimit,
-    ToolPointFrf, Trial,
+    self, CoefficientTable, CuttingCoefficients, Milling, MillingDirection, Outcome, ProcessDamping, StabilityError,
+    StabilityLimit, ToolPointFrf, Trial,
 };
 use spindlelab_domain::Speed;
 use spindlelab_engine::node::{NodeContext, NodeError, Outputs};
@@ -71,6 +71,44 @@ pub(super) const DIAMETER: Field = Field::opt(
     T::Quantity(D::LENGTH),
     "tool diameter D, for the helix lag 2 z tan η/D (needed with `helix`)",
 );
+
+/// The dimension of the specific indentation force `K_d`: force per volume, N/m³.
+pub(crate) const FORCE_PER_VOLUME: D = D::new(-2, 1, -2, 0);
+
+/// The fields of `process_damping` (`stability.lobes`, `milling.simulate`): the flank contact of the process damping model of
+/// [`crate::stability::process_damping`], all three together.
+pub(crate) const PROCESS_DAMPING: &[Field] = &[
+    Field::req(
+        "indentation",
+        T::Quantity(FORCE_PER_VOLUME),
+        "specific indentation force K_d (force per indented volume), e.g. `30000 N/mm^3`; steels: of order 10⁴ N/mm³",
+    ),
+    Field::req(
+        "wear_land",
+        T::Quantity(D::LENGTH),
+        "flank wear land w: the width of the flank that rubs the wavy surface, e.g. `0.05 mm`",
+    ),
+    Field::req("diameter", T::Quantity(D::LENGTH), "tool diameter D, for the cutting speed V = π D n/60"),
+];
+
+/// The `process_damping` object as the kernel's contact (errors name the parameter and the field).
+pub(crate) fn process_damping(p: &Params) -> Result<ProcessDamping, NodeError> {
+    let field = |name: &str| {
+        p.f64(name).ok_or_else(|| {
+            NodeError::param(
+                "process_damping",
+                format!("`{name}` is missing: give `indentation`, `wear_land` and `diameter` together"),
+            )
+        })
+    };
+    let (kd, w, d) = (field("indentation")?, field("wear_land")?, field("diameter")?);
+    for (name, v) in [("indentation", kd), ("wear_land", w), ("diameter", d)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(NodeError::param("process_damping", format!("`{name}` must be positive, got {v}")));
+        }
+    }
+    ProcessDamping::new(kd, w, d).map_err(|e| NodeError::param("process_damping", e.to_string()))
+}
 
 /// `mill` with the tool geometry of a node's `pitch` (rad, one per tooth), `helix` (rad) and `diameter` (m)
 /// parameters; errors name the parameter.
