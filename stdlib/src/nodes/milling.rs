@@ -416,9 +416,8 @@ mod tests {
     use super::*;
     use crate::milling::MillingResult;
     use indexmap::IndexMap;
-    use spindlelab_engine::diag::{Diagnostics, SourceFile};
     use spindlelab_engine::model::Recipe;
-    use spindlelab_engine::node::{Labelled, Registry};
+    use spindlelab_engine::node::Labelled;
     use spindlelab_engine::value::ModalModel;
     use std::sync::Arc;
 
@@ -434,16 +433,7 @@ mod tests {
              cut:\n    kind: milling.simulate\n    params: {{ {params} }}\n    \
              inputs: {{ modes_x: \"@modes.modes_x\", modes_y: \"@modes.modes_y\" }}\n"
         );
-        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
-        let mut diags = Diagnostics::new();
-        let mut registry = Registry::new();
-        crate::register(&mut registry);
-        let raw = spindlelab_engine::syntax::load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
-        let r = spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags);
-        match r {
-            Some(r) if !diags.has_errors() => Ok(r),
-            _ => Err(diags.to_string()),
-        }
+        crate::nodes::test_support::resolve_text(&text)
     }
 
     /// The tool: one mode along x (1 kHz, ζ = 0.025, 20 N/µm), one along y (1080 Hz, ζ = 0.02, 24 N/µm).

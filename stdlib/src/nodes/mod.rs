@@ -95,6 +95,19 @@ pub(crate) mod test_support {
     use spindlelab_engine::spec::{self, Ctx, EntityNames, Params};
     use spindlelab_engine::syntax::load_yaml;
 
+    /// A recipe's text resolved with the built-in kinds: the recipe, or the diagnostics as text.
+    pub(crate) fn resolve_text(text: &str) -> Result<Recipe, String> {
+        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
+        let mut diags = Diagnostics::new();
+        let mut registry = spindlelab_engine::node::Registry::new();
+        crate::register(&mut registry);
+        let raw = load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
+        match spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags) {
+            Some(r) if !diags.has_errors() => Ok(r),
+            _ => Err(diags.to_string()),
+        }
+    }
+
     /// Node parameters as the compiler makes them from recipe text (defaults filled in).
     pub(crate) fn params(node: &dyn Node, yaml: &str) -> Params {
         let file = SourceFile { path: "params.yaml".into(), text: yaml.into() };

@@ -191,9 +191,8 @@ mod tests {
     use crate::stability::Milling;
     use indexmap::IndexMap;
     use num_complex::Complex64;
-    use spindlelab_engine::diag::{Diagnostics, SourceFile};
     use spindlelab_engine::model::Recipe;
-    use spindlelab_engine::node::{Labelled, Registry};
+    use spindlelab_engine::node::Labelled;
     use spindlelab_engine::value::{Frf, UnitLabel};
     use std::sync::Arc;
 
@@ -210,16 +209,7 @@ mod tests {
              lobes:\n    kind: stability.lobes\n    params: {{ {lobes_params} }}\n    \
              inputs: {{ frf_x: \"@frf.frf_x\", frf_y: \"@frf.frf_y\" }}\n"
         );
-        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
-        let mut diags = Diagnostics::new();
-        let mut registry = Registry::new();
-        crate::register(&mut registry);
-        let raw = spindlelab_engine::syntax::load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
-        let r = spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags);
-        match r {
-            Some(r) if !diags.has_errors() => Ok(r),
-            _ => Err(diags.to_string()),
-        }
+        crate::nodes::test_support::resolve_text(&text)
     }
 
     fn frf(freqs: &[f64], values: Vec<Complex64>, direction: &str) -> Arc<Value> {

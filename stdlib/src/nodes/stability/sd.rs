@@ -179,9 +179,8 @@ mod tests {
     use super::*;
     use crate::stability::{CuttingCoefficients, Milling, MillingDirection, Mode};
     use indexmap::IndexMap;
-    use spindlelab_engine::diag::{Diagnostics, SourceFile};
     use spindlelab_engine::model::Recipe;
-    use spindlelab_engine::node::{Labelled, Registry};
+    use spindlelab_engine::node::Labelled;
     use spindlelab_engine::value::ModalModel;
     use std::sync::Arc;
 
@@ -199,16 +198,7 @@ mod tests {
              frf: {{ kind: modal.frf, inputs: {{ modes_x: \"@modes.modes_x\", modes_y: \"@modes.modes_y\" }}, params: {{ max_frequency: 3 kHz }} }}\n  \
              step:\n    kind: {kind}\n    params: {{ {params} }}\n    inputs: {inputs}\n"
         );
-        let file = SourceFile { path: "recipe.yaml".into(), text: text.into() };
-        let mut diags = Diagnostics::new();
-        let mut registry = Registry::new();
-        crate::register(&mut registry);
-        let raw = spindlelab_engine::syntax::load_yaml(&file, &mut diags).ok_or_else(|| diags.to_string())?;
-        let r = spindlelab_engine::model::resolve(&raw, &[], &registry, &mut diags);
-        match r {
-            Some(r) if !diags.has_errors() => Ok(r),
-            _ => Err(diags.to_string()),
-        }
+        crate::nodes::test_support::resolve_text(&text)
     }
 
     fn modes() -> (Vec<Mode>, Vec<Mode>) {
