@@ -68,6 +68,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(Arc::new(nodes::StabilityBest::new()));
     registry.register(Arc::new(nodes::StabilityProbability::new()));
     registry.register(Arc::new(nodes::RotorCampbell::new()));
+    registry.register(Arc::new(nodes::RotorReceptance::new()));
     registry.register(Arc::new(nodes::TrialsScore::new()));
     registry.register(Arc::new(nodes::ModalModelNode::new()));
     registry.register(Arc::new(nodes::ModalFrf::new()));

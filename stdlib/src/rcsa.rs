@@ -734,6 +734,61 @@ pub fn decouple(
     Ok(ReceptanceFrf { freqs_hz: a.freqs_hz.clone(), lines })
 }
 
+/// The in-plane and cross-plane blocks `(P, Q)` of a spinning structure with isotropic
+/// supports, whose 4×4 receptance is `[[P, Q], [−Q, P]]`: one [`ReceptanceFrf`] each.
+pub type Spinning = (ReceptanceFrf, ReceptanceFrf);
+
+/// Line by line `P + s·i·Q` (`s = ±1`): the forward (`s = −1`) or backward (`s = +1`) whirl
+/// block of a spinning structure from its in-plane and cross-plane blocks.
+fn whirl_lines(p: &[Receptance], q: &[Receptance], s: f64) -> Vec<Receptance> {
+    let iq = Complex64::new(0.0, s);
+    p.iter()
+        .zip(q)
+        .map(|(p, q)| Receptance::new(p.h + iq * q.h, p.l + iq * q.l, p.n + iq * q.n, p.p + iq * q.p))
+        .collect()
+}
+
+/// RCSA of a spinning substructure on a spinning base (a rotor model of a spindle), both with
+/// isotropic supports and an isotropic joint: in the whirl coordinates `u± = q_y ± i q_z` the
+/// two bending planes decouple, so Eq. 5.3 holds in each, `G± = R11± − R12± (R22± + K⁻¹ +
+/// B±)⁻¹ R21±`, with `B∓ = P ∓ iQ` of the base. The substructure comes as its forward and
+/// backward two-ports; the result is the free end's `(P, Q)`: `P = (G₊ + G₋)/2`, `Q = i(G₊ −
+/// G₋)/2`. A `tip_mass` (kg, no polar inertia) acts alike in both coordinates.
+pub fn couple_spinning(
+    forward: &TwoPort,
+    backward: &TwoPort,
+    base: &Spinning,
+    interface: &Interface,
+    tip_mass: f64,
+    options: &RcsaOptions,
+) -> Result<Spinning, RcsaError> {
+    let (p, q) = base;
+    check_len("base Q", &q.lines, p.lines.len())?;
+    check_grid("base P", &p.freqs_hz, "base Q", &q.freqs_hz)?;
+    let whirl = |a: &TwoPort, s: f64| -> Result<ReceptanceFrf, RcsaError> {
+        let b = ReceptanceFrf { freqs_hz: p.freqs_hz.clone(), lines: whirl_lines(&p.lines, &q.lines, s) };
+        let g = couple(a, &b, interface, options)?;
+        if tip_mass > 0.0 { with_point_mass(&g, tip_mass) } else { Ok(g) }
+    };
+    let (gf, gb) = (whirl(forward, -1.0)?, whirl(backward, 1.0)?);
+    let half = Complex64::new(0.5, 0.0);
+    let half_i = Complex64::new(0.0, 0.5);
+    let comb = |c: Complex64, sign: f64| {
+        gf.lines
+            .iter()
+            .zip(&gb.lines)
+            .map(|(f, b)| {
+                let m = |x: Complex64, y: Complex64| c * (x + sign * y);
+                Receptance::new(m(f.h, b.h), m(f.l, b.l), m(f.n, b.n), m(f.p, b.p))
+            })
+            .collect::<Vec<_>>()
+    };
+    Ok((
+        ReceptanceFrf { freqs_hz: gf.freqs_hz.clone(), lines: comb(half, 1.0) },
+        ReceptanceFrf { freqs_hz: gf.freqs_hz.clone(), lines: comb(half_i, -1.0) },
+    ))
+}
+
 /// A chain assembled outward from a base (e.g. spindle → holder → tool): each stage is a substructure and
 /// the joint between it and everything assembled so far. Returns the free-end receptance of the last stage.
 pub fn couple_chain(

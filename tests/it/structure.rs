@@ -436,3 +436,89 @@ fn rotor_campbell_recipe_gives_the_ross_frequencies_of_friswell_example_5_9_1() 
     assert!(first(5000.0, -1.0) < first(1000.0, -1.0), "the first backward whirl falls with speed");
     assert!(first(5000.0, 1.0) > first(1000.0, 1.0), "the first forward whirl rises with speed");
 }
+
+/// The instances of a swept step's FRF output, by their speed (rpm).
+fn frfs_by_speed(ran: &Ran, step: &str, direction: &str) -> Vec<(f64, spindlelab::engine::value::Frf)> {
+    let mut out = Vec::new();
+    for &i in &ran.compiled.graph.by_step[step] {
+        let outputs = ran.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
+        let Value::Frf(f) = outputs["frf"].as_ref() else { panic!("{step}.frf is not an FRF") };
+        if f.direction.as_deref().unwrap_or("x") == direction {
+            out.push((f.speed_rpm.unwrap_or(0.0), f.clone()));
+        }
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
+}
+
+/// Local maxima of |H| between `lo` and `hi` Hz.
+fn peaks(f: &spindlelab::engine::value::Frf, lo: f64, hi: f64) -> Vec<f64> {
+    let m: Vec<f64> = f.values.iter().map(|v| v.norm()).collect();
+    (1..m.len() - 1)
+        .filter(|&i| f.freq_hz[i] >= lo && f.freq_hz[i] <= hi && m[i] > m[i - 1] && m[i] > m[i + 1])
+        .map(|i| f.freq_hz[i])
+        .collect()
+}
+
+/// A rotor spindle with a spinning tool holder (`rotor.receptance` → `rcsa.couple` with
+/// `spindle_cross`): at rest the whirl-coordinate coupling (banded direct solves of the spinning
+/// holder) equals the planar coupling (modal expansion) to 1e-6; at 20,000 rpm the spin's cross
+/// coupling changes the tool point where the planar model cannot.
+#[test]
+fn rotor_spindle_spinning_coupling_equals_the_planar_one_at_rest() {
+    let ran = common::run(&data_dir().join("rotor-coupling.yaml"));
+    let (spinning, planar) = (frfs_by_speed(&ran, "spinning", "x"), frfs_by_speed(&ran, "planar", "x"));
+    assert_eq!(spinning.len(), 2);
+    let diff = |a: &spindlelab::engine::value::Frf, b: &spindlelab::engine::value::Frf| {
+        let top = b.values.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        a.values.iter().zip(&b.values).map(|(x, y)| (x - y).norm() / top).fold(0.0, f64::max)
+    };
+    let at_rest = diff(&spinning[0].1, &planar[0].1);
+    assert!(at_rest < 1e-6, "at rest the two couplings differ by {at_rest:e} of the peak");
+    let at_speed = diff(&spinning[1].1, &planar[1].1);
+    assert!(at_speed > 0.05, "at 20,000 rpm the spin changes the tool point by only {at_speed:e} of the peak");
+}
+
+/// `scripts/rotor-spindle.yaml`: a spindle mode that shows once in the tool-point FRF at rest
+/// splits at 20,000 rpm into a backward whirl below and a forward whirl above it, as the
+/// spindle's Campbell table has its modes split; the speed-dependent lobes, which see the split
+/// FRFs, depart from the stationary ones as the speed rises.
+#[test]
+fn rotor_spindle_recipe_shows_the_whirl_split_in_the_tool_point_frf_and_the_lobes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ran = common::run(&root.join("scripts/rotor-spindle.yaml"));
+    let tips = frfs_by_speed(&ran, "tool_tip", "x");
+    let (rest, fast) = (&tips[0], tips.last().unwrap());
+    assert_eq!((rest.0, fast.0), (0.0, 20_000.0));
+    let one = peaks(&rest.1, 1600.0, 1800.0);
+    assert_eq!(one.len(), 1, "one spindle peak at rest between 1.6 and 1.8 kHz: {one:?}");
+    let two = peaks(&fast.1, 1550.0, 1850.0);
+    assert_eq!(two.len(), 2, "two whirl peaks at 20,000 rpm: {two:?}");
+    assert!(two[0] < one[0] && two[1] > one[0], "backward {} and forward {} bracket {} Hz", two[0], two[1], one[0]);
+    let split = (two[1] - two[0]) / one[0];
+    assert!(split > 0.04, "split {split} of the frequency");
+    // The spindle alone splits the same way: its Campbell table's mode near 1.6 kHz.
+    let t = ran.table("campbell", "whirl");
+    let col = |n: &str| t.columns.iter().find(|c| c.name == n).unwrap().values.clone();
+    let (speed, freq, whirl) = (col("speed"), col("frequency"), col("whirl"));
+    // (At rest an isotropic rotor's pair has one frequency and no defined sense.)
+    let near = |s: f64, sense: Option<f64>| {
+        (0..speed.len())
+            .filter(|&i| speed[i] == s && sense.is_none_or(|w| whirl[i] == w) && (freq[i] - 1600.0).abs() < 150.0)
+            .map(|i| freq[i])
+            .next()
+            .unwrap_or(f64::NAN)
+    };
+    let at_rest = near(0.0, None);
+    let (backward, forward) = (near(20_000.0, Some(-1.0)), near(20_000.0, Some(1.0)));
+    assert!(backward < at_rest && forward > at_rest, "spindle alone: {backward} < {at_rest} < {forward} Hz");
+    // Lobes: the speed-dependent limit departs from the stationary one at speed.
+    let lobes = ran.table("lobes", "table");
+    let lcol = |n: &str| lobes.columns.iter().find(|c| c.name == n).unwrap().values.clone();
+    let (rpm, ratio) = (lcol("speed"), lcol("depth_ratio"));
+    let worst = |lo: f64, hi: f64| {
+        (0..rpm.len()).filter(|&i| rpm[i] >= lo && rpm[i] <= hi).map(|i| (ratio[i] - 1.0).abs()).fold(0.0, f64::max)
+    };
+    assert!(worst(15_000.0, 20_000.0) > 0.1, "the lobes at 15-20k rpm move by {}", worst(15_000.0, 20_000.0));
+    assert!(worst(15_000.0, 20_000.0) > worst(5_000.0, 8_000.0), "the departure grows with speed");
+}

@@ -18,7 +18,7 @@ mod csym;
 pub mod element;
 pub mod equivalent;
 mod jacobi;
-mod linalg;
+pub(crate) mod linalg;
 pub mod model;
 pub mod section;
 pub mod spinning;

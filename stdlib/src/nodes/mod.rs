@@ -48,7 +48,7 @@ pub use phase::{PhaseCorrect, PhaseMeasure};
 pub use read::{READ_FRF, ReadFrf, ReadReceptance, ReadTimeSeries};
 pub use read_set::ReadFrfSet;
 pub use rig::{RigShaker, RigSimulate};
-pub use rotor::RotorCampbell;
+pub use rotor::{RotorCampbell, RotorReceptance};
 pub use runout::RunoutRemove;
 pub use segment::ImpactSegment;
 pub use stability::{

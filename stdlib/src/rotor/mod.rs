@@ -33,9 +33,10 @@
 //! whirls of `rotor4`). Not modelled: axial dofs, tapered sections, shaft internal
 //! (rotating) damping, speed-dependent bearing coefficients, the loss factor of the material.
 //!
-//! TODO: no engine node kind exposes the model yet (a `rotor.campbell`/`rotor.receptance`
-//! node feeding RCSA); Friswell et al. Example 5.8.1 (ROSS `example_1.ipynb`) is not a test
-//! because that notebook prints only convergence plots, no frequencies.
+//! The nodes `rotor.campbell` and `rotor.receptance` expose the model; the receptance at the
+//! nose ([`RotorWhirll::point_receptance`]) feeds RCSA with a spinning holder
+//! ([`crate::rcsa::couple_spinning`]). Friswell et al. Example 5.8.1 (ROSS `example_1.ipynb`)
+//! is not a test because that notebook prints only convergence plots, no frequencies.
 
 use crate::beam::element;
 use crate::beam::section::SectionProperties;
@@ -636,6 +637,70 @@ impl RotorWhirll {
                 return Err(RotorError::Singular(f));
             }
             out.push(b[dout]);
+        }
+        Ok(out)
+    }
+}
+
+impl RotorWhirll {
+    /// The 4×4 receptance block at `node` in the planar convention of the holder and tool
+    /// models ([`crate::beam::SpinningReceptance`]), with the shaft axis z as their beam
+    /// axis: rows the response `[x, β, y, −α]` (each plane's displacement and its slope),
+    /// columns the excitation `[Fx, Mβ, Fy, −Mα]` (force and the moment conjugate to that
+    /// slope). Spin about +z turns x toward y as the beam's spin turns y toward z, so with
+    /// isotropic bearings the block has the form `[[P, Q], [−Q, P]]` and couples to a
+    /// spinning holder in forward and backward whirl coordinates. Banded solves, four
+    /// right-hand sides per line.
+    pub fn point_receptance(
+        &self,
+        node: usize,
+        freqs_hz: &[f64],
+        speed_rad_s: f64,
+    ) -> Result<Vec<crate::beam::SpinningReceptance>, RotorError> {
+        let last = self.n_nodes - 1;
+        if node > last {
+            return Err(RotorError::NoSuchNode { what: "receptance", node, last });
+        }
+        if !speed_rad_s.is_finite() {
+            return Err(RotorError::BadSpeed(speed_rad_s));
+        }
+        let n = self.n_dof();
+        let band = crate::beam::linalg::bandwidth(&[&self.k, &self.m, &self.c, &self.g], n);
+        let base = DOF_PER_NODE * node;
+        // Planar order [x, β, y, −α] → rotor dofs, with the sign of each.
+        let dofs = [(base, 1.0), (base + 3, 1.0), (base + 1, 1.0), (base + 2, -1.0)];
+        let zero = Complex64::new(0.0, 0.0);
+        let mut a = vec![zero; n * n];
+        let mut b = vec![zero; n * 4];
+        let mut out = Vec::with_capacity(freqs_hz.len());
+        for &f in freqs_hz {
+            if !finite_nonneg(f) {
+                return Err(RotorError::BadFrequency(f));
+            }
+            let w = TAU * f;
+            for i in 0..n {
+                for j in i.saturating_sub(band)..(i + 2 * band + 1).min(n) {
+                    let idx = i * n + j;
+                    a[idx] = Complex64::new(
+                        self.k[idx] - w * w * self.m[idx],
+                        w * (self.c[idx] + speed_rad_s * self.g[idx]),
+                    );
+                }
+            }
+            b.fill(zero);
+            for (col, &(dof, sign)) in dofs.iter().enumerate() {
+                b[dof * 4 + col] = Complex64::new(sign, 0.0);
+            }
+            if !crate::beam::linalg::complex_solve_banded(&mut a, n, band, &mut b, 4) {
+                return Err(RotorError::Singular(f));
+            }
+            let mut block = [[zero; 4]; 4];
+            for (row, &(dof, sign)) in dofs.iter().enumerate() {
+                for (col, v) in block[row].iter_mut().enumerate() {
+                    *v = sign * b[dof * 4 + col];
+                }
+            }
+            out.push(block);
         }
         Ok(out)
     }

@@ -261,3 +261,102 @@ fn bad_input_is_rejected_naming_the_value() {
     r.sections[0].material.density = 0.0;
     assert!(matches!(r.validate(), Err(RotorError::BadMaterial { section: 0, .. })));
 }
+
+/// A motor spindle as a rotor, rear end first, the nose (node 12) last: a hollow shaft with
+/// the motor's rotor as a disk, a damped rear bearing and a front pair.
+fn spindle_rotor(steel: Material) -> Rotor {
+    let section = |length_m: f64, outer_diameter_m: f64, elements: usize| ShaftSection {
+        length_m,
+        inner_diameter_m: 0.02,
+        outer_diameter_m,
+        elements,
+        material: steel,
+    };
+    Rotor {
+        sections: vec![section(0.08, 0.05, 2), section(0.2, 0.07, 5), section(0.12, 0.07, 3), section(0.04, 0.09, 2)],
+        disks: vec![Disk::from_geometry(4, steel.density, 0.15, 0.07, 0.11)],
+        bearings: vec![
+            Bearing::new(1, 1.5e8, 1.5e8, 1500.0, 1500.0),
+            Bearing::new(8, 4e8, 4e8, 3000.0, 3000.0),
+            Bearing::new(10, 4e8, 4e8, 3000.0, 3000.0),
+        ],
+    }
+}
+
+/// The coupling of a rotor spindle to a spinning holder and tool (RCSA in forward and backward
+/// whirl coordinates, `rcsa::couple_spinning`) equals one rotor model with the holder and tool
+/// as further shaft sections: the same structure assembled another way, at rest and at
+/// 20,000 rpm, in-plane (`P`) and cross-plane (`Q`) blocks.
+#[test]
+fn rotor_spindle_coupled_to_a_spinning_holder_equals_one_rotor_model_of_the_assembly() {
+    use crate::beam::{BeamModel, BeamSegment, CrossSection, MeshOptions, SpinningModel};
+    use crate::rcsa::{self, Interface, RcsaOptions, Receptance, ReceptanceFrf, TwoPort};
+    let steel = Material { loss_factor: 0.0, ..Material::STEEL };
+    let carbide = Material { loss_factor: 0.0, ..Material::CARBIDE };
+    // Holder flange Ø63 × 40 mm, nose Ø32 × 60 mm, carbide tool Ø12 × 60 mm; 5 mm elements.
+    let parts = [(0.063, 0.04, steel), (0.032, 0.06, steel), (0.012, 0.06, carbide)];
+    let mesh = MeshOptions { max_element_length: 0.005, ..MeshOptions::default() };
+    let segments: Vec<BeamSegment> =
+        parts.iter().map(|&(d, l, m)| BeamSegment::uniform(CrossSection::solid(d, m), l)).collect();
+    let holder = SpinningModel::new(BeamModel::from_segments(&segments, &mesh).unwrap());
+    let tip = holder.n_nodes() - 1;
+    let spindle = spindle_rotor(steel);
+    let mut whole = spindle.clone();
+    for &(d, l, m) in &parts {
+        let elements = (l / 0.005_f64).round() as usize;
+        whole.sections.push(ShaftSection {
+            length_m: l,
+            inner_diameter_m: 0.0,
+            outer_diameter_m: d,
+            elements,
+            material: m,
+        });
+    }
+    let freqs: Vec<f64> = (1..=500).map(|k| 10.0 * k as f64).collect();
+    let nose = spindle.n_nodes() - 1;
+    let (spindle, whole) = (spindle.assemble().unwrap(), whole.assemble().unwrap());
+    let last = whole.n_nodes() - 1;
+    let block = |m: [[Complex64; 2]; 2]| Receptance::new(m[0][0], m[0][1], m[1][0], m[1][1]);
+    for rpm in [0.0, 20_000.0] {
+        let speed = rpm * TAU / 60.0;
+        let two_port = |forward: bool| {
+            let lines = holder.whirl_blocks(&[tip, 0], speed, forward, &freqs).unwrap();
+            let pick = |k: usize| lines.iter().map(|b| block(b[k])).collect::<Vec<_>>();
+            TwoPort { freqs_hz: freqs.clone(), r11: pick(0), r12: pick(1), r21: pick(2), r22: pick(3) }
+        };
+        let nose_blocks = spindle.point_receptance(nose, &freqs, speed).unwrap();
+        let part = |r: usize, c: usize| ReceptanceFrf {
+            freqs_hz: freqs.clone(),
+            lines: nose_blocks
+                .iter()
+                .map(|b| Receptance::new(b[r][c], b[r][c + 1], b[r + 1][c], b[r + 1][c + 1]))
+                .collect(),
+        };
+        let (p, q) = rcsa::couple_spinning(
+            &two_port(true),
+            &two_port(false),
+            &(part(0, 0), part(0, 2)),
+            &Interface::Rigid,
+            0.0,
+            &RcsaOptions::default(),
+        )
+        .unwrap();
+        let monolithic = whole.point_receptance(last, &freqs, speed).unwrap();
+        let mut worst: f64 = 0.0;
+        for (k, b) in monolithic.iter().enumerate() {
+            let (pp, qq) = (p.lines[k], q.lines[k]);
+            let scale = b[0][0].norm();
+            for (a, w) in [(pp.h, b[0][0]), (pp.l, b[0][1]), (pp.n, b[1][0]), (qq.h, b[0][2]), (-qq.h, b[2][0])] {
+                worst = worst.max((a - w).norm() / scale.max(w.norm()));
+            }
+        }
+        assert!(worst < 1e-6, "{rpm} rpm: worst relative difference {worst:e}");
+        // The spin couples the planes: Q is zero at rest and of the order of P at speed.
+        let coupling = q.lines.iter().zip(&p.lines).map(|(q, p)| q.h.norm() / p.h.norm()).fold(0.0, f64::max);
+        if rpm == 0.0 {
+            assert!(coupling < 1e-9, "cross-plane receptance at rest: {coupling:e}");
+        } else {
+            assert!(coupling > 0.05, "cross-plane receptance at speed only {coupling:e} of the in-plane one");
+        }
+    }
+}

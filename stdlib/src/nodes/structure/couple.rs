@@ -5,13 +5,15 @@ use super::{
     rcsa_error, rcsa_options, sensor_mass, to_frf, to_set, two_port, two_port_of,
 };
 use crate::beam;
-use crate::rcsa::{self, Interface, TwoPort};
+use crate::rcsa::{self, Interface, Receptance, TwoPort};
+use spindlelab_domain::Speed;
+use spindlelab_engine::model::Joint;
 
 use super::{GRID_MISMATCH, INTERFACE, MACHINE, MAX_CONDITION, MAX_ELEMENT, SHEAR};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{EntityKind, FieldType as T, Params};
-use spindlelab_engine::value::{PortType, SubstructurePart, Value};
+use spindlelab_engine::value::{PortType, ReceptanceSet, SubstructurePart, Value};
 use std::sync::{Arc, Mutex};
 
 node_params! {
@@ -63,6 +65,12 @@ impl RcsaCouple {
                         "an FRF whose frequency lines the result is to have (see `grid_mismatch`)",
                     )
                     .optional(),
+                    PortSpec::new(
+                        "spindle_cross",
+                        PortType::ReceptanceSet,
+                        "the cross-plane block Q of a spinning spindle (rotor.receptance's `cross`): the assembly then spins at the spindle's speed and is coupled in forward and backward whirl coordinates",
+                    )
+                    .optional(),
                 ],
                 outputs: vec![
                     PortSpec::new("tip", PortType::ReceptanceSet, "2x2 receptances at the tool tip"),
@@ -93,6 +101,10 @@ impl Node for RcsaCouple {
         let base = to_frf(&spindle);
         let opts = rcsa_options(p.max_condition);
         let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
+        if !ctx.inputs_of("spindle_cross").is_empty() {
+            let cross = input_on_grid(ctx, "spindle_cross", p.grid_mismatch)?;
+            return couple_spinning(ctx, &p, spindle, cross, interface, tip_mass);
+        }
         let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
             Some(Value::Substructure(s)) => {
                 let ports = s.parts.iter().map(|part| cached_two_port(part, &freqs)).collect::<Result<Vec<_>, _>>()?;
@@ -144,6 +156,79 @@ impl Node for RcsaCouple {
         let frf = h_of(&set);
         Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
     }
+}
+
+/// `rcsa.couple` on a spinning spindle: the assembly meshed, spinning at the spindle's speed, and
+/// coupled to the spindle's in-plane and cross-plane blocks in whirl coordinates
+/// ([`rcsa::couple_spinning`]).
+fn couple_spinning(
+    ctx: &NodeContext,
+    p: &RcsaCoupleParams,
+    spindle: ReceptanceSet,
+    cross: ReceptanceSet,
+    interface: Interface,
+    tip_mass: f64,
+) -> Result<Outputs, NodeError> {
+    if !ctx.inputs_of("structure").is_empty() {
+        return Err(NodeError::input(
+            "structure",
+            "a spinning spindle (`spindle_cross`) needs the assembly meshed here: give `assembly` instead of `structure`",
+        ));
+    }
+    if !same_speed(spindle.speed_rpm, cross.speed_rpm) || !super::same_grid(&spindle.freq_hz, &cross.freq_hz) {
+        return Err(NodeError::input(
+            "spindle_cross",
+            format!(
+                "`spindle` and `spindle_cross` must come from one rotor.receptance step (same speed and lines); got {:?} and {:?} rpm",
+                spindle.speed_rpm, cross.speed_rpm
+            ),
+        ));
+    }
+    let name = p
+        .assembly
+        .ok_or_else(|| NodeError::param("assembly", "a spinning coupling needs `assembly`, the holder and tool"))?;
+    let a = assembly(ctx, "assembly", name)?;
+    if !matches!(a.tool_joint, Joint::Rigid) {
+        return Err(NodeError::param(
+            "assembly",
+            format!(
+                "assembly `{name}` has a compliant `tool_joint`; on a spinning spindle only a rigid tool joint is modelled"
+            ),
+        ));
+    }
+    let fe = |e: beam::BeamError| NodeError::param("assembly", e.to_string());
+    let model =
+        beam::BeamModel::from_segments(&beam::segments_from_sections(&a.sections), &mesh(p.max_element, p.shear))
+            .map_err(fe)?;
+    let tip = model.n_nodes() - 1;
+    let spinning = beam::SpinningModel::new(model);
+    let freqs = spindle.freq_hz.clone();
+    let speed = Speed::from_rpm(spindle.speed_rpm.unwrap_or(0.0));
+    let two_port = |forward: bool| -> Result<TwoPort, NodeError> {
+        let lines = spinning.whirl_blocks(&[tip, 0], speed.rad_s(), forward, &freqs).map_err(fe)?;
+        let pick =
+            |k: usize| lines.iter().map(|b| Receptance::new(b[k][0][0], b[k][0][1], b[k][1][0], b[k][1][1])).collect();
+        Ok(TwoPort { freqs_hz: freqs.clone(), r11: pick(0), r12: pick(1), r21: pick(2), r22: pick(3) })
+    };
+    let base = (to_frf(&spindle), to_frf(&cross));
+    let hint =
+        "the spindle and the spinning assembly cancel there in one whirl direction; check the rotor and the joint";
+    let (g, _) = rcsa::couple_spinning(
+        &two_port(true)?,
+        &two_port(false)?,
+        &base,
+        &interface,
+        tip_mass,
+        &rcsa_options(p.max_condition),
+    )
+    .map_err(|e| rcsa_error("spindle", e, hint))?;
+    let set = to_set(&g, spindle.direction.clone(), spindle.speed_rpm);
+    let frf = h_of(&set);
+    Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
+}
+
+fn same_speed(a: Option<f64>, b: Option<f64>) -> bool {
+    a.unwrap_or(0.0) == b.unwrap_or(0.0)
 }
 
 /// A substructure part's two-port on `freqs` (1 = tip, 2 = spindle end).

@@ -76,7 +76,7 @@ pub(super) const MAX_CONDITION: Field = Field::def(
 
 const RATIO: T = T::Quantity(D::DIMENSIONLESS);
 
-fn grid_port() -> PortSpec {
+pub(super) fn grid_port() -> PortSpec {
     PortSpec::new(
         "grid",
         PortType::Frf,
@@ -102,7 +102,12 @@ fn check_mesh(p: &Params) -> Result<(), NodeError> {
 }
 
 /// The frequency grid from the `grid` input, else from the grid parameters; positive lines only.
-fn grid(ctx: &NodeContext, max_frequency: f64, resolution: Option<f64>, lines: usize) -> Result<Vec<f64>, NodeError> {
+pub(super) fn grid(
+    ctx: &NodeContext,
+    max_frequency: f64,
+    resolution: Option<f64>,
+    lines: usize,
+) -> Result<Vec<f64>, NodeError> {
     if let Some(l) = ctx.inputs_of("grid").first() {
         let Value::Frf(f) = l.value.as_ref() else {
             return Err(NodeError::input("grid", "expected an FRF"));
@@ -355,7 +360,7 @@ fn two_port_of(reduced: &beam::ReducedModes, freqs: &[f64]) -> Result<TwoPort, b
 }
 
 /// Two grids agree when they have the same length and every line within 1e-9 relative.
-fn same_grid(a: &[f64], b: &[f64]) -> bool {
+pub(super) fn same_grid(a: &[f64], b: &[f64]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(y.abs()))
 }
 
