@@ -41,6 +41,13 @@ const BEARING: &[Field] = &[
     Field::req("kyy", T::Quantity(D::STIFFNESS), "radial stiffness along y"),
     Field::def("cxx", T::Quantity(D::DAMPING), "0 N*s/m", "damping along x"),
     Field::def("cyy", T::Quantity(D::DAMPING), "0 N*s/m", "damping along y"),
+    Field::def(
+        "speed_coefficient",
+        T::Quantity(D::DIMENSIONLESS),
+        "0",
+        "relative change of the stiffness at ref_speed, k (1 + speed_coefficient (n/ref_speed)^2); negative for the centrifugal softening of ball bearings",
+    ),
+    Field::def("ref_speed", T::Quantity(D::ROTATIONAL_SPEED), "10000 rpm", "reference speed of speed_coefficient"),
 ];
 
 node_params! {
@@ -56,7 +63,7 @@ node_params! {
         ),
         bearings: req &'a [Params] = (
             T::ObjectList(BEARING),
-            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy}",
+            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy, speed_coefficient, ref_speed}",
         ),
         speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 1000 rpm`"),
         modes: def usize = (T::Integer { min: 1, max: 200 }, "6", "lowest modes listed per speed"),
@@ -144,7 +151,11 @@ fn rotor(ctx: &NodeContext, p: &RotorRows) -> Result<Rotor, NodeError> {
     let bearings = p
         .bearings
         .iter()
-        .map(|r| Bearing::new(node(r), num(r, "kxx"), num(r, "kyy"), num(r, "cxx"), num(r, "cyy")))
+        .map(|r| Bearing {
+            speed_coefficient: num(r, "speed_coefficient"),
+            ref_speed_rad_s: num(r, "ref_speed"),
+            ..Bearing::new(node(r), num(r, "kxx"), num(r, "kyy"), num(r, "cxx"), num(r, "cyy"))
+        })
         .collect();
     let rotor = Rotor { sections, disks, bearings };
     rotor.validate().map_err(|e| NodeError::param("sections", e.to_string()))?;
@@ -203,7 +214,7 @@ node_params! {
         ),
         bearings: req &'a [Params] = (
             T::ObjectList(BEARING),
-            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy}",
+            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy, speed_coefficient, ref_speed}",
         ),
         node: opt usize = (
             T::Integer { min: 0, max: 100_000 },

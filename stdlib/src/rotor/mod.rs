@@ -81,6 +81,11 @@ pub enum RotorError {
     /// A spin speed is not finite.
     #[error("spin speed {0} rad/s must be finite")]
     BadSpeed(f64),
+    /// A bearing's speed law makes its stiffness negative at a speed.
+    #[error(
+        "bearing at node {node}: its speed law gives a negative stiffness at {speed_rad_s} rad/s (factor {factor}); lower the softening or the speed"
+    )]
+    SoftenedBearing { node: usize, speed_rad_s: f64, factor: f64 },
     /// A frequency is negative or not finite.
     #[error("frequency {0} Hz must be finite and >= 0")]
     BadFrequency(f64),
@@ -152,6 +157,12 @@ pub struct Bearing {
     pub cxx: f64,
     /// Direct damping in y, N·s/m.
     pub cyy: f64,
+    /// Relative change of the stiffness at `ref_speed_rad_s`: every stiffness of the bearing
+    /// is `k (1 + speed_coefficient (Ω/Ω_ref)²)` at spin speed Ω, the quadratic law of the
+    /// centrifugal load on the rolling elements (negative: softening). 0: constant.
+    pub speed_coefficient: f64,
+    /// Reference speed Ω_ref of the law, rad/s.
+    pub ref_speed_rad_s: f64,
 }
 
 impl Bearing {
@@ -253,6 +264,11 @@ pub struct RotorWhirll {
     k: Vec<f64>,
     c: Vec<f64>,
     g: Vec<f64>,
+    /// Bearing stiffness per Ω² (the speed laws' `k c / Ω_ref²`): K(Ω) = K + Ω² K₂.
+    k2: Vec<f64>,
+    /// Each speed-dependent bearing's node and its coefficient per Ω², for the check that
+    /// its stiffness stays positive.
+    laws: Vec<(usize, f64)>,
 }
 
 /// Cowper's (1966) shear coefficient of a hollow circle, `r = di/do`, as used by ROSS.
@@ -329,6 +345,16 @@ impl Rotor {
                     return Err(RotorError::BadBearing { node: b.node, name, value });
                 }
             }
+            if !b.speed_coefficient.is_finite() {
+                return Err(RotorError::BadBearing {
+                    node: b.node,
+                    name: "speed_coefficient",
+                    value: b.speed_coefficient,
+                });
+            }
+            if b.speed_coefficient != 0.0 && !(b.ref_speed_rad_s.is_finite() && b.ref_speed_rad_s > 0.0) {
+                return Err(RotorError::BadBearing { node: b.node, name: "ref_speed", value: b.ref_speed_rad_s });
+            }
         }
         Ok(())
     }
@@ -345,6 +371,8 @@ impl Rotor {
             k: vec![0.0; n * n],
             c: vec![0.0; n * n],
             g: vec![0.0; n * n],
+            k2: vec![0.0; n * n],
+            laws: Vec::new(),
         };
         model.nodes_z.push(0.0);
         let mut node = 0;
@@ -392,6 +420,14 @@ impl Rotor {
             model.k[(b + 1) * n + b + 1] += br.kyy;
             model.c[b * n + b] += br.cxx;
             model.c[(b + 1) * n + b + 1] += br.cyy;
+            if br.speed_coefficient != 0.0 {
+                let per = br.speed_coefficient / (br.ref_speed_rad_s * br.ref_speed_rad_s);
+                model.k2[b * n + b] += per * br.kxx;
+                model.k2[b * n + b + 1] += per * br.kxy;
+                model.k2[(b + 1) * n + b] += per * br.kyx;
+                model.k2[(b + 1) * n + b + 1] += per * br.kyy;
+                model.laws.push((br.node, per));
+            }
         }
         Ok(model)
     }
@@ -462,6 +498,18 @@ impl Rotor {
 }
 
 impl RotorWhirll {
+    /// The stiffness matrix at spin speed Ω (rad/s), the bearings' speed laws applied.
+    fn stiffness_at(&self, speed_rad_s: f64) -> Result<std::borrow::Cow<'_, [f64]>, RotorError> {
+        if self.laws.is_empty() {
+            return Ok(std::borrow::Cow::Borrowed(&self.k));
+        }
+        let w2 = speed_rad_s * speed_rad_s;
+        if let Some(&(node, per)) = self.laws.iter().find(|(_, per)| 1.0 + per * w2 < 0.0) {
+            return Err(RotorError::SoftenedBearing { node, speed_rad_s, factor: 1.0 + per * w2 });
+        }
+        Ok(std::borrow::Cow::Owned(self.k.iter().zip(&self.k2).map(|(k, k2)| k + w2 * k2).collect()))
+    }
+
     /// Number of nodes.
     pub fn n_nodes(&self) -> usize {
         self.n_nodes
@@ -482,7 +530,7 @@ impl RotorWhirll {
         &self.m
     }
 
-    /// Stiffness matrix, row-major.
+    /// Stiffness matrix at rest, row-major (the bearings' speed laws not applied).
     pub fn stiffness(&self) -> &[f64] {
         &self.k
     }
@@ -530,12 +578,13 @@ impl RotorWhirll {
             return Err(RotorError::BadSpeed(speed_rad_s));
         }
         let n = self.n_dof();
+        let k = self.stiffness_at(speed_rad_s)?;
         // M⁻¹ [K, C + ΩG] by one solve with 2n right-hand sides.
         let mut a: Vec<Complex64> = self.m.iter().map(|&v| Complex64::new(v, 0.0)).collect();
         let mut rhs = vec![Complex64::new(0.0, 0.0); n * 2 * n];
         for i in 0..n {
             for j in 0..n {
-                rhs[i * 2 * n + j] = Complex64::new(self.k[i * n + j], 0.0);
+                rhs[i * 2 * n + j] = Complex64::new(k[i * n + j], 0.0);
                 rhs[i * 2 * n + n + j] = Complex64::new(self.c[i * n + j] + speed_rad_s * self.g[i * n + j], 0.0);
             }
         }
@@ -618,6 +667,7 @@ impl RotorWhirll {
             return Err(RotorError::BadSpeed(speed_rad_s));
         }
         let n = self.n_dof();
+        let k = self.stiffness_at(speed_rad_s)?;
         let (din, dout) =
             (DOF_PER_NODE * node_in + direction_in.offset(), DOF_PER_NODE * node_out + direction_out.offset());
         let mut a = vec![Complex64::new(0.0, 0.0); n * n];
@@ -629,7 +679,7 @@ impl RotorWhirll {
             }
             let w = TAU * f;
             for (idx, z) in a.iter_mut().enumerate() {
-                *z = Complex64::new(self.k[idx] - w * w * self.m[idx], w * (self.c[idx] + speed_rad_s * self.g[idx]));
+                *z = Complex64::new(k[idx] - w * w * self.m[idx], w * (self.c[idx] + speed_rad_s * self.g[idx]));
             }
             b.fill(Complex64::new(0.0, 0.0));
             b[din] = Complex64::new(1.0, 0.0);
@@ -665,7 +715,8 @@ impl RotorWhirll {
             return Err(RotorError::BadSpeed(speed_rad_s));
         }
         let n = self.n_dof();
-        let band = crate::beam::linalg::bandwidth(&[&self.k, &self.m, &self.c, &self.g], n);
+        let k = self.stiffness_at(speed_rad_s)?;
+        let band = crate::beam::linalg::bandwidth(&[&k, &self.m, &self.c, &self.g], n);
         let base = DOF_PER_NODE * node;
         // Planar order [x, β, y, −α] → rotor dofs, with the sign of each.
         let dofs = [(base, 1.0), (base + 3, 1.0), (base + 1, 1.0), (base + 2, -1.0)];
@@ -681,10 +732,8 @@ impl RotorWhirll {
             for i in 0..n {
                 for j in i.saturating_sub(band)..(i + 2 * band + 1).min(n) {
                     let idx = i * n + j;
-                    a[idx] = Complex64::new(
-                        self.k[idx] - w * w * self.m[idx],
-                        w * (self.c[idx] + speed_rad_s * self.g[idx]),
-                    );
+                    a[idx] =
+                        Complex64::new(k[idx] - w * w * self.m[idx], w * (self.c[idx] + speed_rad_s * self.g[idx]));
                 }
             }
             b.fill(zero);

@@ -360,3 +360,35 @@ fn rotor_spindle_coupled_to_a_spinning_holder_equals_one_rotor_model_of_the_asse
         }
     }
 }
+
+/// A bearing's speed law `k (1 + c (Ω/Ω_ref)²)` against the closed form: a short, stiff rotor
+/// on two equal soft bearings bounces (the cylindrical mode, no tilt, so no gyroscopic moment)
+/// at `√(2k/m)/2π`, so at Ω_ref its frequency is `√(1 + c)` times the one at rest; a law that
+/// would make the stiffness negative is refused with the bearing and the speed.
+#[test]
+fn bearing_speed_law_moves_the_bounce_mode_as_the_closed_form() {
+    let steel = Material { loss_factor: 0.0, ..Material::STEEL };
+    // A low reference speed keeps the backward conical whirl above the bounce.
+    let (c, reference) = (-0.3, 50.0);
+    let bearing =
+        |node| Bearing { speed_coefficient: c, ref_speed_rad_s: reference, ..Bearing::new(node, 1e5, 1e5, 0.0, 0.0) };
+    let rotor = Rotor {
+        sections: vec![ShaftSection {
+            length_m: 0.2,
+            inner_diameter_m: 0.0,
+            outer_diameter_m: 0.1,
+            elements: 4,
+            material: steel,
+        }],
+        disks: vec![],
+        bearings: vec![bearing(0), bearing(4)],
+    };
+    let lowest = |speed: f64| rotor.modes_at(speed).unwrap()[0].freq_hz();
+    let mass = steel.density * PI * 0.05 * 0.05 * 0.2;
+    let closed = (2.0 * 1e5 / mass).sqrt() / TAU;
+    assert!(rel(lowest(0.0), closed) < 1e-4, "at rest {} vs {closed} Hz", lowest(0.0));
+    let ratio = lowest(reference) / lowest(0.0);
+    assert!(rel(ratio, (1.0 + c).sqrt()) < 1e-4, "ratio {ratio} vs {}", (1.0 + c).sqrt());
+    let err = rotor.modes_at(2.0 * reference).unwrap_err();
+    assert!(matches!(err, RotorError::SoftenedBearing { node: 0, .. }), "{err}");
+}
