@@ -156,6 +156,36 @@ enum Command {
         #[command(subcommand)]
         to: ExportTo,
     },
+    /// Survey a tool-crib catalog on one machine: every (holder, tool, stickout) coupled to
+    /// its spindle, its lobes and best cut, and one table of them all (docs/crib.md).
+    Crib {
+        /// The catalog file (`.yaml`).
+        catalog: PathBuf,
+        /// The library that defines the machine (`machines:`), e.g. `scripts/lib/mill.yaml`.
+        #[arg(long, value_name = "LIBRARY")]
+        machine: PathBuf,
+        /// The machine's name in that library, when it defines more than one.
+        #[arg(long, value_name = "NAME")]
+        machine_name: Option<String>,
+        /// Write the survey's recipe to this file and run nothing (to run, plan or export it).
+        #[arg(long, value_name = "RECIPE")]
+        emit: Option<PathBuf>,
+        /// Output directory (default: `out/<catalog name>`).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Neither read nor write the cache.
+        #[arg(long)]
+        no_cache: bool,
+        /// The cache folder (default: the output folder's own).
+        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+        cache: Option<PathBuf>,
+        /// Worker threads (default: one per core). Results do not depend on it.
+        #[arg(long, short = 'j')]
+        threads: Option<usize>,
+        /// Print nothing but errors.
+        #[arg(long, short)]
+        quiet: bool,
+    },
     /// Write the HTML report of a finished run (or a diagnosis) from its output folder.
     Report {
         /// The run's output folder (it holds `manifest.json`), or a diagnosis folder.
@@ -475,6 +505,10 @@ fn command(cli: Cli) -> ExitCode {
             let mode = BatchMode { summary: !no_summary, diagnose: !summary_only };
             cmd_diagnose_batch(batch.as_deref().unwrap_or_default(), out, quiet, mode, &registry)
         }
+        Command::Crib { catalog, machine, machine_name, emit, out, no_cache, cache, threads, quiet } => {
+            let args = CribArgs { catalog, machine, machine_name, emit, out, no_cache, cache, threads, quiet };
+            cmd_crib(args, &registry)
+        }
         Command::Import { case, out, library } => cmd_import(&case, out, library),
         Command::Cache { action } => cache_command(action),
         Command::Plugin { action } => plugin_command(action, &mut plugins),
@@ -778,6 +812,99 @@ fn cmd_diagnose_batch(
     }
     // Gathering the summary succeeds whatever the cases did: their rows say it.
     if failed > 0 && mode.diagnose { ExitCode::from(EXIT_FAILURE) } else { ExitCode::SUCCESS }
+}
+
+/// What `spindlelab crib` was asked.
+struct CribArgs {
+    catalog: PathBuf,
+    machine: PathBuf,
+    machine_name: Option<String>,
+    emit: Option<PathBuf>,
+    out: Option<PathBuf>,
+    no_cache: bool,
+    cache: Option<PathBuf>,
+    threads: Option<usize>,
+    quiet: bool,
+}
+
+/// `spindlelab crib CATALOG --machine LIB`: builds the survey's recipe, and writes it
+/// (`--emit`) or runs it, with one table of the best cut of every combination.
+fn cmd_crib(args: CribArgs, registry: &engine::node::Registry) -> ExitCode {
+    use spindlelab::crib;
+    let fail = |e: crib::CribError| {
+        eout!("{}", e.render(color()));
+        ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE })
+    };
+    let machine = match crib::machine(&args.machine, args.machine_name.as_deref(), registry) {
+        Ok(m) => m,
+        Err(e) => return fail(e),
+    };
+    let loaded = match crib::load(&args.catalog, &machine, registry) {
+        Ok(l) => l,
+        Err(e) => return fail(e),
+    };
+    // The recipe sits where it is emitted, or (never written) beside the catalog.
+    let recipe_path = args.emit.clone().unwrap_or_else(|| {
+        let stem = args.catalog.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        args.catalog.with_file_name(format!("{stem}.recipe.yaml"))
+    });
+    let recipe_dir = recipe_path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let survey = crib::build(&loaded, &machine, recipe_dir);
+    let text = crib::emit(&loaded, &machine, &survey);
+    let compiled = match crib::compile_text(&text, &recipe_path, registry) {
+        Ok(c) => c,
+        Err(e) => return fail(crib::CribError::Compile(e)),
+    };
+    if let Some(emit) = &args.emit {
+        if let Err(code) = write_together(&[(Some(emit), Some(text.as_str()))]) {
+            return code;
+        }
+        if !args.quiet {
+            outln!(
+                "wrote {}: {} combinations, {} node instances; run it with `spindlelab run {}`",
+                esc(emit.display()),
+                survey.assemblies.len(),
+                compiled.graph.instances.len(),
+                esc(emit.display())
+            );
+        }
+        return ExitCode::SUCCESS;
+    }
+    let out = args.out.unwrap_or_else(|| default_out(&compiled));
+    let opts = RunOptions {
+        use_cache: !args.no_cache,
+        threads: clamp_threads(args.threads),
+        release_consumed: true,
+        renderer: Some(spindlelab::renderer()),
+        cache_dir: args.cache,
+        ..RunOptions::new(out.clone())
+    };
+    let bar = progress_bar(compiled.graph.instances.len() as u64, args.quiet);
+    let progress = |_: usize, id: &str| {
+        bar.inc(1);
+        bar.set_message(esc(id));
+    };
+    let outcome = crib::run(&compiled, &loaded, &survey, registry, opts, &progress);
+    bar.finish_and_clear();
+    match outcome {
+        Ok(ran) => {
+            if !args.quiet {
+                let instances = compiled.graph.instances.len();
+                outln!(
+                    "{} combinations on machine `{}`: {} of {instances} node instances computed, the others from the cache, in {:.3} s; wrote {}, {} per-tool table(s) and manifest.json to {}",
+                    survey.assemblies.len(),
+                    esc(&machine.name),
+                    ran.computed,
+                    ran.seconds,
+                    crib::SUMMARY_FILE,
+                    ran.report.written.len(),
+                    esc(out.display())
+                );
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(e),
+    }
 }
 
 /// `spindlelab import CASE`: writes (or prints) the recipe of a baseline case file, and its library if asked.

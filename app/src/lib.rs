@@ -4,6 +4,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod crib;
 pub mod diagnose;
 pub mod export;
 pub mod fit;

@@ -76,12 +76,19 @@ pub struct SpindleMode {
     pub loss_factor: f64,
     /// Frequency and loss factor over speed (`kf`, `keta` in a recipe).
     pub law: SpeedLaw,
+    /// Relative change of the mode's bearing stiffness at the reference speed (`kk`):
+    /// `k(n) = k (1 + kk (n/n_ref)²)` at the mode's mass, so the frequency moves with `√k` and
+    /// the modal flexibility with `1/k`; zero for bearings that keep their stiffness.
+    pub stiffness_change: f64,
+    /// Gyroscopic whirl split (`split`): at speed `n` the mode is a forward and a backward whirl
+    /// at `f (1 ± split n/n_ref)`, each with half the mode's residue; zero for no split.
+    pub split: f64,
 }
 
 impl SpindleMode {
     /// A mode that does not change with speed.
     pub fn new(freq_hz: f64, diameter: f64, loss_factor: f64) -> SpindleMode {
-        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE }
+        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE, stiffness_change: 0.0, split: 0.0 }
     }
 
     /// A mode stated modally, as the equivalent beam the spindle model uses: the solid
@@ -99,12 +106,29 @@ impl SpindleMode {
         let (e, rho) = (material.youngs_modulus, material.density);
         let length = (stiffness * b4 * e / (std::f64::consts::PI * rho * rho * w.powi(4))).powf(0.2);
         let diameter = 4.0 * w * length * length / (FIXED_FREE_FIRST_ROOT.powi(2) * (e / rho).sqrt());
-        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law }
+        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law, stiffness_change: 0.0, split: 0.0 }
     }
 
     /// Natural frequency (Hz) and loss factor at speed `n`, by the law about `reference`.
     pub fn at_speed(&self, n: Speed, reference: Speed) -> (f64, f64) {
         (self.law.frequency(self.freq_hz, n, reference), self.law.damping(self.loss_factor, n, reference))
+    }
+
+    /// The equivalent beams the mode is at speed `n`, each `(frequency Hz, diameter m, loss
+    /// factor, weight)`: the speed law's frequency and loss factor, the bearing stiffness change
+    /// at the mode's mass, and the whirl split into a forward and a backward whirl of weight ½
+    /// each (one beam of weight 1 without a split). A beam keeps its modal mass when its
+    /// frequency moves by a factor `r` and its stiffness by `r²` if its diameter moves by `r^⅕`
+    /// (from [`SpindleMode::from_modal`]: `d ∝ ω L²`, `L⁵ ∝ k/ω⁴`).
+    pub fn beams_at(&self, n: Speed, reference: Speed) -> Vec<(f64, f64, f64, f64)> {
+        let (f, eta) = self.at_speed(n, reference);
+        let stiffness = 1.0 + self.stiffness_change * SpeedLaw::ratio_squared(n, reference);
+        let (f, d) = (f * stiffness.sqrt(), self.diameter * stiffness.powf(0.1));
+        let split = self.split * SpeedLaw::ratio_squared(n, reference).sqrt();
+        if split == 0.0 {
+            return vec![(f, d, eta, 1.0)];
+        }
+        [1.0 + split, 1.0 - split].iter().map(|r| (f * r, d * r.powf(0.2), eta, 0.5)).collect()
     }
 }
 

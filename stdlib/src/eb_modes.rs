@@ -45,8 +45,9 @@ pub enum EbError {
         /// The offending value, Hz.
         value: f64,
     },
-    /// A mode's speed law gives a non-positive frequency or a negative loss factor at the requested speed.
-    #[error("mode {mode} at {speed}: {what} = {value} (speed law out of range; check kf / keta)")]
+    /// A mode's speed law (with its bearing stiffness change and whirl split) gives a non-positive
+    /// frequency or a negative loss factor at the requested speed.
+    #[error("mode {mode} at {speed}: {what} = {value} (speed law out of range; check kf, keta, kk, split)")]
     SpeedLaw {
         /// Index of the mode.
         mode: usize,
@@ -273,20 +274,25 @@ pub fn spindle_receptance(
     }
     let mut beams = Vec::with_capacity(modes.len());
     for (i, m) in modes.iter().enumerate() {
-        let (f, eta) = m.at_speed(speed, reference);
-        if !(f.is_finite() && f > 0.0) {
-            return Err(EbError::SpeedLaw { mode: i, speed, what: "frequency", value: f });
+        // A mode at speed is one equivalent beam, or two whirls of half weight each.
+        for (f, d, eta, weight) in m.beams_at(speed, reference) {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(EbError::SpeedLaw { mode: i, speed, what: "frequency", value: f });
+            }
+            if !(eta.is_finite() && eta >= 0.0) {
+                return Err(EbError::SpeedLaw { mode: i, speed, what: "loss factor", value: eta });
+            }
+            beams.push((FixedFreeBeam::equivalent(f, d, eta, *material)?.tip(), weight));
         }
-        if !(eta.is_finite() && eta >= 0.0) {
-            return Err(EbError::SpeedLaw { mode: i, speed, what: "loss factor", value: eta });
-        }
-        beams.push(FixedFreeBeam::equivalent(f, m.diameter, eta, *material)?.tip());
     }
     let lines = freqs_hz
         .iter()
         .map(|&f| {
             let w = TAU * f;
-            beams.iter().fold(Receptance::ZERO, |acc, b| acc + b.at(w))
+            beams.iter().fold(Receptance::ZERO, |acc, (b, weight)| {
+                let r = b.at(w);
+                if *weight == 1.0 { acc + r } else { acc + r * Complex64::from(*weight) }
+            })
         })
         .collect();
     Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
@@ -460,5 +466,39 @@ mod tests {
             spindle_receptance(&[m1], &mat, Speed::ZERO, rpm(1.0), &[-1.0]),
             Err(EbError::InvalidFrequency { index: 0, .. })
         ));
+    }
+
+    /// A bearing stiffness change keeps the modal mass: the frequency moves with √q and the
+    /// static flexibility with 1/q. A whirl split gives two half-weight beams at f (1 ± ε),
+    /// nothing at rest, and each carries half the mode's modal mass residue.
+    #[test]
+    fn bearing_change_keeps_the_mass_and_the_split_halves_the_mode() {
+        let mat = Material::STEEL;
+        let rpm = Speed::from_rpm;
+        let mode = SpindleMode::from_modal(800.0, 1.5e8, 0.03, &mat, SpeedLaw::NONE);
+        let soft = SpindleMode { stiffness_change: -0.19, ..mode };
+        let beams = soft.beams_at(rpm(10000.0), rpm(10000.0));
+        assert_eq!(beams.len(), 1);
+        let (f, d, _, w) = beams[0];
+        assert!((f - 800.0 * 0.9).abs() < 1e-9 && w == 1.0, "{f}");
+        let at = |f: f64, d: f64| FixedFreeBeam::equivalent(f, d, 0.0, mat).unwrap().tip_receptance(0.0).h.re;
+        assert!((at(800.0, mode.diameter) / at(f, d) - 0.81).abs() < 1e-9);
+        // At rest neither acts.
+        let split = SpindleMode { split: 0.05, ..soft };
+        assert_eq!(split.beams_at(Speed::ZERO, rpm(10000.0)), vec![(800.0, mode.diameter, 0.06, 1.0)]);
+        let whirls = split.beams_at(rpm(20000.0), rpm(10000.0));
+        let f0 = 800.0 * (1.0 - 0.19 * 4.0f64).sqrt();
+        assert!((whirls[0].0 - f0 * 1.1).abs() < 1e-9 && (whirls[1].0 - f0 * 0.9).abs() < 1e-9);
+        assert!(whirls.iter().all(|b| b.3 == 0.5));
+        // Each whirl keeps the mode's mass: its static flexibility goes as 1/f².
+        let fd = |b: &(f64, f64, f64, f64)| at(b.0, b.1) * b.0 * b.0;
+        assert!((fd(&whirls[0]) / fd(&whirls[1]) - 1.0).abs() < 1e-9);
+        let g = spindle_receptance(&[split], &mat, rpm(20000.0), rpm(10000.0), &[f0 * 1.1]).unwrap();
+        let want = (FixedFreeBeam::equivalent(whirls[0].0, whirls[0].1, 0.06, mat)
+            .unwrap()
+            .tip_receptance(TAU * f0 * 1.1)
+            + FixedFreeBeam::equivalent(whirls[1].0, whirls[1].1, 0.06, mat).unwrap().tip_receptance(TAU * f0 * 1.1))
+            * Complex64::from(0.5);
+        assert!((g.lines[0] - want).max_norm() <= 1e-12 * want.max_norm());
     }
 }

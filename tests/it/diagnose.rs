@@ -159,6 +159,35 @@ fn train_08_unmodelled_resonance() {
     run_case("train_08");
 }
 
+/// The spindle effects as the forward model writes them: the bearing law and the whirl
+/// split leave the FRFs at rest as they were and change those at speed; the machine's
+/// resonance changes every FRF of its direction and none of the other.
+#[test]
+fn the_spindle_effects_act_where_their_physics_does() {
+    let (dir, recipe) = imported("train_01");
+    let registry = spindlelab::registry();
+    let ratios = |effects: &[(&str, Vec<(&str, f64)>)]| -> Vec<(String, f64)> {
+        let text = diagnose::with_effects(&recipe, &registry, effects).unwrap_or_else(|e| panic!("{e}"));
+        let path = dir.path().join("with_effect.yaml");
+        std::fs::write(&path, text).unwrap();
+        let e = diagnose::evaluate_file(&path, &registry).unwrap_or_else(|e| panic!("{e}"));
+        e.files.iter().map(|f| (format!("{} {}", f.direction, f.speed_rpm), f.ratio)).collect()
+    };
+    let base = ratios(&[]);
+    let changed = |with: &[(String, f64)]| -> Vec<String> {
+        let mut v: Vec<String> =
+            base.iter().zip(with).filter(|(a, b)| (a.1 - b.1).abs() > 1e-9 * a.1).map(|(a, _)| a.0.clone()).collect();
+        v.sort();
+        v
+    };
+    let at_speed = ["x 12000", "y 12000"];
+    assert_eq!(changed(&ratios(&[("bearing_stiffness_change", vec![("bearing_kk", -0.05)])])), at_speed);
+    assert_eq!(changed(&ratios(&[("gyroscopic_mode_split", vec![("spindle_0_split", 0.08)])])), at_speed);
+    let machine =
+        ratios(&[("machine_resonance", vec![("machine_y_f", 1200.0), ("machine_y_k", 2e8), ("machine_y_zeta", 0.03)])]);
+    assert_eq!(changed(&machine), ["y 0", "y 12000"]);
+}
+
 fn spindlelab(args: &[&std::ffi::OsStr]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_spindlelab")).args(args).env("NO_COLOR", "1").output().unwrap()
 }

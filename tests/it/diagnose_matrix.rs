@@ -42,6 +42,15 @@ fn matrix() -> Vec<Case> {
                 vec![("spindle_x0_kf", 0.04), ("spindle_x1_kf", 0.02), ("spindle_y0_kf", 0.03)],
             ],
         ),
+        ("gyroscopic_mode_split", vec![vec![("spindle_0_split", 0.06)], vec![("spindle_0_split", 0.1)]]),
+        ("bearing_stiffness_change", vec![vec![("bearing_kk", -0.03)], vec![("bearing_kk", -0.06)]]),
+        (
+            "machine_resonance",
+            vec![
+                vec![("machine_x_f", 900.0), ("machine_x_k", 2e8), ("machine_x_zeta", 0.03)],
+                vec![("machine_y_f", 1500.0), ("machine_y_k", 1.2e8), ("machine_y_zeta", 0.04)],
+            ],
+        ),
         (
             "speed_dependent_cutting_coefficients",
             vec![

@@ -7,6 +7,7 @@ mod architecture;
 mod case_model;
 mod chatter_frequency;
 mod cli_units_and_folders;
+mod crib;
 mod diagnose;
 mod diagnose_matrix;
 mod diagnose_out_of_sample;

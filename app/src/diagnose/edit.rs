@@ -128,6 +128,25 @@ impl RecipeText {
         Ok(())
     }
 
+    /// Adds `item` (a flow mapping, say) as the last entry of the block sequence at `p`, on a
+    /// line of its own at the entries' indentation.
+    pub fn push_item(&mut self, p: &[Seg], item: &str) -> Result<(), EditError> {
+        let seq = self.get(p).ok_or_else(|| EditError::Missing(show(p)))?;
+        let RawKind::Seq(items) = &seq.kind else { return Err(EditError::Missing(show(p))) };
+        let last = items.last().ok_or_else(|| EditError::NoPlace(show(p)))?;
+        let (at, end) = last.span.bytes.ok_or_else(|| EditError::NoPlace(show(p)))?;
+        let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
+        let lead = &self.text[line_start..at];
+        // A block entry: its line reads `<indent>- ` up to the value.
+        let Some(dash) = lead.find('-').filter(|&i| lead[..i].trim().is_empty() && lead[i + 1..].trim().is_empty())
+        else {
+            return Err(EditError::NoPlace(show(p)));
+        };
+        let indent = " ".repeat(lead[..dash].chars().count());
+        let line_end = self.text[end..].find('\n').map_or(self.text.len(), |i| end + i);
+        self.splice(line_end, &format!("\n{indent}- {item}"))
+    }
+
     /// Inserts lines (a comment and a step, say) in the `steps:` block before step `before`,
     /// at its indentation; `block` is written as if the steps were not indented.
     pub fn insert_step_before(&mut self, before: &str, block: &str) -> Result<(), EditError> {
@@ -205,8 +224,9 @@ mod tests {
         r.replace_scalar(&path(&["steps", "b", "inputs", "x"]), "@c.out").unwrap();
         r.insert_step_before("b", "# new\nc:\n  kind: k2\n  inputs: { y: \"@a.out\" }").unwrap();
         r.insert_key(&path(&["steps", "a"]), "note", "here").unwrap();
+        r.push_item(&path(&["machines", "m", "modes", "x"]), "{ f: $f, zeta: 0.1 }").unwrap();
         r.declare_param("kf", "0").unwrap();
-        let want = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { kf: $kf, f: 820 Hz, d: 125 mm }\nparams:\n  kf: 0\n\nsteps:\n  a:\n    note: here\n    kind: k\n    params: { p: 1 }\n  # new\n  c:\n    kind: k2\n    inputs: { y: \"@a.out\" }\n  b:\n    kind: k\n    inputs: { x: \"@c.out\" }\n";
+        let want = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { kf: $kf, f: 820 Hz, d: 125 mm }\n        - { f: $f, zeta: 0.1 }\nparams:\n  kf: 0\n\nsteps:\n  a:\n    note: here\n    kind: k\n    params: { p: 1 }\n  # new\n  c:\n    kind: k2\n    inputs: { y: \"@a.out\" }\n  b:\n    kind: k\n    inputs: { x: \"@c.out\" }\n";
         assert_eq!(r.text, want);
         r.declare_param("kf", "0.5").unwrap();
         assert!(r.text.contains("params:\n  kf: 0.5\n"), "{}", r.text);

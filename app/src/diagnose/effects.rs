@@ -70,6 +70,11 @@ pub trait Effect: Sync + Send {
     fn nested(&self) -> Vec<Vec<&'static str>> {
         vec![]
     }
+    /// Lets the values a forward model is given say where the effect acts (a direction in a
+    /// parameter's name) before it is applied; a diagnosis locates it from the measurements.
+    fn place(&self, values: &[(&str, f64)], roles: &mut Roles) {
+        let _ = (values, roles);
+    }
     /// The fitted values in the vocabulary's parameter names and units (SI, `_deg`, …).
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json>;
 }
@@ -82,6 +87,9 @@ pub fn library(registry: &Registry) -> Vec<Box<dyn Effect>> {
         Box::new(InterfaceCompliance),
         Box::new(FluteReducedStiffness),
         Box::new(SpindleSpeedStiffening),
+        Box::new(BearingStiffnessChange),
+        Box::new(GyroscopicModeSplit),
+        Box::new(MachineResonance),
         Box::new(MassLoading),
     ];
     let builtin = ["sensor_delay", "speed_dependent_cutting_coefficients"];
@@ -560,6 +568,250 @@ impl Effect for SpindleSpeedStiffening {
             .collect();
         let mut m = Map::new();
         m.insert("changes".into(), Json::Array(changes));
+        m
+    }
+}
+
+/// The machine's spindle model, the directions it has modes in and the fastest measured
+/// speed: what the speed-dependent spindle effects need.
+fn spindle_at_speed<'c>(
+    roles: &Roles,
+    c: &'c Compiled,
+    what: &str,
+) -> Result<(&'c String, &'c spindlelab_domain::entity::Spindle, f64), NotApplicable> {
+    let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
+    let (name, m) = c.recipe.machines.get_key_value(machine).ok_or("no spindle model is coupled")?;
+    let spindle = m.spindle.as_ref().ok_or("the machine has no spindle modes")?;
+    let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
+    if top <= 0.0 {
+        return Err(format!("every measurement is at rest; {what} shows only at speed"));
+    }
+    Ok((name, spindle, top))
+}
+
+/// A bearing set whose stiffness changes with speed (centrifugal softening, preload change):
+/// `k(n) = k (1 + c (n/n_ref)²)` for every spindle mode at its own mass, so each mode's
+/// frequency moves with `√k` and its flexibility with `1/k`, one `c` for all of them.
+pub struct BearingStiffnessChange;
+
+impl Effect for BearingStiffnessChange {
+    fn name(&self) -> &'static str {
+        "bearing_stiffness_change"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "the bearings' stiffness changing with speed, k(n) = k (1 + c (n/n_ref)²) for every spindle mode at its mass (f ∝ √k, flexibility ∝ 1/k); measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let (machine, spindle, top) = spindle_at_speed(roles, c, "a bearing stiffness law")?;
+        if roles.speeds_rpm.len() < 2 {
+            return Err("the measurements are at one speed; a speed law needs FRFs at two speeds or more".into());
+        }
+        let changes: Vec<f64> = spindle.modes.iter().flat_map(|(_, m)| m.iter().map(|m| m.stiffness_change)).collect();
+        let start = changes.first().copied().unwrap_or(0.0);
+        if changes.iter().any(|c| *c != start) {
+            return Err("the spindle's modes already carry different bearing laws (`kk`)".into());
+        }
+        // At the fastest measured speed the bearings keep at least half their stiffness and gain
+        // at most 30 %; at the fastest speed the recipe uses they keep at least a fifth.
+        let s2 = SpeedLaw::ratio_squared(Speed::from_rpm(top), spindle.ref_speed);
+        let s2_all = SpeedLaw::ratio_squared(Speed::from_rpm(roles.top_speed_rpm.max(top)), spindle.ref_speed);
+        let free = vec![Free::lin("bearing_kk", "", start, (-0.5 / s2).max(-0.8 / s2_all).min(start), 0.3 / s2)];
+        for (d, modes) in &spindle.modes {
+            for i in 0..modes.len() {
+                let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
+                r.set_key(&p, "kk", "$bearing_kk").map_err(e)?;
+            }
+        }
+        declare(r, &free)?;
+        Ok(free)
+    }
+    /// A change of a few per cent moves every spindle mode by more than its bandwidth at the
+    /// fastest speed: a scan of the one parameter finds the well.
+    fn starts(&self, _free: &[Free]) -> usize {
+        16
+    }
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
+        let reference = roles
+            .machine
+            .as_ref()
+            .and_then(|m| c.recipe.machines.get(m))
+            .and_then(|m| m.spindle.as_ref())
+            .map_or(f64::NAN, |s| s.ref_speed.rpm());
+        let kk = value(values, "bearing_kk");
+        let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
+        let mut m = Map::new();
+        m.insert("reference_rpm".into(), json!(reference));
+        m.insert("relative_change_at_reference".into(), json!(kk));
+        m.insert("fastest_measured_rpm".into(), json!(top));
+        m.insert("relative_change_at_fastest_measured".into(), json!(kk * (top / reference).powi(2)));
+        m
+    }
+}
+
+/// Spindle modes splitting into a forward and a backward whirl with speed (gyroscopic
+/// coupling of an isotropic rotor): mode `i` of every direction at `f (1 ± s n/n_ref)`, each
+/// whirl with half the mode's residue, one split `s` per mode index (x and y see the same
+/// whirling mode).
+pub struct GyroscopicModeSplit;
+
+impl GyroscopicModeSplit {
+    /// How many mode indices the measured directions have.
+    fn count(roles: &Roles, c: &Compiled) -> usize {
+        roles.machine.as_ref().and_then(|m| c.recipe.machines.get(m)).and_then(|m| m.spindle.as_ref()).map_or(0, |s| {
+            s.modes.iter().filter(|(d, _)| roles.directions.contains(d)).map(|(_, m)| m.len()).max().unwrap_or(0)
+        })
+    }
+}
+
+impl Effect for GyroscopicModeSplit {
+    fn name(&self) -> &'static str {
+        "gyroscopic_mode_split"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "spindle modes splitting into forward and backward whirls at f (1 ± s n/n_ref), half the residue each; measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let (machine, spindle, top) = spindle_at_speed(roles, c, "a whirl split")?;
+        let count = Self::count(roles, c);
+        if count == 0 {
+            return Err("the machine has no spindle modes in the measured directions".into());
+        }
+        // At the fastest measured speed each whirl moves by at most 30 %, at the fastest speed
+        // the recipe uses by at most 60 % (the backward whirl keeps a frequency).
+        let ratio = |rpm: f64| SpeedLaw::ratio_squared(Speed::from_rpm(rpm), spindle.ref_speed).sqrt();
+        let max = (0.3 / ratio(top)).min(0.6 / ratio(roles.top_speed_rpm.max(top)));
+        let mut free = Vec::new();
+        for i in 0..count {
+            let name = format!("spindle_{i}_split");
+            let mut start = 0.0;
+            for (d, modes) in spindle.modes.iter().filter(|(_, m)| m.len() > i) {
+                start = modes[i].split;
+                let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
+                r.set_key(&p, "split", &format!("${name}")).map_err(e)?;
+            }
+            free.push(Free::lin(&name, "", start.clamp(0.0, max), 0.0, max.max(start)));
+        }
+        declare(r, &free)?;
+        Ok(free)
+    }
+    /// The split is even in `s` (the residual is flat at no split) and moves the whirls by
+    /// several bandwidths over its range: a scan finds the well.
+    fn starts(&self, free: &[Free]) -> usize {
+        12 * free.len()
+    }
+    fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
+        let spindle = roles.machine.as_ref().and_then(|m| c.recipe.machines.get(m)).and_then(|m| m.spindle.as_ref());
+        let reference = spindle.map_or(f64::NAN, |s| s.ref_speed.rpm());
+        let splits: Vec<Json> = (0..Self::count(roles, c))
+            .map(|i| {
+                let s = value(values, &format!("spindle_{i}_split"));
+                // The split rate of each direction's mode at rest, Hz per 1000 rpm.
+                let rates: Map<String, Json> = spindle
+                    .map(|sp| {
+                        sp.modes
+                            .iter()
+                            .filter(|(_, m)| m.len() > i)
+                            .map(|(d, m)| (d.clone(), json!(s * m[i].freq_hz * 1000.0 / reference)))
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                json!({ "mode_index": i, "split": s, "rate_hz_per_1000_rpm": rates })
+            })
+            .collect();
+        let mut m = Map::new();
+        m.insert("reference_rpm".into(), json!(reference));
+        m.insert("splits".into(), Json::Array(splits));
+        m
+    }
+}
+
+/// A resonance of the machine structure seen at the holder base, hence in every tool's FRF:
+/// one more mode in the spindle receptance of one direction, stated modally (frequency,
+/// modal stiffness, damping ratio), sought where the largest discrepancy is and within the
+/// band of the spindle's own modes (a discrepancy above them is the tool's or the sensor's).
+pub struct MachineResonance;
+
+impl MachineResonance {
+    fn names(d: &str) -> [String; 3] {
+        [format!("machine_{d}_f"), format!("machine_{d}_k"), format!("machine_{d}_zeta")]
+    }
+}
+
+impl Effect for MachineResonance {
+    fn name(&self) -> &'static str {
+        "machine_resonance"
+    }
+    fn scope(&self) -> Scope {
+        Scope::Structure
+    }
+    fn description(&self) -> &'static str {
+        "a resonance of the machine structure at the holder base, one more mode of the spindle receptance along one direction; measured and cutting"
+    }
+    fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
+        let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
+        let spindle = c
+            .recipe
+            .machines
+            .get(machine)
+            .and_then(|m| m.spindle.as_ref())
+            .ok_or("the machine has no spindle modes")?;
+        let (d, [lo, hi]) = roles.discrepancy.clone().ok_or("every measurement is at the floor")?;
+        let freqs: Vec<f64> =
+            spindle.modes.iter().filter(|(dir, _)| *dir == d).flat_map(|(_, m)| m.iter().map(|m| m.freq_hz)).collect();
+        let (low, top) =
+            (freqs.iter().copied().fold(f64::INFINITY, f64::min), freqs.iter().copied().fold(0.0, f64::max));
+        if freqs.is_empty() || top <= 0.0 {
+            return Err(format!("the spindle has no modes along {d}"));
+        }
+        // The machine is seen through the spindle: its resonance is sought over the spindle's
+        // band along that direction (from a quarter of its lowest mode to its highest), not
+        // only where the discrepancy peaks, since the coupled tool mode it moves may peak
+        // higher; it starts there when the discrepancy lies within the band.
+        let band = [0.25 * low, top];
+        let start = (0.5 * (lo + hi)).clamp(band[0], band[1]);
+        let [nf, nk, nz] = Self::names(&d);
+        let free = vec![
+            Free::lin(&nf, "Hz", start, band[0], band[1]),
+            Free::log(&nk, "N/m", 1e10, 1e6, 1e11),
+            Free::log(&nz, "", 0.03, 0.005, 0.2),
+        ];
+        r.push_item(
+            &path(&["machines", machine, "spindle", "modes", &d]),
+            &format!("{{ f: ${nf}, stiffness: ${nk}, zeta: ${nz} }}"),
+        )
+        .map_err(e)?;
+        declare(r, &free)?;
+        Ok(free)
+    }
+    /// A narrow peak anywhere in the spindle's band: a dense scan of the box.
+    fn starts(&self, free: &[Free]) -> usize {
+        32 * free.len()
+    }
+    /// The direction the values name (`machine_x_f`), at the frequency they give.
+    fn place(&self, values: &[(&str, f64)], roles: &mut Roles) {
+        for (n, v) in values {
+            if let Some(d) = n.strip_prefix("machine_").and_then(|r| r.strip_suffix("_f")) {
+                roles.discrepancy = Some((d.to_string(), [0.5 * v, 1.5 * v]));
+            }
+        }
+    }
+    fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
+        let mut m = Map::new();
+        let Some((n, _)) = values.iter().find(|(n, _)| n.starts_with("machine_") && n.ends_with("_f")) else {
+            return m;
+        };
+        let d = n.trim_start_matches("machine_").trim_end_matches("_f");
+        let [nf, nk, nz] = Self::names(d);
+        m.insert("direction".into(), json!(d));
+        m.insert("f_hz".into(), json!(value(values, &nf)));
+        m.insert("stiffness_n_per_m".into(), json!(value(values, &nk)));
+        m.insert("zeta".into(), json!(value(values, &nz)));
         m
     }
 }

@@ -1462,8 +1462,9 @@ pub fn with_effects(
         return Err(err(format!("no effect `{n}` in the library")));
     }
     for e in lib.iter().filter(|e| effects.iter().any(|(n, _)| *n == e.name())) {
-        let free = e.apply(&roles, &compiled, &mut r).map_err(err)?;
         let values = &effects.iter().find(|(n, _)| *n == e.name()).expect("listed").1;
+        e.place(values, &mut roles);
+        let free = e.apply(&roles, &compiled, &mut r).map_err(err)?;
         for (name, v) in values {
             let f = free
                 .iter()

@@ -37,6 +37,9 @@ pub struct Roles {
     /// The highest spindle speed (rpm) any spindle model of the recipe is evaluated at: a
     /// speed law must stay physical up to there.
     pub top_speed_rpm: f64,
+    /// The direction of the file most off the floor and the band around its largest
+    /// discrepancy (Hz), from the baseline: where a resonance is sought.
+    pub discrepancy: Option<(String, [f64; 2])>,
 }
 
 impl Roles {
@@ -50,6 +53,7 @@ impl Roles {
         self.speeds_rpm.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
         self.top_speed_rpm =
             self.speeds_rpm.iter().chain(&baseline.trial_speeds_rpm).fold(self.top_speed_rpm, |a, &b| a.max(b));
+        self.discrepancy = super::locate_unknown(baseline).map(|u| (u.direction, u.band_hz));
     }
 }
 

@@ -44,6 +44,16 @@ pub const SPINDLE_MODE: &[Field] = &[
     Field::opt("zeta", RATIO, "viscous damping ratio ζ of a mode stated modally (with `stiffness`)"),
     Field::def("kf", RATIO, "0", "speed law: f(n) = f (1 + kf (n/ref_speed)^2)"),
     Field::def("keta", RATIO, "0", "speed law: eta(n) = eta (1 + keta (n/ref_speed)^2)"),
+    Field::opt(
+        "kk",
+        RATIO,
+        "bearing stiffness over speed: k(n) = k (1 + kk (n/ref_speed)^2) at the mode's mass (f with its root); default 0",
+    ),
+    Field::opt(
+        "split",
+        RATIO,
+        "gyroscopic whirl split: forward and backward whirls at f (1 ± split n/ref_speed), half the mode each; default 0",
+    ),
 ];
 
 const MODE_LIST: T = T::ObjectList(SPINDLE_MODE);

@@ -541,16 +541,23 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                             .map(|m| {
                                 let freq_hz = m.f64("f").unwrap_or(0.0);
                                 let law = SpeedLaw { kf: m.f64("kf").unwrap_or(0.0), kd: m.f64("keta").unwrap_or(0.0) };
-                                match (m.f64("stiffness"), m.f64("zeta")) {
+                                let mode = match (m.f64("stiffness"), m.f64("zeta")) {
                                     (Some(k), Some(zeta)) => {
                                         SpindleMode::from_modal(freq_hz, k, zeta, &material_of(s), law)
                                     }
                                     _ => SpindleMode {
-                                        freq_hz,
-                                        diameter: m.f64("d").unwrap_or(0.0),
-                                        loss_factor: m.f64("eta").unwrap_or(0.0),
                                         law,
+                                        ..SpindleMode::new(
+                                            freq_hz,
+                                            m.f64("d").unwrap_or(0.0),
+                                            m.f64("eta").unwrap_or(0.0),
+                                        )
                                     },
+                                };
+                                SpindleMode {
+                                    stiffness_change: m.f64("kk").unwrap_or(0.0),
+                                    split: m.f64("split").unwrap_or(0.0),
+                                    ..mode
                                 }
                             })
                             .collect(),

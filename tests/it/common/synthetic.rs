@@ -177,6 +177,20 @@ pub fn main_param(effect: &str, truth: &[(&str, f64)], d: &Diagnosis) -> Option<
             let c = p["changes"].as_array()?.iter().find(|c| c["direction"] == "x" && c["mode_index"] == 0)?;
             (t("spindle_x0_kf")?, c["delta_kf"].as_f64()?)
         }
+        "bearing_stiffness_change" => (t("bearing_kk")?, p["relative_change_at_reference"].as_f64()?),
+        "gyroscopic_mode_split" => {
+            let s = p["splits"].as_array()?.iter().find(|s| s["mode_index"] == 0)?;
+            (t("spindle_0_split")?, s["split"].as_f64()?)
+        }
+        "machine_resonance" => {
+            let (name, k) = truth.iter().find(|(k, _)| k.starts_with("machine_") && k.ends_with("_k"))?;
+            // The direction must be the truth's as well.
+            let d = name.trim_start_matches("machine_").trim_end_matches("_k");
+            if p["direction"] != d {
+                return None;
+            }
+            (*k, p["stiffness_n_per_m"].as_f64()?)
+        }
         "speed_dependent_cutting_coefficients" => {
             (t("cutting_ks_change")?, p["ks_relative_change_per_10000_rpm"].as_f64()?)
         }
