@@ -520,13 +520,7 @@ impl Effect for SpindleSpeedStiffening {
         "spindle modes stiffening (and damping changing) with speed beyond the baseline speed law; measured and cutting"
     }
     fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
-        let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
-        let spindle = c
-            .recipe
-            .machines
-            .get(machine)
-            .and_then(|m| m.spindle.as_ref())
-            .ok_or("the machine has no spindle modes")?;
+        let (machine, spindle) = coupled_spindle(roles, c)?;
         let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
         if roles.speeds_rpm.len() < 2 || top <= 0.0 {
             return Err("the measurements are at one speed; a speed law needs FRFs at two speeds or more".into());
@@ -572,6 +566,16 @@ impl Effect for SpindleSpeedStiffening {
     }
 }
 
+/// The name and spindle model of the machine the measured couplings stand on.
+fn coupled_spindle<'c>(
+    roles: &Roles,
+    c: &'c Compiled,
+) -> Result<(&'c String, &'c spindlelab_domain::entity::Spindle), NotApplicable> {
+    let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
+    let (name, m) = c.recipe.machines.get_key_value(machine).ok_or("no spindle model is coupled")?;
+    Ok((name, m.spindle.as_ref().ok_or("the machine has no spindle modes")?))
+}
+
 /// The machine's spindle model, the directions it has modes in and the fastest measured
 /// speed: what the speed-dependent spindle effects need.
 fn spindle_at_speed<'c>(
@@ -579,9 +583,7 @@ fn spindle_at_speed<'c>(
     c: &'c Compiled,
     what: &str,
 ) -> Result<(&'c String, &'c spindlelab_domain::entity::Spindle, f64), NotApplicable> {
-    let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
-    let (name, m) = c.recipe.machines.get_key_value(machine).ok_or("no spindle model is coupled")?;
-    let spindle = m.spindle.as_ref().ok_or("the machine has no spindle modes")?;
+    let (name, spindle) = coupled_spindle(roles, c)?;
     let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
     if top <= 0.0 {
         return Err(format!("every measurement is at rest; {what} shows only at speed"));
@@ -754,13 +756,7 @@ impl Effect for MachineResonance {
         "a resonance of the machine structure at the holder base, one more mode of the spindle receptance along one direction; measured and cutting"
     }
     fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
-        let machine = roles.machine.as_ref().ok_or("no spindle model is coupled")?;
-        let spindle = c
-            .recipe
-            .machines
-            .get(machine)
-            .and_then(|m| m.spindle.as_ref())
-            .ok_or("the machine has no spindle modes")?;
+        let (machine, spindle) = coupled_spindle(roles, c)?;
         let (d, [lo, hi]) = roles.discrepancy.clone().ok_or("every measurement is at the floor")?;
         let freqs: Vec<f64> =
             spindle.modes.iter().filter(|(dir, _)| *dir == d).flat_map(|(_, m)| m.iter().map(|m| m.freq_hz)).collect();
