@@ -50,21 +50,29 @@ const BEARING: &[Field] = &[
     Field::def("ref_speed", T::Quantity(D::ROTATIONAL_SPEED), "10000 rpm", "reference speed of speed_coefficient"),
 ];
 
+/// The rotor, as both node kinds take it.
+const SECTIONS: Field = Field::req(
+    "sections",
+    T::ObjectList(SECTION),
+    "shaft sections from the rear end (node 0) to the nose (the last node), rows {length, outer_diameter, inner_diameter, elements, material}",
+);
+const DISKS: Field = Field::opt(
+    "disks",
+    T::ObjectList(DISK),
+    "rigid disks (motor rotor, pulley, drawbar), rows {node, width, outer_diameter, inner_diameter, material}",
+);
+const BEARINGS: Field = Field::req(
+    "bearings",
+    T::ObjectList(BEARING),
+    "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy, speed_coefficient, ref_speed}",
+);
+
 node_params! {
     /// Parameters of `rotor.campbell`.
     pub struct RotorCampbellParams<'a> {
-        sections: req &'a [Params] = (
-            T::ObjectList(SECTION),
-            "shaft sections from the first node on, rows {length, outer_diameter, inner_diameter, elements, material}",
-        ),
-        disks: opt &'a [Params] = (
-            T::ObjectList(DISK),
-            "rigid disks (rotor, pulley, drawbar, holder mass), rows {node, width, outer_diameter, inner_diameter, material}",
-        ),
-        bearings: req &'a [Params] = (
-            T::ObjectList(BEARING),
-            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy, speed_coefficient, ref_speed}",
-        ),
+        sections: req &'a [Params] = SECTIONS,
+        disks: opt &'a [Params] = DISKS,
+        bearings: req &'a [Params] = BEARINGS,
         speeds: req &'a [f64] = (T::QuantityList(D::ROTATIONAL_SPEED), "spin speeds, e.g. `0..30000 step 1000 rpm`"),
         modes: def usize = (T::Integer { min: 1, max: 200 }, "6", "lowest modes listed per speed"),
     }
@@ -204,18 +212,9 @@ impl Node for RotorCampbell {
 node_params! {
     /// Parameters of `rotor.receptance`.
     pub struct RotorReceptanceParams<'a> {
-        sections: req &'a [Params] = (
-            T::ObjectList(SECTION),
-            "shaft sections from the rear end to the nose (the last node), rows {length, outer_diameter, inner_diameter, elements, material}",
-        ),
-        disks: opt &'a [Params] = (
-            T::ObjectList(DISK),
-            "rigid disks (motor rotor, pulley, drawbar), rows {node, width, outer_diameter, inner_diameter, material}",
-        ),
-        bearings: req &'a [Params] = (
-            T::ObjectList(BEARING),
-            "bearings as grounded springs and dampers, rows {node, kxx, kyy, cxx, cyy, speed_coefficient, ref_speed}",
-        ),
+        sections: req &'a [Params] = SECTIONS,
+        disks: opt &'a [Params] = DISKS,
+        bearings: req &'a [Params] = BEARINGS,
         node: opt usize = (
             T::Integer { min: 0, max: 100_000 },
             "node whose receptance to give (default: the last, the spindle nose)",
