@@ -372,21 +372,8 @@ pub fn sections(c: &Catalog, k: &Combination) -> Vec<Raw> {
 /// `to` as a path from the folder `from`: relative when both are under one root, else absolute.
 pub fn relative(to: &Path, from: &Path) -> String {
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let (to, from) = (abs(to), abs(from));
-    fn norm(p: &Path) -> Vec<Component<'_>> {
-        let mut out: Vec<Component> = Vec::new();
-        for c in p.components() {
-            match c {
-                Component::CurDir => {}
-                Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
-                    out.pop();
-                }
-                c => out.push(c),
-            }
-        }
-        out
-    }
-    let (t, f) = (norm(&to), norm(&from));
+    let (to, from) = (crate::engine::model::normalize(&abs(to)), crate::engine::model::normalize(&abs(from)));
+    let (t, f): (Vec<Component>, Vec<Component>) = (to.components().collect(), from.components().collect());
     let common = t.iter().zip(&f).take_while(|(a, b)| a == b).count();
     // Sharing only the root (or nothing): the absolute path says more than a climb to `/`.
     if common <= 1 {

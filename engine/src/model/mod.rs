@@ -20,7 +20,7 @@ pub use params::{ParamQuantity, Parameter, command_line_span};
 pub use plugins::{PluginRef, plugin_refs};
 pub use resolve::resolve;
 pub(crate) use reuse::source_folder;
-pub use reuse::{Expanded, INPUTS, RECIPE_KIND, expand, is_library, library_search_path};
+pub use reuse::{Expanded, INPUTS, RECIPE_KIND, expand, is_library, library_search_path, normalize};
 
 use crate::diag::Span;
 use crate::spec::{EntityKind, ParamValue, Params};

@@ -184,7 +184,7 @@ fn canonical(path: &Path) -> PathBuf {
 }
 
 /// `a/./b/../c` as `a/c`, by name (a leading `..` is kept).
-fn normalize(path: &Path) -> PathBuf {
+pub fn normalize(path: &Path) -> PathBuf {
     let mut out: Vec<Component> = Vec::new();
     for c in path.components() {
         match c {
