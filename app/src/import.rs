@@ -13,6 +13,7 @@
 use crate::engine::grammar::parse_unit;
 use crate::engine::model::entity_fields;
 use crate::engine::spec::{EntityKind, FieldType};
+use crate::engine::syntax::yaml_quoted;
 use serde::Deserialize;
 use spindlelab_stdlib::nodes::kinds::{
     BEAM_SUBSTRUCTURE, FRF_GAP, RCSA_COUPLE, SPINDLE_RECEPTANCE, STABILITY_SPEED_DEPENDENT, TRIALS_SCORE,
@@ -145,46 +146,6 @@ struct CaseFrf {
 fn num(x: f64) -> String {
     let r: f64 = format!("{x:.11e}").parse().unwrap_or(x);
     if r != 0.0 && (r.abs() >= 1e6 || r.abs() < 1e-3) { format!("{r:e}") } else { format!("{r}") }
-}
-
-/// Text as a YAML double-quoted scalar that reads back as exactly `s`: the quote, the
-/// backslash, every line break and every character YAML does not take raw (control
-/// characters, U+FEFF, U+FFFE, U+FFFF) are escaped, and so are the characters that reorder a
-/// line on screen, so no string of a case can end its scalar or its line, or change what a
-/// reader of the recipe sees around it.
-pub fn yaml_quoted(s: &str) -> String {
-    let mut out = String::with_capacity(s.len() + 2);
-    out.push('"');
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            '\0' => out.push_str("\\0"),
-            '\t' => out.push_str("\\t"),
-            '\n' => out.push_str("\\n"),
-            '\r' => out.push_str("\\r"),
-            '\u{1b}' => out.push_str("\\e"),
-            '\u{85}' => out.push_str("\\N"),
-            '\u{2028}' => out.push_str("\\L"),
-            '\u{2029}' => out.push_str("\\P"),
-            c if (c as u32) < 0x100 && c.is_control() => {
-                let _ = write!(out, "\\x{:02X}", c as u32);
-            }
-            '\u{feff}'
-            | '\u{fffe}'
-            | '\u{ffff}'
-            | '\u{061c}'
-            | '\u{200e}'
-            | '\u{200f}'
-            | '\u{202a}'..='\u{202e}'
-            | '\u{2066}'..='\u{2069}' => {
-                let _ = write!(out, "\\u{:04X}", c as u32);
-            }
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
 }
 
 /// A string of the case as a YAML scalar: plain when it is a word that YAML reads as that

@@ -16,7 +16,7 @@ pub mod model;
 pub mod node;
 pub mod node_params;
 pub mod plot;
-pub mod render;
+pub use exec::render;
 pub mod schema;
 pub mod spec;
 pub mod syntax;

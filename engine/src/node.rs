@@ -10,10 +10,10 @@
 //! thread it runs on; random parts take a seed parameter. The cache relies on this: the
 //! same kind, version, parameters and inputs give the same outputs.
 
-use crate::model::Entities;
 use crate::spec::{Field, Params};
 use crate::value::{PortType, Value};
 use indexmap::IndexMap;
+use spindlelab_domain::entity::Entities;
 use std::sync::{Arc, Mutex};
 
 /// A named, typed port of a node.

@@ -243,3 +243,79 @@ fn one_mode_one_material_one_speed_one_speed_law() {
     let law = std::fs::read_to_string(root().join("domain/src/speed.rs")).unwrap();
     assert!(law.contains("pub struct SpeedLaw") && law.contains("self.kf * Self::ratio_squared"));
 }
+
+/// The modules a module of `dir` names among its siblings (`crate::x` at the crate's root,
+/// `super::x` one level down), in its code lines.
+fn sibling_imports(dir: &Path, prefix: &str) -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    rust_files(dir, &mut files);
+    let mut edges = Vec::new();
+    for f in files {
+        let rel = f.strip_prefix(dir).unwrap();
+        let module = rel.iter().next().unwrap().to_string_lossy().trim_end_matches(".rs").to_string();
+        // The root names every module it declares; `super::` from a file one folder down is
+        // its own module's root.
+        if module == "lib" || module == "mod" {
+            continue;
+        }
+        let pat = if rel.components().count() > 1 && prefix == "super::" { "super::super::" } else { prefix };
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (_, line) in code_lines(&text) {
+            for (i, _) in line.match_indices(pat) {
+                let name: String =
+                    line[i + pat.len()..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+                if !name.is_empty() && name != module {
+                    edges.push((module.clone(), name));
+                }
+            }
+        }
+    }
+    edges.sort();
+    edges.dedup();
+    edges
+}
+
+/// A cycle among `edges`, if there is one.
+fn cycle(edges: &[(String, String)]) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        edges: &[(String, String)],
+        path: &mut Vec<String>,
+        done: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(i) = path.iter().position(|p| p == n) {
+            let mut c = path[i..].to_vec();
+            c.push(n.to_string());
+            return Some(c);
+        }
+        if done.iter().any(|d| d == n) {
+            return None;
+        }
+        path.push(n.to_string());
+        for (_, to) in edges.iter().filter(|(from, _)| from == n) {
+            if let Some(c) = visit(to, edges, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.push(n.to_string());
+        None
+    }
+    let mut done = Vec::new();
+    edges.iter().find_map(|(from, _)| visit(from, edges, &mut Vec::new(), &mut done))
+}
+
+/// The engine's stages import one way (syntax → model → graph → execution): no two of its
+/// modules, and no two of the model's, import each other, directly or round a circle.
+#[test]
+fn the_engine_modules_import_without_circles() {
+    let engine = sibling_imports(&root().join("engine/src"), "crate::");
+    assert!(engine.iter().any(|(a, b)| a == "graph" && b == "model"), "{engine:?}");
+    assert_eq!(cycle(&engine), None, "engine modules: {engine:?}");
+    let model = sibling_imports(&root().join("engine/src/model"), "super::");
+    assert!(model.iter().any(|(a, b)| a == "resolve" && b == "fit"), "{model:?}");
+    assert_eq!(cycle(&model), None, "model modules: {model:?}");
+    // The check sees a circle where there is one.
+    let circle = [("a", "b"), ("b", "c"), ("c", "a")].map(|(a, b)| (a.to_string(), b.to_string()));
+    assert_eq!(cycle(&circle).map(|c| c.len()), Some(4));
+}

@@ -7,14 +7,13 @@
 //! compiled by the project's own compiler before anything runs.
 
 pub mod catalog;
-pub mod yaml;
 
 pub use catalog::{Catalog, Combination};
 
-use crate::engine::diag::{Diagnostics, SourceFile, Span};
+use crate::engine::diag::{Diagnostics, SourceFile};
 use crate::engine::exec::{self, Outcome, RunOptions};
 use crate::engine::node::Registry;
-use crate::engine::syntax::{self, Key, Raw, RawKind};
+use crate::engine::syntax::{self, Raw};
 use crate::engine::value::{Column, Table, Value};
 use crate::engine::{self, CompileError, Compiled, RunError, RunReport};
 use std::path::{Component, Path, PathBuf};
@@ -194,36 +193,6 @@ pub struct Survey {
     pub best_steps: Vec<(usize, String)>,
 }
 
-fn here() -> Span {
-    Span::file_only(Arc::from("crib"))
-}
-
-fn s(text: impl Into<String>) -> Raw {
-    Raw { span: here(), kind: RawKind::Str(text.into()) }
-}
-
-fn int(i: i64) -> Raw {
-    Raw { span: here(), kind: RawKind::Int(i) }
-}
-
-fn seq(items: Vec<Raw>) -> Raw {
-    Raw { span: here(), kind: RawKind::Seq(items) }
-}
-
-fn map(entries: Vec<(&str, Raw)>) -> Raw {
-    Raw {
-        span: here(),
-        kind: RawKind::Map(entries.into_iter().map(|(k, v)| (Key { name: k.to_string(), span: here() }, v)).collect()),
-    }
-}
-
-fn map_owned(entries: Vec<(String, Raw)>) -> Raw {
-    Raw {
-        span: here(),
-        kind: RawKind::Map(entries.into_iter().map(|(k, v)| (Key { name: k, span: here() }, v)).collect()),
-    }
-}
-
 /// A length in millimetres as a recipe writes it, to 15 significant digits (`21 mm`).
 pub fn mm(v: f64) -> String {
     format!("{} mm", short(v * 1e3))
@@ -254,26 +223,26 @@ struct SectionOut<'a> {
 
 impl SectionOut<'_> {
     fn raw(&self) -> Raw {
-        let mut e = vec![("name", s(self.name)), ("component", s(self.component))];
+        let mut e = vec![("name", Raw::text(self.name)), ("component", Raw::text(self.component))];
         if self.fluted.is_some() {
-            e.push(("kind", s("fluted")));
+            e.push(("kind", Raw::text("fluted")));
         }
-        e.push(("d_out", s(mm(self.d_out))));
+        e.push(("d_out", Raw::text(mm(self.d_out))));
         if let Some(t) = self.d_out_tip.filter(|t| (t - self.d_out).abs() > 1e-12) {
-            e.push(("d_out_tip", s(mm(t))));
+            e.push(("d_out_tip", Raw::text(mm(t))));
         }
         if self.d_in > 0.0 {
-            e.push(("d_in", s(mm(self.d_in))));
+            e.push(("d_in", Raw::text(mm(self.d_in))));
         }
-        e.push(("length", s(mm(self.length))));
-        e.push(("outer", s(self.outer)));
+        e.push(("length", Raw::text(mm(self.length))));
+        e.push(("outer", Raw::text(self.outer)));
         if let Some(i) = self.inner {
-            e.push(("inner", s(i)));
+            e.push(("inner", Raw::text(i)));
         }
         if let Some(d) = self.fluted {
-            e.push(("d_equivalent", s(mm(d))));
+            e.push(("d_equivalent", Raw::text(mm(d))));
         }
-        map(e)
+        Raw::mapping(e)
     }
 }
 
@@ -396,23 +365,24 @@ pub fn build(loaded: &Loaded, machine: &MachineRef, recipe_dir: &Path) -> Survey
     let c = &loaded.catalog;
     let folder = loaded.path.parent().unwrap_or(Path::new(""));
     let combos = c.combinations();
-    let mut uses: Vec<Raw> = c.uses.iter().map(|(u, _)| s(relative(&folder.join(u), recipe_dir))).collect();
-    uses.push(s(relative(&machine.library, recipe_dir)));
+    let mut uses: Vec<Raw> = c.uses.iter().map(|(u, _)| Raw::text(relative(&folder.join(u), recipe_dir))).collect();
+    uses.push(Raw::text(relative(&machine.library, recipe_dir)));
     let assemblies: Vec<(String, Combination)> = combos.iter().map(|k| (assembly_name(c, k), k.clone())).collect();
-    let assembly_tree =
-        map_owned(assemblies.iter().map(|(n, k)| (n.clone(), map(vec![("sections", seq(sections(c, k)))]))).collect());
+    let assembly_tree = Raw::mapping(
+        assemblies.iter().map(|(n, k)| (n.clone(), Raw::mapping(vec![("sections", Raw::list(sections(c, k)))]))),
+    );
     let mut cutting = Vec::new();
     let m = &machine.name;
     let spindle = |dir: &str| {
-        map(vec![
-            ("kind", s("spindle.receptance")),
+        Raw::mapping(vec![
+            ("kind", Raw::text("spindle.receptance")),
             (
                 "params",
-                map(vec![
-                    ("machine", s(m.as_str())),
-                    ("direction", s(dir)),
-                    ("max_frequency", s(c.analysis.max_frequency.as_str())),
-                    ("resolution", s(c.analysis.resolution.as_str())),
+                Raw::mapping(vec![
+                    ("machine", Raw::text(m.as_str())),
+                    ("direction", Raw::text(dir)),
+                    ("max_frequency", Raw::text(c.analysis.max_frequency.as_str())),
+                    ("resolution", Raw::text(c.analysis.resolution.as_str())),
                 ]),
             ),
         ])
@@ -421,56 +391,72 @@ pub fn build(loaded: &Loaded, machine: &MachineRef, recipe_dir: &Path) -> Survey
     let mut outputs = Vec::new();
     let mut best_steps = Vec::new();
     for (ti, tool) in c.tools.iter().enumerate() {
-        let names: Vec<Raw> = assemblies.iter().filter(|(_, k)| k.tool == ti).map(|(n, _)| s(n.as_str())).collect();
+        let names: Vec<Raw> =
+            assemblies.iter().filter(|(_, k)| k.tool == ti).map(|(n, _)| Raw::text(n.as_str())).collect();
         if names.is_empty() {
             continue;
         }
         let id = &tool.id;
         cutting.push((
             id.clone(),
-            map(vec![
-                ("teeth", int(tool.teeth)),
-                ("radial_immersion", s(c.cutting.radial_immersion.as_str())),
-                ("milling", s(c.cutting.milling.as_str())),
-                ("Ks", s(c.cutting.ks.as_str())),
-                ("beta", s(c.cutting.beta.as_str())),
+            Raw::mapping(vec![
+                ("teeth", Raw::int(tool.teeth)),
+                ("radial_immersion", Raw::text(c.cutting.radial_immersion.as_str())),
+                ("milling", Raw::text(c.cutting.milling.as_str())),
+                ("Ks", Raw::text(c.cutting.ks.as_str())),
+                ("beta", Raw::text(c.cutting.beta.as_str())),
             ]),
         ));
         for dir in ["x", "y"] {
             steps.push((
                 format!("tip_{dir}_{id}"),
-                map(vec![
-                    ("kind", s("rcsa.couple")),
+                Raw::mapping(vec![
+                    ("kind", Raw::text("rcsa.couple")),
                     (
                         "params",
-                        map(vec![
-                            ("interface", s("machine")),
-                            ("machine", s(m.as_str())),
-                            ("max_element", s(c.analysis.max_element.as_str())),
+                        Raw::mapping(vec![
+                            ("interface", Raw::text("machine")),
+                            ("machine", Raw::text(m.as_str())),
+                            ("max_element", Raw::text(c.analysis.max_element.as_str())),
                         ]),
                     ),
-                    ("sweep", map(vec![("assembly", seq(names.clone()))])),
-                    ("inputs", map(vec![("spindle", s(format!("@spindle_{dir}.receptance")))])),
+                    ("sweep", Raw::mapping(vec![("assembly", Raw::list(names.clone()))])),
+                    ("inputs", Raw::mapping(vec![("spindle", Raw::text(format!("@spindle_{dir}.receptance")))])),
                 ]),
             ));
         }
         steps.push((
             format!("lobes_{id}"),
-            map(vec![
-                ("kind", s("stability.lobes")),
-                ("params", map(vec![("cutting", s(id.as_str())), ("speeds", s(c.cutting.speeds.as_str()))])),
+            Raw::mapping(vec![
+                ("kind", Raw::text("stability.lobes")),
+                (
+                    "params",
+                    Raw::mapping(vec![
+                        ("cutting", Raw::text(id.as_str())),
+                        ("speeds", Raw::text(c.cutting.speeds.as_str())),
+                    ]),
+                ),
                 (
                     "inputs",
-                    map(vec![("frf_x", s(format!("@tip_x_{id}.frf"))), ("frf_y", s(format!("@tip_y_{id}.frf")))]),
+                    Raw::mapping(vec![
+                        ("frf_x", Raw::text(format!("@tip_x_{id}.frf"))),
+                        ("frf_y", Raw::text(format!("@tip_y_{id}.frf"))),
+                    ]),
                 ),
             ]),
         ));
         let best = format!("best_{id}");
         steps.push((
             best.clone(),
-            map(vec![("kind", s("stability.best")), ("inputs", map(vec![("lobes", s(format!("@lobes_{id}.lobes")))]))]),
+            Raw::mapping(vec![
+                ("kind", Raw::text("stability.best")),
+                ("inputs", Raw::mapping(vec![("lobes", Raw::text(format!("@lobes_{id}.lobes")))])),
+            ]),
         ));
-        outputs.push(map(vec![("from", s(format!("@{best}.best"))), ("file", s(format!("best-cuts-{id}.csv")))]));
+        outputs.push(Raw::mapping(vec![
+            ("from", Raw::text(format!("@{best}.best"))),
+            ("file", Raw::text(format!("best-cuts-{id}.csv"))),
+        ]));
         best_steps.push((ti, best));
     }
     let description = if c.description.is_empty() {
@@ -478,15 +464,15 @@ pub fn build(loaded: &Loaded, machine: &MachineRef, recipe_dir: &Path) -> Survey
     } else {
         c.description.clone()
     };
-    let recipe = map(vec![
-        ("spindlelab", int(1)),
-        ("name", s(c.name.as_str())),
-        ("description", s(description)),
-        ("use", seq(uses)),
+    let recipe = Raw::mapping(vec![
+        ("spindlelab", Raw::int(1)),
+        ("name", Raw::text(c.name.as_str())),
+        ("description", Raw::text(description)),
+        ("use", Raw::list(uses)),
         ("assemblies", assembly_tree),
-        ("cutting", map_owned(cutting)),
-        ("steps", map_owned(steps)),
-        ("outputs", seq(outputs)),
+        ("cutting", Raw::mapping(cutting)),
+        ("steps", Raw::mapping(steps)),
+        ("outputs", Raw::list(outputs)),
     ]);
     Survey { recipe, assemblies, best_steps }
 }
@@ -501,7 +487,7 @@ pub fn emit(loaded: &Loaded, machine: &MachineRef, survey: &Survey) -> String {
         survey.assemblies.len()
     );
     let text = head.replace(|c: char| c.is_control() && c != '\n', "?");
-    text + yaml::emit(&survey.recipe).as_str()
+    text + crate::engine::syntax::emit(&survey.recipe).as_str()
 }
 
 /// Compiles recipe text as if it were the file `path` (its `use:` paths relative to that

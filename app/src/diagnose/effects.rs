@@ -3,10 +3,11 @@
 //! bounds them physically. The library is a list of trait objects, so another source of
 //! effects (a plugin) adds to it without touching the search.
 
-use super::edit::{EditError, RecipeText, Seg, path};
 use super::roles::Roles;
 use crate::engine::Compiled;
 use crate::engine::node::{EffectSpec, Registry};
+use crate::engine::syntax::Raw;
+use crate::engine::syntax::edit::{EditError, RecipeText, Seg, path};
 use serde_json::{Map, Value as Json, json};
 use spindlelab_domain::{Speed, SpeedLaw};
 use spindlelab_stdlib::nodes::kinds::{FRF_ADD_MODE, FRF_PHASE_SLOPE, RECEPTANCE_TIP_MASS, SUBSTRUCTURE_JOINT};
@@ -39,11 +40,15 @@ impl Free {
     fn log(name: &str, unit: &'static str, start: f64, min: f64, max: f64) -> Free {
         Free { name: name.into(), unit, start, min, max, log: true }
     }
-    /// `v` as the recipe writes it, with the parameter's unit: the shortest text that reads
-    /// back as `v`, in plain decimals where a person would write them (1e-3 to 1e6).
-    pub fn text(&self, v: f64) -> String {
+    /// `v` as the recipe writes it: a number, or with the parameter's unit a quantity in the
+    /// shortest text that reads back as `v`, in plain decimals where a person would write them
+    /// (1e-3 to 1e6).
+    pub fn value(&self, v: f64) -> Raw {
+        if self.unit.is_empty() {
+            return Raw::float(v);
+        }
         let n = if v == 0.0 || (1e-3..1e6).contains(&v.abs()) { format!("{v}") } else { format!("{v:e}") };
-        if self.unit.is_empty() { n } else { format!("{n} {}", self.unit) }
+        Raw::text(format!("{n} {}", self.unit))
     }
 }
 
@@ -129,19 +134,29 @@ fn value(values: &[(String, f64)], name: &str) -> f64 {
 /// Declares every free parameter at its start.
 fn declare(r: &mut RecipeText, free: &[Free]) -> Result<(), NotApplicable> {
     for f in free.iter().rev() {
-        r.declare_param(&f.name, &f.text(f.start)).map_err(e)?;
+        r.declare_param(&f.name, &f.value(f.start)).map_err(e)?;
     }
     Ok(())
 }
 
+/// A step of node `kind` with `params` whose `frf` input is `source`.
+fn frf_step(kind: &str, params: Raw, source: &str) -> Raw {
+    Raw::mapping([
+        ("kind", Raw::text(kind)),
+        ("params", params),
+        ("inputs", Raw::mapping([("frf", Raw::text(source))])),
+    ])
+}
+
 /// Puts a new step between each gap and the model it compares, rewiring the gap's `model`
-/// input: `make(source)` gives the step's text. Sources that are already wrapped by this
-/// step name are left alone.
+/// input: `make(source)` gives the step (its kind, parameters and inputs), written under the
+/// comment `comment`. Sources that are already wrapped by this step are left alone.
 fn wrap_gap_models(
     roles: &Roles,
     r: &mut RecipeText,
     step: &str,
-    make: &dyn Fn(&str) -> Result<String, NotApplicable>,
+    comment: &str,
+    make: &dyn Fn(&str) -> Raw,
 ) -> Result<(), NotApplicable> {
     let mut done: Vec<(String, String)> = Vec::new();
     for (k, gap) in roles.gaps.iter().enumerate() {
@@ -154,12 +169,12 @@ fn wrap_gap_models(
             Some((_, n)) => n.clone(),
             None => {
                 let n = if roles.gaps.len() == 1 || done.is_empty() { step.to_string() } else { format!("{step}_{k}") };
-                r.insert_step_before(&gap.step, &make(&current)?).map_err(e)?;
+                r.insert_step_before(&gap.step, comment, &n, &make(&current)).map_err(e)?;
                 done.push((current.clone(), n.clone()));
                 n
             }
         };
-        r.replace_scalar(&path(&["steps", &gap.step, "inputs", "model"]), &format!("@{name}.frf")).map_err(e)?;
+        r.replace(&path(&["steps", &gap.step, "inputs", "model"]), &Raw::port(&name, "frf")).map_err(e)?;
     }
     Ok(())
 }
@@ -209,18 +224,9 @@ impl Effect for PluginEffect {
             })
             .collect();
         declare(r, &free)?;
-        let params: Vec<String> =
-            self.spec.params.iter().map(|p| format!("{}: ${}", p.name, self.param(p.name))).collect();
-        wrap_gap_models(roles, r, self.name, &|src| {
-            Ok(format!(
-                "# Diagnosed: {} (plugin kind {}), measured configuration only.\n{}:\n  kind: {}\n  params: {{ {} }}\n  inputs: {{ frf: \"{src}\" }}",
-                self.name,
-                self.kind,
-                self.name,
-                self.kind,
-                params.join(", ")
-            ))
-        })?;
+        let params = Raw::mapping(self.spec.params.iter().map(|p| (p.name, Raw::param(&self.param(p.name)))));
+        let comment = format!("Diagnosed: {} (plugin kind {}), measured configuration only.", self.name, self.kind);
+        wrap_gap_models(roles, r, self.name, &comment, &|src| frf_step(self.kind, params.clone(), src))?;
         Ok(free)
     }
     /// Nothing is known of a plugin effect's basins: sample its box well.
@@ -269,11 +275,14 @@ impl Effect for UnknownResonance {
         ];
         declare(r, &free)?;
         let direction = self.direction.clone();
-        wrap_gap_models(roles, r, "unknown_resonance", &|src| {
-            Ok(format!(
-                "# Diagnosed: a resonance outside the library along {direction}, located, not named.\nunknown_resonance:\n  kind: {FRF_ADD_MODE}\n  params: {{ f: $unknown_f, zeta: $unknown_zeta, stiffness: $unknown_k, direction: {direction} }}\n  inputs: {{ frf: \"{src}\" }}"
-            ))
-        })?;
+        let comment = format!("Diagnosed: a resonance outside the library along {direction}, located, not named.");
+        let params = Raw::mapping([
+            ("f", Raw::param("unknown_f")),
+            ("zeta", Raw::param("unknown_zeta")),
+            ("stiffness", Raw::param("unknown_k")),
+            ("direction", Raw::text(direction)),
+        ]);
+        wrap_gap_models(roles, r, "unknown_resonance", &comment, &|src| frf_step(FRF_ADD_MODE, params.clone(), src))?;
         Ok(free)
     }
     fn starts(&self, free: &[Free]) -> usize {
@@ -309,11 +318,9 @@ impl Effect for SensorDelay {
         // ±60 deg/kHz spans the gauges of §2.3 (about −14 deg/kHz) several times over.
         let free = vec![Free::lin("sensor_phase_slope", "deg/kHz", 0.0, -60.0, 60.0)];
         declare(r, &free)?;
-        wrap_gap_models(roles, r, "sensor_delay", &|src| {
-            Ok(format!(
-                "# Diagnosed: the sensor's phase lag (sensor_delay), measured configuration only.\nsensor_delay:\n  kind: {FRF_PHASE_SLOPE}\n  params: {{ slope: $sensor_phase_slope }}\n  inputs: {{ frf: \"{src}\" }}"
-            ))
-        })?;
+        let comment = "Diagnosed: the sensor's phase lag (sensor_delay), measured configuration only.";
+        let params = Raw::mapping([("slope", Raw::param("sensor_phase_slope"))]);
+        wrap_gap_models(roles, r, "sensor_delay", comment, &|src| frf_step(FRF_PHASE_SLOPE, params.clone(), src))?;
         Ok(free)
     }
     fn report(&self, values: &[(String, f64)], _roles: &Roles, _c: &Compiled) -> Map<String, Json> {
@@ -347,11 +354,15 @@ impl Effect for MassLoading {
         let declared_g = roles.sensor_mass_kg * 1e3;
         let free = vec![Free::lin("added_tip_mass", "g", 0.0, -declared_g, 50.0)];
         declare(r, &free)?;
-        wrap_gap_models(roles, r, "added_mass", &|src| {
+        let comment =
+            "Diagnosed: a mass on the tip beyond the declared sensor's (mass_loading), measured configuration only.";
+        wrap_gap_models(roles, r, "added_mass", comment, &|src| {
             let coupling = src.trim_start_matches('@').split('.').next().unwrap_or_default();
-            Ok(format!(
-                "# Diagnosed: a mass on the tip beyond the declared sensor's (mass_loading), measured configuration only.\nadded_mass:\n  kind: {RECEPTANCE_TIP_MASS}\n  params: {{ mass: $added_tip_mass }}\n  inputs: {{ tip: \"@{coupling}.tip\" }}"
-            ))
+            Raw::mapping([
+                ("kind", Raw::text(RECEPTANCE_TIP_MASS)),
+                ("params", Raw::mapping([("mass", Raw::param("added_tip_mass"))])),
+                ("inputs", Raw::mapping([("tip", Raw::port(coupling, "tip"))])),
+            ])
         })?;
         Ok(free)
     }
@@ -383,7 +394,7 @@ impl Effect for InterfaceCompliance {
     }
     fn apply(&self, roles: &Roles, _c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
         let sub = roles.substructure.as_ref().ok_or("no beam.substructure step reduces the holder and tool")?;
-        r.set_key(&path(&["steps", sub, "params"]), "split", "holder_face").map_err(e)?;
+        r.set_key(&path(&["steps", sub, "params"]), "split", &Raw::text("holder_face")).map_err(e)?;
         // Holder–tool joints of shrink-fit and collet holders span these ranges; the start is
         // a joint stiff enough to be rigid for the tool modes.
         let free = vec![
@@ -400,15 +411,16 @@ impl Effect for InterfaceCompliance {
             .next()
             .ok_or("no rcsa.couple step uses the substructure")?
             .clone();
-        r.insert_step_before(
-            &first,
-            &format!(
-                "# Diagnosed: a compliant tool–holder joint at the holder face (interface_compliance).\nholder_face_joint:\n  kind: {SUBSTRUCTURE_JOINT}\n  params: {{ kt: $joint_kt, ct: $joint_ct, kr: $joint_kr, cr: $joint_cr }}\n  inputs: {{ structure: \"@{sub}.model\" }}"
-            ),
-        )
-        .map_err(e)?;
+        let joint = Raw::mapping([
+            ("kind", Raw::text(SUBSTRUCTURE_JOINT)),
+            ("params", Raw::mapping(["kt", "ct", "kr", "cr"].map(|k| (k, Raw::param(&format!("joint_{k}")))))),
+            ("inputs", Raw::mapping([("structure", Raw::port(sub, "model"))])),
+        ]);
+        let comment = "Diagnosed: a compliant tool–holder joint at the holder face (interface_compliance).";
+        r.insert_step_before(&first, comment, "holder_face_joint", &joint).map_err(e)?;
         for c in roles.measured_couplings.iter().chain(&roles.cutting_couplings) {
-            r.replace_scalar(&path(&["steps", c, "inputs", "structure"]), "@holder_face_joint.structure").map_err(e)?;
+            r.replace(&path(&["steps", c, "inputs", "structure"]), &Raw::port("holder_face_joint", "structure"))
+                .map_err(e)?;
         }
         Ok(free)
     }
@@ -468,7 +480,7 @@ impl Effect for FluteReducedStiffness {
         let free = vec![Free::lin("flute_d_equivalent", "mm", d_mm, 0.5 * d_mm, d_mm)];
         for (i, _, _) in &fluted {
             let p: Vec<Seg> = path(&["assemblies", assembly, "sections", &i.to_string()]);
-            r.set_key(&p, "d_equivalent", "$flute_d_equivalent").map_err(e)?;
+            r.set_key(&p, "d_equivalent", &Raw::param("flute_d_equivalent")).map_err(e)?;
         }
         declare(r, &free)?;
         Ok(free)
@@ -538,8 +550,8 @@ impl Effect for SpindleSpeedStiffening {
         for (d, i, kf, keta) in &modes {
             let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
             let (nf, ne) = (format!("spindle_{d}{i}_kf"), format!("spindle_{d}{i}_keta"));
-            r.set_key(&p, "keta", &format!("${ne}")).map_err(e)?;
-            r.set_key(&p, "kf", &format!("${nf}")).map_err(e)?;
+            r.set_key(&p, "keta", &Raw::param(&ne)).map_err(e)?;
+            r.set_key(&p, "kf", &Raw::param(&nf)).map_err(e)?;
             let kf_min = (kf - 0.3 / s2).max(-0.5 / s2_all).min(*kf);
             let keta_min = (keta - 0.8 / s2).max(-0.9 / s2_all).min(*keta);
             free.push(Free::lin(&nf, "", *kf, kf_min, kf + 0.3 / s2));
@@ -624,7 +636,7 @@ impl Effect for BearingStiffnessChange {
         for (d, modes) in &spindle.modes {
             for i in 0..modes.len() {
                 let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
-                r.set_key(&p, "kk", "$bearing_kk").map_err(e)?;
+                r.set_key(&p, "kk", &Raw::param("bearing_kk")).map_err(e)?;
             }
         }
         declare(r, &free)?;
@@ -695,7 +707,7 @@ impl Effect for GyroscopicModeSplit {
             for (d, modes) in spindle.modes.iter().filter(|(_, m)| m.len() > i) {
                 start = modes[i].split;
                 let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
-                r.set_key(&p, "split", &format!("${name}")).map_err(e)?;
+                r.set_key(&p, "split", &Raw::param(&name)).map_err(e)?;
             }
             free.push(Free::lin(&name, "", start.clamp(0.0, max), 0.0, max.max(start)));
         }
@@ -779,7 +791,7 @@ impl Effect for MachineResonance {
         ];
         r.push_item(
             &path(&["machines", machine, "spindle", "modes", &d]),
-            &format!("{{ f: ${nf}, stiffness: ${nk}, zeta: ${nz} }}"),
+            &Raw::mapping([("f", Raw::param(&nf)), ("stiffness", Raw::param(&nk)), ("zeta", Raw::param(&nz))]),
         )
         .map_err(e)?;
         declare(r, &free)?;
@@ -840,9 +852,9 @@ impl Effect for SpeedDependentCuttingCoefficients {
             Free::lin("cutting_beta_change", "deg", 0.0, -15.0, 15.0),
         ];
         let p = path(&["cutting", cutting]);
-        r.set_key(&p, "change_per", "10000 rpm").map_err(e)?;
-        r.set_key(&p, "beta_change", "$cutting_beta_change").map_err(e)?;
-        r.set_key(&p, "Ks_change", "$cutting_ks_change").map_err(e)?;
+        r.set_key(&p, "change_per", &Raw::text("10000 rpm")).map_err(e)?;
+        r.set_key(&p, "beta_change", &Raw::param("cutting_beta_change")).map_err(e)?;
+        r.set_key(&p, "Ks_change", &Raw::param("cutting_ks_change")).map_err(e)?;
         declare(r, &free)?;
         Ok(free)
     }

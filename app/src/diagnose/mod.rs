@@ -21,17 +21,17 @@
 //!    values (`diagnosed.yaml`), which runs again for the gap after.
 
 pub mod batch;
-pub mod edit;
 pub mod effects;
 pub mod roles;
 
 use crate::engine::diag::Diagnostics;
 use crate::engine::exec::{self, Memo, Outcome, OutputDir, RunOptions};
 use crate::engine::node::Registry;
+use crate::engine::syntax::Raw;
+use crate::engine::syntax::edit::{self, RecipeText};
 use crate::engine::value::{Table, Value};
 use crate::engine::{Compiled, compile_raw};
 use crate::fit::{FitReport, FittedParam};
-use edit::RecipeText;
 use effects::{Effect, Free, Scope};
 use rayon::prelude::*;
 use roles::Roles;
@@ -464,9 +464,8 @@ fn evaluate(
 fn at_trial_speeds(r: &RecipeText, roles: &Roles, trial_speeds: &[f64]) -> Result<RecipeText, String> {
     let mut r = r.clone();
     if let (Some(lobes), false) = (&roles.lobes, trial_speeds.is_empty()) {
-        let speeds: Vec<String> = trial_speeds.iter().map(|s| format!("{s} rpm")).collect();
-        r.set_key(&edit::path(&["steps", lobes, "params"]), "speeds", &format!("[{}]", speeds.join(", ")))
-            .map_err(|e| e.to_string())?;
+        let speeds = Raw::list(trial_speeds.iter().map(|s| Raw::text(format!("{s} rpm"))).collect());
+        r.set_key(&edit::path(&["steps", lobes, "params"]), "speeds", &speeds).map_err(|e| e.to_string())?;
     }
     Ok(r)
 }
@@ -534,18 +533,24 @@ fn diagram(
 }
 
 /// The fit block for `free`, minimising `objective`.
-fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -> String {
-    let mut s = String::from("fit:\n  free:\n");
-    for f in free {
-        let scale = if f.log { ", scale: log" } else { "" };
-        s.push_str(&format!("    {}: {{ min: {}, max: {}{scale} }}\n", f.name, f.text(f.min), f.text(f.max)));
-    }
-    let obj: Vec<String> = objective.iter().map(|o| format!("\"{o}\"")).collect();
-    s.push_str(&format!("  objective: [{}]\n  method: {method}\n  starts: {starts}\n", obj.join(", ")));
-    // The sampled starts come on top of what the local searches may take; those stop on
-    // convergence, the count only bounds a search that never settles.
-    s.push_str(&format!("  max_evaluations: {}\n", starts + (100 * free.len()).max(200)));
-    s
+fn fit_block(free: &[Free], objective: &[String], method: &str, starts: usize) -> Raw {
+    let most = starts + (100 * free.len()).max(200);
+    let free = free.iter().map(|f| {
+        let mut bounds = vec![("min", f.value(f.min)), ("max", f.value(f.max))];
+        if f.log {
+            bounds.push(("scale", Raw::text("log")));
+        }
+        (f.name.clone(), Raw::mapping(bounds))
+    });
+    Raw::mapping([
+        ("free", Raw::mapping(free)),
+        ("objective", Raw::list(objective.iter().map(|o| Raw::text(o.as_str())).collect())),
+        ("method", Raw::text(method)),
+        ("starts", Raw::int(starts as i64)),
+        // The sampled starts come on top of what the local searches may take; those stop on
+        // convergence, the count only bounds a search that never settles.
+        ("max_evaluations", Raw::int(most as i64)),
+    ])
 }
 
 /// Context shared by every candidate fit.
@@ -570,7 +575,7 @@ fn augmented(ctx: &Ctx, effects: &[&dyn Effect], starts: &[(String, f64)]) -> Re
     for f in free.iter_mut() {
         if let Some((_, v)) = starts.iter().find(|(n, _)| *n == f.name) {
             f.start = v.clamp(f.min, f.max);
-            r.declare_param(&f.name, &f.text(f.start)).map_err(|e| e.to_string())?;
+            r.declare_param(&f.name, &f.value(f.start)).map_err(|e| e.to_string())?;
         }
     }
     Ok((r, free))
@@ -620,7 +625,7 @@ fn try_candidate(
     let mine: Vec<Free> = free.iter().filter(|f| !on_values.iter().any(|(n, _)| *n == f.name)).cloned().collect();
     for (n, v) in on_values {
         if let Some(f) = free.iter().find(|f| f.name == *n) {
-            let _ = text.declare_param(n, &f.text(*v));
+            let _ = text.declare_param(n, &f.value(*v));
         }
     }
     let cutting = effects.iter().all(|e| e.scope() == Scope::Cutting);
@@ -648,7 +653,7 @@ fn try_candidate(
     let attempt = |free: &[Free]| -> Result<(FitReport, Evaluation, f64), String> {
         let starts = if starts_at.is_empty() { effects.iter().map(|e| e.starts(free)).max().unwrap_or(0) } else { 0 };
         let mut fitting = text.clone();
-        fitting.append(&fit_block(free, &objective, method, starts)).map_err(|e| e.to_string())?;
+        fitting.append("fit", &fit_block(free, &objective, method, starts)).map_err(|e| e.to_string())?;
         let compiled = compile_text(&fitting, ctx.path, &[], ctx.registry)
             .map_err(|e| format!("the augmented recipe does not compile: {e}"))?;
         let report =
@@ -1470,7 +1475,7 @@ pub fn with_effects(
                 .iter()
                 .find(|f| f.name == *name)
                 .ok_or_else(|| err(format!("{} has no parameter `{name}`", e.name())))?;
-            r.declare_param(name, &f.text(*v)).map_err(|e| err(e.to_string()))?;
+            r.declare_param(name, &f.value(*v)).map_err(|e| err(e.to_string()))?;
         }
     }
     Ok(r.text)

@@ -6,6 +6,7 @@ mod cache;
 pub mod commit;
 pub mod files;
 pub mod manifest;
+pub mod render;
 pub mod shard;
 pub mod write;
 

@@ -290,7 +290,7 @@ fn free_param(
 }
 
 fn objective_ref(raw: &Raw, steps: &[Step], registry: &Registry, diags: &mut Diagnostics) -> Option<PortRef> {
-    let Some(r) = raw.as_str().and_then(super::resolve::parse_port_ref) else {
+    let Some(r) = raw.as_str().and_then(PortRef::parse) else {
         diags.error_help(Some(&raw.span), "an objective is a reference to a step output", "write `@step.port`");
         return None;
     };

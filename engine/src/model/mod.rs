@@ -186,6 +186,28 @@ pub struct PortRef {
     pub port: String,
 }
 
+impl PortRef {
+    /// Parses `@step.port` (the `@` may be left out where only a reference makes sense).
+    pub fn parse(text: &str) -> Option<PortRef> {
+        let t = text.trim().strip_prefix('@').unwrap_or(text.trim());
+        let (step, port) = t.rsplit_once('.')?;
+        (valid_step_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
+    }
+}
+
+/// A name of an entity, step or port: a letter or `_`, then letters, digits, `_` and `-`.
+pub(crate) fn valid_name(s: &str) -> bool {
+    let mut chars = s.chars();
+    matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// A step name: a name, or names joined by `/` for the steps of a recipe run as a step
+/// (`tap/segment`); a file's own step names cannot hold `/` (see `reuse`).
+pub(crate) fn valid_step_name(s: &str) -> bool {
+    s.split('/').all(valid_name)
+}
+
 impl std::fmt::Display for PortRef {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "@{}.{}", self.step, self.port)

@@ -3,7 +3,9 @@
 use super::entities::{
     self, Assembly, Component, Cutting, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
 };
-use super::{Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis};
+use super::{
+    Binding, FORMAT_VERSION, Output, OutputFormat, PortRef, Recipe, Step, SweepAxis, valid_name, valid_step_name,
+};
 use crate::diag::{Diagnostics, Span};
 use crate::node::{Node, NodeSpec, PortSpec, Registry};
 use crate::plot::PlotFormat;
@@ -64,18 +66,6 @@ fn unwritable_name(name: &str) -> Option<String> {
 fn shorten(name: &str) -> String {
     let cut: String = name.chars().take(60).collect();
     if cut.len() < name.len() { format!("{cut}… ({} bytes)", name.len()) } else { cut }
-}
-
-fn valid_name(s: &str) -> bool {
-    let mut chars = s.chars();
-    matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
-        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-}
-
-/// A step name: a name, or names joined by `/` for the steps of a recipe run as a step
-/// (`tap/segment`); a file's own step names cannot hold `/` (see `reuse`).
-fn valid_step_name(s: &str) -> bool {
-    s.split('/').all(valid_name)
 }
 
 fn unknown_keys(raw: &Raw, known: &[&str], what: &str, diags: &mut Diagnostics) {
@@ -641,13 +631,6 @@ fn build_cutting(p: &Params) -> Cutting {
     }
 }
 
-/// Parses `@step.port` (the `@` may be left out where only a reference makes sense).
-pub(super) fn parse_port_ref(text: &str) -> Option<PortRef> {
-    let t = text.trim().strip_prefix('@').unwrap_or(text.trim());
-    let (step, port) = t.rsplit_once('.')?;
-    (valid_step_name(step) && valid_name(port)).then(|| PortRef { step: step.to_string(), port: port.to_string() })
-}
-
 /// Resolves the recipe's `steps` one entry at a time, collecting every diagnostic instead of stopping at the first.
 fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx, diags: &mut Diagnostics) -> Vec<Step> {
     let Some(entries) = step_entries(raw, root, diags) else { return Vec::new() };
@@ -951,7 +934,7 @@ fn input_ref(id: &str, pk: &Key, pv: &Raw, diags: &mut Diagnostics) -> Option<Po
             .error(Some(&pv.span), format!("input `{}` of step `{id}` must be a reference like `@step.port`", pk.name));
         return None;
     };
-    let Some(r) = parse_port_ref(text) else {
+    let Some(r) = PortRef::parse(text) else {
         diags.error_help(
             Some(&pv.span),
             format!("`{text}` is not a reference"),
@@ -1122,7 +1105,7 @@ fn output_source<'a>(item: &'a Raw, diags: &mut Diagnostics) -> Option<(&'a Raw,
         );
         return None;
     };
-    let Some(r) = from.as_str().and_then(parse_port_ref) else {
+    let Some(r) = from.as_str().and_then(PortRef::parse) else {
         diags.error_help(Some(&from.span), "`from` must be a reference", "write `@step.port`");
         return None;
     };
@@ -1274,7 +1257,7 @@ fn plot_overlay(it: &Raw, diags: &mut Diagnostics) -> Option<(PortRef, Span, Opt
         }
         None => None,
     };
-    match reference.and_then(Raw::as_str).and_then(parse_port_ref) {
+    match reference.and_then(Raw::as_str).and_then(PortRef::parse) {
         Some(r) => Some((r, it.span.clone(), label)),
         None => {
             diags.error_help(
@@ -1488,7 +1471,7 @@ fn check_exports(
                 "use letters, digits, `_` and `-`",
             );
         }
-        let Some(r) = v.as_str().and_then(parse_port_ref) else {
+        let Some(r) = v.as_str().and_then(PortRef::parse) else {
             diags.error_help(Some(&v.span), format!("export `{}` must be a reference", k.name), "write `@step.port`");
             continue;
         };

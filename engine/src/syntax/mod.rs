@@ -3,10 +3,14 @@
 //! This is the first of the two recipe stages: close to the text, no meaning yet.
 //! [`crate::model`] turns the raw tree into a resolved, typed recipe.
 
+pub mod edit;
+pub mod emit;
 mod raw;
 mod rhai_recipe;
 mod yaml;
 
+pub use edit::RecipeText;
+pub use emit::{emit, yaml_quoted};
 pub use raw::{Key, Raw, RawKind};
 /// The Rhai crate, so nodes that evaluate expressions use the same version and sandbox.
 pub use rhai;

@@ -7,8 +7,9 @@ use num_complex::Complex64;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use spindlelab::diagnose::{self, Diagnosis, edit::RecipeText, roles::Roles};
+use spindlelab::diagnose::{self, Diagnosis, roles::Roles};
 use spindlelab::engine::exec::{self, Outcome, RunOptions};
+use spindlelab::engine::syntax::{Raw, RecipeText, edit};
 use spindlelab::engine::value::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -59,7 +60,7 @@ fn generate(dir: &Path, case: &Case) {
             c.recipe.steps.iter().filter(|s| s.kind == "beam.substructure").map(|s| s.id.as_str()).collect();
         assert!(!beams.is_empty(), "{}: no beam.substructure step to mesh finer", case.name);
         for sub in beams {
-            r.set_key(&diagnose::edit::path(&["steps", sub, "params"]), "max_element", mesh).unwrap();
+            r.set_key(&edit::path(&["steps", sub, "params"]), "max_element", &Raw::text(mesh)).unwrap();
         }
         truth = r.text;
     }

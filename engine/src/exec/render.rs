@@ -2,7 +2,7 @@
 //! decides what a plot shows ([`crate::plot::figure`]); a renderer (the `spindlelab-render`
 //! crate) decides how it is drawn, so the engine depends on no drawing library.
 
-use crate::exec::Manifest;
+use super::Manifest;
 use crate::plot::{Figure, PlotError, PlotFormat};
 
 /// The report's file name inside a run folder (`run --report`).

@@ -1,11 +1,15 @@
-//! Edits of a YAML recipe's text that keep everything else byte for byte, so an augmented
-//! recipe diffs against its input only where an effect was added.
+//! Typed edits of a YAML recipe that keep everything else byte for byte (comments, layout,
+//! quoting), so an edited recipe diffs against its input only where it was edited.
 //!
-//! Every edit finds its place through the parsed raw tree (each value knows its byte
-//! range), changes the text and parses it again, so the next edit sees the new text.
+//! An edit names its place by a path into the raw tree (each value knows its byte range) and
+//! its new value as a raw tree ([`Raw::text`], [`Raw::mapping`], [`Raw::param`], …), which
+//! [`super::emit`] writes as YAML. The text is parsed again after each edit, so the next edit
+//! sees the new text and no edit can leave text that does not read.
 
-use crate::engine::diag::{Diagnostics, SourceFile};
-use crate::engine::syntax::{Raw, RawKind, load_yaml};
+use super::emit::{self, inline};
+use super::raw::{Raw, RawKind};
+use super::yaml::load_yaml;
+use crate::diag::{Diagnostics, SourceFile};
 use std::sync::Arc;
 
 /// One step of a path into the raw tree: a mapping key or a list index.
@@ -15,7 +19,8 @@ pub enum Seg {
     Index(usize),
 }
 
-/// A path such as `["machines", "m", "spindle", "modes", "x", 0]`.
+/// A path such as `["machines", "m", "spindle", "modes", "x", 0]`: a part that reads as a
+/// number is a list index.
 pub fn path(parts: &[&str]) -> Vec<Seg> {
     parts.iter().map(|p| p.parse::<usize>().map(Seg::Index).unwrap_or_else(|_| Seg::Key(p.to_string()))).collect()
 }
@@ -27,6 +32,8 @@ pub enum EditError {
     Missing(String),
     #[error("`{0}` has no place in the text (a recipe made by a script cannot be edited)")]
     NoPlace(String),
+    #[error("the value for `{0}` does not fit on one line; give it as a mapping or list of scalars")]
+    NotInline(String),
     #[error("the edited recipe does not parse: {0}")]
     Parse(String),
 }
@@ -47,6 +54,11 @@ fn show(p: &[Seg]) -> String {
         })
         .collect::<Vec<_>>()
         .join(".")
+}
+
+/// `value` on one line, or why not.
+fn one_line(p: &[Seg], value: &Raw) -> Result<String, EditError> {
+    inline(value).ok_or_else(|| EditError::NotInline(show(p)))
 }
 
 impl RecipeText {
@@ -89,9 +101,10 @@ impl RecipeText {
         Ok((at, indent, flow))
     }
 
-    fn splice(&mut self, at: usize, insert: &str) -> Result<(), EditError> {
+    /// Replaces the bytes `range` with `new` and parses the result.
+    fn splice(&mut self, range: std::ops::Range<usize>, new: &str) -> Result<(), EditError> {
         let mut text = self.text.clone();
-        text.insert_str(at, insert);
+        text.replace_range(range, new);
         self.raw = parse(&self.file, &text)?;
         self.text = text;
         Ok(())
@@ -99,38 +112,35 @@ impl RecipeText {
 
     /// Adds `key: value` to the mapping at `p`, as its first entry (so a block mapping's
     /// indentation and a flow mapping's braces need no searching for an end).
-    pub fn insert_key(&mut self, p: &[Seg], key: &str, value: &str) -> Result<(), EditError> {
+    pub fn insert_key(&mut self, p: &[Seg], key: &str, value: &Raw) -> Result<(), EditError> {
         let (at, indent, flow) = self.first_key(p)?;
+        let key = emit::key(key);
+        let value = one_line(p, value)?;
         let insert = if flow { format!("{key}: {value}, ") } else { format!("{key}: {value}\n{}", " ".repeat(indent)) };
-        self.splice(at, &insert)
+        self.splice(at..at, &insert)
     }
 
     /// Sets `key` in the mapping at `p`: replaces its value when present, adds it otherwise.
-    pub fn set_key(&mut self, p: &[Seg], key: &str, value: &str) -> Result<(), EditError> {
+    pub fn set_key(&mut self, p: &[Seg], key: &str, value: &Raw) -> Result<(), EditError> {
         let mut full = p.to_vec();
         full.push(Seg::Key(key.to_string()));
-        if self.get(&full).is_some() { self.replace_scalar(&full, value) } else { self.insert_key(p, key, value) }
+        if self.get(&full).is_some() { self.replace(&full, value) } else { self.insert_key(p, key, value) }
     }
 
-    /// Replaces the scalar at `p` with `value`, keeping its quotes if it had them.
-    pub fn replace_scalar(&mut self, p: &[Seg], value: &str) -> Result<(), EditError> {
+    /// Replaces the value at `p`, written on one line, with `value`.
+    pub fn replace(&mut self, p: &[Seg], value: &Raw) -> Result<(), EditError> {
         let v = self.get(p).ok_or_else(|| EditError::Missing(show(p)))?;
         let (a, b) = v.span.bytes.ok_or_else(|| EditError::NoPlace(show(p)))?;
-        let old = &self.text[a..b];
-        let new = match old.chars().next().filter(|c| *c == '"' || *c == '\'') {
-            Some(q) => format!("{q}{value}{q}"),
-            None => value.to_string(),
-        };
-        let mut text = self.text.clone();
-        text.replace_range(a..b, &new);
-        self.raw = parse(&self.file, &text)?;
-        self.text = text;
-        Ok(())
+        if self.text[a..b].contains('\n') {
+            return Err(EditError::NoPlace(show(p)));
+        }
+        let new = one_line(p, value)?;
+        self.splice(a..b, &new)
     }
 
-    /// Adds `item` (a flow mapping, say) as the last entry of the block sequence at `p`, on a
-    /// line of its own at the entries' indentation.
-    pub fn push_item(&mut self, p: &[Seg], item: &str) -> Result<(), EditError> {
+    /// Adds `item` as the last entry of the block sequence at `p`, on a line of its own at the
+    /// entries' indentation.
+    pub fn push_item(&mut self, p: &[Seg], item: &Raw) -> Result<(), EditError> {
         let seq = self.get(p).ok_or_else(|| EditError::Missing(show(p)))?;
         let RawKind::Seq(items) = &seq.kind else { return Err(EditError::Missing(show(p))) };
         let last = items.last().ok_or_else(|| EditError::NoPlace(show(p)))?;
@@ -143,13 +153,14 @@ impl RecipeText {
             return Err(EditError::NoPlace(show(p)));
         };
         let indent = " ".repeat(lead[..dash].chars().count());
+        let item = one_line(p, item)?;
         let line_end = self.text[end..].find('\n').map_or(self.text.len(), |i| end + i);
-        self.splice(line_end, &format!("\n{indent}- {item}"))
+        self.splice(line_end..line_end, &format!("\n{indent}- {item}"))
     }
 
-    /// Inserts lines (a comment and a step, say) in the `steps:` block before step `before`,
-    /// at its indentation; `block` is written as if the steps were not indented.
-    pub fn insert_step_before(&mut self, before: &str, block: &str) -> Result<(), EditError> {
+    /// Inserts the step `name: step` in the `steps:` block before step `before`, at its
+    /// indentation, under the comment lines of `comment`.
+    pub fn insert_step_before(&mut self, before: &str, comment: &str, name: &str, step: &Raw) -> Result<(), EditError> {
         let p = path(&["steps", before]);
         let key = self
             .get(&path(&["steps"]))
@@ -159,21 +170,21 @@ impl RecipeText {
             .ok_or_else(|| EditError::Missing(show(&p)))?;
         let (at, _) = key.bytes.ok_or_else(|| EditError::NoPlace(show(&p)))?;
         let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
-        let indent = " ".repeat(self.text[line_start..at].chars().count());
+        let indent = self.text[line_start..at].chars().count();
         let mut insert = String::new();
-        for (i, line) in block.lines().enumerate() {
-            if i > 0 {
-                insert.push_str(&indent);
-            }
-            insert.push_str(line);
-            insert.push('\n');
+        for line in comment.lines() {
+            insert.push_str(&format!("# {line}\n{}", " ".repeat(indent)));
         }
-        insert.push_str(&indent);
-        self.splice(at, &insert)
+        let mut entry = String::new();
+        emit::block(&Raw::mapping([(name, step.clone())]), indent, &mut entry);
+        // The first line goes where the key `before` stood, after its indentation.
+        insert.push_str(&entry[indent..]);
+        insert.push_str(&" ".repeat(indent));
+        self.splice(at..at, &insert)
     }
 
     /// Declares (or re-declares) a recipe parameter `name: value` in the top-level `params:`.
-    pub fn declare_param(&mut self, name: &str, value: &str) -> Result<(), EditError> {
+    pub fn declare_param(&mut self, name: &str, value: &Raw) -> Result<(), EditError> {
         if self.get(&path(&["params"])).is_some_and(|p| p.as_map().is_some_and(|m| !m.is_empty())) {
             return self.set_key(&path(&["params"]), name, value);
         }
@@ -188,19 +199,24 @@ impl RecipeText {
             .map(|(k, _)| k.span.clone())
             .ok_or_else(|| EditError::Missing("steps".into()))?;
         let (at, _) = key.bytes.ok_or_else(|| EditError::NoPlace("steps".into()))?;
-        self.splice(at, &format!("params:\n  {name}: {value}\n\n"))
+        let mut block = String::from("params:\n");
+        emit::block(&Raw::mapping([(name, value.clone())]), 2, &mut block);
+        block.push('\n');
+        self.splice(at..at, &block)
     }
 
-    /// Appends text at the end (a `fit:` block for an evaluation).
-    pub fn append(&mut self, block: &str) -> Result<(), EditError> {
-        let mut text = self.text.clone();
-        if !text.ends_with('\n') {
-            text.push('\n');
+    /// Adds `key: value` at the end of the recipe (a `fit:` block, say), in block style.
+    pub fn append(&mut self, key: &str, value: &Raw) -> Result<(), EditError> {
+        if self.get(&path(&[key])).is_some() {
+            return Err(EditError::NoPlace(format!("{key} (already there)")));
         }
-        text.push_str(block);
-        self.raw = parse(&self.file, &text)?;
-        self.text = text;
-        Ok(())
+        let mut add = String::new();
+        if !self.text.ends_with('\n') {
+            add.push('\n');
+        }
+        emit::block(&Raw::mapping([(key, value.clone())]), 0, &mut add);
+        let end = self.text.len();
+        self.splice(end..end, &add)
     }
 }
 
@@ -215,22 +231,38 @@ fn parse(file: &Arc<str>, text: &str) -> Result<Raw, EditError> {
 mod tests {
     use super::*;
 
-    const TEXT: &str = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { f: 820 Hz, d: 125 mm }\nsteps:\n  a:\n    kind: k\n    params: { p: 1 }\n  b:\n    kind: k\n    inputs: { x: \"@a.out\" }\n";
+    const TEXT: &str = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { f: 820 Hz, d: 125 mm }   # first\nsteps:\n  a:\n    kind: k\n    params: { p: 1 }\n  b:\n    kind: k\n    inputs: { x: \"@a.out\" }\n";
 
     #[test]
     fn edits_touch_only_their_place() {
         let mut r = RecipeText::new("t.yaml", TEXT.to_string()).unwrap();
-        r.insert_key(&path(&["machines", "m", "modes", "x", "0"]), "kf", "$kf").unwrap();
-        r.replace_scalar(&path(&["steps", "b", "inputs", "x"]), "@c.out").unwrap();
-        r.insert_step_before("b", "# new\nc:\n  kind: k2\n  inputs: { y: \"@a.out\" }").unwrap();
-        r.insert_key(&path(&["steps", "a"]), "note", "here").unwrap();
-        r.push_item(&path(&["machines", "m", "modes", "x"]), "{ f: $f, zeta: 0.1 }").unwrap();
-        r.declare_param("kf", "0").unwrap();
-        let want = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { kf: $kf, f: 820 Hz, d: 125 mm }\n        - { f: $f, zeta: 0.1 }\nparams:\n  kf: 0\n\nsteps:\n  a:\n    note: here\n    kind: k\n    params: { p: 1 }\n  # new\n  c:\n    kind: k2\n    inputs: { y: \"@a.out\" }\n  b:\n    kind: k\n    inputs: { x: \"@c.out\" }\n";
+        r.insert_key(&path(&["machines", "m", "modes", "x", "0"]), "kf", &Raw::param("kf")).unwrap();
+        r.replace(&path(&["steps", "b", "inputs", "x"]), &Raw::port("c", "out")).unwrap();
+        let step = Raw::mapping([("kind", Raw::text("k2")), ("inputs", Raw::mapping([("y", Raw::port("a", "out"))]))]);
+        r.insert_step_before("b", "new", "c", &step).unwrap();
+        r.insert_key(&path(&["steps", "a"]), "note", &Raw::text("here")).unwrap();
+        let mode = Raw::mapping([("f", Raw::param("f")), ("zeta", Raw::float(0.1))]);
+        r.push_item(&path(&["machines", "m", "modes", "x"]), &mode).unwrap();
+        r.declare_param("kf", &Raw::float(0.0)).unwrap();
+        let want = "spindlelab: 1\nname: t\nmachines:\n  m:\n    modes:\n      x:\n        - { kf: $kf, f: 820 Hz, d: 125 mm }   # first\n        - { f: $f, zeta: 0.1 }\nparams:\n  kf: 0.0\n\nsteps:\n  a:\n    note: here\n    kind: k\n    params: { p: 1 }\n  # new\n  c:\n    kind: k2\n    inputs: { y: \"@a.out\" }\n  b:\n    kind: k\n    inputs: { x: \"@c.out\" }\n";
         assert_eq!(r.text, want);
-        r.declare_param("kf", "0.5").unwrap();
+        r.declare_param("kf", &Raw::float(0.5)).unwrap();
         assert!(r.text.contains("params:\n  kf: 0.5\n"), "{}", r.text);
-        r.declare_param("other", "1 g").unwrap();
+        r.declare_param("other", &Raw::text("1 g")).unwrap();
         assert!(r.text.contains("params:\n  other: 1 g\n  kf: 0.5\n"), "{}", r.text);
+        let fit = Raw::mapping([("free", Raw::mapping([("kf", Raw::mapping([("min", Raw::float(-1.0))]))]))]);
+        r.append("fit", &fit).unwrap();
+        assert!(r.text.ends_with("\nfit:\n  free:\n    kf: { min: -1.0 }\n"), "{}", r.text);
+        assert!(matches!(r.append("fit", &fit), Err(EditError::NoPlace(_))));
+    }
+
+    #[test]
+    fn a_value_that_needs_lines_of_its_own_is_refused_where_one_line_is_kept() {
+        let mut r = RecipeText::new("t.yaml", TEXT.to_string()).unwrap();
+        let nested = Raw::mapping([("a", Raw::mapping([("b", Raw::int(1))]))]);
+        let err = r.set_key(&path(&["steps", "a", "params"]), "p", &nested).unwrap_err();
+        assert!(matches!(err, EditError::NotInline(_)), "{err}");
+        assert_eq!(r.text, TEXT, "nothing changed");
+        assert!(matches!(r.replace(&path(&["steps", "z"]), &Raw::int(1)), Err(EditError::Missing(_))));
     }
 }
