@@ -80,7 +80,7 @@ fn describe(v: &Value) -> String {
                 .collect();
             format!("substructure of `{}`: {}", shown(&s.assembly), parts.join(", "))
         }
-        Value::Lobes(l) => format!("lobes, {} speeds", l.speed_rpm.len()),
+        Value::Lobes(l) => format!("lobes, {} speeds", l.speed.len()),
         Value::FrfSet(s) => {
             let f = s.freq_hz();
             format!(
@@ -221,7 +221,7 @@ fn headline(values: &[&Value]) -> String {
             let mins: Vec<(f64, f64)> = values
                 .iter()
                 .filter_map(|v| if let Value::Lobes(l) = v { Some(l) } else { None })
-                .flat_map(|l| l.depth_limit.iter().zip(&l.speed_rpm).map(|(d, s)| (*d, *s)))
+                .flat_map(|l| l.depth_limit.iter().zip(&l.speed).map(|(d, s)| (*d, s.rpm_as_written())))
                 .collect();
             let low = mins.iter().fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { *b } else { a });
             let n = mins.len();

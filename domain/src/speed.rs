@@ -7,9 +7,26 @@ use std::fmt;
 
 /// A spindle speed. Held in rad/s (SI, as the grammar converts every recipe quantity); built
 /// from and shown in rpm, the unit recipes, tables and figures write.
-#[derive(Debug, Clone, Copy, Default, PartialEq, PartialOrd, Serialize, Deserialize)]
-#[serde(transparent)]
+///
+/// Serialized as rpm where people read it (JSON output files: the number as written,
+/// [`Speed::rpm_as_written`]) and as the exact rad/s where only the program does (the
+/// binary cache), so a cached value is bit for bit the computed one.
+#[derive(Debug, Clone, Copy, Default, PartialEq, PartialOrd)]
 pub struct Speed(f64);
+
+impl Serialize for Speed {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() { s.serialize_f64(self.rpm_as_written()) } else { s.serialize_f64(self.0) }
+    }
+}
+
+impl<'de> Deserialize<'de> for Speed {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Speed, D::Error> {
+        let human = d.is_human_readable();
+        let v = f64::deserialize(d)?;
+        Ok(if human { Speed::from_rpm(v) } else { Speed(v) })
+    }
+}
 
 impl Speed {
     /// At rest.
@@ -110,6 +127,18 @@ mod tests {
         assert_eq!((s.rev_per_s() * 1e6).round(), 200e6);
         assert_eq!(s.to_string(), "12000 rpm");
         assert_eq!(Speed::ZERO.to_string(), "0 rpm");
+    }
+
+    #[test]
+    fn people_read_rpm_and_the_cache_keeps_the_bits() {
+        let s = Speed::from_rad_s(1_234.567_890_123_4);
+        let json = serde_json::to_string(&s).unwrap();
+        assert_eq!(json, format!("{}", s.rpm_as_written()));
+        let back: Speed = serde_json::from_str("1500").unwrap();
+        assert_eq!(back, Speed::from_rpm(1500.0));
+        assert_eq!(back.rpm_as_written(), 1500.0);
+        let bytes = postcard::to_stdvec(&s).unwrap();
+        assert_eq!(postcard::from_bytes::<Speed>(&bytes).unwrap().rad_s().to_bits(), s.rad_s().to_bits());
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! Small structs with their units in the field docs (SI throughout), never loose vectors:
 //! the compiler checks that a port of one type only feeds a port of the same type.
 
+use crate::speed::Speed;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -100,8 +101,9 @@ pub struct Frf {
     pub unit: UnitLabel,
     /// Measurement direction (`x`, `y`), when known.
     pub direction: Option<String>,
-    /// Spindle speed (rpm) at which it was measured or predicted.
-    pub speed_rpm: Option<f64>,
+    /// Spindle speed at which it was measured or predicted (written as `speed_rpm`).
+    #[serde(rename = "speed_rpm")]
+    pub speed: Option<Speed>,
     /// Name of the sensor that measured the response, when known.
     #[serde(default)]
     pub sensor: Option<String>,
@@ -331,9 +333,9 @@ pub struct ReceptanceSet {
     /// Direction (`x`, `y`) the blocks describe, when known.
     #[serde(default)]
     pub direction: Option<String>,
-    /// Spindle speed (rpm) they hold at, when known.
-    #[serde(default)]
-    pub speed_rpm: Option<f64>,
+    /// Spindle speed they hold at, when known (written as `speed_rpm`).
+    #[serde(default, rename = "speed_rpm")]
+    pub speed: Option<Speed>,
 }
 
 /// Modal parameters of a structure at one point and direction.
@@ -436,16 +438,30 @@ pub struct SubstructurePart {
     pub shapes: [Vec<Complex64>; 4],
 }
 
-/// A stability lobe diagram: limiting depth of cut (m) over spindle speed (rpm).
+/// A stability lobe diagram: limiting depth of cut (m) over spindle speed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Lobes {
-    pub speed_rpm: Vec<f64>,
+    /// The speeds, ascending (written as `speed_rpm`).
+    #[serde(rename = "speed_rpm")]
+    pub speed: Vec<Speed>,
     /// Limiting depth (m); `+∞` where no lobe limits the cut at that speed.
     #[serde(with = "nonfinite::seq")]
     pub depth_limit: Vec<f64>,
     /// Chatter frequency (Hz) of the lobe that sets the limit at each speed.
     #[serde(with = "nonfinite::seq")]
     pub chatter_hz: Vec<f64>,
+}
+
+impl Lobes {
+    /// A diagram over speeds given in rpm.
+    pub fn from_rpm(speed_rpm: &[f64], depth_limit: Vec<f64>, chatter_hz: Vec<f64>) -> Lobes {
+        Lobes { speed: speed_rpm.iter().map(|&n| Speed::from_rpm(n)).collect(), depth_limit, chatter_hz }
+    }
+
+    /// The speeds in rpm, as written ([`Speed::rpm_as_written`]).
+    pub fn speeds_rpm(&self) -> Vec<f64> {
+        self.speed.iter().map(|s| s.rpm_as_written()).collect()
+    }
 }
 
 /// A table of named columns with units, e.g. figures of merit over a sweep: numbers, or

@@ -64,7 +64,7 @@ fn fixtures_map_to_typed_values_in_si() {
     let frf = x.value;
     assert_eq!((frf.unit.symbol.as_str(), frf.direction.as_deref()), ("m/N", Some("x")));
     assert_eq!((frf.freq_hz.len(), frf.freq_hz[0], frf.freq_hz[1000]), (1001, 0.0, 2000.0));
-    assert!(frf.coherence.is_none() && frf.speed_rpm.is_none());
+    assert!(frf.coherence.is_none() && frf.speed.is_none());
 
     // Two FRFs in one binary file: either is chosen by direction or by position, never guessed.
     let path = data("frf_xy_binary.uff");

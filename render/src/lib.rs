@@ -55,11 +55,11 @@ mod tests {
     /// The same figure gives the same bytes (SVG and PNG), and the PNG decodes to the size drawn.
     #[test]
     fn plots_are_the_same_bytes_every_time_and_the_png_decodes() {
-        let l = Value::Lobes(Lobes {
-            speed_rpm: vec![1000.0, 2000.0, 3000.0],
-            depth_limit: vec![1e-3, f64::INFINITY, 2e-3],
-            chatter_hz: vec![900.0, f64::NAN, 950.0],
-        });
+        let l = Value::Lobes(Lobes::from_rpm(
+            &[1000.0, 2000.0, 3000.0],
+            vec![1e-3, f64::INFINITY, 2e-3],
+            vec![900.0, f64::NAN, 950.0],
+        ));
         let fig = engine::plot::figure("lobes", None, &[Layer::new("t", &l)], &[]).unwrap();
         assert_eq!(draw::svg(&fig).unwrap(), draw::svg(&fig).unwrap());
         let png = draw::png(&fig).unwrap();

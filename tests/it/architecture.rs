@@ -242,6 +242,17 @@ fn one_mode_one_material_one_speed_one_speed_law() {
     // And that law is where the check looks for it.
     let law = std::fs::read_to_string(root().join("domain/src/speed.rs")).unwrap();
     assert!(law.contains("pub struct SpeedLaw") && law.contains("self.kf * Self::ratio_squared"));
+    // The values that cross node boundaries carry a speed as a `Speed`, never as a number in
+    // one unit or another (the files they are written to say rpm).
+    let values = std::fs::read_to_string(root().join("domain/src/value.rs")).unwrap();
+    let numeric: Vec<(usize, &str)> = code_lines(&values)
+        .filter(|(_, l)| {
+            let l = l.trim_start();
+            l.starts_with("pub ") && !l.starts_with("pub fn") && l.contains("speed") && l.contains("f64")
+        })
+        .collect();
+    assert!(numeric.is_empty(), "value fields hold a speed as a number: {numeric:?}");
+    assert!(values.contains("pub speed: Option<Speed>") && values.contains("pub speed: Vec<Speed>"));
 }
 
 /// The modules a module of `dir` names among its siblings (`crate::x` at the crate's root,

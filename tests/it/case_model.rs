@@ -47,7 +47,7 @@ fn train_07_baseline_round_trips_through_a_recipe() {
         let path = compiled.graph.instances[i].params.file("file").unwrap();
         assert!(path.ends_with(meas["file"].as_str().unwrap()), "measurement {k}: {}", path.display());
         assert_eq!(frf.direction.as_deref(), meas["direction"].as_str());
-        assert_eq!(frf.speed_rpm, Some(f(&meas["speed_rpm"])));
+        assert_eq!(frf.speed.map(|s| s.rpm_as_written()), Some(f(&meas["speed_rpm"])));
         assert_eq!(frf.unit.symbol, meas["units"].as_str().unwrap());
         assert_eq!(frf.freq_hz.len() as f64, f(&m["frequency_lines"]));
         assert!(close(frf.freq_hz[1] - frf.freq_hz[0], f(&m["frequency_step_hz"])));

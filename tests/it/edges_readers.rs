@@ -204,7 +204,7 @@ fn a_uff_file_of_100k_datasets_gives_a_short_error_and_a_few_notes() {
         coherence: None,
         unit: spindlelab::engine::value::UnitLabel::new("m/N"),
         direction: Some("x".into()),
-        speed_rpm: None,
+        speed: None,
         sensor: None,
         dofs: None,
     };

@@ -116,7 +116,7 @@ fn small_set(shift: f64) -> Vec<Frf> {
             coherence: None,
             unit: UnitLabel::new("m/s^2/N"),
             direction: Some("y".into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: Some(FrfDofs {
                 response_node: 11,

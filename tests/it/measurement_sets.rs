@@ -34,7 +34,7 @@ fn a_measurement_set_fans_the_model_out_per_file() {
     for (k, dir, truth, peak_hz) in [(0, "x", 0.9937, 1852.5), (1, "y", 1.03, 1825.0)] {
         let (model, measured) = (frf("model", k), frf("tool_tip", k));
         assert_eq!(model.direction.as_deref(), Some(dir));
-        assert_eq!(model.speed_rpm, Some(0.0));
+        assert_eq!(model.speed.map(|s| s.rpm_as_written()), Some(0.0));
         let gap = rel_l2(&model.values, &measured.values);
         assert!((gap / truth - 1.0).abs() < 2e-3, "{dir}: rel_l2 {gap} against the truth simulator's {truth}");
         let at = model.values.iter().enumerate().max_by(|a, b| a.1.norm().total_cmp(&b.1.norm())).unwrap().0;

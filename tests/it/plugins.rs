@@ -82,7 +82,7 @@ fn tip_mass_gives_the_receptance_of_the_structure_with_the_added_mass() {
         coherence: None,
         unit: UnitLabel::new("m/N"),
         direction: Some("x".into()),
-        speed_rpm: None,
+        speed: None,
         sensor: None,
         dofs: None,
     };
@@ -518,7 +518,7 @@ fn bare_and_20_g_heavier(c: f64) -> tempfile::TempDir {
         coherence: Some(vec![0.999; freq_hz.len()]),
         unit: UnitLabel::new("m/N"),
         direction: Some("x".into()),
-        speed_rpm: None,
+        speed: None,
         sensor: None,
         dofs: None,
     };
@@ -634,7 +634,7 @@ fn no_call_sees_anything_of_an_earlier_one() {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         }),

@@ -29,7 +29,7 @@ fn frf(freqs: &[f64], values: Vec<Complex64>, direction: &str, speed_rpm: Option
         coherence: None,
         unit: UnitLabel::new("m/N"),
         direction: Some(direction.into()),
-        speed_rpm,
+        speed: speed_rpm.map(spindlelab::domain::Speed::from_rpm),
         sensor: None,
         dofs: None,
     }
@@ -69,10 +69,14 @@ fn zoa_node_matches_closed_form_and_kernel() {
     let mill =
         Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
     let tool = ToolPointFrf::new(freqs.clone(), x, y).unwrap();
-    let opts =
-        ZoaOptions { lobes: Some(10), speeds_rpm: lobes.speed_rpm.clone(), keep_lobes: false, ..ZoaOptions::default() };
+    let opts = ZoaOptions {
+        lobes: Some(10),
+        speeds_rpm: lobes.speeds_rpm().clone(),
+        keep_lobes: false,
+        ..ZoaOptions::default()
+    };
     let z = stability::zoa_lobes(&tool, &mill, &opts).unwrap();
-    assert_eq!(lobes.speed_rpm.len(), 8001);
+    assert_eq!(lobes.speed.len(), 8001);
     for (a, b) in lobes.depth_limit.iter().zip(&z.limit.depth_m) {
         assert!((a - b).abs() <= 1e-12 * b, "{a} vs {b}");
     }
@@ -103,8 +107,8 @@ fn zoa_speeds_no_lobe_reaches_are_unlimited_with_a_warning() {
     std::fs::write(&path, recipe).unwrap();
     let ran = run(&path);
     let lobes = ran.lobes("lobes", "lobes");
-    assert_eq!(lobes.speed_rpm, vec![8000.0, 8500.0, 9000.0, 9500.0, 10_000.0]);
-    for (s, d) in lobes.speed_rpm.iter().zip(&lobes.depth_limit) {
+    assert_eq!(lobes.speeds_rpm(), vec![8000.0, 8500.0, 9000.0, 9500.0, 10_000.0]);
+    for (s, d) in lobes.speeds_rpm().iter().zip(&lobes.depth_limit) {
         assert_eq!(d.is_infinite(), *s < 9220.0, "{s} rpm: {d}");
     }
     let warnings = ran.report.result.outcomes[ran.compiled.graph.by_step["lobes"][0]].warnings().join("\n");
@@ -137,8 +141,8 @@ fn speed_dependent_with_speed_invariant_frfs_equals_stationary() {
     std::fs::write(&path, recipe).unwrap();
     let ran = run(&path);
     let (dynamic, fixed) = (ran.lobes("sld", "speed_dependent"), ran.lobes("sld", "stationary"));
-    assert_eq!(dynamic.speed_rpm.len(), 201);
-    assert_eq!(dynamic.speed_rpm, fixed.speed_rpm);
+    assert_eq!(dynamic.speed.len(), 201);
+    assert_eq!(dynamic.speeds_rpm(), fixed.speeds_rpm());
     for (a, b) in dynamic.depth_limit.iter().zip(&fixed.depth_limit) {
         assert!(a.is_finite() && *a > 0.0);
         assert!((a - b).abs() <= 1e-9 * b, "{a} vs {b}");
@@ -148,7 +152,7 @@ fn speed_dependent_with_speed_invariant_frfs_equals_stationary() {
 }
 
 fn limit_at(l: &Lobes, speed: f64) -> f64 {
-    let i = l.speed_rpm.iter().position(|s| (s - speed).abs() < 1e-6).unwrap_or_else(|| panic!("{speed} rpm"));
+    let i = l.speeds_rpm().iter().position(|s| (s - speed).abs() < 1e-6).unwrap_or_else(|| panic!("{speed} rpm"));
     l.depth_limit[i]
 }
 
@@ -370,7 +374,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
         coherence: None,
         unit: UnitLabel::new("m/N"),
         direction: Some("x".into()),
-        speed_rpm: None,
+        speed: None,
         sensor: None,
         dofs: None,
     };
@@ -396,7 +400,7 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let mill =
         Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
     let kernel =
-        stability::sd_depth_limits(&model, &mill, &node.speed_rpm, 2e-3, &stability::SdOptions::default()).unwrap();
+        stability::sd_depth_limits(&model, &mill, &node.speeds_rpm(), 2e-3, &stability::SdOptions::default()).unwrap();
     for (d, k) in node.depth_limit.iter().zip(&kernel) {
         assert!((d - k.depth_m).abs() <= 1e-12, "node {d} m vs kernel {} m", k.depth_m);
     }
@@ -407,7 +411,12 @@ fn sd_node_matches_its_kernel_on_the_benchmark_tool() {
     let zoa = stability::zoa_lobes(
         &h,
         &mill,
-        &ZoaOptions { lobes: Some(10), speeds_rpm: node.speed_rpm.clone(), keep_lobes: false, ..ZoaOptions::default() },
+        &ZoaOptions {
+            lobes: Some(10),
+            speeds_rpm: node.speeds_rpm().clone(),
+            keep_lobes: false,
+            ..ZoaOptions::default()
+        },
     )
     .unwrap();
     let sd_min = node.depth_limit.iter().copied().fold(f64::INFINITY, f64::min);
@@ -439,7 +448,7 @@ fn modal_model_node_states_the_benchmark_tool_for_sd() {
     std::fs::write(&path, recipe).unwrap();
     let ran = run(&path);
     let node = ran.lobes("sd", "lobes");
-    assert_eq!(node.speed_rpm, vec![7000.0, 9500.0, 12_000.0, 14_500.0, 17_000.0]);
+    assert_eq!(node.speeds_rpm(), vec![7000.0, 9500.0, 12_000.0, 14_500.0, 17_000.0]);
     let model = stability::ModalModel::new(
         vec![stability::Mode { freq_hz: 922.0, damping_ratio: 0.011, modal_mass: 0.03993 }],
         vec![],
@@ -448,7 +457,7 @@ fn modal_model_node_states_the_benchmark_tool_for_sd() {
     let mill =
         Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
     let opts = stability::SdOptions::default();
-    let kernel = stability::sd_depth_limits(&model, &mill, &node.speed_rpm, 2e-3, &opts).unwrap();
+    let kernel = stability::sd_depth_limits(&model, &mill, &node.speeds_rpm(), 2e-3, &opts).unwrap();
     for (d, l) in node.depth_limit.iter().zip(&kernel) {
         assert!(*d == l.depth_m || (d - l.depth_m).abs() <= 1e-12, "node {d} m vs kernel {} m", l.depth_m);
     }

@@ -7,7 +7,7 @@
 use crate::common;
 
 use common::{Ran, assert_has, rejected, run_at};
-use spindlelab::domain::Material;
+use spindlelab::domain::{Material, Speed};
 use spindlelab::engine;
 use spindlelab::engine::value::{ReceptanceSet, Value};
 use spindlelab::stdlib::beam::{BeamModel, BeamSegment, CrossSection, MeshOptions, NodeSpring};
@@ -37,7 +37,7 @@ fn coupling_then_decoupling_the_artifact_returns_the_spindle() {
     let back = r.set("decoupled", "spindle");
     assert_eq!(spindle.freq_hz.len(), 2000);
     assert_eq!(back.freq_hz, spindle.freq_hz);
-    assert_eq!((back.direction.as_deref(), back.speed_rpm), (Some("x"), Some(6000.0)));
+    assert_eq!((back.direction.as_deref(), back.speed.map(|s| s.rpm_as_written())), (Some("x"), Some(6000.0)));
     for (name, (a, b)) in ["H", "L", "N", "P"].iter().zip(blocks(&back).into_iter().zip(blocks(&spindle))) {
         let e = worst(a, b);
         assert!(e <= 1e-8, "{name}: worst relative difference {e:e}");
@@ -74,7 +74,7 @@ fn tool_holder_run(dir: &Path) -> Ran {
         n: r.iter().map(|m| m[1][0]).collect(),
         p: r.iter().map(|m| m[1][1]).collect(),
         direction: Some("y".into()),
-        speed_rpm: Some(0.0),
+        speed: Some(Speed::from_rpm(0.0)),
     };
     std::fs::write(dir.join("spindle.csv"), engine::formats::csv::write_receptance(&set)).unwrap();
     std::fs::copy(data_dir().join("tool-holder.yaml"), dir.join("tool-holder.yaml")).unwrap();
@@ -98,7 +98,7 @@ fn tool_holder_on_an_fe_spindle_equals_one_fe_model_and_joints_behave() {
     let dir = tempfile::tempdir().unwrap();
     let ran = tool_holder_run(dir.path());
     let rigid = ran.set("rigid", "tip");
-    assert_eq!((rigid.direction.as_deref(), rigid.speed_rpm), (Some("y"), Some(0.0)));
+    assert_eq!((rigid.direction.as_deref(), rigid.speed.map(|s| s.rpm_as_written())), (Some("y"), Some(0.0)));
 
     // (b) One FE model: shaft + holder + tool on the same bearings, the sensor's 2 g on the tip.
     let (shaft, bearings) = spindle_shaft();
@@ -135,8 +135,8 @@ fn tool_holder_on_an_fe_spindle_equals_one_fe_model_and_joints_behave() {
     assert_eq!(back.set("csv", "receptance"), rigid);
     let uff = back.set("uff", "receptance");
     assert_eq!(
-        (uff.freq_hz.clone(), uff.direction.clone(), uff.speed_rpm),
-        (rigid.freq_hz.clone(), rigid.direction.clone(), rigid.speed_rpm)
+        (uff.freq_hz.clone(), uff.direction.clone(), uff.speed.map(|s| s.rpm_as_written())),
+        (rigid.freq_hz.clone(), rigid.direction.clone(), rigid.speed.map(|s| s.rpm_as_written()))
     );
     for (name, (a, b)) in ["H", "L", "N", "P"].iter().zip(blocks(&uff).into_iter().zip(blocks(&rigid))) {
         let e = worst(a, b);
@@ -153,7 +153,7 @@ fn a_spinning_tool_holder_splits_its_whirls() {
     let r = run_at(&data_dir().join("spinning.yaml"), out.path());
     let (rest, still, fast) = (r.set("rest", "tip"), r.set("still", "tip"), r.set("fast", "tip"));
     assert_eq!(rest, still, "spin 0 is the planar model");
-    assert!((fast.speed_rpm.unwrap() - 30000.0).abs() < 1e-6);
+    assert!((fast.speed.map(|s| s.rpm_as_written()).unwrap() - 30000.0).abs() < 1e-6);
     assert!(worst(&fast.h, &rest.h) > 1e-6, "30 000 rpm must change H");
     let Value::Table(t) = r.value("campbell", "whirl").as_ref().clone() else { panic!("whirl is not a table") };
     let col = |name: &str| t.columns.iter().find(|c| c.name == name).unwrap().values.clone();
@@ -444,7 +444,7 @@ fn frfs_by_speed(ran: &Ran, step: &str, direction: &str) -> Vec<(f64, spindlelab
         let outputs = ran.report.result.outcomes[i].outputs().unwrap_or_else(|| panic!("{step} did not run"));
         let Value::Frf(f) = outputs["frf"].as_ref() else { panic!("{step}.frf is not an FRF") };
         if f.direction.as_deref().unwrap_or("x") == direction {
-            out.push((f.speed_rpm.unwrap_or(0.0), f.clone()));
+            out.push((f.speed.map(|s| s.rpm_as_written()).unwrap_or(0.0), f.clone()));
         }
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));

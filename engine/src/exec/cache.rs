@@ -13,7 +13,7 @@ use crate::value::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-const MAGIC: &[u8; 8] = b"SPLCACH7";
+const MAGIC: &[u8; 8] = b"SPLCACH8";
 /// Magic, payload length (u64, little endian), BLAKE3 of the payload.
 const HEADER: usize = 8 + 8 + 32;
 

@@ -6,6 +6,7 @@ use super::manifest::MissingPoint;
 use crate::formats::{csv, frf_set, uff};
 use crate::model::OutputFormat;
 use crate::value::{Table, Value};
+use spindlelab_domain::Speed;
 use std::fmt::Write as _;
 
 /// One value to write, with the sweep label of the instance that made it (`speed=1500 rpm,
@@ -48,14 +49,14 @@ fn render_uff(rows: &[Row]) -> String {
     let mut out = String::new();
     for r in rows {
         match r.value {
-            Value::Frf(f) if f.direction.is_none() || f.speed_rpm.is_none() => {
+            Value::Frf(f) if f.direction.is_none() || f.speed.is_none() => {
                 // The sweep says what the value does not: an FRF estimated from a record made
                 // at `direction=x` is in x, so its dataset reads back with `direction: x`.
                 let cols = label_columns(r.label);
                 let of = |k: &str| cols.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone());
                 let mut f = f.clone();
                 f.direction = f.direction.or_else(|| of("direction").filter(|d| ["x", "y", "z"].contains(&d.as_str())));
-                f.speed_rpm = f.speed_rpm.or_else(|| of("speed_rpm").and_then(|v| v.parse().ok()));
+                f.speed = f.speed.or_else(|| of("speed_rpm").and_then(|v| v.parse().ok()).map(Speed::from_rpm));
                 uff::write_frf(&mut out, &f, r.label)
             }
             Value::Frf(f) => uff::write_frf(&mut out, f, r.label),
@@ -275,7 +276,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some("x".into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         })
@@ -363,7 +364,10 @@ mod tests {
                 label.replace("speed=", "speed_rpm=").replace(" rpm", "")
             );
         }
-        assert_eq!((blocks[3].frf.direction.as_deref(), blocks[3].frf.speed_rpm), (Some("y"), Some(1500.0)));
+        assert_eq!(
+            (blocks[3].frf.direction.as_deref(), blocks[3].frf.speed.map(Speed::rpm_as_written)),
+            (Some("y"), Some(1500.0))
+        );
         // One FRF of several is not read as if it were the only one.
         let e = formats::csv::read_frf(text.as_bytes(), "s.csv").unwrap_err().to_string();
         assert!(e.contains("holds 4 sweep points") && e.contains("`dataset: K`"), "{e}");
@@ -379,13 +383,13 @@ mod tests {
         let text = render(OutputFormat::Uff, &rows);
         let file = formats::uff::parse(text.as_bytes(), "d.uff").unwrap();
         let back = file.datasets[0].to_frf("d.uff").unwrap();
-        assert_eq!((back.direction.as_deref(), back.speed_rpm), (Some("y"), Some(1500.0)));
+        assert_eq!((back.direction.as_deref(), back.speed.map(Speed::rpm_as_written)), (Some("y"), Some(1500.0)));
     }
 
     #[test]
     fn infinite_and_missing_numbers_read_back_from_json_and_say_what_they_are() {
         let lobes = Value::Lobes(crate::value::Lobes {
-            speed_rpm: vec![1000.0, 2000.0],
+            speed: vec![1000.0, 2000.0].into_iter().map(Speed::from_rpm).collect(),
             depth_limit: vec![f64::INFINITY, 1e-3],
             chatter_hz: vec![f64::NAN, 900.0],
         });
@@ -431,7 +435,7 @@ mod tests {
         assert_eq!(back[1].coords, [("direction".to_string(), "y".to_string())]);
 
         let l = Value::Lobes(Lobes {
-            speed_rpm: vec![1000.0, 2000.0],
+            speed: vec![1000.0, 2000.0].into_iter().map(Speed::from_rpm).collect(),
             depth_limit: vec![f64::INFINITY, 2e-3],
             chatter_hz: vec![f64::NAN, 950.0],
         });
@@ -439,7 +443,7 @@ mod tests {
         let back = formats::csv::read_lobes(text.as_bytes(), "l.csv").unwrap();
         assert_eq!(back[0].0, [("immersion_%".to_string(), "25".to_string())]);
         assert_eq!(back[0].1.depth_limit, [f64::INFINITY, 2e-3]);
-        assert!(back[0].1.chatter_hz[0].is_nan() && back[0].1.speed_rpm == [1000.0, 2000.0]);
+        assert!(back[0].1.chatter_hz[0].is_nan() && back[0].1.speeds_rpm() == [1000.0, 2000.0]);
 
         let (s1, s2) = (Value::Scalar(Scalar::new(0.25e-3, "s")), Value::Scalar(Scalar::new(f64::INFINITY, "s")));
         let rows = [Row { label: "hammer_mass=0.03 kg", value: &s1 }, Row { label: "hammer_mass=0.04 kg", value: &s2 }];

@@ -10,6 +10,7 @@
 use super::{FormatError, Loc, unit_to_si};
 use crate::value::{Channel, Frf, Lobes, ReceptanceSet, Table, TimeSeries, UnitLabel};
 use num_complex::Complex64;
+use spindlelab_domain::Speed;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -62,8 +63,8 @@ pub(crate) fn frf_rows(out: &mut String, f: &Frf, prefix_header: &str, prefix: &
         if let Some(d) = &f.direction {
             let _ = writeln!(out, "# direction: {d}");
         }
-        if let Some(s) = f.speed_rpm {
-            let _ = writeln!(out, "# speed_rpm: {s}");
+        if let Some(s) = f.speed {
+            let _ = writeln!(out, "# speed_rpm: {}", s.rpm_as_written());
         }
         if let Some(s) = &f.sensor {
             let _ = writeln!(out, "# sensor: {s}");
@@ -117,8 +118,8 @@ pub(crate) fn receptance_rows(
         if let Some(d) = &r.direction {
             let _ = writeln!(out, "# direction: {d}");
         }
-        if let Some(s) = r.speed_rpm {
-            let _ = writeln!(out, "# speed_rpm: {s}");
+        if let Some(s) = r.speed {
+            let _ = writeln!(out, "# speed_rpm: {}", s.rpm_as_written());
         }
         let _ = writeln!(out, "{prefix_header}{RECEPTANCE_HEADER}");
         *header_done = true;
@@ -143,9 +144,9 @@ pub(crate) fn lobes_rows(out: &mut String, l: &Lobes, prefix_header: &str, prefi
         *header_done = true;
     }
     let mut buf = zmij::Buffer::new();
-    for i in 0..l.speed_rpm.len() {
+    for i in 0..l.speed.len() {
         out.push_str(prefix);
-        push_nums(out, &mut buf, &[l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]], true);
+        push_nums(out, &mut buf, &[l.speed[i].rpm_as_written(), l.depth_limit[i], l.chatter_hz[i]], true);
         out.push('\n');
     }
 }
@@ -810,13 +811,17 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
                 .collect();
             let of = |key: &str| coords.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
             let block_speed = match of("speed_rpm") {
-                Some(v) => {
-                    Some(v.parse::<f64>().ok().filter(|s| s.is_finite()).ok_or_else(|| FormatError::Expected {
-                        at: Loc::new(path, line, 1),
-                        expected: "a finite speed in rpm in column `speed_rpm`".into(),
-                        found: format!("`{}`", shown_cell(&v)),
-                    })?)
-                }
+                Some(v) => Some(
+                    v.parse::<f64>()
+                        .ok()
+                        .filter(|s| s.is_finite())
+                        .ok_or_else(|| FormatError::Expected {
+                            at: Loc::new(path, line, 1),
+                            expected: "a finite speed in rpm in column `speed_rpm`".into(),
+                            found: format!("`{}`", shown_cell(&v)),
+                        })
+                        .map(Speed::from_rpm)?,
+                ),
                 None => speed,
             };
             let reserve = if blocks.is_empty() { capacity } else { 0 };
@@ -827,7 +832,7 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
                     coherence: with_coherence.then(|| Vec::with_capacity(reserve)),
                     unit: UnitLabel::new(symbol.clone()),
                     direction: of("direction").or_else(|| direction.clone()),
-                    speed_rpm: block_speed,
+                    speed: block_speed,
                     sensor: sensor.clone(),
                     dofs,
                 },
@@ -1047,7 +1052,14 @@ pub fn read_lobes(bytes: &[u8], path: &str) -> Result<Vec<(Coords, Lobes)>, Form
             }
             let col = |i: usize| b.table.columns[n - 3 + i].values.clone();
             // Columns before the lobes' own are sweep coordinates of an older layout.
-            Ok((b.coords, Lobes { speed_rpm: col(0), depth_limit: col(1), chatter_hz: col(2) }))
+            Ok((
+                b.coords,
+                Lobes {
+                    speed: col(0).into_iter().map(Speed::from_rpm).collect(),
+                    depth_limit: col(1),
+                    chatter_hz: col(2),
+                },
+            ))
         })
         .collect()
 }
@@ -1099,11 +1111,11 @@ fn node_point(m: &Meta, path: &str) -> Result<(i64, i32), FormatError> {
     }
 }
 
-fn speed_rpm(m: &Meta, path: &str) -> Result<f64, FormatError> {
+fn speed_rpm(m: &Meta, path: &str) -> Result<Speed, FormatError> {
     let text = m.value.strip_suffix("rpm").unwrap_or(m.value).trim();
     let at = Loc::new(path, m.line, m.column);
     match text.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) if v.is_finite() => Ok(Speed::from_rpm(v)),
         Ok(_) => Err(FormatError::NonFinite { at, text: shown_cell(text), what: "`# speed_rpm`".into() }),
         Err(_) => Err(FormatError::Expected {
             at,
@@ -1204,7 +1216,7 @@ pub fn read_receptance(bytes: &[u8], path: &str) -> Result<ReceptanceSet, Format
         n: Vec::with_capacity(n),
         p: Vec::with_capacity(n),
         direction,
-        speed_rpm: speed,
+        speed,
     };
     let mut row = [0.0; 9];
     for (line, raw) in rows {
@@ -1250,7 +1262,7 @@ pub(crate) mod tests {
             n: (0..n).map(|i| c(i, -1e-6, 2e-7)).collect(),
             p: (0..n).map(|i| c(i, 1e-5, 1e-6)).collect(),
             direction: Some("y".into()),
-            speed_rpm: Some(12_345.678_9),
+            speed: Some(Speed::from_rpm(12_345.678_9)),
         }
     }
 
@@ -1260,7 +1272,7 @@ pub(crate) mod tests {
         let text = write_receptance(&r);
         assert!(text.contains("# units: h=m/N, l=m/(N*m), n=rad/N, p=rad/(N*m)\n"), "{text}");
         assert_eq!(read_receptance(text.as_bytes(), "r.csv").unwrap(), r);
-        let bare = ReceptanceSet { direction: None, speed_rpm: None, ..r };
+        let bare = ReceptanceSet { direction: None, speed: None, ..r };
         assert_eq!(read_receptance(write_receptance(&bare).as_bytes(), "r.csv").unwrap(), bare);
     }
 
@@ -1333,13 +1345,13 @@ pub(crate) mod tests {
             coherence: Some((0..n).map(|i| 1.0 - 1.0 / (i as f64 + 7.0)).collect()),
             unit: UnitLabel::new("m/N"),
             direction: Some("y".into()),
-            speed_rpm: Some(12_345.678_9),
+            speed: Some(Speed::from_rpm(12_345.678_9)),
             sensor: Some("laser 1".into()),
             dofs: None,
         };
         let back = read_frf(write_frf(&frf).as_bytes(), "f.csv").unwrap();
         assert_eq!(back, frf);
-        let bare = Frf { coherence: None, direction: None, speed_rpm: None, sensor: None, ..frf };
+        let bare = Frf { coherence: None, direction: None, speed: None, sensor: None, ..frf };
         assert_eq!(read_frf(write_frf(&bare).as_bytes(), "f.csv").unwrap(), bare);
     }
 

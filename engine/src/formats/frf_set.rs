@@ -174,10 +174,10 @@ pub fn csv_rows(out: &mut String, set: &FrfSet, prefix_header: &str, prefix: &st
     let coherence = set.frfs.iter().all(|f| f.coherence.is_some());
     if !*header_done {
         let _ = writeln!(out, "# units: {}", first.unit.symbol);
-        if let Some(s) = first.speed_rpm
-            && set.frfs.iter().all(|f| f.speed_rpm == Some(s))
+        if let Some(s) = first.speed
+            && set.frfs.iter().all(|f| f.speed == Some(s))
         {
-            let _ = writeln!(out, "# speed_rpm: {s}");
+            let _ = writeln!(out, "# speed_rpm: {}", s.rpm_as_written());
         }
         if let Some(s) = &first.sensor
             && set.frfs.iter().all(|f| f.sensor.as_ref() == Some(s))
@@ -232,7 +232,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/s^2/N"),
             direction: Some("x".into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs,
         }

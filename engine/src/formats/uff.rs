@@ -12,6 +12,7 @@
 use super::{FormatError, Loc, Skipped, unit_to_si};
 use crate::value::{Channel, Frf, FrfDofs, ReceptanceSet, TimeSeries, UnitLabel};
 use num_complex::Complex64;
+use spindlelab_domain::Speed;
 use spindlelab_grammar::Dimension;
 use std::fmt::Write as _;
 
@@ -328,7 +329,7 @@ impl Dataset58 {
             coherence: None,
             unit: UnitLabel::new(unit),
             direction: direction_name(self.response.direction).map(str::to_string),
-            speed_rpm: rpm.then_some(self.z_value),
+            speed: rpm.then(|| Speed::from_rpm(self.z_value)),
             sensor,
             dofs: Some(FrfDofs {
                 response_node: self.response.node,
@@ -380,11 +381,11 @@ impl Dataset58 {
             reference,
             ordinate_type: OrdinateType::ComplexDouble,
             abscissa,
-            z_value: frf.speed_rpm.unwrap_or(0.0),
+            z_value: frf.speed.map_or(0.0, Speed::rpm_as_written),
             abscissa_axis: axis_for("Hz"),
             numerator: axis_for(num),
             denominator: axis_for(den),
-            z_axis: if frf.speed_rpm.is_some() { axis_for("rpm") } else { axis_for("") },
+            z_axis: if frf.speed.is_some() { axis_for("rpm") } else { axis_for("") },
             ordinate: Ordinate::Complex(frf.values.clone()),
         }
     }
@@ -1290,7 +1291,7 @@ pub fn write_receptance(out: &mut String, r: &ReceptanceSet, label: &str) {
             coherence: None,
             unit: UnitLabel::new(*unit),
             direction: Some(dir.to_string()),
-            speed_rpm: r.speed_rpm,
+            speed: r.speed,
             sensor: None,
             dofs: None,
         };
@@ -1382,7 +1383,7 @@ pub fn to_receptance(
     };
     let mut values: Vec<Vec<Complex64>> = Vec::with_capacity(4);
     let mut grid: Option<(Vec<f64>, usize)> = None;
-    let mut speed_rpm = None;
+    let mut speed = None;
     for (k, ds) in blocks.iter().enumerate() {
         let Some(ds) = ds else {
             return Err(FormatError::Selection {
@@ -1413,14 +1414,14 @@ pub fn to_receptance(
             }
             Some(_) => {}
         }
-        speed_rpm = speed_rpm.or(frf.speed_rpm);
+        speed = speed.or(frf.speed);
         values.push(frf.values.into_iter().map(|v| v * sign).collect());
     }
     let freq_hz = grid.map(|g| g.0).unwrap_or_default();
     let mut it = values.into_iter();
     let mut next = || it.next().unwrap_or_default();
     let (h, l, n, p) = (next(), next(), next(), next());
-    Ok((ReceptanceSet { freq_hz, h, l, n, p, direction: Some(dir.to_string()), speed_rpm }, notes.finish()))
+    Ok((ReceptanceSet { freq_hz, h, l, n, p, direction: Some(dir.to_string()), speed }, notes.finish()))
 }
 
 /// The code written for a translation or rotation of direction `dir`.
@@ -1450,7 +1451,7 @@ mod tests {
             let mut r = crate::formats::csv::tests::receptance_set();
             r.direction = Some(dir.into());
             // Record 7 holds the speed (Z value) to 6–7 digits.
-            r.speed_rpm = Some(12_000.0);
+            r.speed = Some(Speed::from_rpm(12_000.0));
             r.freq_hz = (1..=r.h.len()).map(|i| i as f64 * 12.5).collect();
             let mut text = String::new();
             write_receptance(&mut text, &r, "speed=3000 rpm");
@@ -1462,7 +1463,10 @@ mod tests {
             assert_eq!(codes, [(t, t), (t, q), (q, t), (q, q)]);
             let (back, notes) = to_receptance(&file, "r.uff", None).unwrap();
             assert!(notes.is_empty(), "{notes:?}");
-            assert_eq!((&back.freq_hz, &back.direction, back.speed_rpm), (&r.freq_hz, &r.direction, r.speed_rpm));
+            assert_eq!(
+                (&back.freq_hz, &back.direction, back.speed.map(Speed::rpm_as_written)),
+                (&r.freq_hz, &r.direction, r.speed.map(Speed::rpm_as_written))
+            );
             for (got, want) in [(&back.h, &r.h), (&back.l, &r.l), (&back.n, &r.n), (&back.p, &r.p)] {
                 for (a, b) in got.iter().zip(want.iter()) {
                     assert!((a - b).norm() <= 1e-12 * b.norm(), "{dir}: {a} vs {b}");
@@ -1504,7 +1508,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some("y".into()),
-            speed_rpm: Some(12_000.0),
+            speed: Some(Speed::from_rpm(12_000.0)),
             sensor: Some("laser".into()),
             dofs: Some(FrfDofs { response_node: 3, response_direction: 2, reference_node: 1, reference_direction: 2 }),
         }
@@ -1549,7 +1553,7 @@ mod tests {
         let back = d.to_frf("f.uff").unwrap();
         assert_eq!(back.unit, f.unit);
         assert_eq!(
-            (back.direction.as_deref(), back.speed_rpm, back.sensor.as_deref()),
+            (back.direction.as_deref(), back.speed.map(Speed::rpm_as_written), back.sensor.as_deref()),
             (Some("y"), Some(12_000.0), Some("laser"))
         );
         assert_eq!(back.values.len(), f.values.len());

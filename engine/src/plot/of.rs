@@ -524,7 +524,7 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                 let style = if k < main.len() { Style::Line } else { Style::Dashed };
                 let name = if l.sweep.is_empty() { l.name.clone() } else { format!("{}, {}", l.name, l.words(false)) };
                 let d: Vec<(f64, f64)> =
-                    lobes.speed_rpm.iter().zip(&lobes.depth_limit).map(|(s, b)| (*s, b * 1e3)).collect();
+                    lobes.speed.iter().zip(&lobes.depth_limit).map(|(s, b)| (s.rpm_as_written(), b * 1e3)).collect();
                 // A diagram at a few speeds is its points, not the straight lines between them
                 // (a lobe's cusps fall between): the points are drawn, unnamed, on the line.
                 let few = d.len() <= FEW_SPEEDS;
@@ -533,7 +533,7 @@ fn lobes(main: &[Layer], with: &[Layer]) -> Result<Vec<Panel>, PlotError> {
                 if let Some(points) = points {
                     depth.series.push(Series::new("", points, Style::Dots, color));
                 }
-                let c = lobes.speed_rpm.iter().zip(&lobes.chatter_hz).map(|(s, f)| (*s, *f)).collect();
+                let c = lobes.speed.iter().zip(&lobes.chatter_hz).map(|(s, f)| (s.rpm_as_written(), *f)).collect();
                 chatter.series.push(Series::new(name, c, Style::Dots, color));
                 color += 1;
             }
@@ -903,7 +903,7 @@ fn modal(main: &[Layer]) -> Result<Vec<Panel>, PlotError> {
             coherence: None,
             unit: crate::value::UnitLabel::new("m/N"),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         }));
@@ -970,7 +970,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: direction.map(str::to_string),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         })
@@ -1025,7 +1025,7 @@ mod tests {
     #[test]
     fn lobes_start_at_zero_depth_and_unscored_trials_are_drawn_apart() {
         let l = Value::Lobes(crate::value::Lobes {
-            speed_rpm: vec![1000.0, 2000.0],
+            speed: vec![1000.0, 2000.0].into_iter().map(Speed::from_rpm).collect(),
             depth_limit: vec![2e-3, 3e-3],
             chatter_hz: vec![900.0, 950.0],
         });
@@ -1051,7 +1051,7 @@ mod tests {
     fn a_diagram_at_a_few_speeds_shows_its_points() {
         let lobes = |n: usize| {
             Value::Lobes(crate::value::Lobes {
-                speed_rpm: (0..n).map(|i| 1000.0 + 100.0 * i as f64).collect(),
+                speed: (0..n).map(|i| Speed::from_rpm(1000.0 + 100.0 * i as f64)).collect(),
                 depth_limit: vec![2e-3; n],
                 chatter_hz: vec![900.0; n],
             })

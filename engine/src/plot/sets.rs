@@ -132,7 +132,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: Some(FrfDofs {
                 response_node: 1,

@@ -50,7 +50,7 @@ pub struct ModalModel {
 #[component(record)]
 pub struct Lobes<'a> {
     #[component(name = "speed-rpm")]
-    speed_rpm: &'a [f64],
+    speed_rpm: Vec<f64>,
     #[component(name = "depth-limit")]
     depth_limit: &'a [f64],
     #[component(name = "chatter-hz")]
@@ -122,7 +122,7 @@ pub fn value(v: &ev::Value) -> Option<Value<'_>> {
             coherence: f.coherence.as_deref(),
             unit: &f.unit.symbol,
             direction: f.direction.as_deref(),
-            speed_rpm: f.speed_rpm,
+            speed_rpm: f.speed.map(|s| s.rpm_as_written()),
             sensor: f.sensor.as_deref(),
         }),
         ev::Value::ModalModel(m) => Value::ModalModel(ModalModel {
@@ -133,7 +133,7 @@ pub fn value(v: &ev::Value) -> Option<Value<'_>> {
                 .collect(),
         }),
         ev::Value::Lobes(l) => {
-            Value::Lobes(Lobes { speed_rpm: &l.speed_rpm, depth_limit: &l.depth_limit, chatter_hz: &l.chatter_hz })
+            Value::Lobes(Lobes { speed_rpm: l.speeds_rpm(), depth_limit: &l.depth_limit, chatter_hz: &l.chatter_hz })
         }
         ev::Value::Table(t) => Value::Table(Table {
             columns: t

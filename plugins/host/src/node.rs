@@ -282,7 +282,7 @@ pub(crate) fn first_non_finite(v: &Value) -> Option<String> {
                 .filter_map(|(what, xs)| first(xs).map(|(i, w)| (i, format!("the {what} at line {i} is {w}"))))
                 .min_by_key(|(i, _)| *i)
                 .map(|(_, m)| m)
-                .or_else(|| f.speed_rpm.and_then(|s| first(&[s])).map(|(_, w)| format!("the speed is {w}")))
+                .or_else(|| f.speed.and_then(|s| first(&[s.rpm()])).map(|(_, w)| format!("the speed is {w}")))
         }
         Value::ModalModel(m) => m.modes.iter().enumerate().find_map(|(i, mode)| {
             [("frequency", mode.freq_hz), ("damping ratio", mode.damping_ratio), ("modal mass", mode.modal_mass)]
@@ -290,8 +290,8 @@ pub(crate) fn first_non_finite(v: &Value) -> Option<String> {
                 .find(|(_, x)| !x.is_finite())
                 .map(|(what, x)| format!("the {what} of mode {i} is {}", not_finite(x)))
         }),
-        Value::Lobes(l) => (0..l.speed_rpm.len()).find_map(|i| {
-            let (speed, depth, chatter) = (l.speed_rpm[i], l.depth_limit[i], l.chatter_hz[i]);
+        Value::Lobes(l) => (0..l.speed.len()).find_map(|i| {
+            let (speed, depth, chatter) = (l.speed[i].rpm(), l.depth_limit[i], l.chatter_hz[i]);
             if !speed.is_finite() {
                 Some(format!("the speed at point {i} is {}", not_finite(speed)))
             } else if !depth.is_finite() && depth != f64::INFINITY {
@@ -717,7 +717,7 @@ mod tests {
             coherence: Some(vec![1.0, f64::NAN, 1.0]),
             unit: UnitLabel::new("m/N"),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         };
@@ -726,7 +726,7 @@ mod tests {
         frf.coherence = None;
         assert_eq!(at(Value::Frf(frf.clone())).as_deref(), Some("the imaginary part at line 2 is -inf"));
         frf.values[2].im = 0.0;
-        frf.speed_rpm = Some(f64::NAN);
+        frf.speed = Some(spindlelab_engine::domain::Speed::from_rpm(f64::NAN));
         assert_eq!(at(Value::Frf(frf)).as_deref(), Some("the speed is NaN"));
         let series = TimeSeries {
             sample_rate: 100.0,
@@ -738,11 +738,7 @@ mod tests {
         assert_eq!(at(Value::ModalModel(modes)).as_deref(), Some("the damping ratio of mode 0 is NaN"));
         // `+inf` is a lobe diagram's "no limit"; its chatter frequency there means nothing.
         let lobes = |depth: f64, chatter: f64| {
-            Value::Lobes(Lobes {
-                speed_rpm: vec![1000.0, 2000.0],
-                depth_limit: vec![1e-3, depth],
-                chatter_hz: vec![500.0, chatter],
-            })
+            Value::Lobes(Lobes::from_rpm(&[1000.0, 2000.0], vec![1e-3, depth], vec![500.0, chatter]))
         };
         assert_eq!(at(lobes(f64::INFINITY, f64::NAN)), None);
         assert_eq!(at(lobes(f64::NAN, 500.0)).as_deref(), Some("the depth limit at point 1 is NaN"));

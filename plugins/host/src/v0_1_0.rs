@@ -7,6 +7,7 @@ wasmtime::component::bindgen!({
 });
 
 use spindlelab::plugin::types as wit;
+use spindlelab_engine::domain::Speed;
 use spindlelab_engine::value::{self as ev, PortType, UnitLabel};
 
 pub use wit::{Material, NamedParam, Outcome, ParamType, ParamValue, PluginInfo, Port, Sensor};
@@ -69,7 +70,7 @@ pub fn from_wit(v: wit::Value) -> Result<ev::Value, String> {
                 coherence: f.coherence,
                 unit: UnitLabel::new(f.unit),
                 direction: f.direction,
-                speed_rpm: f.speed_rpm,
+                speed: f.speed_rpm.map(Speed::from_rpm),
                 sensor: f.sensor,
                 dofs: None,
             })
@@ -84,7 +85,7 @@ pub fn from_wit(v: wit::Value) -> Result<ev::Value, String> {
         wit::Value::Lobes(l) => {
             same("lobe depths", l.speed_rpm.len(), l.depth_limit.len())?;
             same("lobe chatter frequencies", l.speed_rpm.len(), l.chatter_hz.len())?;
-            ev::Value::Lobes(ev::Lobes { speed_rpm: l.speed_rpm, depth_limit: l.depth_limit, chatter_hz: l.chatter_hz })
+            ev::Value::Lobes(ev::Lobes::from_rpm(&l.speed_rpm, l.depth_limit, l.chatter_hz))
         }
         wit::Value::Table(t) => {
             let n = t.columns.first().map_or(0, |c| c.values.len());

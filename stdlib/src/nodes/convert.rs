@@ -48,7 +48,7 @@ pub(crate) fn convert(frf: &Frf, from: FrfKind, to: FrfKind, zero: ZeroLine) -> 
         coherence: frf.coherence.as_ref().map(|_| Vec::with_capacity(frf.freq_hz.len())),
         unit: UnitLabel::new(to.label()),
         direction: frf.direction.clone(),
-        speed_rpm: frf.speed_rpm,
+        speed: frf.speed,
         sensor: frf.sensor.clone(),
         dofs: frf.dofs,
     };
@@ -176,7 +176,7 @@ mod tests {
             coherence: Some(vec![0.5, 0.9, 1.0]),
             unit: UnitLabel::new(unit),
             direction: Some("x".into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         }

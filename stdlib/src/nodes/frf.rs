@@ -195,7 +195,7 @@ impl Node for FrfEstimate {
             coherence: Some(e.coherence[..keep].to_vec()),
             unit: UnitLabel::new(unit),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         };

@@ -1,6 +1,7 @@
 //! `frf.gap`: a model's FRF against a measured one, in units of the measurement's noise.
 
 use crate::gap::{self, NoiseModel};
+use spindlelab_domain::Speed;
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{FieldType as T, Params};
@@ -207,7 +208,7 @@ impl Node for FrfGap {
         let g =
             gap::gap(&f, &hm, &hx, coherence, noise, bands).map_err(|e| NodeError::input("measured", e.to_string()))?;
         let direction = meas.direction.as_deref().or(model.direction.as_deref()).unwrap_or("");
-        let speed = meas.speed_rpm.or(model.speed_rpm).unwrap_or(f64::NAN);
+        let speed = meas.speed.or(model.speed).map_or(f64::NAN, Speed::rpm_as_written);
         let one = |name: &str, unit: &str, v: f64| Column::new(name, unit, vec![v]);
         let summary = Table {
             columns: vec![
@@ -244,7 +245,7 @@ impl Node for FrfGap {
             coherence: None,
             unit: UnitLabel::new(""),
             direction: meas.direction.clone(),
-            speed_rpm: meas.speed_rpm,
+            speed: meas.speed,
             sensor: meas.sensor.clone(),
             dofs: meas.dofs,
         };

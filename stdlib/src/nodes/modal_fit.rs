@@ -358,7 +358,7 @@ fn outputs(frf: &Frf, kind: FrfKind, fit: ModalFit) -> Outputs {
         coherence: None,
         unit: frf.unit.clone(),
         direction: frf.direction.clone(),
-        speed_rpm: frf.speed_rpm,
+        speed: frf.speed,
         sensor: frf.sensor.clone(),
         dofs: frf.dofs,
     };
@@ -371,7 +371,7 @@ fn outputs(frf: &Frf, kind: FrfKind, fit: ModalFit) -> Outputs {
         n: lines.iter().map(|r| r.n).collect(),
         p: lines.iter().map(|r| r.p).collect(),
         direction: frf.direction.clone(),
-        speed_rpm: frf.speed_rpm,
+        speed: frf.speed,
     };
     [
         ("modes", Value::ModalModel(modes)),
@@ -412,7 +412,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some("x".into()),
-            speed_rpm: Some(3000.0),
+            speed: Some(spindlelab_domain::Speed::from_rpm(3000.0)),
             sensor: None,
             dofs: None,
         };
@@ -436,7 +436,8 @@ mod tests {
             let (Value::Frf(fitted), Value::ReceptanceSet(tip)) = (&out["fitted"], &out["tip"]) else { panic!() };
             assert_eq!(fitted.direction.as_deref(), Some("x"));
             assert_eq!(tip.direction.as_deref(), Some("x"));
-            assert_eq!((fitted.speed_rpm, tip.speed_rpm), (Some(3000.0), Some(3000.0)));
+            let rpm = |s: Option<spindlelab_domain::Speed>| s.map(|s| s.rpm_as_written());
+            assert_eq!((rpm(fitted.speed), rpm(tip.speed)), (Some(3000.0), Some(3000.0)));
             assert_eq!(fitted.values, tip.h);
             let Value::Table(beams) = &out["beams"] else { panic!() };
             assert_eq!(beams.rows(), 2);

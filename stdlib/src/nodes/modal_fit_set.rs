@@ -404,7 +404,7 @@ fn outputs(set: &FrfSet, fit: &SetFit, point: usize) -> Outputs {
                 coherence: None,
                 unit: f.unit.clone(),
                 direction: f.direction.clone(),
-                speed_rpm: f.speed_rpm,
+                speed: f.speed,
                 sensor: f.sensor.clone(),
                 dofs: f.dofs,
             })
@@ -457,7 +457,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some("x".into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: Some(FrfDofs {
                 response_node: o as i64 + 1,

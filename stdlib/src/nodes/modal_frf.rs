@@ -134,7 +134,7 @@ impl Node for ModalFrf {
                 coherence: None,
                 unit: UnitLabel::new("m/N"),
                 direction: Some(direction.to_string()),
-                speed_rpm: None,
+                speed: None,
                 sensor: None,
                 dofs: None,
             };

@@ -199,7 +199,7 @@ impl Node for ReadFrf {
         let shown = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         if let Some(w) = p.speed {
             let rpm = Speed::from_rad_s(w).rpm();
-            match frf.speed_rpm {
+            match frf.speed.map(Speed::rpm_as_written) {
                 Some(s) if (s - rpm).abs() > 1e-6 * rpm.abs().max(1.0) => {
                     return Err(NodeError::param(
                         "speed",
@@ -207,7 +207,7 @@ impl Node for ReadFrf {
                     ));
                 }
                 Some(_) => {}
-                None => frf.speed_rpm = Some(rpm),
+                None => frf.speed = Some(Speed::from_rad_s(w)),
             }
         }
         if let Some(u) = p.units {

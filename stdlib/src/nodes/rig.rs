@@ -489,7 +489,7 @@ impl Node for RigSimulate {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some(c.direction.name().into()),
-            speed_rpm: Some(Speed::from_rad_s(c.speed).rpm()),
+            speed: Some(Speed::from_rad_s(c.speed)),
             sensor: Some("rig truth".into()),
             dofs: None,
         };
@@ -750,7 +750,7 @@ mod tests {
         assert_eq!(frf.freq_hz.len(), 82);
         assert_eq!(frf.freq_hz[81], 81.0 * df);
         assert_eq!((frf.unit.symbol.as_str(), frf.direction.as_deref()), ("m/N", Some("x")));
-        assert!((frf.speed_rpm.unwrap() - 1000.0).abs() < 1e-9);
+        assert!((frf.speed.unwrap().rpm() - 1000.0).abs() < 1e-9);
         let modes = c.modes_at_speed();
         let h: num_complex::Complex64 =
             modes.iter().map(|m| m.receptance(std::f64::consts::TAU * frf.freq_hz[29])).sum();

@@ -319,7 +319,7 @@ impl Node for RotorReceptance {
                 .collect(),
         };
         let set = |f: &ReceptanceFrf| -> ReceptanceSet {
-            super::structure::to_set(f, Some(p.direction.to_string()), Some(speed.rpm()))
+            super::structure::to_set(f, Some(p.direction.to_string()), Some(speed))
         };
         let direct = set(&pick(d, d, 1.0));
         let cross = set(&pick(d, other, sign));

@@ -153,7 +153,7 @@ impl Node for ReceptanceTipMass {
         let g = rcsa::with_point_mass(&to_frf(set), mass).map_err(|e| {
             NodeError::param("mass", format!("{e}: the mass resonates with the structure exactly on a line"))
         })?;
-        let out = to_set(&g, set.direction.clone(), set.speed_rpm);
+        let out = to_set(&g, set.direction.clone(), set.speed);
         let frf = h_of(&out);
         Ok(outputs(vec![("tip", Value::ReceptanceSet(out)), ("frf", Value::Frf(frf))]))
     }
@@ -313,7 +313,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: None,
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         }
@@ -333,7 +333,7 @@ mod tests {
             n: zero.clone(),
             p: vec![Complex64::new(1e-6, 0.0); n],
             direction: Some("x".into()),
-            speed_rpm: Some(0.0),
+            speed: Some(spindlelab_domain::Speed::from_rpm(0.0)),
         };
         let node = ReceptanceTipMass::new();
         let p = params(&node, "mass: 500 g");

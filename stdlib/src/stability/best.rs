@@ -30,7 +30,7 @@ pub fn best_cut(lobes: &Lobes) -> Option<BestCut> {
     let b = best?;
     Some(BestCut {
         depth_m: lobes.depth_limit[b],
-        speed_rpm: lobes.speed_rpm.get(b).copied().unwrap_or(f64::NAN),
+        speed_rpm: lobes.speed.get(b).map_or(f64::NAN, |s| s.rpm_as_written()),
         chatter_hz: lobes.chatter_hz.get(b).copied().unwrap_or(f64::NAN),
         stable_everywhere_m: least,
     })
@@ -45,13 +45,20 @@ mod tests {
     #[test]
     fn the_best_cut_is_the_top_of_the_highest_lobe() {
         let lobes = Lobes {
-            speed_rpm: vec![1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 6000.0],
+            speed: vec![1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 6000.0]
+                .into_iter()
+                .map(spindlelab_domain::Speed::from_rpm)
+                .collect(),
             depth_limit: vec![1e-3, 4e-3, 0.5e-3, f64::NAN, 6e-3, 2e-3],
             chatter_hz: vec![800.0, 810.0, 790.0, f64::NAN, 820.0, 805.0],
         };
         let b = best_cut(&lobes).unwrap();
         assert_eq!((b.depth_m, b.speed_rpm, b.chatter_hz, b.stable_everywhere_m), (6e-3, 5000.0, 820.0, 0.5e-3));
-        let none = Lobes { speed_rpm: vec![1.0], depth_limit: vec![f64::NAN], chatter_hz: vec![f64::NAN] };
+        let none = Lobes {
+            speed: vec![1.0].into_iter().map(spindlelab_domain::Speed::from_rpm).collect(),
+            depth_limit: vec![f64::NAN],
+            chatter_hz: vec![f64::NAN],
+        };
         assert_eq!(best_cut(&none), None);
     }
 }

@@ -101,7 +101,7 @@ fn generate(dir: &Path, case: &Case) {
         let mut text = format!(
             "# synthetic: {}\n# units: m/N\n# direction: {dir_name}\n# speed_rpm: {}\nfreq_hz,real,imag,coherence\n",
             case.name,
-            h.speed_rpm.unwrap()
+            h.speed.map(|s| s.rpm_as_written()).unwrap()
         );
         for (v, f) in values.iter().zip(&h.freq_hz) {
             let mut normal = || -> Complex64 {
@@ -122,18 +122,20 @@ fn generate(dir: &Path, case: &Case) {
     let Value::Lobes(l) = out(c.graph.by_step[&lobes_step][0])["speed_dependent"].as_ref().clone() else { panic!() };
     let mut text = String::from("# synthetic trials\nrpm,depth_mm,outcome,chatter_freq_hz\n");
     for _ in 0..60 {
-        let k = rng.random_range(0..l.speed_rpm.len());
+        let k = rng.random_range(0..l.speed.len());
         let chatter = rng.random_bool(0.5);
         let away: f64 = rng.random_range(0.08..0.25);
         let depth = l.depth_limit[k] * if chatter { away.exp() } else { (-away).exp() };
-        let _ = writeln!(text, "{},{:.5},{},", l.speed_rpm[k], depth * 1e3, if chatter { "chatter" } else { "stable" });
+        let _ =
+            writeln!(text, "{},{:.5},{},", l.speeds_rpm()[k], depth * 1e3, if chatter { "chatter" } else { "stable" });
     }
     // Mislabelled cuts, alternately: chatter recorded at half the limit, stable at twice it.
     for j in 0..case.mislabelled {
-        let k = (j + 1) * l.speed_rpm.len() / (case.mislabelled + 1);
+        let k = (j + 1) * l.speed.len() / (case.mislabelled + 1);
         let chatter = j % 2 == 0;
         let depth = l.depth_limit[k] * if chatter { 0.5 } else { 2.0 };
-        let _ = writeln!(text, "{},{:.5},{},", l.speed_rpm[k], depth * 1e3, if chatter { "chatter" } else { "stable" });
+        let _ =
+            writeln!(text, "{},{:.5},{},", l.speeds_rpm()[k], depth * 1e3, if chatter { "chatter" } else { "stable" });
     }
     std::fs::write(dir.join("trials.csv"), text).unwrap();
 }

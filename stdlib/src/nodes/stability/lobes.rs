@@ -219,7 +219,7 @@ mod tests {
             coherence: None,
             unit: UnitLabel::new("m/N"),
             direction: Some(direction.into()),
-            speed_rpm: None,
+            speed: None,
             sensor: None,
             dofs: None,
         }))

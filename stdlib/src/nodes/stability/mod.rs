@@ -233,7 +233,7 @@ fn stab_err(e: StabilityError, frf_port: &str) -> NodeError {
 }
 
 fn lobes_value(l: &StabilityLimit) -> Lobes {
-    Lobes { speed_rpm: l.speed_rpm.clone(), depth_limit: l.depth_m.clone(), chatter_hz: l.chatter_hz.clone() }
+    Lobes::from_rpm(&l.speed_rpm, l.depth_m.clone(), l.chatter_hz.clone())
 }
 
 /// Warns about the speeds where no lobe of the band limits the cut (depth `+∞`: no limit found, not a promise).
@@ -369,7 +369,7 @@ pub(super) fn pairs(ctx: &NodeContext) -> Result<Vec<(f64, ToolPointFrf)>, NodeE
             .iter()
             .find(|c| c.name == "speed" && c.unit == D::ROTATIONAL_SPEED.si_unit())
             .map(|c| to_rpm(c.value));
-        let speed = f.speed_rpm.or(coord).ok_or_else(|| {
+        let speed = f.speed.map(Speed::rpm_as_written).or(coord).ok_or_else(|| {
             NodeError::input(
                 "frfs",
                 format!(

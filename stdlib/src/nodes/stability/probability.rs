@@ -314,11 +314,7 @@ impl Node for StabilityProbability {
             |m: &uncertainty::ProbabilityMap, q: usize| -> Vec<f64> { m.lobes_m.iter().map(|l| l[q]).collect() };
         let chatter =
             |m: &uncertainty::ProbabilityMap, q: usize| -> Vec<f64> { m.chatter_hz.iter().map(|l| l[q]).collect() };
-        let lobes_of = |q: usize| Lobes {
-            speed_rpm: speeds.clone(),
-            depth_limit: quantile(shown, q),
-            chatter_hz: chatter(shown, q),
-        };
+        let lobes_of = |q: usize| Lobes::from_rpm(&speeds, quantile(shown, q), chatter(shown, q));
         let mut columns =
             vec![Column::new("speed", "rpm", speeds.clone()), Column::new("nominal", "m", nominal.clone())];
         for (q, name) in QUANTILES.iter().enumerate().map(|(k, _)| k).zip(["prior_p05", "prior_p50", "prior_p95"]) {
@@ -355,10 +351,7 @@ impl Node for StabilityProbability {
         let parameters = parameter_table(&ens, posterior.as_ref().map(|(p, _)| p.weights.as_slice()));
         let effective = posterior.as_ref().map_or(p.samples as f64, |(post, _)| post.effective_samples);
         Ok(outputs(vec![
-            (
-                "nominal",
-                Value::Lobes(Lobes { speed_rpm: speeds.clone(), depth_limit: nominal, chatter_hz: nominal_chatter }),
-            ),
+            ("nominal", Value::Lobes(Lobes::from_rpm(&speeds, nominal, nominal_chatter))),
             ("p05", Value::Lobes(lobes_of(0))),
             ("p50", Value::Lobes(lobes_of(1))),
             ("p95", Value::Lobes(lobes_of(2))),

@@ -169,7 +169,7 @@ impl Node for StabilitySd {
                 Column::new("spectral_radius", "", mr),
             ],
         };
-        let lobes = Lobes { speed_rpm: speeds, depth_limit: depth, chatter_hz: chatter };
+        let lobes = Lobes::from_rpm(&speeds, depth, chatter);
         Ok(outputs(vec![("lobes", Value::Lobes(lobes)), ("table", Value::Table(table)), ("map", Value::Table(map))]))
     }
 }

@@ -118,7 +118,7 @@ impl Node for TrialsScore {
             return Err(NodeError::input("lobes", "expected stability lobes"));
         };
         let trials = trials_in(p.file)?;
-        let score = stability::score_trials(&lobes.speed_rpm, &lobes.depth_limit, &trials).map_err(|e| match e {
+        let score = stability::score_trials(&lobes.speeds_rpm(), &lobes.depth_limit, &trials).map_err(|e| match e {
             StabilityError::InvalidDiagram { .. } => NodeError::input("lobes", e.to_string()),
             other => NodeError::param("file", other.to_string()),
         })?;
@@ -132,8 +132,8 @@ impl Node for TrialsScore {
             ctx.warn(format!(
                 "{} trial(s) outside the diagram's {}–{} rpm, not scored: {}",
                 outside.len(),
-                lobes.speed_rpm.first().copied().unwrap_or(0.0),
-                lobes.speed_rpm.last().copied().unwrap_or(0.0),
+                lobes.speed.first().map_or(0.0, |s| s.rpm_as_written()),
+                lobes.speed.last().map_or(0.0, |s| s.rpm_as_written()),
                 outside.join(", ")
             ));
         }

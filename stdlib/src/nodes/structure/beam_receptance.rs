@@ -99,8 +99,7 @@ impl Node for BeamReceptance {
                 blocks.iter().map(|b| Receptance::new(b[0][0], b[0][1], b[1][0], b[1][1])).collect()
             }
         };
-        let speed_rpm = spin.map(|w| Speed::from_rad_s(w).rpm());
-        let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, speed_rpm);
+        let set = to_set(&ReceptanceFrf { freqs_hz: freqs.clone(), lines }, None, spin.map(Speed::from_rad_s));
         let top = freqs.last().copied().unwrap_or(0.0);
         let nat: Vec<f64> =
             modes.natural_frequencies().into_iter().skip(modes.rigid_modes()).take_while(|f| *f <= top).collect();

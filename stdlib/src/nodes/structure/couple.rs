@@ -152,7 +152,7 @@ impl Node for RcsaCouple {
                 rcsa_error("sensor", e, "the sensor mass resonates with the structure exactly on a line")
             })?;
         }
-        let set = to_set(&g, spindle.direction.clone(), spindle.speed_rpm);
+        let set = to_set(&g, spindle.direction.clone(), spindle.speed);
         let frf = h_of(&set);
         Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
     }
@@ -175,12 +175,15 @@ fn couple_spinning(
             "a spinning spindle (`spindle_cross`) needs the assembly meshed here: give `assembly` instead of `structure`",
         ));
     }
-    if !same_speed(spindle.speed_rpm, cross.speed_rpm) || !super::same_grid(&spindle.freq_hz, &cross.freq_hz) {
+    if spindle.speed.unwrap_or(Speed::ZERO) != cross.speed.unwrap_or(Speed::ZERO)
+        || !super::same_grid(&spindle.freq_hz, &cross.freq_hz)
+    {
         return Err(NodeError::input(
             "spindle_cross",
             format!(
-                "`spindle` and `spindle_cross` must come from one rotor.receptance step (same speed and lines); got {:?} and {:?} rpm",
-                spindle.speed_rpm, cross.speed_rpm
+                "`spindle` and `spindle_cross` must come from one rotor.receptance step (same speed and lines); got {} and {}",
+                spindle.speed.unwrap_or(Speed::ZERO),
+                cross.speed.unwrap_or(Speed::ZERO)
             ),
         ));
     }
@@ -203,7 +206,7 @@ fn couple_spinning(
     let tip = model.n_nodes() - 1;
     let spinning = beam::SpinningModel::new(model);
     let freqs = spindle.freq_hz.clone();
-    let speed = Speed::from_rpm(spindle.speed_rpm.unwrap_or(0.0));
+    let speed = spindle.speed.unwrap_or(Speed::ZERO);
     let two_port = |forward: bool| -> Result<TwoPort, NodeError> {
         let lines = spinning.whirl_blocks(&[tip, 0], speed.rad_s(), forward, &freqs).map_err(fe)?;
         let pick =
@@ -222,13 +225,9 @@ fn couple_spinning(
         &rcsa_options(p.max_condition),
     )
     .map_err(|e| rcsa_error("spindle", e, hint))?;
-    let set = to_set(&g, spindle.direction.clone(), spindle.speed_rpm);
+    let set = to_set(&g, spindle.direction.clone(), spindle.speed);
     let frf = h_of(&set);
     Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
-}
-
-fn same_speed(a: Option<f64>, b: Option<f64>) -> bool {
-    a.unwrap_or(0.0) == b.unwrap_or(0.0)
 }
 
 /// A substructure part's two-port on `freqs` (1 = tip, 2 = spindle end).

@@ -96,7 +96,7 @@ impl Node for RcsaDecouple {
         let hint = "there the artifact's own tip receptance R11 equals G11 (R11 - G11 is singular, e.g. G11 of the free artifact or lines where a measured G11 is noise), so the spindle is not determined: leave those lines out of the grid or fit G11 first";
         let b = rcsa::decouple(&art, &to_frf(&g11), &interface, &rcsa_options(p.max_condition))
             .map_err(|e| rcsa_error("assembly_tip", e, hint))?;
-        let set = to_set(&b, g11.direction.clone(), g11.speed_rpm);
+        let set = to_set(&b, g11.direction.clone(), g11.speed);
         Ok(outputs(vec![("spindle", Value::ReceptanceSet(set))]))
     }
 }

@@ -24,6 +24,7 @@ pub use substructure::BeamSubstructure;
 
 use crate::beam::{self, BeamModel, MeshOptions, ShearCoefficient};
 use crate::rcsa::{self, Interface, RcsaError, RcsaOptions, Receptance, ReceptanceFrf, TwoPort};
+use spindlelab_domain::Speed;
 use spindlelab_engine::model::{Component, Joint, Section};
 use spindlelab_engine::node::{NodeContext, NodeError, Outputs, PortSpec};
 use spindlelab_engine::spec::{EntityKind, Field, FieldType as T, Params};
@@ -164,7 +165,7 @@ pub(super) fn to_frf(s: &ReceptanceSet) -> ReceptanceFrf {
     }
 }
 
-pub(super) fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Option<f64>) -> ReceptanceSet {
+pub(super) fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed: Option<Speed>) -> ReceptanceSet {
     ReceptanceSet {
         freq_hz: f.freqs_hz.clone(),
         h: f.lines.iter().map(|r| r.h).collect(),
@@ -172,7 +173,7 @@ pub(super) fn to_set(f: &ReceptanceFrf, direction: Option<String>, speed_rpm: Op
         n: f.lines.iter().map(|r| r.n).collect(),
         p: f.lines.iter().map(|r| r.p).collect(),
         direction,
-        speed_rpm,
+        speed,
     }
 }
 
@@ -184,7 +185,7 @@ pub(super) fn h_of(s: &ReceptanceSet) -> Frf {
         coherence: None,
         unit: UnitLabel::new("m/N"),
         direction: s.direction.clone(),
-        speed_rpm: s.speed_rpm,
+        speed: s.speed,
         sensor: None,
         dofs: None,
     }
@@ -483,7 +484,7 @@ mod tests {
             h,
             freq_hz: freq,
             direction: Some("x".into()),
-            speed_rpm: Some(1000.0),
+            speed: Some(Speed::from_rpm(1000.0)),
         }
     }
 
@@ -497,7 +498,7 @@ mod tests {
             assert!((h - line(*f)).norm() < 1e-12, "{f}: {h}");
             assert!((p - line(*f) * 4.0).norm() < 1e-12);
         }
-        assert_eq!((r.direction, r.speed_rpm), (s.direction.clone(), s.speed_rpm));
+        assert_eq!((r.direction, r.speed), (s.direction.clone(), s.speed));
         let e = resample(&s, &[50.0, 100.5]).unwrap_err();
         assert!(e.contains("100.5") && e.contains("extrapolate"), "{e}");
     }

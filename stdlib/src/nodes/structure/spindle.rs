@@ -105,15 +105,11 @@ impl Node for SpindleReceptance {
             return Err(NodeError::param("machine", format!("machine `{name}` lists no spindle modes for `{dir}`")));
         }
         let freqs = grid(ctx, p.max_frequency, p.resolution, p.lines)?;
-        // The measured FRF's speed as its file wrote it (rpm), so the label is the file's.
-        let (speed, speed_rpm) = match (p.speed, measured.and_then(|f| f.speed_rpm)) {
-            (Some(w), _) => (Speed::from_rad_s(w), Speed::from_rad_s(w).rpm()),
-            (None, Some(s)) => (Speed::from_rpm(s), s),
-            (None, None) => (Speed::ZERO, 0.0),
-        };
+        // The measured FRF's speed where the step gives none.
+        let speed = p.speed.map(Speed::from_rad_s).or(measured.and_then(|f| f.speed)).unwrap_or(Speed::ZERO);
         let r = eb_modes::spindle_receptance(modes, &spindle.material, speed, spindle.ref_speed, &freqs)
             .map_err(|e| NodeError::param("machine", format!("spindle of machine `{name}`, direction {dir}: {e}")))?;
-        let set = to_set(&r, Some(dir.to_string()), Some(speed_rpm));
+        let set = to_set(&r, Some(dir.to_string()), Some(speed));
         let frf = h_of(&set);
         Ok(outputs(vec![("receptance", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
     }
