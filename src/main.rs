@@ -99,6 +99,33 @@ struct Cli {
     confine: bool,
 }
 
+/// Where a run writes its outputs and which cache it reads and fills; `run`, `plan` and
+/// `crib` take them alike.
+#[derive(clap::Args)]
+struct StoreArgs {
+    /// Output directory (default: `out/<name of the recipe or catalog>`).
+    #[arg(short, long)]
+    out: Option<PathBuf>,
+    /// Neither read nor write the cache (`plan`: plan as if it were empty).
+    #[arg(long)]
+    no_cache: bool,
+    /// The cache folder (default: the output folder's own), e.g. on storage that several
+    /// machines share.
+    #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
+    cache: Option<PathBuf>,
+}
+
+/// How a run works through its graph, and how much it says.
+#[derive(clap::Args)]
+struct WorkArgs {
+    /// Worker threads (default: one per core). Results do not depend on it.
+    #[arg(long, short = 'j')]
+    threads: Option<usize>,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
 /// `--confine`, set once from the command line before any recipe is compiled.
 static CONFINE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
@@ -108,21 +135,13 @@ enum Command {
     Run {
         /// Recipe file (`.yaml` or `.rhai`).
         recipe: PathBuf,
-        /// Output directory (default: `out/<recipe name>`).
-        #[arg(short, long)]
-        out: Option<PathBuf>,
+        #[command(flatten)]
+        store: StoreArgs,
+        #[command(flatten)]
+        work: WorkArgs,
         /// Keep running independent nodes after one fails, and write the outputs that succeeded.
         #[arg(long)]
         keep_going: bool,
-        /// Neither read nor write the cache.
-        #[arg(long)]
-        no_cache: bool,
-        /// Worker threads (default: one per core). Results do not depend on it.
-        #[arg(long, short = 'j')]
-        threads: Option<usize>,
-        /// Print nothing but errors.
-        #[arg(long, short)]
-        quiet: bool,
         /// Print every output of every node instance, not just the short summary.
         #[arg(long, short, conflicts_with = "quiet")]
         verbose: bool,
@@ -136,10 +155,6 @@ enum Command {
         /// warnings and the manifest in one self-contained file.
         #[arg(long)]
         report: bool,
-        /// The cache folder (default: the output folder's own), e.g. on storage that several
-        /// machines share.
-        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
-        cache: Option<PathBuf>,
         /// Compute only shard K of N of the graph's cacheable instances into the cache, and
         /// write no outputs; a run without `--shard` afterwards commits them
         /// (docs/scale-out.md).
@@ -170,21 +185,10 @@ enum Command {
         /// Write the survey's recipe to this file and run nothing (to run, plan or export it).
         #[arg(long, value_name = "RECIPE")]
         emit: Option<PathBuf>,
-        /// Output directory (default: `out/<catalog name>`).
-        #[arg(short, long)]
-        out: Option<PathBuf>,
-        /// Neither read nor write the cache.
-        #[arg(long)]
-        no_cache: bool,
-        /// The cache folder (default: the output folder's own).
-        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
-        cache: Option<PathBuf>,
-        /// Worker threads (default: one per core). Results do not depend on it.
-        #[arg(long, short = 'j')]
-        threads: Option<usize>,
-        /// Print nothing but errors.
-        #[arg(long, short)]
-        quiet: bool,
+        #[command(flatten)]
+        store: StoreArgs,
+        #[command(flatten)]
+        work: WorkArgs,
     },
     /// Write the HTML report of a finished run (or a diagnosis) from its output folder.
     Report {
@@ -206,15 +210,8 @@ enum Command {
     Plan {
         /// Recipe file (`.yaml` or `.rhai`).
         recipe: PathBuf,
-        /// Output directory whose cache and manifest to compare with (default: `out/<recipe name>`).
-        #[arg(short, long)]
-        out: Option<PathBuf>,
-        /// Plan as if the cache were empty.
-        #[arg(long)]
-        no_cache: bool,
-        /// The cache folder the runs use, when it is not the output folder's own (`run --cache`).
-        #[arg(long, env = "SPINDLELAB_CACHE", value_name = "DIR")]
-        cache: Option<PathBuf>,
+        #[command(flatten)]
+        store: StoreArgs,
         /// Set a declared parameter, e.g. `--set kt=3e8N/m` (repeatable).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_set)]
         set: Vec<(String, String)>,
@@ -494,9 +491,7 @@ fn command(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Check { recipe, set } => cmd_check(&recipe, &set, &mut registry, &mut plugins),
         Command::Graph { recipe, format } => cmd_graph(&recipe, format, &mut registry, &mut plugins),
-        Command::Plan { recipe, out, no_cache, cache, set } => {
-            cmd_plan(&recipe, out, no_cache, cache, &set, &mut registry, &mut plugins)
-        }
+        Command::Plan { recipe, store, set } => cmd_plan(&recipe, store, &set, &mut registry, &mut plugins),
         Command::Nodes { kind } => cmd_nodes(kind, &mut registry, &mut plugins),
         Command::Diagnose { recipe: Some(recipe), out, quiet, .. } => {
             cmd_diagnose(&recipe, out, quiet, &mut registry, &mut plugins)
@@ -505,32 +500,16 @@ fn command(cli: Cli) -> ExitCode {
             let mode = BatchMode { summary: !no_summary, diagnose: !summary_only };
             cmd_diagnose_batch(batch.as_deref().unwrap_or_default(), out, quiet, mode, &registry)
         }
-        Command::Crib { catalog, machine, machine_name, emit, out, no_cache, cache, threads, quiet } => {
-            let args = CribArgs { catalog, machine, machine_name, emit, out, no_cache, cache, threads, quiet };
-            cmd_crib(args, &registry)
+        Command::Crib { catalog, machine, machine_name, emit, store, work } => {
+            cmd_crib(CribArgs { catalog, machine, machine_name, emit, store, work }, &registry)
         }
         Command::Import { case, out, library } => cmd_import(&case, out, library),
         Command::Cache { action } => cache_command(action),
         Command::Plugin { action } => plugin_command(action, &mut plugins),
         Command::Schema => cmd_schema(&registry),
         Command::Report { run_dir, out } => report_command(&run_dir, out),
-        Command::Run {
-            recipe,
-            out,
-            keep_going,
-            no_cache,
-            threads,
-            quiet,
-            verbose,
-            set,
-            no_fit,
-            report,
-            cache,
-            shard,
-            level,
-        } => {
-            let args =
-                RunArgs { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report, cache };
+        Command::Run { recipe, store, work, keep_going, verbose, set, no_fit, report, shard, level } => {
+            let args = RunArgs { recipe, store, work, keep_going, verbose, set, no_fit, report };
             match shard {
                 Some(shard) => cmd_run_shard(args, &shard, level, &mut registry, &mut plugins),
                 None => cmd_run(args, &mut registry, &mut plugins),
@@ -610,9 +589,7 @@ fn cmd_graph(
 /// `spindlelab plan RECIPE`: lists which nodes a run would compute, which come from the cache, and why.
 fn cmd_plan(
     recipe: &Path,
-    out: Option<PathBuf>,
-    no_cache: bool,
-    cache_dir: Option<PathBuf>,
+    StoreArgs { out, no_cache, cache: cache_dir }: StoreArgs,
     set: &[(String, String)],
     registry: &mut engine::node::Registry,
     plugins: &mut Plugins,
@@ -820,11 +797,8 @@ struct CribArgs {
     machine: PathBuf,
     machine_name: Option<String>,
     emit: Option<PathBuf>,
-    out: Option<PathBuf>,
-    no_cache: bool,
-    cache: Option<PathBuf>,
-    threads: Option<usize>,
-    quiet: bool,
+    store: StoreArgs,
+    work: WorkArgs,
 }
 
 /// `spindlelab crib CATALOG --machine LIB`: builds the survey's recipe, and writes it
@@ -859,7 +833,7 @@ fn cmd_crib(args: CribArgs, registry: &engine::node::Registry) -> ExitCode {
         if let Err(code) = write_together(&[(Some(emit), Some(text.as_str()))]) {
             return code;
         }
-        if !args.quiet {
+        if !args.work.quiet {
             outln!(
                 "wrote {}: {} combinations, {} node instances; run it with `spindlelab run {}`",
                 esc(emit.display()),
@@ -870,16 +844,16 @@ fn cmd_crib(args: CribArgs, registry: &engine::node::Registry) -> ExitCode {
         }
         return ExitCode::SUCCESS;
     }
-    let out = args.out.unwrap_or_else(|| default_out(&compiled));
+    let out = args.store.out.unwrap_or_else(|| default_out(&compiled));
     let opts = RunOptions {
-        use_cache: !args.no_cache,
-        threads: clamp_threads(args.threads),
+        use_cache: !args.store.no_cache,
+        threads: clamp_threads(args.work.threads),
         release_consumed: true,
         renderer: Some(spindlelab::renderer()),
-        cache_dir: args.cache,
+        cache_dir: args.store.cache,
         ..RunOptions::new(out.clone())
     };
-    let bar = progress_bar(compiled.graph.instances.len() as u64, args.quiet);
+    let bar = progress_bar(compiled.graph.instances.len() as u64, args.work.quiet);
     let progress = |_: usize, id: &str| {
         bar.inc(1);
         bar.set_message(esc(id));
@@ -888,7 +862,7 @@ fn cmd_crib(args: CribArgs, registry: &engine::node::Registry) -> ExitCode {
     bar.finish_and_clear();
     match outcome {
         Ok(ran) => {
-            if !args.quiet {
+            if !args.work.quiet {
                 let instances = compiled.graph.instances.len();
                 outln!(
                     "{} combinations on machine `{}`: {} of {instances} node instances computed, the others from the cache, in {:.3} s; wrote {}, {} per-tool table(s) and manifest.json to {}",
@@ -988,16 +962,13 @@ fn cmd_schema(registry: &engine::node::Registry) -> ExitCode {
 /// The arguments of `spindlelab run`, as the command line gave them.
 struct RunArgs {
     recipe: PathBuf,
-    out: Option<PathBuf>,
+    store: StoreArgs,
+    work: WorkArgs,
     keep_going: bool,
-    no_cache: bool,
-    threads: Option<usize>,
-    quiet: bool,
     verbose: bool,
     set: Vec<(String, String)>,
     no_fit: bool,
     report: bool,
-    cache: Option<PathBuf>,
 }
 
 /// `spindlelab run RECIPE --shard K/N [--level L]`: computes one shard of the graph into the
@@ -1017,7 +988,7 @@ fn cmd_run_shard(
         }
     };
     shard.level = level;
-    if args.no_cache || args.report || args.keep_going {
+    if args.store.no_cache || args.report || args.keep_going {
         eoutln!(
             "error: a shard computes into the cache and writes no outputs: leave out --no-cache, --report and --keep-going"
         );
@@ -1035,14 +1006,14 @@ fn cmd_run_shard(
         );
         return ExitCode::from(EXIT_BAD_INPUT);
     }
-    let out = args.out.clone().unwrap_or_else(|| default_out(&c));
+    let out = args.store.out.clone().unwrap_or_else(|| default_out(&c));
     let opts = RunOptions {
-        threads: clamp_threads(args.threads),
-        cache_dir: args.cache.clone(),
+        threads: clamp_threads(args.work.threads),
+        cache_dir: args.store.cache.clone(),
         shard: Some(shard),
         ..RunOptions::new(out)
     };
-    let bar = progress_bar(c.graph.instances.len() as u64, args.quiet);
+    let bar = progress_bar(c.graph.instances.len() as u64, args.work.quiet);
     let progress = |_: usize, id: &str| {
         bar.inc(1);
         bar.set_message(esc(id));
@@ -1083,7 +1054,7 @@ fn cmd_run_shard(
     if let Err(code) = write_together(&[(Some(&marker), Some(text.as_str()))]) {
         return code;
     }
-    if !args.quiet {
+    if !args.work.quiet {
         let level = shard.level.map(|l| format!(", level {l}")).unwrap_or_default();
         outln!(
             "shard {}/{}{level}: {} computed, {} from cache; marker {}",
@@ -1185,7 +1156,16 @@ fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) -> ExitCode
 
 /// `spindlelab run RECIPE`: compiles the recipe, fits it if it asks, runs it and writes its outputs.
 fn cmd_run(args: RunArgs, registry: &mut engine::node::Registry, plugins: &mut Plugins) -> ExitCode {
-    let RunArgs { recipe, out, keep_going, no_cache, threads, quiet, verbose, set, no_fit, report, cache } = args;
+    let RunArgs {
+        recipe,
+        store: StoreArgs { out, no_cache, cache },
+        work: WorkArgs { threads, quiet },
+        keep_going,
+        verbose,
+        set,
+        no_fit,
+        report,
+    } = args;
     let threads = clamp_threads(threads);
     let mut c = match compile_with(&recipe, &set, registry, plugins) {
         Ok(c) if c.recipe.library => return refuse_library(&c, &recipe),
