@@ -13,13 +13,13 @@
 use crate::engine::grammar::parse_unit;
 use crate::engine::model::entity_fields;
 use crate::engine::spec::{EntityKind, FieldType};
-use crate::engine::syntax::yaml_quoted;
+use crate::engine::syntax::emit::{Notes, emit_noted, inline};
+use crate::engine::syntax::{Raw, yaml_quoted};
 use serde::Deserialize;
 use spindlelab_stdlib::nodes::kinds::{
     BEAM_SUBSTRUCTURE, FRF_GAP, RCSA_COUPLE, SPINDLE_RECEPTANCE, STABILITY_SPEED_DEPENDENT, TRIALS_SCORE,
 };
 use std::collections::BTreeMap;
-use std::fmt::Write;
 use std::path::Path;
 
 /// Why a case file could not be imported.
@@ -146,18 +146,6 @@ struct CaseFrf {
 fn num(x: f64) -> String {
     let r: f64 = format!("{x:.11e}").parse().unwrap_or(x);
     if r != 0.0 && (r.abs() >= 1e6 || r.abs() < 1e-3) { format!("{r:e}") } else { format!("{r}") }
-}
-
-/// A string of the case as a YAML scalar: plain when it is a word that YAML reads as that
-/// same text (`steel`, `holder+tool`, `m/N`), double-quoted otherwise.
-fn scalar(s: &str) -> String {
-    let word = s.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '+' | '/'));
-    let keyword = matches!(
-        s.to_ascii_lowercase().as_str(),
-        "true" | "false" | "null" | "yes" | "no" | "on" | "off" | "y" | "n" | "inf" | "nan" | "infinity"
-    );
-    if word && !keyword { s.to_string() } else { yaml_quoted(s) }
 }
 
 /// A string of the case as a message shows it: quoted and escaped, cut after 60 characters.
@@ -389,8 +377,7 @@ impl Placement<'_> {
 /// Writes the recipe for the case in `json` (its file name `path` is for messages), naming
 /// the data files as the case does (for a recipe written beside the case).
 pub fn recipe_from_case(json: &str, path: &str) -> Result<String, ImportError> {
-    let parts = import_parts(json, path, None)?;
-    Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
+    Ok(import_parts(json, path, None)?.recipe())
 }
 
 /// The canonical form of a folder that may not exist yet (the recipe's, which the command
@@ -411,8 +398,7 @@ fn canonical_to_be(dir: &std::path::Path) -> Option<std::path::PathBuf> {
 /// [`recipe_from_case`] for a recipe written where `placement` says: its data files named
 /// from the recipe's folder.
 pub fn recipe_from_case_at(json: &str, path: &str, placement: Placement<'_>) -> Result<String, ImportError> {
-    let parts = import_parts(json, path, Some(placement))?;
-    Ok(format!("{}{}{}", parts.header, parts.entities, parts.rest))
+    Ok(import_parts(json, path, Some(placement))?.recipe())
 }
 
 /// The case in `json` as a library of its entities and a short recipe that uses it:
@@ -426,30 +412,105 @@ pub fn library_from_case(
     placement: Option<Placement<'_>>,
 ) -> Result<(String, String), ImportError> {
     let parts = import_parts(json, path, placement)?;
-    let file_name = path.rsplit('/').next().unwrap_or(path);
-    let library = format!(
-        "# Entities of case {}, imported from {}: materials, the spindle, the holder and tool,\n\
-         # the sensor and the cutting setup. Recipes take them with `use:`.\nspindlelab: 1\n\n{}",
-        scalar(&parts.id),
-        scalar(file_name),
-        parts.entities
+    let mut notes = parts.notes.clone();
+    notes.before(
+        &[],
+        format!(
+            "Entities of case {}, imported from {}: materials, the spindle, the holder and tool,\n\
+             the sensor and the cutting setup. Recipes take them with `use:`.",
+            shown_word(&parts.id),
+            shown_word(&parts.file_name)
+        ),
     );
-    let recipe = format!(
-        "{}# Materials, machine, assemblies, sensor and cutting setup: the case's library.\nuse: [{}]\n\n{}",
-        parts.header,
-        yaml_quoted(use_path),
-        parts.rest
-    );
+    let mut top = vec![("spindlelab".to_string(), Raw::int(1))];
+    top.extend(separated(&parts.entities, &mut notes));
+    let library = emit_noted(&Raw::mapping(top), &notes);
+
+    let mut notes = parts.notes.clone();
+    parts.head(&mut notes);
+    let mut top = parts.title();
+    let uses = vec![("use".to_string(), Raw::list(vec![Raw::text(use_path)]))];
+    notes.before(&["use"], "Materials, machine, assemblies, sensor and cutting setup: the case's library.");
+    top.extend(separated(&uses, &mut notes));
+    top.extend(separated(&parts.rest, &mut notes));
+    let recipe = emit_noted(&Raw::mapping(top), &notes);
     Ok((library, recipe))
 }
 
-/// A recipe written from a case in three parts: the header, the entity sections and the rest
-/// (measurements and steps).
+/// A recipe written from a case: its entity sections, the rest (measurements, steps and
+/// outputs) and the comments of both.
 struct Parts {
     id: String,
-    header: String,
-    entities: String,
-    rest: String,
+    file_name: String,
+    entities: Vec<(String, Raw)>,
+    rest: Vec<(String, Raw)>,
+    notes: Notes,
+    /// The recipe's closing comment: how many FRFs were measured, on which lines.
+    closing: Option<String>,
+}
+
+impl Parts {
+    /// The format version and the recipe's name.
+    fn title(&self) -> Vec<(String, Raw)> {
+        vec![("spindlelab".to_string(), Raw::int(1)), ("name".to_string(), Raw::text(&self.id))]
+    }
+
+    /// The recipe's opening and closing comments: the case and its file, what the recipe
+    /// compares, and the measurements.
+    fn head(&self, notes: &mut Notes) {
+        if let Some(c) = &self.closing {
+            notes.end(c);
+        }
+        notes.before(
+            &[],
+            format!(
+                "Baseline model of case {}, imported from {}.\n\
+                 The measured configuration (sensor on the tool) is compared with every measured FRF;\n\
+                 the cutting configuration (no sensor) gives the lobes that score the cutting trials.",
+                shown_word(&self.id),
+                shown_word(&self.file_name)
+            ),
+        );
+    }
+
+    /// The whole recipe: entities and steps in one file.
+    fn recipe(&self) -> String {
+        let mut notes = self.notes.clone();
+        self.head(&mut notes);
+        let mut top = self.title();
+        top.extend(separated(&self.entities, &mut notes));
+        top.extend(separated(&self.rest, &mut notes));
+        emit_noted(&Raw::mapping(top), &notes)
+    }
+}
+
+/// `sections`, each after a blank line.
+fn separated(sections: &[(String, Raw)], notes: &mut Notes) -> Vec<(String, Raw)> {
+    for (key, _) in sections {
+        notes.blank(&[key]);
+    }
+    sections.to_vec()
+}
+
+/// A string as a comment quotes it: as the recipe would write it.
+fn shown_word(s: &str) -> String {
+    inline(&Raw::text(s)).unwrap_or_default()
+}
+
+/// A number as a person writes it (see [`num`]): whole numbers as integers.
+fn number(x: f64) -> Raw {
+    let r: f64 = num(x).parse().unwrap_or(x);
+    if r.fract() == 0.0 && r.abs() < 1e15 { Raw::int(r as i64) } else { Raw::float(r) }
+}
+
+/// A quantity with its unit, `x` already in that unit: `63.5 mm`.
+fn quantity(x: f64, unit: &str) -> Raw {
+    Raw::text(format!("{} {unit}", num(x)))
+}
+
+/// A one-line mapping of the entries given, in order.
+fn map<const N: usize>(entries: [(&str, Raw); N]) -> Raw {
+    Raw::mapping(entries)
 }
 
 fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Result<Parts, ImportError> {
@@ -461,261 +522,276 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
         None => Ok(file.to_string()),
     };
     let id = case.case_id.clone().unwrap_or_else(|| "case".into());
-    let header = header_section(&id, path);
+    let file_name = path.rsplit('/').next().unwrap_or(path).to_string();
+    let mut notes = Notes::default();
 
-    let mut entities = String::new();
-    let spindle_material = write_materials(&mut entities, &case);
-    write_machines(&mut entities, &case, &spindle_material).map_err(invalid)?;
-    write_assemblies(&mut entities, &case.holder_tool);
+    let (materials, spindle_material) = materials(&case, &mut notes);
+    let mut entities = vec![("materials".to_string(), materials)];
+    entities.push(("machines".into(), machines(&case, &spindle_material, &mut notes).map_err(invalid)?));
+    entities.push(("assemblies".into(), assemblies(&case.holder_tool)));
     if let Some(s) = &case.sensor {
-        write_sensors(&mut entities, s);
+        entities.push(("sensors".into(), sensors(s)));
     }
     if let Some(c) = &case.cutting {
-        write_cutting(&mut entities, c);
+        entities.push(("cutting".into(), cutting(c, &mut notes)));
     }
 
-    let mut rest = String::new();
+    let mut rest = Vec::new();
     let meas = case.measurements.as_ref();
     let frfs: &[CaseFrf] = meas.map_or(&[], |m| &m.frf);
     let trials_file = meas.and_then(|m| m.trials.as_deref());
-    write_measurements(&mut rest, frfs, &data_path)?;
-    write_steps(&mut rest, &case, frfs, trials_file, &data_path)?;
-    let cutting = case.cutting.is_some();
-    write_outputs(&mut rest, !frfs.is_empty(), cutting, cutting && trials_file.is_some());
-    if let Some(m) = meas {
-        write_measurement_note(&mut rest, m);
+    if !frfs.is_empty() {
+        rest.push(("measurements".to_string(), measurements(frfs, &data_path, &mut notes)?));
     }
-    Ok(Parts { id, header, entities, rest })
+    rest.push(("steps".into(), steps(&case, frfs, trials_file, &data_path, &mut notes)?));
+    let cutting = case.cutting.is_some();
+    if let Some(o) = outputs(!frfs.is_empty(), cutting, cutting && trials_file.is_some(), &mut notes) {
+        rest.push(("outputs".into(), o));
+    }
+    let closing = meas.map(|m| {
+        format!(
+            "{} measured FRFs{}.",
+            m.frf.len(),
+            match (m.frequency_lines, m.frequency_step_hz) {
+                (Some(n), Some(df)) => format!(", {n} lines every {} Hz", num(df)),
+                _ => String::new(),
+            }
+        )
+    });
+    Ok(Parts { id, file_name, entities, rest, notes, closing })
 }
 
-/// The recipe's header: comments naming the case and its file, the format version and the name.
-fn header_section(id: &str, path: &str) -> String {
-    let mut y = String::new();
-    let w = &mut y;
-    let file_name = path.rsplit('/').next().unwrap_or(path);
-    let _ = writeln!(w, "# Baseline model of case {}, imported from {}.", scalar(id), scalar(file_name));
-    let _ = writeln!(w, "# The measured configuration (sensor on the tool) is compared with every measured FRF;");
-    let _ = writeln!(w, "# the cutting configuration (no sensor) gives the lobes that score the cutting trials.");
-    let _ = writeln!(w, "spindlelab: 1");
-    let _ = writeln!(w, "name: {}", scalar(id));
-    let _ = writeln!(w);
-    y
-}
-
-/// Writes `materials:` (the holder's and tool's, then the spindle's under a name of its own)
-/// and returns that name.
-fn write_materials(w: &mut String, case: &Case) -> String {
-    let _ = writeln!(w, "materials:");
-    for (mname, m) in &case.materials {
-        let _ = write!(w, "  {}: {{ E: {} GPa, rho: {} kg/m^3", scalar(mname), num(m.e_pa / 1e9), num(m.rho_kg_m3));
+/// `materials:` (the holder's and tool's, then the spindle's under a name of its own), and
+/// that name.
+fn materials(case: &Case, notes: &mut Notes) -> (Raw, String) {
+    let mut entries = Vec::new();
+    for (name, m) in &case.materials {
+        let mut fields = vec![("E", quantity(m.e_pa / 1e9, "GPa")), ("rho", quantity(m.rho_kg_m3, "kg/m^3"))];
         if let Some(nu) = m.nu {
-            let _ = write!(w, ", nu: {}", num(nu));
+            fields.push(("nu", number(nu)));
         }
-        let _ = writeln!(w, ", eta: {} }}", num(m.eta.unwrap_or(0.0)));
+        fields.push(("eta", number(m.eta.unwrap_or(0.0))));
+        entries.push((name.clone(), Raw::mapping(fields)));
     }
     let mut spindle_material = "spindle_steel".to_string();
     while case.materials.contains_key(&spindle_material) {
         spindle_material.push('_');
     }
     let sm = &case.spindle.material;
-    let _ = write!(w, "  {spindle_material}: {{ E: {} GPa, rho: {} kg/m^3", num(sm.e_pa / 1e9), num(sm.rho_kg_m3));
+    let mut fields = vec![("E", quantity(sm.e_pa / 1e9, "GPa")), ("rho", quantity(sm.rho_kg_m3, "kg/m^3"))];
     match sm.nu {
-        Some(nu) => {
-            let _ = writeln!(w, ", nu: {} }}", num(nu));
-        }
+        Some(nu) => fields.push(("nu", number(nu))),
         None => {
-            let _ = writeln!(w, " }}   # no Poisson's ratio: the spindle's beams do not use one");
+            notes.after(&["materials", &spindle_material], "no Poisson's ratio: the spindle's beams do not use one");
         }
     }
-    let _ = writeln!(w);
-    spindle_material
+    entries.push((spindle_material.clone(), Raw::mapping(fields)));
+    (Raw::mapping(entries), spindle_material)
 }
 
-/// Writes `machines:`: the spindle's modes per direction, their speed laws and the holder joint.
-fn write_machines(w: &mut String, case: &Case, spindle_material: &str) -> Result<(), String> {
-    let dirs: Vec<&String> = case.spindle.modes.keys().collect();
-    let _ = writeln!(w, "machines:");
-    let _ = writeln!(w, "  test_spindle:");
-    let _ = writeln!(w, "    directions: [{}]", dirs.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", "));
-    let _ = writeln!(w, "    spindle:");
-    let _ = writeln!(w, "      material: {spindle_material}");
-    let _ = writeln!(w, "      ref_speed: {} rpm", num(case.spindle.ref_speed_rpm.unwrap_or(10_000.0)));
-    let _ = writeln!(
-        w,
-        "      # Equivalent clamped-free Euler–Bernoulli beams, one per mode; f(n) = f (1 + kf (n/ref_speed)^2)."
-    );
-    let _ = writeln!(w, "      modes:");
-    for (dir, modes) in &case.spindle.modes {
-        let _ = writeln!(w, "        {dir}:");
-        for m in modes {
-            let _ = write!(w, "          - {{ f: {} Hz, d: {} mm, eta: {}", num(m.f_hz), num(m.d_m * 1e3), num(m.eta));
+/// `machines:`: the spindle's modes per direction, their speed laws and the holder joint.
+fn machines(case: &Case, spindle_material: &str, notes: &mut Notes) -> Result<Raw, String> {
+    let directions = case.spindle.modes.keys().map(Raw::text).collect();
+    let modes = case.spindle.modes.iter().map(|(dir, modes)| {
+        let modes = modes.iter().map(|m| {
+            let mut fields =
+                vec![("f", quantity(m.f_hz, "Hz")), ("d", quantity(m.d_m * 1e3, "mm")), ("eta", number(m.eta))];
             if let Some(kf) = m.kf.filter(|k| *k != 0.0) {
-                let _ = write!(w, ", kf: {}", num(kf));
+                fields.push(("kf", number(kf)));
             }
             if let Some(keta) = m.keta.filter(|k| *k != 0.0) {
-                let _ = write!(w, ", keta: {}", num(keta));
+                fields.push(("keta", number(keta)));
             }
-            let _ = writeln!(w, " }}");
-        }
-    }
-    write_holder_interface(w, &case.holder_spindle_interface)?;
-    let _ = writeln!(w);
-    Ok(())
+            Raw::mapping(fields)
+        });
+        (dir.clone(), Raw::list(modes.collect()))
+    });
+    notes.before(
+        &["machines", "test_spindle", "spindle", "modes"],
+        "Equivalent clamped-free Euler–Bernoulli beams, one per mode; f(n) = f (1 + kf (n/ref_speed)^2).",
+    );
+    let spindle = map([
+        ("material", Raw::text(spindle_material)),
+        ("ref_speed", quantity(case.spindle.ref_speed_rpm.unwrap_or(10_000.0), "rpm")),
+        ("modes", Raw::mapping(modes)),
+    ]);
+    let machine = map([
+        ("directions", Raw::list(directions)),
+        ("spindle", spindle),
+        ("holder_interface", holder_interface(&case.holder_spindle_interface)?),
+    ]);
+    Ok(map([("test_spindle", machine)]))
 }
 
-/// Writes the machine's `holder_interface`: rigid, or its stiffness and damping; an error when
-/// the case gives neither.
-fn write_holder_interface(w: &mut String, j: &CaseJoint) -> Result<(), String> {
+/// The machine's `holder_interface`: rigid, or its stiffness and damping; an error when the
+/// case gives neither.
+fn holder_interface(j: &CaseJoint) -> Result<Raw, String> {
     match (j.rigid, j.kt_n_per_m, j.ct_ns_per_m, j.kr_nm_per_rad, j.cr_nms_per_rad) {
-        (Some(true), ..) => {
-            let _ = writeln!(w, "    holder_interface: {{ rigid: true }}");
-        }
-        (_, Some(kt), ct, Some(kr), cr) => {
-            let _ = writeln!(
-                w,
-                "    holder_interface: {{ kt: {} N/m, ct: {} N*s/m, kr: {} N*m/rad, cr: {} N*m*s/rad }}",
-                num(kt),
-                num(ct.unwrap_or(0.0)),
-                num(kr),
-                num(cr.unwrap_or(0.0))
-            );
-        }
-        _ => return Err("`holder_spindle_interface` is neither rigid nor gives kt and kr".into()),
+        (Some(true), ..) => Ok(map([("rigid", Raw::bool(true))])),
+        (_, Some(kt), ct, Some(kr), cr) => Ok(map([
+            ("kt", quantity(kt, "N/m")),
+            ("ct", quantity(ct.unwrap_or(0.0), "N*s/m")),
+            ("kr", quantity(kr, "N*m/rad")),
+            ("cr", quantity(cr.unwrap_or(0.0), "N*m*s/rad")),
+        ])),
+        _ => Err("`holder_spindle_interface` is neither rigid nor gives kt and kr".into()),
     }
-    Ok(())
 }
 
-/// Writes `assemblies:`: the holder and tool, section by section from the spindle end to the tip.
-fn write_assemblies(w: &mut String, holder_tool: &HolderTool) {
-    let _ = writeln!(w, "assemblies:");
-    let _ = writeln!(w, "  holder_tool:");
-    let _ = writeln!(w, "    sections:");
-    for s in &holder_tool.sections {
-        let _ = write!(w, "      - {{ name: {}, component: {}", scalar(&s.name), s.component);
+/// `assemblies:`: the holder and tool, section by section from the spindle end to the tip.
+fn assemblies(holder_tool: &HolderTool) -> Raw {
+    let sections = holder_tool.sections.iter().map(|s| {
+        let mut fields = vec![("name", Raw::text(&s.name)), ("component", Raw::text(&s.component))];
         if let Some(k) = s.kind.as_deref().filter(|k| *k != "plain") {
-            let _ = write!(w, ", kind: {k}");
+            fields.push(("kind", Raw::text(k)));
         }
-        let _ = write!(w, ", d_out: {} mm", num(s.d_out_spindle_end_m * 1e3));
+        fields.push(("d_out", quantity(s.d_out_spindle_end_m * 1e3, "mm")));
         if let Some(tip) = s.d_out_tip_end_m.filter(|t| *t != s.d_out_spindle_end_m) {
-            let _ = write!(w, ", d_out_tip: {} mm", num(tip * 1e3));
+            fields.push(("d_out_tip", quantity(tip * 1e3, "mm")));
         }
         if let Some(d) = s.d_in_m.filter(|d| *d > 0.0) {
-            let _ = write!(w, ", d_in: {} mm", num(d * 1e3));
+            fields.push(("d_in", quantity(d * 1e3, "mm")));
         }
-        let _ = write!(w, ", length: {} mm, outer: {}", num(s.length_m * 1e3), scalar(&s.outer_material));
+        fields.push(("length", quantity(s.length_m * 1e3, "mm")));
+        fields.push(("outer", Raw::text(&s.outer_material)));
         if let Some(inner) = &s.inner_material {
-            let _ = write!(w, ", inner: {}", scalar(inner));
+            fields.push(("inner", Raw::text(inner)));
         }
-        let _ = writeln!(w, " }}");
-    }
-    let _ = writeln!(w);
+        Raw::mapping(fields)
+    });
+    map([("holder_tool", map([("sections", Raw::list(sections.collect()))]))])
 }
 
-/// Writes `sensors:`: the case's sensor, its kind, location and mass.
-fn write_sensors(w: &mut String, s: &CaseSensor) {
-    let _ = writeln!(w, "sensors:");
-    let _ = write!(w, "  sensor: {{ kind: {}", s.kind);
+/// `sensors:`: the case's sensor, its kind, location and mass.
+fn sensors(s: &CaseSensor) -> Raw {
+    let mut fields = vec![("kind", Raw::text(&s.kind))];
     if let Some(l) = &s.location {
-        let _ = write!(w, ", location: {}", yaml_quoted(l));
+        fields.push(("location", Raw::text(l)));
     }
-    let _ = writeln!(w, ", mass: {} g }}", num(s.mass_kg.unwrap_or(0.0) * 1e3));
-    let _ = writeln!(w);
+    fields.push(("mass", quantity(s.mass_kg.unwrap_or(0.0) * 1e3, "g")));
+    map([("sensor", Raw::mapping(fields))])
 }
 
-/// Writes `cutting:`: the trials' setup (teeth, immersion, coefficients and speed range).
-fn write_cutting(w: &mut String, c: &CaseCutting) {
-    let _ = writeln!(w, "cutting:");
-    let _ = writeln!(w, "  trials:");
-    let _ = writeln!(w, "    teeth: {}", c.teeth);
-    let _ = writeln!(w, "    radial_immersion: {}   # radial depth / tool diameter", num(c.radial_immersion));
-    let _ = writeln!(w, "    milling: {}", c.milling);
-    let _ = writeln!(w, "    Ks: {} MPa", num(c.ks / 1e6));
-    let _ = writeln!(w, "    beta: {} deg", num(c.beta_deg));
+/// `cutting:`: the trials' setup (teeth, immersion, coefficients and speed range).
+fn cutting(c: &CaseCutting, notes: &mut Notes) -> Raw {
+    let mut fields = vec![
+        ("teeth", Raw::int(i64::from(c.teeth))),
+        ("radial_immersion", number(c.radial_immersion)),
+        ("milling", Raw::text(&c.milling)),
+        ("Ks", quantity(c.ks / 1e6, "MPa")),
+        ("beta", quantity(c.beta_deg, "deg")),
+    ];
+    notes.after(&["cutting", "trials", "radial_immersion"], "radial depth / tool diameter");
     if let Some(n) = c.coefficients_calibrated_at_rpm {
-        let _ = writeln!(w, "    calibrated_at: {} rpm", num(n));
+        fields.push(("calibrated_at", quantity(n, "rpm")));
     }
     if let Some(m) = &c.workpiece_material {
-        let _ = writeln!(w, "    workpiece: {}", yaml_quoted(m));
+        fields.push(("workpiece", Raw::text(m)));
     }
     if let Some([a, b]) = c.trial_rpm_range {
-        let _ = writeln!(w, "    trial_speeds: [{} rpm, {} rpm]", num(a), num(b));
+        fields.push(("trial_speeds", Raw::list(vec![quantity(a, "rpm"), quantity(b, "rpm")])));
     }
-    let _ = writeln!(w);
+    map([("trials", Raw::mapping(fields))])
 }
 
-/// Writes `measurements:`, one set of every measured FRF named from the recipe's folder, when
-/// the case has any.
-fn write_measurements(
-    w: &mut String,
+/// `measurements:`, one set of every measured FRF named from the recipe's folder.
+fn measurements(
     frfs: &[CaseFrf],
     data_path: &impl Fn(&str) -> Result<String, ImportError>,
-) -> Result<(), ImportError> {
-    if frfs.is_empty() {
-        return Ok(());
+    notes: &mut Notes,
+) -> Result<Raw, ImportError> {
+    notes.before(&["measurements"], "Every measured FRF; each file's header gives its direction and speed.");
+    let mut files = Vec::new();
+    for (i, f) in frfs.iter().enumerate() {
+        files.push(Raw::text(data_path(&f.file)?));
+        let at = i.to_string();
+        notes.after(&["measurements", "tool_tip", "files", &at], format!("{}, {} rpm", f.direction, num(f.speed_rpm)));
     }
-    let _ = writeln!(w, "# Every measured FRF; each file's header gives its direction and speed.");
-    let _ = writeln!(w, "measurements:");
-    let _ = writeln!(w, "  tool_tip:");
-    let _ = writeln!(w, "    files:");
-    for f in frfs {
-        let _ =
-            writeln!(w, "      - {}   # {}, {} rpm", yaml_quoted(&data_path(&f.file)?), f.direction, num(f.speed_rpm));
-    }
+    let mut set = vec![("files", Raw::list(files))];
     let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
     if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
-        let _ = writeln!(w, "    units: {}", scalar(u));
+        set.push(("units", Raw::text(*u)));
     }
-    let _ = writeln!(w);
-    Ok(())
+    Ok(map([("tool_tip", Raw::mapping(set))]))
 }
 
-/// Writes `steps:`: the holder and tool model, then the measured and the cutting configurations
-/// where the case has them.
-fn write_steps(
-    w: &mut String,
+/// A step: its kind, parameters and inputs (each left out when empty), and its sweep.
+fn step(kind: &str, params: Vec<(&str, Raw)>, inputs: Vec<(&str, Raw)>, sweep: Option<Raw>) -> Raw {
+    let mut fields = vec![("kind", Raw::text(kind))];
+    if !params.is_empty() {
+        fields.push(("params", Raw::mapping(params)));
+    }
+    if !inputs.is_empty() {
+        fields.push(("inputs", Raw::mapping(inputs)));
+    }
+    if let Some(s) = sweep {
+        fields.push(("sweep", s));
+    }
+    Raw::mapping(fields)
+}
+
+/// `steps:`: the holder and tool model, then the measured and the cutting configurations where
+/// the case has them.
+fn steps(
     case: &Case,
     frfs: &[CaseFrf],
     trials_file: Option<&str>,
     data_path: &impl Fn(&str) -> Result<String, ImportError>,
-) -> Result<(), ImportError> {
-    let _ = writeln!(w, "steps:");
-    let _ = writeln!(w, "  # The holder and tool reduced once to their tip and spindle end.");
-    let _ = writeln!(w, "  holder_tool_model:");
-    let _ = writeln!(w, "    kind: {BEAM_SUBSTRUCTURE}");
-    let _ = writeln!(w, "    params: {{ assembly: holder_tool, max_element: 2 mm }}");
+    notes: &mut Notes,
+) -> Result<Raw, ImportError> {
+    notes.before(&["steps", "holder_tool_model"], "The holder and tool reduced once to their tip and spindle end.");
+    let mut steps = vec![(
+        "holder_tool_model",
+        step(
+            BEAM_SUBSTRUCTURE,
+            vec![("assembly", Raw::text("holder_tool")), ("max_element", Raw::text("2 mm"))],
+            vec![],
+            None,
+        ),
+    )];
     if !frfs.is_empty() {
-        write_measured_steps(w, case.sensor.is_some());
+        steps.extend(measured_steps(case.sensor.is_some(), notes));
     }
     if let Some(c) = &case.cutting {
-        write_cutting_steps(w, c, frfs, trials_file, data_path)?;
+        steps.extend(cutting_steps(c, frfs, trials_file, data_path, notes)?);
     }
-    Ok(())
+    Ok(Raw::mapping(steps))
 }
 
-/// Writes the measured configuration's steps: the spindle on the files' lines, the coupled
-/// model and its gap.
-fn write_measured_steps(w: &mut String, with_sensor: bool) {
-    let _ = writeln!(w);
-    let _ = writeln!(w, "  # Measured configuration: on each file's lines, direction and speed.");
-    let _ = writeln!(w, "  spindle:");
-    let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
-    let _ = writeln!(w, "    params: {{ machine: test_spindle }}");
-    let _ = writeln!(w, "    inputs: {{ grid: \"@tool_tip.frf\" }}");
-    let _ = writeln!(w, "  measured_model:");
-    let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
+/// The measured configuration's steps: the spindle on the files' lines, the coupled model and
+/// its gap.
+fn measured_steps(with_sensor: bool, notes: &mut Notes) -> Vec<(&'static str, Raw)> {
+    notes
+        .blank(&["steps", "spindle"])
+        .before(&["steps", "spindle"], "Measured configuration: on each file's lines, direction and speed.");
+    let spindle = step(
+        SPINDLE_RECEPTANCE,
+        vec![("machine", Raw::text("test_spindle"))],
+        vec![("grid", Raw::port("tool_tip", "frf"))],
+        None,
+    );
+    let mut params = vec![("interface", Raw::text("machine")), ("machine", Raw::text("test_spindle"))];
     if with_sensor {
-        let _ = writeln!(
-            w,
-            "    params: {{ interface: machine, machine: test_spindle, sensor: sensor }}   # the sensor's mass sits on the tool tip"
-        );
-    } else {
-        let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
+        params.push(("sensor", Raw::text("sensor")));
+        notes.after(&["steps", "measured_model", "params"], "the sensor's mass sits on the tool tip");
     }
-    let _ = writeln!(w, "    inputs: {{ spindle: \"@spindle.receptance\", structure: \"@holder_tool_model.model\" }}");
-    let _ = writeln!(w, "  # Model against measurement, in units of the measurement's noise (about 1 at the floor).");
-    let _ = writeln!(w, "  gap:");
-    let _ = writeln!(w, "    kind: {FRF_GAP}");
-    let _ = writeln!(w, "    inputs: {{ model: \"@measured_model.frf\", measured: \"@tool_tip.frf\" }}");
+    let model = step(
+        RCSA_COUPLE,
+        params,
+        vec![("spindle", Raw::port("spindle", "receptance")), ("structure", Raw::port("holder_tool_model", "model"))],
+        None,
+    );
+    notes.before(
+        &["steps", "gap"],
+        "Model against measurement, in units of the measurement's noise (about 1 at the floor).",
+    );
+    let gap = step(
+        FRF_GAP,
+        vec![],
+        vec![("model", Raw::port("measured_model", "frf")), ("measured", Raw::port("tool_tip", "frf"))],
+        None,
+    );
+    vec![("spindle", spindle), ("measured_model", model), ("gap", gap)]
 }
 
 /// The speed sweep of the cutting configuration, `(lo, hi, step)` in rpm: over the measured and
@@ -739,106 +815,119 @@ fn cutting_speed_grid(frfs: &[CaseFrf], c: &CaseCutting) -> (f64, f64, f64) {
     (lo, hi, step)
 }
 
-/// Writes the cutting configuration's steps: the spindle swept over speed, the coupled model,
-/// its lobes and the trials.
-fn write_cutting_steps(
-    w: &mut String,
+/// The cutting configuration's steps: the spindle swept over speed, the coupled model, its
+/// lobes and the trials.
+fn cutting_steps(
     c: &CaseCutting,
     frfs: &[CaseFrf],
     trials_file: Option<&str>,
     data_path: &impl Fn(&str) -> Result<String, ImportError>,
-) -> Result<(), ImportError> {
-    let (lo, hi, step) = cutting_speed_grid(frfs, c);
-    let _ = writeln!(w);
-    let _ = writeln!(w, "  # Cutting configuration: no sensor; x and y over the speeds of the trials.");
-    let _ = writeln!(w, "  spindle_cutting:");
-    let _ = writeln!(w, "    kind: {SPINDLE_RECEPTANCE}");
-    let _ = writeln!(w, "    params: {{ machine: test_spindle, max_frequency: 10 kHz, resolution: 2.5 Hz }}");
-    let _ = writeln!(w, "    sweep:");
-    let _ = writeln!(w, "      direction: [x, y]");
-    let _ = writeln!(w, "      speed: {}..{} step {} rpm", num(lo), num(hi), num(step));
-    let _ = writeln!(w, "  cutting_model:");
-    let _ = writeln!(w, "    kind: {RCSA_COUPLE}");
-    let _ = writeln!(w, "    params: {{ interface: machine, machine: test_spindle }}");
-    let _ = writeln!(
-        w,
-        "    inputs: {{ spindle: \"@spindle_cutting.receptance\", structure: \"@holder_tool_model.model\" }}"
+    notes: &mut Notes,
+) -> Result<Vec<(&'static str, Raw)>, ImportError> {
+    let (lo, hi, step_rpm) = cutting_speed_grid(frfs, c);
+    notes.blank(&["steps", "spindle_cutting"]).before(
+        &["steps", "spindle_cutting"],
+        "Cutting configuration: no sensor; x and y over the speeds of the trials.",
     );
-    let _ = writeln!(w, "  lobes:");
-    let _ = writeln!(w, "    kind: {STABILITY_SPEED_DEPENDENT}");
-    match c.trial_rpm_range {
-        Some([a, b]) => {
-            let _ = writeln!(w, "    params: {{ cutting: trials, speeds: {}..{} step 5 rpm }}", num(a), num(b));
-        }
-        None => {
-            let _ = writeln!(w, "    params: {{ cutting: trials }}");
-        }
+    let sweep = map([
+        ("direction", Raw::list(vec![Raw::text("x"), Raw::text("y")])),
+        ("speed", Raw::text(format!("{}..{} step {} rpm", num(lo), num(hi), num(step_rpm)))),
+    ]);
+    let spindle = step(
+        SPINDLE_RECEPTANCE,
+        vec![
+            ("machine", Raw::text("test_spindle")),
+            ("max_frequency", Raw::text("10 kHz")),
+            ("resolution", Raw::text("2.5 Hz")),
+        ],
+        vec![],
+        Some(sweep),
+    );
+    let model = step(
+        RCSA_COUPLE,
+        vec![("interface", Raw::text("machine")), ("machine", Raw::text("test_spindle"))],
+        vec![
+            ("spindle", Raw::port("spindle_cutting", "receptance")),
+            ("structure", Raw::port("holder_tool_model", "model")),
+        ],
+        None,
+    );
+    let mut params = vec![("cutting", Raw::text("trials"))];
+    if let Some([a, b]) = c.trial_rpm_range {
+        params.push(("speeds", Raw::text(format!("{}..{} step 5 rpm", num(a), num(b)))));
     }
-    let _ = writeln!(w, "    inputs: {{ frfs: \"@cutting_model.frf\" }}");
+    let lobes = step(STABILITY_SPEED_DEPENDENT, params, vec![("frfs", Raw::port("cutting_model", "frf"))], None);
+    let mut steps = vec![("spindle_cutting", spindle), ("cutting_model", model), ("lobes", lobes)];
     if let Some(t) = trials_file {
-        let _ = writeln!(w, "  trials:");
-        let _ = writeln!(w, "    kind: {TRIALS_SCORE}");
-        let _ = writeln!(w, "    params: {{ file: {} }}", yaml_quoted(&data_path(t)?));
-        let _ = writeln!(w, "    inputs: {{ lobes: \"@lobes.speed_dependent\" }}");
+        let trials = step(
+            TRIALS_SCORE,
+            vec![("file", Raw::text(data_path(t)?))],
+            vec![("lobes", Raw::port("lobes", "speed_dependent"))],
+            None,
+        );
+        steps.push(("trials", trials));
     }
-    Ok(())
+    Ok(steps)
 }
 
-/// Writes `outputs:`: the gap table and model-over-measurement plots, then the lobes with the
-/// trials, as the steps exist.
-fn write_outputs(w: &mut String, measured: bool, cutting: bool, trials: bool) {
-    if !measured && !cutting {
-        return;
+/// An output: a port written to `file`, with a label and the ports drawn with it.
+fn output(from: Raw, label: Option<&str>, with: Option<(Raw, &str)>, file: &str) -> Raw {
+    let mut fields = vec![("from", from)];
+    if let Some(l) = label {
+        fields.push(("label", Raw::text(l)));
     }
-    let _ = writeln!(w);
-    let _ = writeln!(w, "outputs:");
+    if let Some((w, l)) = with {
+        fields.push(("with", Raw::list(vec![map([("from", w), ("label", Raw::text(l))])])));
+    }
+    fields.push(("file", Raw::text(file)));
+    Raw::mapping(fields)
+}
+
+/// `outputs:`: the gap table and model-over-measurement plots, then the lobes with the trials,
+/// as the steps exist; `None` without either.
+fn outputs(measured: bool, cutting: bool, trials: bool, notes: &mut Notes) -> Option<Raw> {
+    let mut outputs = Vec::new();
     if measured {
-        let _ = writeln!(
-            w,
-            "  # The gap per measured file, and the measured configuration over each measurement, one plot per file."
+        notes.before(
+            &["outputs", "0"],
+            "The gap per measured file, and the measured configuration over each measurement, one plot per file.",
         );
-        let _ = writeln!(w, "  - {{ from: \"@gap.summary\", file: gap.csv }}");
-        let _ = writeln!(
-            w,
-            "  - {{ from: \"@measured_model.frf\", label: model, with: [{{ from: \"@tool_tip.frf\", label: measured }}], \
-             file: \"model-vs-measured-{{file}}.svg\" }}"
-        );
+        outputs.push(output(Raw::port("gap", "summary"), None, None, "gap.csv"));
+        outputs.push(output(
+            Raw::port("measured_model", "frf"),
+            Some("model"),
+            Some((Raw::port("tool_tip", "frf"), "measured")),
+            "model-vs-measured-{file}.svg",
+        ));
     }
     if cutting {
+        let at = outputs.len().to_string();
+        let lobes = Raw::port("lobes", "speed_dependent");
         if trials {
-            let _ =
-                writeln!(w, "  # The lobes of the cutting configuration with the trials on them, and the verdicts.");
-            let _ = writeln!(
-                w,
-                "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, with: [{{ from: \"@trials.verdicts\", \
-                 label: cutting trials }}], file: lobes.svg }}"
+            notes.before(
+                &["outputs", &at],
+                "The lobes of the cutting configuration with the trials on them, and the verdicts.",
             );
-            let _ = writeln!(w, "  - {{ from: \"@trials.verdicts\", file: trial-verdicts.csv }}");
+            let verdicts = Raw::port("trials", "verdicts");
+            outputs.push(output(
+                lobes,
+                Some("stability limit"),
+                Some((verdicts.clone(), "cutting trials")),
+                "lobes.svg",
+            ));
+            outputs.push(output(verdicts, None, None, "trial-verdicts.csv"));
         } else {
-            let _ = writeln!(w, "  # The lobes of the cutting configuration.");
-            let _ = writeln!(w, "  - {{ from: \"@lobes.speed_dependent\", label: stability limit, file: lobes.svg }}");
+            notes.before(&["outputs", &at], "The lobes of the cutting configuration.");
+            outputs.push(output(lobes, Some("stability limit"), None, "lobes.svg"));
         }
-        let _ = writeln!(w, "  - {{ from: \"@lobes.table\", file: lobes.csv }}");
+        outputs.push(output(Raw::port("lobes", "table"), None, None, "lobes.csv"));
     }
-}
-
-/// Writes the closing comment: how many FRFs were measured, and on which frequency lines.
-fn write_measurement_note(w: &mut String, m: &CaseMeasurements) {
-    let _ = writeln!(w);
-    let _ = writeln!(
-        w,
-        "# {} measured FRFs{}.",
-        m.frf.len(),
-        match (m.frequency_lines, m.frequency_step_hz) {
-            (Some(n), Some(df)) => format!(", {n} lines every {} Hz", num(df)),
-            _ => String::new(),
-        }
-    );
+    (!outputs.is_empty()).then(|| Raw::list(outputs))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{EntityKind, choices, num, scalar, yaml_quoted};
+    use super::{EntityKind, choices, num};
 
     #[test]
     fn choice_words_come_from_the_engine_s_field_tables() {
@@ -847,16 +936,6 @@ mod tests {
         assert!(choices(EntityKind::Assembly, &["sections", "kind"]).contains(&"plain"));
         assert!(choices(EntityKind::Sensor, &["kind"]).contains(&"accelerometer"));
         assert!(choices(EntityKind::Sensor, &["location"]).is_empty(), "free text has no words");
-    }
-
-    #[test]
-    fn strings_are_plain_only_where_yaml_reads_them_as_the_same_text() {
-        assert_eq!(scalar("holder+tool"), "holder+tool");
-        assert_eq!(scalar("m/N"), "m/N");
-        for s in ["true", "Null", "y", "a b", "1e3", "", "-x", "a:b", "inf"] {
-            assert!(scalar(s).starts_with('"'), "{s}");
-        }
-        assert_eq!(yaml_quoted("a\"b\\c\n\u{1b}\0\u{7f}\u{2028}\u{feff}é"), r#""a\"b\\c\n\e\0\x7F\L\uFEFFé""#);
     }
 
     #[test]

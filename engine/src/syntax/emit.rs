@@ -5,7 +5,7 @@
 //! everything else in block style; a string is plain only where YAML reads it as that same
 //! text, double-quoted and escaped otherwise.
 
-use super::raw::{Key, Raw, RawKind};
+use super::raw::{Key, Raw, RawKind, Seg, path};
 use crate::diag::Span;
 use std::fmt::Write;
 use std::sync::Arc;
@@ -22,6 +22,11 @@ impl Raw {
     /// A string value built in code (`80 mm`, `@step.port`, `$name`).
     pub fn text(s: impl Into<String>) -> Raw {
         Raw { span: built(), kind: RawKind::Str(s.into()) }
+    }
+
+    /// A yes/no value built in code.
+    pub fn bool(b: bool) -> Raw {
+        Raw { span: built(), kind: RawKind::Bool(b) }
     }
 
     /// An integer value built in code.
@@ -151,7 +156,8 @@ fn scalar(raw: &Raw) -> Option<String> {
         RawKind::Bool(b) => b.to_string(),
         RawKind::Int(i) => i.to_string(),
         RawKind::Float(f) => number(*f),
-        RawKind::Str(s) if plain(s) => s.clone(),
+        // `y` and `n` are words to YAML 1.2 (and to PyYAML): directions stay plain.
+        RawKind::Str(s) if plain(s) || matches!(s.as_str(), "y" | "n") => s.clone(),
         RawKind::Str(s) => yaml_quoted(s),
         RawKind::Seq(_) | RawKind::Map(_) => return None,
     })
@@ -191,60 +197,188 @@ fn pad(indent: usize, out: &mut String) {
     out.extend(std::iter::repeat_n(' ', indent));
 }
 
-/// Writes the entries of a mapping or the items of a list at `indent`.
-pub(super) fn block(raw: &Raw, indent: usize, out: &mut String) {
-    match &raw.kind {
-        RawKind::Map(entries) => {
-            for (k, v) in entries {
-                pad(indent, out);
-                out.push_str(&key(&k.name));
-                out.push(':');
-                value(v, indent, out);
-            }
-        }
-        RawKind::Seq(items) => {
-            for item in items {
-                pad(indent, out);
-                out.push('-');
-                match (&item.kind, flow(item, indent + 2, FLOW_WIDTH)) {
-                    (_, Some(text)) => {
-                        out.push(' ');
-                        out.push_str(&text);
-                        out.push('\n');
-                    }
-                    (RawKind::Map(_) | RawKind::Seq(_), None) => {
-                        out.push('\n');
-                        block(item, indent + 2, out);
-                    }
-                    _ => {
-                        out.push(' ');
-                        out.push_str(&scalar(item).unwrap_or_default());
-                        out.push('\n');
-                    }
-                }
-            }
-        }
-        _ => {
-            pad(indent, out);
-            out.push_str(&scalar(raw).unwrap_or_default());
-            out.push('\n');
-        }
+/// The comments and blank lines of a document written from a tree built in code (an imported
+/// case, a generated survey): comment lines before an entry, a remark after it on its line, a
+/// blank line before it, and closing comments. Each names its entry by its path from the top
+/// ([`path`]); a mapping or list with a note inside is written in block style, so no note is
+/// lost in a one-line value.
+#[derive(Debug, Clone, Default)]
+pub struct Notes {
+    before: Vec<(Vec<Seg>, String)>,
+    after: Vec<(Vec<Seg>, String)>,
+    blank: Vec<Vec<Seg>>,
+    end: Vec<String>,
+}
+
+impl Notes {
+    /// A comment on the lines before the entry at `at` (the document's top for `&[]`).
+    pub fn before(&mut self, at: &[&str], comment: impl Into<String>) -> &mut Self {
+        self.before.push((path(at), comment.into()));
+        self
+    }
+
+    /// A remark after the entry at `at`, on its line.
+    pub fn after(&mut self, at: &[&str], remark: impl Into<String>) -> &mut Self {
+        self.after.push((path(at), remark.into()));
+        self
+    }
+
+    /// A blank line before the entry at `at` (and its comments).
+    pub fn blank(&mut self, at: &[&str]) -> &mut Self {
+        self.blank.push(path(at));
+        self
+    }
+
+    /// A comment closing the document, after a blank line.
+    pub fn end(&mut self, comment: impl Into<String>) -> &mut Self {
+        self.end.push(comment.into());
+        self
+    }
+
+    /// Whether a note names an entry inside the value at `p`.
+    fn inside(&self, p: &[Seg]) -> bool {
+        let below = |q: &Vec<Seg>| q.len() > p.len() && q.starts_with(p);
+        self.before.iter().any(|(q, _)| below(q))
+            || self.after.iter().any(|(q, _)| below(q))
+            || self.blank.iter().any(below)
     }
 }
 
-/// The value after `key:` at `indent`.
-fn value(v: &Raw, indent: usize, out: &mut String) {
-    if let Some(s) = scalar(v) {
-        out.push(' ');
-        out.push_str(&s);
+/// `text` as comment lines at `indent`: a line break in it starts another comment line, so no
+/// comment can end early and put its rest into the document.
+fn comment(text: &str, indent: usize, out: &mut String) {
+    for line in text.split(['\n', '\r', '\u{85}', '\u{2028}', '\u{2029}']) {
+        pad(indent, out);
+        out.push('#');
+        if !line.is_empty() {
+            out.push(' ');
+            out.push_str(line);
+        }
         out.push('\n');
-    } else if let Some(text) = flow(v, indent + 2, FLOW_WIDTH) {
-        out.push(' ');
-        out.push_str(&text);
+    }
+}
+
+/// YAML text of a raw tree whose top is a mapping, with the comments and blank lines of
+/// `notes`: reads back as the same tree as [`emit`]'s text does.
+pub fn emit_noted(raw: &Raw, notes: &Notes) -> String {
+    let mut out = String::new();
+    for (_, c) in notes.before.iter().filter(|(q, _)| q.is_empty()) {
+        comment(c, 0, &mut out);
+    }
+    Writer { notes, out: &mut out }.block(raw, 0, &mut Vec::new());
+    if !notes.end.is_empty() {
         out.push('\n');
-    } else {
-        out.push('\n');
-        block(v, indent + 2, out);
+        for c in &notes.end {
+            comment(c, 0, &mut out);
+        }
+    }
+    out
+}
+
+/// Writes the entries of a mapping or the items of a list at `indent`.
+pub(super) fn block(raw: &Raw, indent: usize, out: &mut String) {
+    Writer { notes: &Notes::default(), out }.block(raw, indent, &mut Vec::new());
+}
+
+/// Writes a tree in block style, with its notes.
+struct Writer<'a> {
+    notes: &'a Notes,
+    out: &'a mut String,
+}
+
+impl Writer<'_> {
+    /// The blank line and comments before the entry at `at`.
+    fn lead(&mut self, at: &[Seg], indent: usize) {
+        if self.notes.blank.iter().any(|q| q == at) {
+            self.out.push('\n');
+        }
+        for (_, c) in self.notes.before.iter().filter(|(q, _)| q == at) {
+            comment(c, indent, self.out);
+        }
+    }
+
+    /// Ends the line of the entry at `at`, with its remark.
+    fn end_line(&mut self, at: &[Seg]) {
+        for (_, r) in self.notes.after.iter().filter(|(q, _)| q == at) {
+            self.out.push_str("   # ");
+            self.out.push_str(&r.replace(['\n', '\r', '\u{85}', '\u{2028}', '\u{2029}'], " "));
+        }
+        self.out.push('\n');
+    }
+
+    /// `raw` on one line as it follows `key: ` or `- ` at `indent`, unless a note lies inside it.
+    fn one_line(&self, raw: &Raw, indent: usize, at: &[Seg]) -> Option<String> {
+        scalar(raw).or_else(|| if self.notes.inside(at) { None } else { flow(raw, indent, FLOW_WIDTH) })
+    }
+
+    /// Whether the list item `item` at `at` is a mapping in lines of its own whose first entry
+    /// can share the line of its `-`: nothing is noted on the item or before that entry.
+    fn compact(&self, item: &Raw, indent: usize, at: &[Seg]) -> bool {
+        let RawKind::Map(entries) = &item.kind else { return false };
+        let Some((first, _)) = entries.first() else { return false };
+        let mut first_at = at.to_vec();
+        first_at.push(Seg::Key(first.name.clone()));
+        let noted = |p: &[Seg]| {
+            self.notes.after.iter().any(|(q, _)| q == p)
+                || self.notes.before.iter().any(|(q, _)| q == first_at.as_slice())
+                || self.notes.blank.contains(&first_at)
+        };
+        self.one_line(item, indent + 2, at).is_none() && !noted(at)
+    }
+
+    /// Writes the entries of a mapping or the items of a list at `indent`; `at` is its path.
+    fn block(&mut self, raw: &Raw, indent: usize, at: &mut Vec<Seg>) {
+        match &raw.kind {
+            RawKind::Map(entries) => {
+                for (k, v) in entries {
+                    at.push(Seg::Key(k.name.clone()));
+                    self.lead(at, indent);
+                    pad(indent, self.out);
+                    self.out.push_str(&key(&k.name));
+                    self.out.push(':');
+                    self.value(v, indent, at);
+                    at.pop();
+                }
+            }
+            RawKind::Seq(items) => {
+                for (i, item) in items.iter().enumerate() {
+                    at.push(Seg::Index(i));
+                    self.lead(at, indent);
+                    pad(indent, self.out);
+                    self.out.push('-');
+                    if self.compact(item, indent, at) {
+                        // `- key: value`, the mapping's other entries below it.
+                        self.out.push(' ');
+                        let start = self.out.len();
+                        self.block(item, indent + 2, at);
+                        self.out.replace_range(start..start + indent + 2, "");
+                    } else {
+                        self.value(item, indent, at);
+                    }
+                    at.pop();
+                }
+            }
+            _ => {
+                pad(indent, self.out);
+                self.out.push_str(&scalar(raw).unwrap_or_default());
+                self.out.push('\n');
+            }
+        }
+    }
+
+    /// The value after `key:` or `-` at `indent`: on the line, or in lines of its own below.
+    fn value(&mut self, v: &Raw, indent: usize, at: &mut Vec<Seg>) {
+        match self.one_line(v, indent + 2, at) {
+            Some(text) => {
+                self.out.push(' ');
+                self.out.push_str(&text);
+                self.end_line(at);
+            }
+            None => {
+                self.end_line(at);
+                self.block(v, indent + 2, at);
+            }
+        }
     }
 }
 
@@ -291,5 +425,47 @@ mod tests {
                 other => panic!("{x} → {} → {other:?}", emit(&raw)),
             }
         }
+    }
+
+    #[test]
+    fn notes_become_comments_and_blank_lines_and_the_tree_reads_back_the_same() {
+        let raw = Raw::mapping([
+            ("spindlelab", Raw::int(1)),
+            ("cutting", Raw::mapping([("teeth", Raw::int(4)), ("ae", Raw::float(0.5))])),
+            ("files", Raw::list(vec![Raw::text("a.csv"), Raw::text("b c.csv")])),
+            ("steps", Raw::mapping([("s", Raw::mapping([("kind", Raw::text("frf.gap"))]))])),
+        ]);
+        let mut notes = Notes::default();
+        notes
+            .before(&[], "Top.\nSecond line: # stays a comment")
+            .blank(&["cutting"])
+            .after(&["cutting", "ae"], "radial depth\nnot a key: 1")
+            .after(&["files", "1"], "y, 0 rpm")
+            .before(&["steps", "s"], "The step.")
+            .end("The end.");
+        let text = emit_noted(&raw, &notes);
+        let want = "# Top.\n# Second line: # stays a comment\nspindlelab: 1\n\ncutting:\n  teeth: 4\n  ae: 0.5   # radial depth not a key: 1\n\
+                    files:\n  - a.csv\n  - b c.csv   # y, 0 rpm\nsteps:\n  # The step.\n  s: { kind: frf.gap }\n\n# The end.\n";
+        assert_eq!(text, want);
+        assert_eq!(read(&text).1, read(&emit(&raw)).1);
+        // Without notes inside, the small mapping and list go on one line.
+        assert!(emit(&raw).contains("cutting: { teeth: 4, ae: 0.5 }\nfiles: [a.csv, b c.csv]\n"), "{}", emit(&raw));
+    }
+
+    #[test]
+    fn a_list_item_that_needs_lines_starts_on_the_line_of_its_dash() {
+        let with = Raw::list(vec![Raw::mapping([("from", Raw::port("t", "frf")), ("label", Raw::text("measured"))])]);
+        let item = Raw::mapping([("from", Raw::port("m", "frf")), ("with", with), ("file", Raw::text("a.svg"))]);
+        let raw = Raw::mapping([("outputs", Raw::list(vec![item.clone(), item]))]);
+        let text = emit(&raw);
+        let one = "  - from: \"@m.frf\"\n    with:\n      - { from: \"@t.frf\", label: measured }\n    file: a.svg\n";
+        assert_eq!(text, format!("outputs:\n{one}{one}"));
+        assert_eq!(read(&text).1, read(&emit_noted(&raw, &Notes::default())).1);
+        // A comment before the item's first entry keeps the item's own line.
+        let mut notes = Notes::default();
+        notes.before(&["outputs", "1", "from"], "The model.");
+        let text = emit_noted(&raw, &notes);
+        assert!(text.contains("  -\n    # The model.\n    from: \"@m.frf\"\n"), "{text}");
+        assert_eq!(read(&text).1, read(&emit(&raw)).1);
     }
 }

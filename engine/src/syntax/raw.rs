@@ -104,3 +104,16 @@ impl Raw {
         }
     }
 }
+
+/// One step of a path into the raw tree: a mapping key or a list index.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Seg {
+    Key(String),
+    Index(usize),
+}
+
+/// A path such as `["machines", "m", "spindle", "modes", "x", 0]`: a part that reads as a
+/// number is a list index.
+pub fn path(parts: &[&str]) -> Vec<Seg> {
+    parts.iter().map(|p| p.parse::<usize>().map(Seg::Index).unwrap_or_else(|_| Seg::Key(p.to_string()))).collect()
+}
