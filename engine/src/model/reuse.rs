@@ -311,6 +311,36 @@ fn port_type(text: &str) -> Option<PortType> {
 /// A recipe step inlined: its steps under the prefix, and its exports as references to them.
 type Inlined = (Vec<(Key, Raw)>, IndexMap<String, String>);
 
+/// The recipe a `kind: recipe` step runs, as read.
+struct SubRecipe {
+    /// Its canonical path, and its name as messages show it.
+    canon: PathBuf,
+    shown: Arc<str>,
+    /// Its file as the step names it, and where.
+    written: String,
+    span: Span,
+    tree: Raw,
+    /// The names of its own steps, before any expansion.
+    own_steps: Vec<String>,
+}
+
+/// What a recipe run as a step declares.
+struct Declared {
+    /// Parameters, with their defaults.
+    params: IndexMap<String, Raw>,
+    /// Inputs, with their port types (`None`: not a port type; reported).
+    inputs: IndexMap<String, (Span, Option<PortType>)>,
+}
+
+/// What the step that runs a recipe gives it.
+struct Given {
+    /// Parameters set, and swept (with the place they are swept at).
+    bound: IndexMap<String, Raw>,
+    swept: IndexMap<String, (Span, Raw)>,
+    /// Inputs bound to references.
+    bindings: IndexMap<String, Raw>,
+}
+
 struct Expander<'a> {
     registry: &'a Registry,
     search: Vec<PathBuf>,
@@ -657,6 +687,24 @@ impl Expander<'_> {
     fn inline(&mut self, k: &Key, step: &Raw, parent: &mut Raw, depth: usize) -> Option<Inlined> {
         let name = &k.name;
         let errors = self.diags.error_count();
+        self.check_recipe_step_keys(name, step);
+        let mut sub = self.open_sub_recipe(k, step, depth)?;
+        let declared = self.declarations(&sub);
+        let given = self.given(k, step, &sub, &declared);
+        self.pass_parameters(name, &mut sub, &declared, &given);
+        self.refuse_parameters_in_entities(&sub.tree);
+        if self.diags.error_count() > errors {
+            return None;
+        }
+        self.expand_under_prefix(name, &mut sub, depth);
+        let out = self.wire_inputs(name, &mut sub, &declared, &given);
+        let exports = self.exports(name, &sub);
+        self.merge_entities(parent, &sub.tree, &sub.span);
+        (self.diags.error_count() == errors).then_some((out, exports))
+    }
+
+    /// Reports keys a `kind: recipe` step does not take.
+    fn check_recipe_step_keys(&mut self, name: &str, step: &Raw) {
         for (sk, _) in step.as_map().unwrap_or(&[]) {
             if !RECIPE_STEP_KEYS.contains(&sk.name.as_str()) {
                 let msg = format!("unknown key `{}` in step `{name}` (kind: recipe)", sk.name);
@@ -670,6 +718,12 @@ impl Expander<'_> {
                 }
             }
         }
+    }
+
+    /// The recipe a step runs, read and checked: it exists, is not already running, has steps
+    /// and nothing a recipe run as a step cannot have; its measurement sets expanded.
+    fn open_sub_recipe(&mut self, k: &Key, step: &Raw, depth: usize) -> Option<SubRecipe> {
+        let name = &k.name;
         let Some(file_raw) = step.get("file") else {
             self.diags.error_help(
                 Some(&k.span),
@@ -728,6 +782,20 @@ impl Expander<'_> {
         let own_steps: Vec<String> =
             sub.get("steps").and_then(Raw::as_map).unwrap_or(&[]).iter().map(|(s, _)| s.name.clone()).collect();
 
+        Some(SubRecipe {
+            canon,
+            shown,
+            written: written.to_string(),
+            span: file_raw.span.clone(),
+            tree: sub,
+            own_steps,
+        })
+    }
+
+    /// What the recipe declares: its parameters with their defaults and its inputs with their
+    /// port types.
+    fn declarations(&mut self, sub: &SubRecipe) -> Declared {
+        let SubRecipe { tree: sub, own_steps, .. } = sub;
         // Declarations: parameters with their defaults, inputs with their types, exports.
         let declared: IndexMap<String, Raw> = sub
             .get("params")
@@ -764,6 +832,15 @@ impl Expander<'_> {
             }
         }
 
+        Declared { params: declared, inputs }
+    }
+
+    /// What the running step gives the recipe: parameters set and swept, and inputs bound,
+    /// each to something the recipe declares.
+    fn given(&mut self, k: &Key, step: &Raw, sub: &SubRecipe, declared: &Declared) -> Given {
+        let name = &k.name;
+        let written = &sub.written;
+        let Declared { params: declared, inputs } = declared;
         // The step's bindings, each to something declared.
         let mut bound: IndexMap<String, Raw> = IndexMap::new();
         let mut swept: IndexMap<String, (Span, Raw)> = IndexMap::new();
@@ -857,7 +934,7 @@ impl Expander<'_> {
                     .error(Some(&given.span), format!("`inputs` of step `{name}` must map input names to references")),
             }
         }
-        for (input, (_, ty)) in &inputs {
+        for (input, (_, ty)) in inputs {
             if !bindings.contains_key(input) {
                 self.diags.error_help(
                     Some(&k.span),
@@ -870,9 +947,15 @@ impl Expander<'_> {
             }
         }
 
-        // Parameters into the sub-recipe's steps; a swept one becomes a sweep of each step
-        // that takes it as a whole parameter.
-        if let Some(steps) = get_mut(&mut sub, "steps").and_then(map_mut) {
+        Given { bound, swept, bindings }
+    }
+
+    /// The parameters into the recipe's steps: `$name` replaced by the value given (or the
+    /// default); a swept one becomes a sweep of each step that takes it as a whole parameter.
+    fn pass_parameters(&mut self, name: &str, sub: &mut SubRecipe, declared: &Declared, given: &Given) {
+        let (written, shown) = (&sub.written, &sub.shown);
+        let (declared, Given { bound, swept, .. }) = (&declared.params, given);
+        if let Some(steps) = get_mut(&mut sub.tree, "steps").and_then(map_mut) {
             let mut swept_used: Vec<&str> = Vec::new();
             for (sk, s) in steps.iter_mut() {
                 let Some(fields) = map_mut(s) else { continue };
@@ -892,7 +975,7 @@ impl Expander<'_> {
                         });
                     }
                     let diags = &mut *self.diags;
-                    substitute(fv, &bound, &declared, &swept, &sk.name, &shown, diags);
+                    substitute(fv, bound, declared, swept, &sk.name, shown, diags);
                 }
                 if moved.is_empty() {
                     continue;
@@ -917,7 +1000,7 @@ impl Expander<'_> {
                     axes.push((mk, mv));
                 }
             }
-            for (p, (span, _)) in &swept {
+            for (p, (span, _)) in swept {
                 if !swept_used.contains(&p.as_str()) {
                     self.diags.error_help(
                         Some(span),
@@ -927,6 +1010,10 @@ impl Expander<'_> {
                 }
             }
         }
+    }
+
+    /// Reports `$name` in the recipe's entities: they are shared with the recipe that runs it.
+    fn refuse_parameters_in_entities(&mut self, sub: &Raw) {
         for kind in EntityKind::ALL {
             if let Some(section) = sub.get(kind.section()) {
                 let mut found = Vec::new();
@@ -940,28 +1027,35 @@ impl Expander<'_> {
                 }
             }
         }
-        if self.diags.error_count() > errors {
-            return None;
-        }
+    }
 
-        // Its own libraries and the recipes it runs, then its steps under the prefix.
+    /// Expands the recipe's own libraries and the recipes it runs, and points its references
+    /// to its steps under the prefix `name/`.
+    fn expand_under_prefix(&mut self, name: &str, sub: &mut SubRecipe, depth: usize) {
+        let (canon, shown, sub) = (sub.canon.clone(), sub.shown.clone(), &mut sub.tree);
         self.stack.push((canon, shown.clone()));
-        self.merge_uses(&mut sub, depth + 1);
-        self.expand_steps(&mut sub, depth + 1);
+        self.merge_uses(sub, depth + 1);
+        self.expand_steps(sub, depth + 1);
         self.stack.pop();
         let sub_steps: Vec<String> =
             sub.get("steps").and_then(Raw::as_map).unwrap_or(&[]).iter().map(|(s, _)| s.name.clone()).collect();
-        for_each_ref(&mut sub, &mut |v: &mut Raw| {
+        for_each_ref(sub, &mut |v: &mut Raw| {
             if let Some((s, port)) = v.as_str().and_then(split_ref)
                 && sub_steps.iter().any(|n| n == s)
             {
                 v.kind = RawKind::Str(format!("@{name}/{s}.{port}"));
             }
         });
-        // Declared inputs: the step's bindings, checked against the ports that take them.
+    }
+
+    /// The recipe's steps under the prefix, each `@inputs.x` replaced by the step's binding
+    /// after checking it against the port that takes it.
+    fn wire_inputs(&mut self, name: &str, sub: &mut SubRecipe, declared: &Declared, given: &Given) -> Vec<(Key, Raw)> {
+        let written = &sub.written;
+        let (inputs, bindings) = (&declared.inputs, &given.bindings);
         let registry = self.registry;
         let mut out: Vec<(Key, Raw)> = Vec::new();
-        let (_, steps) = remove(&mut sub, "steps").expect("checked above");
+        let (_, steps) = remove(&mut sub.tree, "steps").expect("checked above");
         for (sk, mut s) in match steps.kind {
             RawKind::Map(m) => m,
             _ => Vec::new(),
@@ -1005,6 +1099,12 @@ impl Expander<'_> {
             nk.name = format!("{name}/{}", sk.name);
             out.push((nk, s));
         }
+        out
+    }
+
+    /// The recipe's exports: names for outputs of its steps (already under the prefix).
+    fn exports(&mut self, name: &str, sub: &SubRecipe) -> IndexMap<String, String> {
+        let SubRecipe { tree: sub, written, own_steps, .. } = sub;
         let mut exports: IndexMap<String, String> = IndexMap::new();
         if let Some(ex) = sub.get("exports") {
             match ex.as_map() {
@@ -1034,8 +1134,7 @@ impl Expander<'_> {
                 ),
             }
         }
-        self.merge_entities(parent, &sub, &file_raw.span);
-        (self.diags.error_count() == errors).then_some((out, exports))
+        exports
     }
 }
 
