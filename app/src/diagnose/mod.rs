@@ -1153,23 +1153,23 @@ fn diagnosed_header(
     verdict: &str,
     effects: &[NamedEffect],
 ) -> String {
-    let mut s = format!("# Diagnosed by spindlelab: {verdict}.\n");
+    let mut s = format!("Diagnosed by spindlelab: {verdict}.\n");
     for e in named {
-        s.push_str(&format!("#   {}: {}\n", e.name(), e.description()));
+        s.push_str(&format!("  {}: {}\n", e.name(), e.description()));
         let p = Json::Object(e.report(values, roles, c));
-        s.push_str(&format!("#     {}\n", readable(&p)));
+        s.push_str(&format!("    {}\n", readable(&p)));
         if let Some(u) = effects.iter().find(|n| n.name == e.name()).and_then(|n| n.uncertainty.as_object()) {
             for (name, p) in u {
                 let unit = p["unit"].as_str().filter(|u| !u.is_empty()).map_or(String::new(), |u| format!(" {u}"));
                 let v = value_pm(p["value"].as_f64().unwrap_or(f64::NAN), p["sigma"].as_f64());
-                s.push_str(&format!("#     fitted {name} = {v}{unit}\n"));
+                s.push_str(&format!("    fitted {name} = {v}{unit}\n"));
             }
         }
     }
     if named.is_empty() {
-        s.push_str("#   Nothing was added: the recipe below is the input.\n");
+        s.push_str("  Nothing was added: the recipe below is the input.\n");
     }
-    s
+    crate::engine::syntax::emit::comment_lines(s.trim_end_matches('\n'))
 }
 
 /// A value as a person reads it: numbers to five significant digits, keys unquoted.

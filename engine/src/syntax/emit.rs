@@ -244,18 +244,47 @@ impl Notes {
     }
 }
 
+/// The line breaks of YAML 1.1 and 1.2: each ends a comment.
+const LINE_BREAKS: [char; 5] = ['\n', '\r', '\u{85}', '\u{2028}', '\u{2029}'];
+
 /// `text` as comment lines at `indent`: a line break in it starts another comment line, so no
-/// comment can end early and put its rest into the document.
+/// comment can end early and put its rest into the document; the characters YAML does not
+/// take in a comment, and those that reorder a line on screen, are written escaped (`\x1B`).
 fn comment(text: &str, indent: usize, out: &mut String) {
-    for line in text.split(['\n', '\r', '\u{85}', '\u{2028}', '\u{2029}']) {
+    for line in text.split(LINE_BREAKS) {
         pad(indent, out);
         out.push('#');
         if !line.is_empty() {
             out.push(' ');
-            out.push_str(line);
+            for c in line.chars() {
+                match c {
+                    '\t' => out.push(c),
+                    c if c.is_control() => {
+                        let _ = write!(out, "\\x{:02X}", c as u32);
+                    }
+                    '\u{feff}'
+                    | '\u{fffe}'
+                    | '\u{ffff}'
+                    | '\u{061c}'
+                    | '\u{200e}'
+                    | '\u{200f}'
+                    | '\u{202a}'..='\u{202e}'
+                    | '\u{2066}'..='\u{2069}' => {
+                        let _ = write!(out, "\\u{:04X}", c as u32);
+                    }
+                    c => out.push(c),
+                }
+            }
         }
         out.push('\n');
     }
+}
+
+/// `text` as comment lines at the top of a document, one per line of `text` (see [`Notes::before`]).
+pub fn comment_lines(text: &str) -> String {
+    let mut out = String::new();
+    comment(text, 0, &mut out);
+    out
 }
 
 /// YAML text of a raw tree whose top is a mapping, with the comments and blank lines of
@@ -301,7 +330,9 @@ impl Writer<'_> {
     fn end_line(&mut self, at: &[Seg]) {
         for (_, r) in self.notes.after.iter().filter(|(q, _)| q == at) {
             self.out.push_str("   # ");
-            self.out.push_str(&r.replace(['\n', '\r', '\u{85}', '\u{2028}', '\u{2029}'], " "));
+            let mut line = String::new();
+            comment(&r.replace(LINE_BREAKS, " "), 0, &mut line);
+            self.out.push_str(line.strip_prefix("# ").unwrap_or_default().trim_end_matches('\n'));
         }
         self.out.push('\n');
     }
@@ -467,5 +498,18 @@ mod tests {
         let text = emit_noted(&raw, &notes);
         assert!(text.contains("  -\n    # The model.\n    from: \"@m.frf\"\n"), "{text}");
         assert_eq!(read(&text).1, read(&emit(&raw)).1);
+    }
+
+    #[test]
+    fn no_comment_text_can_leave_its_comment_or_hide_what_follows() {
+        let raw = Raw::mapping([("a", Raw::int(1))]);
+        let mut notes = Notes::default();
+        let hostile = "x\u{2028}b: 2\rc: 3\u{1b}[2J\u{202e}\u{7f}";
+        notes.before(&[], hostile).after(&["a"], hostile).end(hostile);
+        let text = emit_noted(&raw, &notes);
+        assert_eq!(read(&text).1, read("a: 1\n").1, "{text}");
+        assert!(!text.chars().any(|c| c.is_control() && c != '\n' || c == '\u{202e}'), "{text:?}");
+        assert!(text.contains("a: 1   # x b: 2 c: 3\\x1B[2J\\u202E\\x7F\n"), "{text}");
+        assert_eq!(comment_lines("one\ntwo"), "# one\n# two\n");
     }
 }
