@@ -1,0 +1,89 @@
+//! `export snakemake`: a recipe, or a batch of cases, as a workflow another engine schedules.
+
+use crate::*;
+
+/// `spindlelab export snakemake RECIPE -o DIR`: the recipe as a Snakefile of shard jobs per
+/// level and a collect job, with a profile for the local executor.
+pub(crate) fn cmd_export_snakemake(
+    recipe: &Path,
+    dir: &Path,
+    out: Option<PathBuf>,
+    cache: Option<PathBuf>,
+    shards: usize,
+    registry: &mut engine::node::Registry,
+    plugins: &mut Plugins,
+) -> ExitCode {
+    if shards == 0 {
+        eoutln!("error: --shards 0: a workflow needs at least one shard per level");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let c = match compile_with(recipe, &[], registry, plugins) {
+        Ok(c) if c.recipe.library => return refuse_library(&c, recipe),
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    let out = out.unwrap_or_else(|| default_out(&c));
+    let cache = cache.unwrap_or_else(|| engine::exec::cache_dir(&out));
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
+    let (recipe_abs, out_abs, cache_abs) = (abs(recipe), abs(&out), abs(&cache));
+    let places = spindlelab::export::Places { spindlelab: &exe, recipe: &recipe_abs, out: &out_abs, cache: &cache_abs };
+    let wf = spindlelab::export::snakemake(&c, registry, &places, shards);
+    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
+    if let Err(code) =
+        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
+    {
+        return code;
+    }
+    outln!(
+        "wrote {}: {} level(s) × {} shard(s), then collect into {}; run it with `snakemake -s {} --profile {}`",
+        esc(dir.join("Snakefile").display()),
+        wf.levels,
+        wf.shards,
+        esc(out_abs.display()),
+        esc(dir.join("Snakefile").display()),
+        esc(dir.join("profile").display())
+    );
+    ExitCode::SUCCESS
+}
+
+/// `spindlelab export snakemake --batch PATTERN -o DIR`: a batch of diagnoses as a Snakefile,
+/// one job per case and one that gathers the summary.
+pub(crate) fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) -> ExitCode {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let pattern_abs = if Path::new(pattern).is_absolute() {
+        pattern.to_string()
+    } else {
+        abs(Path::new(".")).join(pattern).display().to_string()
+    };
+    let cases = match batch_cases(&pattern_abs) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    if let Some((case, name)) = cases.iter().find(|(c, n)| spindlelab::diagnose::batch::case_name(c) != *n) {
+        eoutln!(
+            "error: {} would be named `{}` like another case; a workflow names each case's folder by it alone: give the cases distinct folders",
+            esc(case.display()),
+            esc(name)
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let out = abs(&out.unwrap_or_else(|| PathBuf::from("out/batch")));
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
+    let wf = spindlelab::export::snakemake_batch(&exe, &pattern_abs, &cases, &out);
+    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
+    if let Err(code) =
+        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
+    {
+        return code;
+    }
+    outln!(
+        "wrote {}: {} case job(s), then the summary into {}; run it with `snakemake -s {} --profile {}`",
+        esc(snakefile.display()),
+        cases.len(),
+        esc(out.display()),
+        esc(snakefile.display()),
+        esc(dir.join("profile").display())
+    );
+    ExitCode::SUCCESS
+}
