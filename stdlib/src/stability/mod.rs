@@ -64,6 +64,12 @@ pub enum StabilityError {
         "radial immersion a_e/D = {0} is outside (0, 1]; give the radial depth of cut divided by the tool diameter"
     )]
     Immersion(f64),
+    /// A limit with one regenerative delay (the tooth period) asked of a cutter whose teeth are unequally spaced.
+    #[error(
+        "the teeth are unequally spaced, but this limit has one delay, the tooth period; give equal pitch, or use \
+         the variable-pitch limit (stability.sd, or the frequency-domain pitch limit) that gives each tooth its own delay"
+    )]
+    UnequalPitch,
     /// A scalar parameter is out of range.
     #[error("invalid {name} = {value}: {requirement}")]
     InvalidParameter {

@@ -324,6 +324,9 @@ pub fn zoa_lobes_with_process_damping(
     options: &ZoaOptions,
     search: &ProcessDampingOptions,
 ) -> Result<ProcessDampedLimit, StabilityError> {
+    if !milling.has_equal_pitch() {
+        return Err(StabilityError::UnequalPitch);
+    }
     frf.validate()?;
     process_damping.validate()?;
     if !(search.tolerance.is_finite() && search.tolerance > 0.0 && search.tolerance < 1.0) {

@@ -132,6 +132,25 @@ fn zoa_sdof_minimum_matches_closed_form() {
     assert!((z.min_depth_m - closed).abs() < 1e-6 * closed, "{} vs {closed}", z.min_depth_m);
 }
 
+/// The single-delay limits refuse a cutter with unequal pitch rather than give it the limit of equal pitch;
+/// the same cutter with equal pitch angles given explicitly is equal pitch.
+#[test]
+fn single_delay_limits_refuse_unequal_pitch() {
+    let frf = benchmark_model().receptance(&fine_grid()).unwrap();
+    let opts = ZoaOptions { lobes: Some(5), speeds_rpm: vec![10_000.0], keep_lobes: false, ..ZoaOptions::default() };
+    let deg = PI / 180.0;
+    let mill =
+        Milling::new(4, 0.5, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+    let unequal = mill.clone().with_pitch(vec![80.0 * deg, 100.0 * deg, 80.0 * deg, 100.0 * deg]).unwrap();
+    assert_eq!(zoa_lobes(&frf, &unequal, &opts).unwrap_err(), StabilityError::UnequalPitch);
+    let pd = process_damping::ProcessDamping::new(4e13, 0.1e-3, 16e-3).unwrap();
+    let search = process_damping::ProcessDampingOptions::default();
+    let found = process_damping::zoa_lobes_with_process_damping(&frf, &unequal, &pd, &opts, &search);
+    assert_eq!(found.unwrap_err(), StabilityError::UnequalPitch);
+    let equal = mill.clone().with_pitch(vec![90.0 * deg; 4]).unwrap();
+    assert_eq!(zoa_lobes(&frf, &equal, &opts).unwrap(), zoa_lobes(&frf, &mill, &opts).unwrap());
+}
+
 /// Every lobe point solves the characteristic equation it came from: with `Λ = −(N b Kt/4π)(1 − e^{−iωτ})`
 /// built from the point's depth, chatter frequency and speed (`τ = 60/(N n)`), `det(I + Λ[α][Φ(f)]) = 0`.
 /// Also checks the lobe-to-speed map `k + ε/2π = f τ ∈ [k, k + 1)`.

@@ -505,6 +505,9 @@ pub(crate) fn segment_at(n1: f64, a1: f64, f1: f64, n2: f64, a2: f64, f2: f64, s
 /// ZOA lobes and their envelope on `options.speeds_rpm`. Every lobe has the same minimum depth (the depth
 /// depends on the chatter frequency only), reported as [`ZoaLobes::min_depth_m`].
 pub fn zoa_lobes(frf: &ToolPointFrf, milling: &Milling, options: &ZoaOptions) -> Result<ZoaLobes, StabilityError> {
+    if !milling.has_equal_pitch() {
+        return Err(StabilityError::UnequalPitch);
+    }
     frf.validate()?;
     let frf = &*refine(frf, options.resolution_hz);
     let grid = &options.speeds_rpm;

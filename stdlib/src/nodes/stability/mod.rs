@@ -228,6 +228,7 @@ fn stab_err(e: StabilityError, frf_port: &str) -> NodeError {
         | StabilityError::NoResonance { .. }
         | StabilityError::InvalidMode { .. } => NodeError::input(frf_port, e.to_string()),
         StabilityError::TooManyLobes { .. } => NodeError::param("lobes", e.to_string()),
+        StabilityError::UnequalPitch => NodeError::param("pitch", e.to_string()),
         _ => NodeError::Failed(e.to_string()),
     }
 }
