@@ -29,19 +29,17 @@ pub(crate) fn cmd_export_snakemake(
     let (recipe_abs, out_abs, cache_abs) = (abs(recipe), abs(&out), abs(&cache));
     let places = spindlelab::export::Places { spindlelab: &exe, recipe: &recipe_abs, out: &out_abs, cache: &cache_abs };
     let wf = spindlelab::export::snakemake(&c, registry, &places, shards);
-    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
-    if let Err(code) =
-        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
-    {
-        return code;
-    }
+    let snakefile = match write_workflow(dir, &wf.snakefile, &wf.profile) {
+        Ok(path) => path,
+        Err(code) => return code,
+    };
     outln!(
         "wrote {}: {} level(s) × {} shard(s), then collect into {}; run it with `snakemake -s {} --profile {}`",
-        esc(dir.join("Snakefile").display()),
+        esc(snakefile.display()),
         wf.levels,
         wf.shards,
         esc(out_abs.display()),
-        esc(dir.join("Snakefile").display()),
+        esc(snakefile.display()),
         esc(dir.join("profile").display())
     );
     ExitCode::SUCCESS
@@ -71,12 +69,10 @@ pub(crate) fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) 
     let out = abs(&out.unwrap_or_else(|| PathBuf::from("out/batch")));
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
     let wf = spindlelab::export::snakemake_batch(&exe, &pattern_abs, &cases, &out);
-    let (snakefile, profile) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
-    if let Err(code) =
-        write_together(&[(Some(&snakefile), Some(wf.snakefile.as_str())), (Some(&profile), Some(wf.profile.as_str()))])
-    {
-        return code;
-    }
+    let snakefile = match write_workflow(dir, &wf.snakefile, &wf.profile) {
+        Ok(path) => path,
+        Err(code) => return code,
+    };
     outln!(
         "wrote {}: {} case job(s), then the summary into {}; run it with `snakemake -s {} --profile {}`",
         esc(snakefile.display()),
@@ -86,4 +82,12 @@ pub(crate) fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) 
         esc(dir.join("profile").display())
     );
     ExitCode::SUCCESS
+}
+
+/// Writes a workflow's Snakefile and its profile (`profile/config.yaml`) into `dir`, both or
+/// neither; the Snakefile's path.
+fn write_workflow(dir: &Path, snakefile: &str, profile: &str) -> Result<PathBuf, ExitCode> {
+    let (path, profile_path) = (dir.join("Snakefile"), dir.join("profile").join("config.yaml"));
+    write_together(&[(Some(&path), Some(snakefile)), (Some(&profile_path), Some(profile))])?;
+    Ok(path)
 }

@@ -94,24 +94,33 @@ pub fn yaml_quoted(s: &str) -> String {
             '\u{85}' => out.push_str("\\N"),
             '\u{2028}' => out.push_str("\\L"),
             '\u{2029}' => out.push_str("\\P"),
-            c if (c as u32) < 0x100 && c.is_control() => {
-                let _ = write!(out, "\\x{:02X}", c as u32);
-            }
-            '\u{feff}'
-            | '\u{fffe}'
-            | '\u{ffff}'
-            | '\u{061c}'
-            | '\u{200e}'
-            | '\u{200f}'
-            | '\u{202a}'..='\u{202e}'
-            | '\u{2066}'..='\u{2069}' => {
-                let _ = write!(out, "\\u{:04X}", c as u32);
-            }
-            c => out.push(c),
+            c => escaped(c, &mut out),
         }
     }
     out.push('"');
     out
+}
+
+/// `c` as YAML text shows it, in a double-quoted scalar or a comment: a control character
+/// (`\x1B`), a byte-order mark, a noncharacter or a character that reorders a line on screen
+/// (`\u202E`) escaped, anything else as itself.
+fn escaped(c: char, out: &mut String) {
+    match c {
+        c if (c as u32) < 0x100 && c.is_control() => {
+            let _ = write!(out, "\\x{:02X}", c as u32);
+        }
+        '\u{feff}'
+        | '\u{fffe}'
+        | '\u{ffff}'
+        | '\u{061c}'
+        | '\u{200e}'
+        | '\u{200f}'
+        | '\u{202a}'..='\u{202e}'
+        | '\u{2066}'..='\u{2069}' => {
+            let _ = write!(out, "\\u{:04X}", c as u32);
+        }
+        c => out.push(c),
+    }
 }
 
 /// Whether `s` reads back as the same string when written plain: words, quantities
@@ -259,20 +268,7 @@ fn comment(text: &str, indent: usize, out: &mut String) {
             for c in line.chars() {
                 match c {
                     '\t' => out.push(c),
-                    c if c.is_control() => {
-                        let _ = write!(out, "\\x{:02X}", c as u32);
-                    }
-                    '\u{feff}'
-                    | '\u{fffe}'
-                    | '\u{ffff}'
-                    | '\u{061c}'
-                    | '\u{200e}'
-                    | '\u{200f}'
-                    | '\u{202a}'..='\u{202e}'
-                    | '\u{2066}'..='\u{2069}' => {
-                        let _ = write!(out, "\\u{:04X}", c as u32);
-                    }
-                    c => out.push(c),
+                    c => escaped(c, out),
                 }
             }
         }
