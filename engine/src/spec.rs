@@ -591,6 +591,133 @@ fn example_unit(d: Dimension) -> &'static str {
     EXAMPLES.iter().find(|(d2, _)| *d2 == d).map_or("an SI unit", |(_, u)| u)
 }
 
+/// One quantity of dimension `dim`: a number (dimensionless only) or a value with its unit.
+fn check_quantity(
+    raw: &Raw,
+    dim: &Dimension,
+    ty: &FieldType,
+    what: &str,
+    diags: &mut Diagnostics,
+) -> Option<ParamValue> {
+    if let RawKind::Int(_) | RawKind::Float(_) = raw.kind {
+        let v = match raw.kind {
+            RawKind::Int(i) => i as f64,
+            RawKind::Float(f) => f,
+            _ => unreachable!(),
+        };
+        if *dim != Dimension::DIMENSIONLESS {
+            dim_error(raw, &raw.scalar_text().unwrap_or_default(), *dim, Dimension::DIMENSIONLESS, what, diags);
+            return None;
+        }
+        if !v.is_finite() {
+            diags.error(Some(&raw.span), format!("{what} must be a finite number"));
+            return None;
+        }
+        return Some(ParamValue::Quantity { value: v, dim: *dim });
+    }
+    if !matches!(raw.kind, RawKind::Str(_)) {
+        diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
+        return None;
+    }
+    let (text, v) = parse_scalar(raw, what, diags)?;
+    match v {
+        grammar::Value::Quantity(q) => {
+            let Some(q) = as_dimension(q, *dim, &text) else {
+                dim_error(raw, &text, *dim, q.dim, what, diags);
+                return None;
+            };
+            Some(ParamValue::Quantity { value: q.value, dim: q.dim })
+        }
+        _ => {
+            diags.error_help(
+                Some(&raw.span),
+                format!("{what} takes one value, found `{text}`"),
+                "a list, a range or a reference is not accepted here; sweep over values with `sweep:`",
+            );
+            None
+        }
+    }
+}
+
+/// A list of quantities of dimension `dim`: a YAML list, a number, or a value, list or range
+/// with its unit (`[80, 100] deg`, `0..1 step 0.1 mm`).
+fn check_quantity_list(
+    raw: &Raw,
+    dim: &Dimension,
+    ty: &FieldType,
+    what: &str,
+    ctx: &Ctx,
+    diags: &mut Diagnostics,
+) -> Option<ParamValue> {
+    let mut values = Vec::new();
+    let mut push =
+        |raw: &Raw, q: grammar::Quantity, text: &str, diags: &mut Diagnostics| match as_dimension(q, *dim, text) {
+            Some(q) => {
+                values.push(q.value);
+                true
+            }
+            None => {
+                dim_error(raw, text, *dim, q.dim, what, diags);
+                false
+            }
+        };
+    match &raw.kind {
+        RawKind::Seq(items) => {
+            let mut ok = true;
+            for item in items {
+                match check_value(item, &FieldType::Quantity(*dim), what, ctx, diags) {
+                    Some(ParamValue::Quantity { value, dim }) => {
+                        push(item, grammar::Quantity { value, dim }, "", diags);
+                    }
+                    _ => ok = false,
+                }
+            }
+            if items.is_empty() {
+                diags.error(Some(&raw.span), format!("{what} is an empty list"));
+                return None;
+            }
+            ok.then_some(())?;
+        }
+        RawKind::Int(_) | RawKind::Float(_) => {
+            let pv = check_value(raw, &FieldType::Quantity(*dim), what, ctx, diags)?;
+            if let ParamValue::Quantity { value, .. } = pv {
+                values.push(value);
+            }
+        }
+        RawKind::Str(_) => {
+            let (text, v) = parse_scalar(raw, what, diags)?;
+            match v {
+                grammar::Value::Quantity(q) => {
+                    push(raw, q, &text, diags).then_some(())?;
+                }
+                grammar::Value::List(qs) => {
+                    for q in qs {
+                        push(raw, q, &text, diags).then_some(())?;
+                    }
+                }
+                grammar::Value::Range { .. } => {
+                    let (rdim, pts) = match &v {
+                        grammar::Value::Range { dim, .. } => (*dim, v.points()),
+                        _ => unreachable!(),
+                    };
+                    for p in pts {
+                        push(raw, grammar::Quantity { value: p, dim: rdim }, &text, diags).then_some(())?;
+                    }
+                }
+                grammar::Value::Reference(_) => {
+                    diags.error(Some(&raw.span), format!("{what} takes values, not a reference: `{text}`"));
+                    return None;
+                }
+            }
+        }
+        _ => {
+            diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
+            return None;
+        }
+    }
+    Some(ParamValue::List { values, dim: *dim })
+}
+
 /// Checks one raw value against a field type.
 pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<ParamValue> {
     // A `$name` left after substitution names no parameter; that has been reported.
@@ -598,116 +725,8 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
         return None;
     }
     match ty {
-        FieldType::Quantity(dim) => {
-            if let RawKind::Int(_) | RawKind::Float(_) = raw.kind {
-                let v = match raw.kind {
-                    RawKind::Int(i) => i as f64,
-                    RawKind::Float(f) => f,
-                    _ => unreachable!(),
-                };
-                if *dim != Dimension::DIMENSIONLESS {
-                    dim_error(raw, &raw.scalar_text().unwrap_or_default(), *dim, Dimension::DIMENSIONLESS, what, diags);
-                    return None;
-                }
-                if !v.is_finite() {
-                    diags.error(Some(&raw.span), format!("{what} must be a finite number"));
-                    return None;
-                }
-                return Some(ParamValue::Quantity { value: v, dim: *dim });
-            }
-            if !matches!(raw.kind, RawKind::Str(_)) {
-                diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
-                return None;
-            }
-            let (text, v) = parse_scalar(raw, what, diags)?;
-            match v {
-                grammar::Value::Quantity(q) => {
-                    let Some(q) = as_dimension(q, *dim, &text) else {
-                        dim_error(raw, &text, *dim, q.dim, what, diags);
-                        return None;
-                    };
-                    Some(ParamValue::Quantity { value: q.value, dim: q.dim })
-                }
-                _ => {
-                    diags.error_help(
-                        Some(&raw.span),
-                        format!("{what} takes one value, found `{text}`"),
-                        "a list, a range or a reference is not accepted here; sweep over values with `sweep:`",
-                    );
-                    None
-                }
-            }
-        }
-        FieldType::QuantityList(dim) => {
-            let mut values = Vec::new();
-            let mut push = |raw: &Raw, q: grammar::Quantity, text: &str, diags: &mut Diagnostics| match as_dimension(
-                q, *dim, text,
-            ) {
-                Some(q) => {
-                    values.push(q.value);
-                    true
-                }
-                None => {
-                    dim_error(raw, text, *dim, q.dim, what, diags);
-                    false
-                }
-            };
-            match &raw.kind {
-                RawKind::Seq(items) => {
-                    let mut ok = true;
-                    for item in items {
-                        match check_value(item, &FieldType::Quantity(*dim), what, ctx, diags) {
-                            Some(ParamValue::Quantity { value, dim }) => {
-                                push(item, grammar::Quantity { value, dim }, "", diags);
-                            }
-                            _ => ok = false,
-                        }
-                    }
-                    if items.is_empty() {
-                        diags.error(Some(&raw.span), format!("{what} is an empty list"));
-                        return None;
-                    }
-                    ok.then_some(())?;
-                }
-                RawKind::Int(_) | RawKind::Float(_) => {
-                    let pv = check_value(raw, &FieldType::Quantity(*dim), what, ctx, diags)?;
-                    if let ParamValue::Quantity { value, .. } = pv {
-                        values.push(value);
-                    }
-                }
-                RawKind::Str(_) => {
-                    let (text, v) = parse_scalar(raw, what, diags)?;
-                    match v {
-                        grammar::Value::Quantity(q) => {
-                            push(raw, q, &text, diags).then_some(())?;
-                        }
-                        grammar::Value::List(qs) => {
-                            for q in qs {
-                                push(raw, q, &text, diags).then_some(())?;
-                            }
-                        }
-                        grammar::Value::Range { .. } => {
-                            let (rdim, pts) = match &v {
-                                grammar::Value::Range { dim, .. } => (*dim, v.points()),
-                                _ => unreachable!(),
-                            };
-                            for p in pts {
-                                push(raw, grammar::Quantity { value: p, dim: rdim }, &text, diags).then_some(())?;
-                            }
-                        }
-                        grammar::Value::Reference(_) => {
-                            diags.error(Some(&raw.span), format!("{what} takes values, not a reference: `{text}`"));
-                            return None;
-                        }
-                    }
-                }
-                _ => {
-                    diags.error(Some(&raw.span), format!("{what} must be {}, found {}", ty.describe(), raw.describe()));
-                    return None;
-                }
-            }
-            Some(ParamValue::List { values, dim: *dim })
-        }
+        FieldType::Quantity(dim) => check_quantity(raw, dim, ty, what, diags),
+        FieldType::QuantityList(dim) => check_quantity_list(raw, dim, ty, what, ctx, diags),
         FieldType::Integer { min, max } => {
             let v = match &raw.kind {
                 RawKind::Int(i) => Some(*i),
