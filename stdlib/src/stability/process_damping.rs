@@ -43,8 +43,8 @@
 use super::StabilityError;
 use super::cutting::Milling;
 use super::zoa::{
-    FrfSlices, LineRoot, StabilityLimit, ToolPointFrf, ZoaOptions, band_top_hz, limit_at_speed, line_roots, lobe_count,
-    lobes_needed, refine,
+    FrfSlices, LimitScratch, StabilityLimit, ToolPointFrf, ZoaOptions, band_top_hz, limit_at_speed_pruned, line_roots,
+    lobe_count, lobes_needed, refine,
 };
 use num_complex::Complex64;
 use rayon::prelude::*;
@@ -145,7 +145,7 @@ struct DampedLines {
     xy: Vec<Complex64>,
     yx: Vec<Complex64>,
     has_cross: bool,
-    roots: Vec<[Option<LineRoot>; 2]>,
+    limit: LimitScratch,
 }
 
 impl DampedLines {
@@ -388,16 +388,14 @@ pub fn zoa_lobes_with_process_damping(
             // so the eigenproblem is solved on those lines and the next one only.
             let tau = per_tooth / n;
             let lines = (freqs.partition_point(|&f| f * tau <= count as f64 + 1e-6) + 1).min(freqs.len());
-            line_roots(frf.slices(lines), milling, false, &mut scratch.roots);
-            let without = limit_at_speed(&freqs[..lines], &scratch.roots, milling.teeth, count, n);
+            let without = limit_at_speed_pruned(frf.slices(lines), milling, count, n, &mut scratch.limit);
             let solved = fixed_point(without, search, |depth| {
                 let c = process_damping.damping(depth, n);
                 let d = [[c * engaged[0][0], c * engaged[0][1]], [c * engaged[1][0], c * engaged[1][1]]];
                 scratch.fill(frf.slices(lines), d);
-                let mut roots = std::mem::take(&mut scratch.roots);
-                line_roots(scratch.slices(&freqs[..lines]), milling, false, &mut roots);
-                let l = limit_at_speed(&freqs[..lines], &roots, milling.teeth, count, n);
-                scratch.roots = roots;
+                let mut limit = std::mem::take(&mut scratch.limit);
+                let l = limit_at_speed_pruned(scratch.slices(&freqs[..lines]), milling, count, n, &mut limit);
+                scratch.limit = limit;
                 l
             });
             (without, solved)

@@ -6,7 +6,7 @@
 use super::StabilityError;
 use super::cutting::{CuttingCoefficients, Milling, MillingDirection};
 use super::zoa::{
-    FrfSlices, LineRoot, StabilityLimit, ToolPointFrf, band_top_hz, limit_at_speed, line_roots, lobe_count,
+    FrfSlices, LimitScratch, StabilityLimit, ToolPointFrf, band_top_hz, limit_at_speed_pruned, lobe_count,
     lobes_needed, refine,
 };
 use num_complex::Complex64;
@@ -130,44 +130,59 @@ pub(crate) fn spline_weights(knots: &[f64], s: f64) -> Vec<f64> {
     w
 }
 
-/// Second derivatives at the knots of the natural cubic spline through unit data: `M = S y` with `S` row-major
-/// `k × k` (first and last rows zero).
-fn second_derivative_matrix(knots: &[f64]) -> Vec<f64> {
-    let k = knots.len();
-    let mut s = vec![0.0; k * k];
-    if k < 3 {
-        return s;
+/// The natural cubic spline's tridiagonal system in the second derivatives at the interior knots
+/// (sub-diagonal `h0`, diagonal `2(h0 + h1)`, super-diagonal `h1`), factored once by the Thomas
+/// algorithm: `cp` the modified super-diagonal, `den` the pivots.
+struct SplineSystem {
+    h: Vec<f64>,
+    cp: Vec<f64>,
+    den: Vec<f64>,
+}
+
+impl SplineSystem {
+    fn new(knots: &[f64]) -> Self {
+        let h: Vec<f64> = knots.windows(2).map(|w| w[1] - w[0]).collect();
+        let interior = knots.len().saturating_sub(2);
+        let (mut cp, mut den) = (vec![0.0; interior], vec![0.0; interior]);
+        for r in 0..interior {
+            let (l, d, u) = (h[r], 2.0 * (h[r] + h[r + 1]), h[r + 1]);
+            den[r] = if r == 0 { d } else { d - l * cp[r - 1] };
+            cp[r] = u / den[r];
+        }
+        SplineSystem { h, cp, den }
     }
-    let interior = k - 2;
-    let (mut cp, mut rhs) = (vec![0.0; interior], vec![0.0; interior]);
-    for j in 0..k {
-        let e = |q: usize| if q == j { 1.0 } else { 0.0 };
-        for (r, v) in rhs.iter_mut().enumerate() {
-            let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
-            *v = 6.0 * ((e(r + 2) - e(r + 1)) / h1 - (e(r + 1) - e(r)) / h0);
+
+    /// The second derivatives at every knot (zero at the ends) of the splines through `y[knot][line]`,
+    /// all lines at once: `O(knots × lines)`.
+    fn second_derivatives(&self, y: &[&[Complex64]], lines: usize) -> Vec<Vec<Complex64>> {
+        let k = y.len();
+        let zero = Complex64::new(0.0, 0.0);
+        if k < 3 {
+            return vec![vec![zero; lines]; k];
         }
-        // Thomas algorithm on sub h0, diagonal 2(h0 + h1), super h1.
-        let coeffs = |r: usize| {
-            let (h0, h1) = (knots[r + 1] - knots[r], knots[r + 2] - knots[r + 1]);
-            (h0, 2.0 * (h0 + h1), h1)
-        };
-        let (_, d0, u0) = coeffs(0);
-        cp[0] = u0 / d0;
-        rhs[0] /= d0;
-        for r in 1..interior {
-            let (l, d, u) = coeffs(r);
-            let den = d - l * cp[r - 1];
-            cp[r] = u / den;
-            rhs[r] = (rhs[r] - l * rhs[r - 1]) / den;
+        let h = &self.h;
+        let mut m: Vec<Vec<Complex64>> = Vec::with_capacity(k);
+        m.push(vec![zero; lines]);
+        // Forward sweep: m[r + 1] holds the eliminated right-hand side of interior row r.
+        for r in 0..k - 2 {
+            let (y0, y1, y2) = (&y[r][..lines], &y[r + 1][..lines], &y[r + 2][..lines]);
+            let (g0, g1) = (6.0 / h[r], 6.0 / h[r + 1]);
+            let (l, inv) = (if r == 0 { 0.0 } else { h[r] }, 1.0 / self.den[r]);
+            let left = &m[r];
+            let row: Vec<Complex64> =
+                (0..lines).map(|j| ((y2[j] - y1[j]) * g1 - (y1[j] - y0[j]) * g0 - l * left[j]) * inv).collect();
+            m.push(row);
         }
-        for r in (0..interior.saturating_sub(1)).rev() {
-            rhs[r] -= cp[r] * rhs[r + 1];
+        m.push(vec![zero; lines]);
+        // Back substitution.
+        for r in (0..k - 3).rev() {
+            let (head, tail) = m.split_at_mut(r + 2);
+            let (row, next) = (&mut head[r + 1], &tail[0]);
+            let c = self.cp[r];
+            row.iter_mut().zip(next).for_each(|(v, n)| *v -= c * n);
         }
-        for (r, v) in rhs.iter().enumerate() {
-            s[(r + 1) * k + j] = *v;
-        }
+        m
     }
-    s
 }
 
 /// The FRFs of all measured speeds with their spline second derivatives per line, so that the natural cubic
@@ -185,13 +200,12 @@ struct SpeedScratch {
     yy: Vec<Complex64>,
     xy: Vec<Complex64>,
     yx: Vec<Complex64>,
-    roots: Vec<[Option<LineRoot>; 2]>,
+    limit: LimitScratch,
 }
 
 impl<'a> SplineFrf<'a> {
     fn new(knots: &'a [f64], frfs: &'a [SpeedFrf], with_cross: bool) -> Self {
-        let k = knots.len();
-        let s = second_derivative_matrix(knots);
+        let system = SplineSystem::new(knots);
         let mut values: Vec<Vec<&'a [Complex64]>> =
             vec![frfs.iter().map(|f| &f.frf.xx[..]).collect(), frfs.iter().map(|f| &f.frf.yy[..]).collect()];
         if with_cross {
@@ -199,23 +213,7 @@ impl<'a> SplineFrf<'a> {
             values.push(frfs.iter().map(|f| f.frf.cross.as_ref().map_or(&[][..], |c| &c.1[..])).collect());
         }
         let lines = frfs[0].frf.freqs_hz.len();
-        let second = values
-            .iter()
-            .map(|series| {
-                (0..k)
-                    .map(|q| {
-                        let mut m = vec![Complex64::new(0.0, 0.0); lines];
-                        for (j, y) in series.iter().enumerate() {
-                            let w = s[q * k + j];
-                            if w != 0.0 {
-                                m.iter_mut().zip(y.iter()).for_each(|(o, v)| *o += w * v);
-                            }
-                        }
-                        m
-                    })
-                    .collect()
-            })
-            .collect();
+        let second = values.iter().map(|series| system.second_derivatives(series, lines)).collect();
         SplineFrf { knots, values, second }
     }
 
@@ -403,11 +401,9 @@ pub fn speed_dependent_lobes(
                 yy: &scratch.yy,
                 cross: with_cross.then_some((&scratch.xy[..], &scratch.yx[..])),
             };
-            line_roots(frf, &milling, false, &mut scratch.roots);
-            let dynamic = limit_at_speed(frf.freqs_hz, &scratch.roots, teeth, count, s);
+            let dynamic = limit_at_speed_pruned(frf, &milling, count, s, &mut scratch.limit);
             let fixed_frf = stationary.slices(needed(&stationary.freqs_hz));
-            line_roots(fixed_frf, &milling, false, &mut scratch.roots);
-            let fixed = limit_at_speed(fixed_frf.freqs_hz, &scratch.roots, teeth, count, s);
+            let fixed = limit_at_speed_pruned(fixed_frf, &milling, count, s, &mut scratch.limit);
             Ok([dynamic, fixed])
         })
         .collect::<Result<_, StabilityError>>()?;
@@ -424,4 +420,43 @@ pub fn speed_dependent_lobes(
         lobes_needed: needed,
         band_top_hz: band_top,
     })
+}
+
+#[cfg(test)]
+mod spline_tests {
+    use super::*;
+
+    /// The per-line tridiagonal solve gives the same spline as the weights of the natural spline
+    /// through unit data (each knot's cardinal spline solved on its own), on uneven knots.
+    #[test]
+    fn the_frf_spline_equals_the_sum_of_cardinal_splines() {
+        let knots = [0.0, 800.0, 1500.0, 4000.0, 4300.0, 9000.0, 12000.0];
+        let freqs: Vec<f64> = (1..=5).map(|i| 100.0 * i as f64).collect();
+        let series = |q: usize, scale: f64| -> Vec<Complex64> {
+            freqs
+                .iter()
+                .map(|f| Complex64::new((f * 1e-3 + q as f64).sin() * scale, (q as f64 * f * 1e-4).cos()))
+                .collect()
+        };
+        let frfs: Vec<SpeedFrf> = knots
+            .iter()
+            .enumerate()
+            .map(|(q, &s)| SpeedFrf {
+                speed_rpm: s,
+                frf: ToolPointFrf::new(freqs.clone(), series(q, 1.0), series(q + 3, 0.5)).unwrap(),
+            })
+            .collect();
+        let spline = SplineFrf::new(&knots, &frfs, false);
+        let mut out = SpeedScratch::default();
+        for s in [0.0, 10.0, 799.0, 1200.0, 4150.0, 8999.0, 11000.0, 12000.0] {
+            spline.at(s, freqs.len(), &mut out);
+            let w = spline_weights(&knots, s);
+            for j in 0..freqs.len() {
+                let want_xx: Complex64 = w.iter().zip(&frfs).map(|(w, f)| *w * f.frf.xx[j]).sum();
+                let want_yy: Complex64 = w.iter().zip(&frfs).map(|(w, f)| *w * f.frf.yy[j]).sum();
+                assert!((out.xx[j] - want_xx).norm() <= 1e-12 * (1.0 + want_xx.norm()), "{s} rpm, line {j}");
+                assert!((out.yy[j] - want_yy).norm() <= 1e-12 * (1.0 + want_yy.norm()), "{s} rpm, line {j}");
+            }
+        }
+    }
 }

@@ -192,15 +192,17 @@ pub const MAX_LOBES: usize = 50_000;
 /// `|Φyy|` (and the cross terms) is within [`SIGNIFICANT_RESPONSE`] of that largest magnitude's peak.
 pub fn band_top_hz(frf: &ToolPointFrf) -> f64 {
     let n = frf.freqs_hz.len();
-    let mag = |j: usize| {
-        let mut m = frf.xx[j].norm().max(frf.yy[j].norm());
+    // Squared magnitudes: the same order without a square root per line.
+    let mag2 = |j: usize| {
+        let mut m = frf.xx[j].norm_sqr().max(frf.yy[j].norm_sqr());
         if let Some((xy, yx)) = &frf.cross {
-            m = m.max(xy[j].norm()).max(yx[j].norm());
+            m = m.max(xy[j].norm_sqr()).max(yx[j].norm_sqr());
         }
         m
     };
-    let peak = (0..n).map(mag).fold(0.0, f64::max);
-    (0..n).rev().find(|&j| mag(j) >= SIGNIFICANT_RESPONSE * peak).map_or(0.0, |j| frf.freqs_hz[j])
+    let peak2 = (0..n).map(mag2).fold(0.0, f64::max);
+    let floor2 = SIGNIFICANT_RESPONSE * SIGNIFICANT_RESPONSE * peak2;
+    (0..n).rev().find(|&j| mag2(j) >= floor2).map_or(0.0, |j| frf.freqs_hz[j])
 }
 
 /// Lobes needed for every line up to `f_max_hz` to reach the slowest speed `n_min_rpm` with `teeth` teeth:
@@ -435,6 +437,49 @@ impl ToolPointFrf {
     }
 }
 
+/// The oriented transfer function `[Φ][A₀]` at line `j` (`a` the directional factors), row-major.
+#[inline]
+fn oriented(frf: &FrfSlices<'_>, a: &[[f64; 2]; 2], j: usize) -> [Complex64; 4] {
+    let zero = Complex64::new(0.0, 0.0);
+    let (xx, yy) = (frf.xx[j], frf.yy[j]);
+    let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
+    [xx * a[0][0] + yx * a[0][1], xy * a[0][0] + yy * a[0][1], xx * a[1][0] + yx * a[1][1], xy * a[1][0] + yy * a[1][1]]
+}
+
+/// The two eigenvalues of a 2 × 2 matrix (row-major).
+#[inline]
+fn eigenvalues([m00, m01, m10, m11]: [Complex64; 4]) -> [Complex64; 2] {
+    let half_tr = 0.5 * (m00 + m11);
+    let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
+    [half_tr + disc, half_tr - disc]
+}
+
+/// `lam` in the order that pairs each of its eigenvalues with the nearer one of the previous line's `prev`
+/// (nearest-eigenvalue matching of the two branches).
+#[inline]
+fn matched(mut lam: [Complex64; 2], prev: &[Complex64; 2]) -> [Complex64; 2] {
+    let (p, l) = (prev, lam);
+    if (l[0] - p[0]).norm_sqr().sqrt() + (l[1] - p[1]).norm_sqr().sqrt()
+        > (l[0] - p[1]).norm_sqr().sqrt() + (l[1] - p[0]).norm_sqr().sqrt()
+    {
+        lam.swap(0, 1);
+    }
+    lam
+}
+
+/// The ZOA root of eigenvalue `l` at frequency `f`, if it has one (`Re λ > 0`): depth `2π/(N Kt Re λ)` with
+/// `n_kt = N Kt`, and the phase fraction, approximate unless `exact_phase`.
+#[inline]
+fn line_root(f: f64, l: Complex64, n_kt: f64, exact_phase: bool) -> Option<LineRoot> {
+    if f <= 0.0 || l.re.is_nan() || l.re <= 0.0 {
+        return None;
+    }
+    let depth = TAU / (l.re * n_kt);
+    let ratio = l.im / l.re;
+    let e = 0.5 + if exact_phase { ratio.atan() } else { atan_approx(ratio) } / PI;
+    (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e, ratio })
+}
+
 /// Per line, the ZOA roots of both eigenvalue branches (branches followed by nearest-eigenvalue matching). With
 /// `Λ = −1/λ` the depth `−2πΛ_R(1 + κ²)/(N Kt)` simplifies to `2π/(N Kt Re λ)` and the phase
 /// `ε = π − 2 atan κ` to `π + 2 atan(Im λ/Re λ)`; a line has a root where `Re λ > 0` (`Re Λ < 0`).
@@ -451,43 +496,15 @@ pub(crate) fn line_roots(
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     out.clear();
     out.reserve(frf.freqs_hz.len());
-    let zero = Complex64::new(0.0, 0.0);
-    let mut prev: Option<[Complex64; 2]> = None;
-    let root = |f: f64, l: Complex64| -> Option<LineRoot> {
-        if f <= 0.0 || l.re.is_nan() || l.re <= 0.0 {
-            return None;
-        }
-        let depth = TAU / (l.re * n_kt);
-        let ratio = l.im / l.re;
-        let e = 0.5 + if exact_phase { ratio.atan() } else { atan_approx(ratio) } / PI;
-        (depth.is_finite() && depth > 0.0).then_some(LineRoot { depth, e, ratio })
-    };
     // First the eigenvalues of every line (independent lines, so the square roots overlap), then the branch
     // matching and the roots.
-    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len())
-        .map(|j| {
-            let (xx, yy) = (frf.xx[j], frf.yy[j]);
-            let (xy, yx) = frf.cross.map_or((zero, zero), |(p, q)| (p[j], q[j]));
-            let m00 = xx * a[0][0] + yx * a[0][1];
-            let m01 = xy * a[0][0] + yy * a[0][1];
-            let m10 = xx * a[1][0] + yx * a[1][1];
-            let m11 = xy * a[1][0] + yy * a[1][1];
-            let half_tr = 0.5 * (m00 + m11);
-            let disc = csqrt(half_tr * half_tr - (m00 * m11 - m01 * m10));
-            [half_tr + disc, half_tr - disc]
-        })
-        .collect();
+    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len()).map(|j| eigenvalues(oriented(&frf, &a, j))).collect();
+    let mut prev: Option<[Complex64; 2]> = None;
     for (j, &lam) in lams.iter().enumerate() {
-        let mut lam = lam;
-        if let Some(p) = prev
-            && (lam[0] - p[0]).norm_sqr().sqrt() + (lam[1] - p[1]).norm_sqr().sqrt()
-                > (lam[0] - p[1]).norm_sqr().sqrt() + (lam[1] - p[0]).norm_sqr().sqrt()
-        {
-            lam.swap(0, 1);
-        }
+        let lam = prev.map_or(lam, |p| matched(lam, &p));
         prev = Some(lam);
         let f = frf.freqs_hz[j];
-        out.push([root(f, lam[0]), root(f, lam[1])]);
+        out.push([line_root(f, lam[0], n_kt, exact_phase), line_root(f, lam[1], n_kt, exact_phase)]);
     }
 }
 
@@ -675,6 +692,8 @@ fn envelope_pass(grid: &[f64], freqs: &[f64], depths: &[f64], speeds: &[f64], k:
 
 /// ZOA limit at one speed from the lobes passing through it: for each pair of adjacent valid lines and each
 /// lobe `k` whose speed `60 f/(N(k + e))` brackets `speed_rpm`, the depth interpolated as in [`zoa_lobes`].
+/// Every segment is offered: the reference [`limit_at_speed_pruned`] is checked against.
+#[cfg(test)]
 pub(crate) fn limit_at_speed(
     freqs_hz: &[f64],
     roots: &[[Option<LineRoot>; 2]],
@@ -682,35 +701,154 @@ pub(crate) fn limit_at_speed(
     lobes: usize,
     speed_rpm: f64,
 ) -> (f64, f64, Option<usize>) {
-    let per_tooth = 60.0 / teeth as f64;
-    let period = per_tooth / speed_rpm;
+    let segment = Segment::at(teeth, lobes, speed_rpm);
     let mut best = (f64::INFINITY, 0.0, None);
     for branch in 0..2 {
         for j in 1..roots.len() {
             let (Some(p), Some(q)) = (roots[j - 1][branch], roots[j][branch]) else { continue };
-            let (f1, f2) = (freqs_hz[j - 1], freqs_hz[j]);
-            // Screen with the stored (possibly approximate) phases widened by their error, then decide exactly.
-            let (v1, v2) = (f1 * period - p.e, f2 * period - q.e);
-            let (lo, hi) = if v1 <= v2 { (v1, v2) } else { (v2, v1) };
-            if integer_range(lo - PHASE_APPROX_ERROR, hi + PHASE_APPROX_ERROR, lobes).is_none() {
-                continue;
-            }
-            let (e1, e2) = (p.exact_e(), q.exact_e());
-            let (u1, u2) = (f1 * period - e1, f2 * period - e2);
-            let (lo, hi) = if u1 <= u2 { (u1, u2) } else { (u2, u1) };
-            let Some((k_lo, k_hi)) = integer_range(lo, hi, lobes) else { continue };
-            let mut kf = k_lo;
-            while kf <= k_hi {
-                let (n1, n2) = (per_tooth * f1 / (kf + e1), per_tooth * f2 / (kf + e2));
-                let (d, fc) = segment_at(n1, p.depth, f1, n2, q.depth, f2, speed_rpm);
-                if d < best.0 {
-                    best = (d, fc, Some(kf as usize));
-                }
-                kf += 1.0;
-            }
+            segment.offer(freqs_hz[j - 1], p, freqs_hz[j], q, &mut best);
         }
     }
     best
+}
+
+/// The lobes of one speed through one segment between adjacent lines.
+struct Segment {
+    per_tooth: f64,
+    period: f64,
+    lobes: usize,
+    speed_rpm: f64,
+}
+
+impl Segment {
+    fn at(teeth: usize, lobes: usize, speed_rpm: f64) -> Self {
+        let per_tooth = 60.0 / teeth as f64;
+        Segment { per_tooth, period: per_tooth / speed_rpm, lobes, speed_rpm }
+    }
+
+    /// Lowers `best` (depth, chatter frequency, lobe) by the lobes passing the speed between root `p` at `f1` and
+    /// root `q` at `f2`.
+    #[inline]
+    fn offer(&self, f1: f64, p: LineRoot, f2: f64, q: LineRoot, best: &mut (f64, f64, Option<usize>)) {
+        let (per_tooth, period, lobes) = (self.per_tooth, self.period, self.lobes);
+        // Screen with the stored (possibly approximate) phases widened by their error, then decide exactly.
+        let (v1, v2) = (f1 * period - p.e, f2 * period - q.e);
+        let (lo, hi) = if v1 <= v2 { (v1, v2) } else { (v2, v1) };
+        if integer_range(lo - PHASE_APPROX_ERROR, hi + PHASE_APPROX_ERROR, lobes).is_none() {
+            return;
+        }
+        let (e1, e2) = (p.exact_e(), q.exact_e());
+        let (u1, u2) = (f1 * period - e1, f2 * period - e2);
+        let (lo, hi) = if u1 <= u2 { (u1, u2) } else { (u2, u1) };
+        let Some((k_lo, k_hi)) = integer_range(lo, hi, lobes) else { return };
+        let mut kf = k_lo;
+        while kf <= k_hi {
+            let (n1, n2) = (per_tooth * f1 / (kf + e1), per_tooth * f2 / (kf + e2));
+            let (d, fc) = segment_at(n1, p.depth, f1, n2, q.depth, f2, self.speed_rpm);
+            if d < best.0 {
+                *best = (d, fc, Some(kf as usize));
+            }
+            kf += 1.0;
+        }
+    }
+}
+
+/// Reused buffers of [`limit_at_speed_pruned`].
+#[derive(Default)]
+pub(crate) struct LimitScratch {
+    /// Per line, the eigenvalues once solved.
+    lam: Vec<Option<[Complex64; 2]>>,
+    /// Per segment (line `j − 1` to `j`), the larger squared norm `‖[Φ][A₀]‖_F²` of its two lines, widened.
+    norm2: Vec<f64>,
+    /// Per segment, whether it was offered.
+    offered: Vec<bool>,
+}
+
+/// The ZOA limit at one speed over the lines of `frf`, as [`line_roots`] and [`limit_at_speed`] over every line
+/// give it, solving the eigenproblem only where a root can set it.
+///
+/// Every root of a line is at least `2π/(N Kt ‖[Φ][A₀]‖_F)` deep (`Re λ ≤ |λ| ≤ ‖·‖_F`), and a lobe between two
+/// lines is at least the shallower end deep. The segments are offered in passes of a rising depth bound,
+/// starting at four times the lowest line bound, until the limit found lies within the bound: a segment left
+/// out is then deeper than the limit. The branches of a segment are paired by nearest eigenvalues between its
+/// two lines alone, as [`line_roots`] pairs them; the result is the same limit except that of two lobes
+/// exactly equally deep at the speed, the one found first is kept.
+pub(crate) fn limit_at_speed_pruned(
+    frf: FrfSlices<'_>,
+    milling: &Milling,
+    lobes: usize,
+    speed_rpm: f64,
+    scratch: &mut LimitScratch,
+) -> (f64, f64, Option<usize>) {
+    let n = frf.freqs_hz.len();
+    let a = milling.directional_factors();
+    let n_kt = milling.teeth as f64 * milling.coefficients.kt;
+    let segment = Segment::at(milling.teeth, lobes, speed_rpm);
+    let mut best = (f64::INFINITY, 0.0, None);
+    if n < 2 {
+        return best;
+    }
+    let LimitScratch { lam, norm2, offered } = scratch;
+    lam.clear();
+    lam.resize(n, None);
+    offered.clear();
+    offered.resize(n, false);
+    norm2.clear();
+    // `‖[Φ][A₀]‖_F²` per line, widened far beyond the rounding of the eigenvalues' and the interpolation's
+    // arithmetic so the depth bound `2π/(N Kt √norm2)` stays below every depth of a segment; NaN offers always.
+    let widen = |v: f64| if v.is_nan() { f64::INFINITY } else { v * (1.0 + 1e-6) };
+    match frf.cross {
+        // Without cross terms the columns are Φxx (a00, a10) and Φyy (a01, a11).
+        None => {
+            let (cx, cy) = (a[0][0] * a[0][0] + a[1][0] * a[1][0], a[0][1] * a[0][1] + a[1][1] * a[1][1]);
+            norm2.extend(frf.xx.iter().zip(frf.yy).map(|(x, y)| widen(x.norm_sqr() * cx + y.norm_sqr() * cy)));
+        }
+        Some(_) => norm2.extend((0..n).map(|j| widen(oriented(&frf, &a, j).iter().map(|z| z.norm_sqr()).sum()))),
+    }
+    // Per segment (ending at line j), the larger of its two lines.
+    let mut largest = 0.0f64;
+    for j in (1..n).rev() {
+        norm2[j] = norm2[j].max(norm2[j - 1]);
+        largest = largest.max(norm2[j]);
+    }
+    if largest == 0.0 {
+        return best;
+    }
+    // The squared norm a segment needs to reach a depth at or below `depth`.
+    let needed = |depth: f64| {
+        let r = TAU / (n_kt * depth);
+        r * r
+    };
+    // Four times the lowest bound in depth is a sixteenth in squared norm.
+    let mut threshold = largest / 16.0;
+    loop {
+        for j in 1..n {
+            if offered[j] || norm2[j] < threshold {
+                continue;
+            }
+            offered[j] = true;
+            if best.0.is_finite() && norm2[j] < needed(best.0) {
+                continue;
+            }
+            let mut solved = |i: usize| *lam[i].get_or_insert_with(|| eigenvalues(oriented(&frf, &a, i)));
+            let p = solved(j - 1);
+            let q = matched(solved(j), &p);
+            let (f1, f2) = (frf.freqs_hz[j - 1], frf.freqs_hz[j]);
+            for b in 0..2 {
+                if let (Some(r1), Some(r2)) = (line_root(f1, p[b], n_kt, false), line_root(f2, q[b], n_kt, false)) {
+                    segment.offer(f1, r1, f2, r2, &mut best);
+                }
+            }
+        }
+        if threshold == 0.0 || (best.0.is_finite() && needed(best.0) >= threshold) {
+            return best;
+        }
+        // Everything that can reach the limit found must be offered; with none found yet, widen the bound.
+        threshold = if best.0.is_finite() { needed(best.0) } else { threshold / 256.0 };
+        if threshold < f64::MIN_POSITIVE {
+            threshold = 0.0;
+        }
+    }
 }
 
 /// The lobe numbers `k` in `[⌈lo⌉, ⌊hi⌋] ∩ [0, lobes − 1]` as floats, `None` if there is none (integer casts
@@ -750,5 +888,46 @@ mod tests {
         assert!(worst > 1e-4, "{worst}");
         assert!(worst / PI < PHASE_APPROX_ERROR);
         assert_eq!(atan_approx(0.0), 0.0);
+    }
+
+    /// The pruned limit at a speed is the limit over every line: on two- and one-direction modal FRFs, with and
+    /// without cross terms, up- and down-milling, at 1,500 speeds from far below to above the modes.
+    #[test]
+    fn the_pruned_limit_at_a_speed_equals_the_full_one() {
+        use crate::stability::{CuttingCoefficients, MillingDirection, ModalModel, Mode};
+        let modes = |m: &[(f64, f64, f64)]| m.iter().map(|&(f, k, z)| Mode::from_stiffness(f, z, k)).collect();
+        let model = ModalModel::new(
+            modes(&[(700.0, 3.0e7, 0.040), (1600.0, 2.0e7, 0.030), (3200.0, 4.0e7, 0.020)]),
+            modes(&[(750.0, 3.2e7, 0.040), (1650.0, 2.2e7, 0.030), (3100.0, 4.5e7, 0.025)]),
+        )
+        .unwrap();
+        let freqs: Vec<f64> = (1..=6000).map(|i| i as f64).collect();
+        let two = model.receptance(&freqs).unwrap();
+        let cross: Vec<Complex64> = two.xx.iter().zip(&two.yy).map(|(a, b)| 0.3 * (a - b)).collect();
+        let coupled = two.clone().with_cross(cross.clone(), cross.iter().map(|c| -0.5 * c).collect()).unwrap();
+        let one =
+            ToolPointFrf::new(freqs.clone(), two.xx.clone(), vec![Complex64::new(0.0, 0.0); freqs.len()]).unwrap();
+        let mut scratch = LimitScratch::default();
+        let mut roots = Vec::new();
+        let mut compared = 0;
+        for (frf, direction, immersion) in [
+            (&two, MillingDirection::Up, 0.25),
+            (&coupled, MillingDirection::Down, 0.5),
+            (&one, MillingDirection::Down, 1.0),
+        ] {
+            let k = CuttingCoefficients::from_ks_beta(2000e6, 70f64.to_radians()).unwrap();
+            let milling = Milling::new(4, immersion, direction, k).unwrap();
+            for i in 0..500 {
+                let speed = 300.0 * 1.01f64.powi(i);
+                let lines = frf.slices(usize::MAX);
+                line_roots(lines, &milling, false, &mut roots);
+                let full = limit_at_speed(lines.freqs_hz, &roots, 4, 40, speed);
+                let pruned = limit_at_speed_pruned(lines, &milling, 40, speed, &mut scratch);
+                assert_eq!(full.0.to_bits(), pruned.0.to_bits(), "{speed} rpm: {full:?} vs {pruned:?}");
+                assert_eq!((full.1.to_bits(), full.2), (pruned.1.to_bits(), pruned.2), "{speed} rpm");
+                compared += usize::from(full.0.is_finite());
+            }
+        }
+        assert!(compared > 1000, "{compared}");
     }
 }

@@ -7,6 +7,7 @@
 //! closed form of [`kernel_matches_independent_root_scan_on_one_mode`] instead.
 
 use super::*;
+use crate::stability::zoa::limit_at_speed;
 use crate::stability::{CuttingCoefficients, MillingDirection};
 
 /// Receptance of one mode, `1/(k(1 − r² + 2iζr))`, m/N.
