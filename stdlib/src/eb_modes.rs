@@ -176,7 +176,8 @@ impl TipReceptance {
         let root = omega.sqrt();
         let lam = self.k * root;
         let x = lam * len;
-        if x.norm() < SERIES_LIMIT {
+        // |x|² against the limit squared (1): no hypot per line.
+        if x.norm_sqr() < SERIES_LIMIT * SERIES_LIMIT {
             let (gh, gl, gp, d) = series(x);
             let inv = Complex64::from(1.0) / (ei * d);
             return Receptance::new(gh * len.powi(3) * inv, gl * len * len * inv, gl * len * len * inv, gp * len * inv);

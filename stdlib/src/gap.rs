@@ -166,12 +166,13 @@ pub fn gap(
     let scale = 1.0 / (noise_floor * power.sqrt());
     let residual: Vec<Complex64> = diff.iter().map(|d| d * scale).collect();
 
-    let mag = |h: &[Complex64]| h.iter().map(|v| v.norm()).collect::<Vec<_>>();
+    // Magnitudes as √(re² + im²): receptances are far from the range where hypot's scaling matters.
+    let mag = |h: &[Complex64]| h.iter().map(|v| v.norm_sqr().sqrt()).collect::<Vec<_>>();
     let peak_model = freq_hz[argmax(&smooth5(&mag(model)))];
     let peak_meas = freq_hz[argmax(&smooth5(&mag(measured)))];
     let d = smooth5(&mag(&diff));
     let kd = argmax(&d);
-    let max_meas = measured.iter().map(|h| h.norm()).fold(0.0, f64::max);
+    let max_meas = measured.iter().map(|h| h.norm_sqr()).fold(0.0, f64::max).sqrt();
 
     let (lo, hi) = (freq_hz[0], freq_hz[n - 1]);
     let nb = bands.max(1);
