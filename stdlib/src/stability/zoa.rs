@@ -843,8 +843,15 @@ pub(crate) fn limit_at_speed_pruned(
         if threshold == 0.0 || (best.0.is_finite() && needed(best.0) >= threshold) {
             return best;
         }
-        // Everything that can reach the limit found must be offered; with none found yet, widen the bound.
-        threshold = if best.0.is_finite() { needed(best.0) } else { threshold / 256.0 };
+        // Everything that can reach the limit found must be offered; with none found yet, widen the bound (from
+        // the largest finite one when a line's norm overflowed, so the passes always end).
+        threshold = if best.0.is_finite() {
+            needed(best.0)
+        } else if threshold.is_finite() {
+            threshold / 256.0
+        } else {
+            f64::MAX
+        };
         if threshold < f64::MIN_POSITIVE {
             threshold = 0.0;
         }
@@ -929,5 +936,19 @@ mod tests {
             }
         }
         assert!(compared > 1000, "{compared}");
+    }
+
+    /// A line whose norm overflows and no line with a root: the passes end, with no limit.
+    #[test]
+    fn the_pruned_limit_ends_when_a_norm_overflows() {
+        use crate::stability::{CuttingCoefficients, MillingDirection};
+        let milling =
+            Milling::new(2, 1.0, MillingDirection::Down, CuttingCoefficients::from_kt_kn(6e8, 2e8).unwrap()).unwrap();
+        // Positive real receptances have no root in slotting; 1e160 squared overflows.
+        let mut c = vec![Complex64::new(1e-7, 0.0); 50];
+        c[20] = Complex64::new(1e160, 0.0);
+        let frf = ToolPointFrf::new((1..=50).map(f64::from).collect(), c.clone(), c).unwrap();
+        let limit = limit_at_speed_pruned(frf.slices(usize::MAX), &milling, 10, 3000.0, &mut LimitScratch::default());
+        assert_eq!(limit, (f64::INFINITY, 0.0, None));
     }
 }
