@@ -509,18 +509,23 @@ fn errors_name_the_problem() {
     assert!(ModalModel::new(vec![Mode { freq_hz: 100.0, damping_ratio: 1.5, modal_mass: 1.0 }], vec![]).is_err());
 }
 
+/// The W4 workload's tool: three modes per direction given by f_n (Hz), k (N/m) and ζ.
+pub(crate) fn w04_model() -> ModalModel {
+    let modes = |m: &[(f64, f64, f64)]| m.iter().map(|&(f, k, z)| Mode::from_stiffness(f, z, k)).collect();
+    ModalModel::new(
+        modes(&[(700.0, 3.0e7, 0.040), (1600.0, 2.0e7, 0.030), (3200.0, 4.0e7, 0.020)]),
+        modes(&[(750.0, 3.2e7, 0.040), (1650.0, 2.2e7, 0.030), (3100.0, 4.5e7, 0.025)]),
+    )
+    .unwrap()
+}
+
 /// Validation against an independent implementation: the numpy peer of the W4 benchmark (4 flutes, 25 %
 /// up-milling, Ks 2000 N/mm², β 70°, three modes per direction given by f_n, k and ζ, 10,000 lines 10..5000 Hz,
 /// 20 lobes, both roots, envelope on a 1 rpm grid 1000..30000 rpm; highest envelope peak = largest strict local
 /// maximum). The expected numbers are the peer's printed summary, not computed by this code.
 #[test]
 fn w04_lobes_match_the_numpy_peer() {
-    let modes = |m: &[(f64, f64, f64)]| m.iter().map(|&(f, k, z)| Mode::from_stiffness(f, z, k)).collect();
-    let model = ModalModel::new(
-        modes(&[(700.0, 3.0e7, 0.040), (1600.0, 2.0e7, 0.030), (3200.0, 4.0e7, 0.020)]),
-        modes(&[(750.0, 3.2e7, 0.040), (1650.0, 2.2e7, 0.030), (3100.0, 4.5e7, 0.025)]),
-    )
-    .unwrap();
+    let model = w04_model();
     let mill = Milling::new(
         4,
         0.25,

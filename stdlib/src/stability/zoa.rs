@@ -901,13 +901,8 @@ mod tests {
     /// without cross terms, up- and down-milling, at 1,500 speeds from far below to above the modes.
     #[test]
     fn the_pruned_limit_at_a_speed_equals_the_full_one() {
-        use crate::stability::{CuttingCoefficients, MillingDirection, ModalModel, Mode};
-        let modes = |m: &[(f64, f64, f64)]| m.iter().map(|&(f, k, z)| Mode::from_stiffness(f, z, k)).collect();
-        let model = ModalModel::new(
-            modes(&[(700.0, 3.0e7, 0.040), (1600.0, 2.0e7, 0.030), (3200.0, 4.0e7, 0.020)]),
-            modes(&[(750.0, 3.2e7, 0.040), (1650.0, 2.2e7, 0.030), (3100.0, 4.5e7, 0.025)]),
-        )
-        .unwrap();
+        use crate::stability::{CuttingCoefficients, MillingDirection};
+        let model = crate::stability::tests::w04_model();
         let freqs: Vec<f64> = (1..=6000).map(|i| i as f64).collect();
         let two = model.receptance(&freqs).unwrap();
         let cross: Vec<Complex64> = two.xx.iter().zip(&two.yy).map(|(a, b)| 0.3 * (a - b)).collect();
