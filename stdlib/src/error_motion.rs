@@ -609,6 +609,80 @@ pub fn separate(
     opts: &SeparationOptions,
 ) -> Result<Separation, SeparationError> {
     let geo = Geometry::new(opts.angles)?;
+    let n = checked_grid(probes, revs, opts)?;
+    let n_rev = revs.count();
+
+    // Which harmonics can be divided by.
+    let low = unrecoverable_harmonics(geo.sigma, geo.rho, opts.required_harmonics, opts.gain_tolerance);
+    if !low.is_empty() && !opts.allow_unrecoverable {
+        return Err(SeparationError::Unrecoverable {
+            harmonics: low,
+            angles_deg: opts.angles.map(f64::to_degrees),
+            tolerance: opts.gain_tolerance,
+        });
+    }
+    let mut spec = Spectral::new(n, &geo, opts.gain_tolerance);
+    let Pass { mut acc, mean, all, sets } = averaged_pass(probes, revs, opts, n, &geo, &mut spec)?;
+
+    let angle: Vec<f64> = (0..n).map(|j| TAU * j as f64 / n as f64).collect();
+    let turn = phasors(-TAU / n as f64, n - 1);
+    let (cos_t, sin_t): (Vec<f64>, Vec<f64>) = turn.iter().map(|z| (z.re, z.im)).unzip();
+    let sync_r: Vec<f64> = (0..n).map(|j| all.x[j] * cos_t[j] + all.y[j] * sin_t[j]).collect();
+
+    // Asynchronous spread per angle: deviations from the mean, where the form cancels.
+    let [ka, kb, kc] = geo.ky;
+    let mqy: Vec<f64> = (0..n).map(|j| ka * mean.a[j] + kb * mean.b[j] + kc * mean.c[j]).collect();
+    let spread = AsyncSpread::new(&acc, &mean.a, &mqy, &cos_t, &sin_t, n_rev);
+
+    // Spectra.
+    let (sx, sy) = spec.amplitudes2(&all.x, &all.y);
+    let (sr, _) = spec.amplitudes2(&sync_r, &all.form);
+    let scale = 2.0 / n as f64;
+    let form_amp: Vec<f64> = all.form_hat.iter().map(|h| scale * h.norm_sqr().sqrt()).collect();
+    let form_harmonics: Vec<(f64, f64)> = all.form_hat.iter().map(|h| (scale * h.re, -scale * h.im)).collect();
+    let async_spectrum = opts.async_spectrum.then(|| acc.async_spectrum(&mean.a, &mqy, n, n_rev, revs.mean_period()));
+
+    let mean_speed_rpm = revs.mean_speed_rpm();
+    let nyquist_upr = 30.0 * probes.sample_rate / mean_speed_rpm;
+    Ok(Separation {
+        samples_per_rev: n,
+        revolutions: n_rev,
+        mean_speed_rpm,
+        coefficients: (geo.a, geo.b),
+        ptv: PeakToValley { form: ptv(&all.form), x: ptv(&all.x), y: ptv(&all.y), r: ptv(&sync_r) },
+        angle,
+        form: all.form,
+        form_harmonics,
+        sync_spectrum: SyncSpectrum { x: sx, y: sy, r: sr, form: form_amp },
+        sync_x: all.x,
+        sync_y: all.y,
+        sync_r,
+        async_sigma_x: spread.sigma_x,
+        async_sigma_y: spread.sigma_y,
+        async_sigma_r: spread.sigma_r,
+        async_value_x: spread.value_x,
+        async_value_y: spread.value_y,
+        async_spectrum,
+        nyquist_upr,
+        nyquist_exceeded: (n / 2) as f64 > nyquist_upr,
+        unrecoverable: std::mem::take(&mut spec.unrecoverable),
+        segments: sets.stats(),
+    })
+}
+
+/// Position of time `t` in fractional samples of the probe records.
+fn sample_position(probes: &ProbeRecords<'_>, t: f64) -> f64 {
+    (t - probes.t0) * probes.sample_rate
+}
+
+/// Checks the records, the revolutions and the options against each other and returns the
+/// angle grid's size: the option's, or the largest FFT-friendly even size that every
+/// revolution's samples fill.
+fn checked_grid(
+    probes: &ProbeRecords<'_>,
+    revs: &Revolutions,
+    opts: &SeparationOptions,
+) -> Result<usize, SeparationError> {
     if !(opts.gain_tolerance.is_finite() && opts.gain_tolerance >= 0.0) {
         return Err(SeparationError::InvalidOption {
             name: "gain_tolerance",
@@ -641,11 +715,9 @@ pub fn separate(
         return Err(SeparationError::InvalidSegments { segments: opts.segments, revolutions: n_rev });
     }
     let edges = revs.edges();
-    // Edge positions in fractional samples of the probe record.
-    let pos = |t: f64| (t - probes.t0) * fs;
     let record_end = probes.t0 + len.saturating_sub(1) as f64 / fs;
     for r in [0, n_rev - 1] {
-        let (p0, p1) = (pos(edges[r]), pos(edges[r + 1]));
+        let (p0, p1) = (sample_position(probes, edges[r]), sample_position(probes, edges[r + 1]));
         if p0 < -1e-9 || p1 > len as f64 - 1.0 + 1e-9 || len < 2 {
             return Err(SeparationError::OutsideRecord {
                 revolution: r,
@@ -670,34 +742,37 @@ pub fn separate(
             reason: "at least 8 points per revolution are needed (raise the sample rate or lower the speed)",
         });
     }
-    let half = n / 2;
+    Ok(n)
+}
 
-    // Which harmonics can be divided by.
-    let low = unrecoverable_harmonics(geo.sigma, geo.rho, opts.required_harmonics, opts.gain_tolerance);
-    if !low.is_empty() && !opts.allow_unrecoverable {
-        return Err(SeparationError::Unrecoverable {
-            harmonics: low,
-            angles_deg: opts.angles.map(f64::to_degrees),
-            tolerance: opts.gain_tolerance,
-        });
-    }
-    let mut spec = Spectral::new(n, &geo, opts.gain_tolerance);
+/// What the pass over the records leaves: the per-angle accumulators, the mean over every
+/// revolution, its form and motion, and each segment's.
+struct Pass {
+    acc: Accumulators,
+    mean: Means,
+    all: SetResult,
+    sets: SegmentSets,
+}
 
-    // One pass, segment by segment; segments are solved in pairs as they complete.
+/// One pass over the records, segment by segment; segments are solved in pairs as they
+/// complete, and the whole record (with the last segment when their number is odd) at the end.
+fn averaged_pass(
+    probes: &ProbeRecords<'_>,
+    revs: &Revolutions,
+    opts: &SeparationOptions,
+    n: usize,
+    geo: &Geometry,
+    spec: &mut Spectral,
+) -> Result<Pass, SeparationError> {
+    let n_rev = revs.count();
     let n_seg = opts.segments;
+    let edges = revs.edges();
+    let pos = |t: f64| sample_position(probes, t);
     let first = pos(edges[0]).max(0.0) as usize;
     let offsets = [probes.a[first], probes.b[first], probes.c[first]];
     let mut acc = Accumulators::new(n, if opts.async_spectrum { n_rev } else { 0 });
     let mut total = Means::zeros(n);
-    let mut seg_count = Vec::with_capacity(n_seg);
-    let mut seg_form = Vec::with_capacity(n_seg);
-    let mut seg_x = Vec::with_capacity(n_seg);
-    let mut seg_y = Vec::with_capacity(n_seg);
-    let mut keep = |res: SetResult| {
-        seg_form.push(res.form);
-        seg_x.push(res.x);
-        seg_y.push(res.y);
-    };
+    let mut sets = SegmentSets::with_capacity(n_seg);
     let mut place = Vec::new();
     let mut pending: Option<Means> = None;
     for s in 0..n_seg {
@@ -721,116 +796,122 @@ pub fn separate(
                 m[j] = v[j] * inv_count;
             }
         }
-        seg_count.push(r1 - r0);
+        sets.revolutions.push(r1 - r0);
         match pending.take() {
             None => pending = Some(mean),
             Some(prev) => {
-                let (r_prev, r_this) = spec.solve(&geo, &prev, Some(&mean));
-                keep(r_prev);
-                keep(r_this.expect("second set solved"));
+                let (r_prev, r_this) = spec.solve(geo, &prev, Some(&mean));
+                sets.keep(r_prev);
+                sets.keep(r_this.expect("second set solved"));
             }
         }
     }
 
     // A non-finite sample that entered the interpolation has spread into the sums.
     if total.a.iter().chain(&total.b).chain(&total.c).any(|v| !v.is_finite()) {
-        let to = (pos(edges[n_rev]).ceil() as usize).min(len - 1);
+        let to = (pos(edges[n_rev]).ceil() as usize).min(probes.a.len() - 1);
         return Err(first_non_finite(probes, first, to));
     }
 
-    // The whole record (with the last segment when their number is odd).
     let nf = n_rev as f64;
     let mean = Means {
         a: total.a.iter().map(|t| t / nf).collect(),
         b: total.b.iter().map(|t| t / nf).collect(),
         c: total.c.iter().map(|t| t / nf).collect(),
     };
-    let (all, last) = spec.solve(&geo, &mean, pending.as_ref());
+    let (all, last) = spec.solve(geo, &mean, pending.as_ref());
     if let Some(res) = last {
-        keep(res);
+        sets.keep(res);
     }
-    let (ma, mb, mc) = (&mean.a, &mean.b, &mean.c);
-    let angle: Vec<f64> = (0..n).map(|j| TAU * j as f64 / n as f64).collect();
-    let turn = phasors(-TAU / n as f64, n - 1);
-    let (cos_t, sin_t): (Vec<f64>, Vec<f64>) = turn.iter().map(|z| (z.re, z.im)).unzip();
-    let sync_r: Vec<f64> = (0..n).map(|j| all.x[j] * cos_t[j] + all.y[j] * sin_t[j]).collect();
+    Ok(Pass { acc, mean, all, sets })
+}
 
-    // Asynchronous spread per angle: deviations from the mean, where the form cancels.
-    let [ka, kb, kc] = geo.ky;
-    let mqy: Vec<f64> = (0..n).map(|j| ka * ma[j] + kb * mb[j] + kc * mc[j]).collect();
-    let var = |sq: f64, m: f64| ((sq - nf * m * m) / (nf - 1.0)).max(0.0);
-    let mut async_sigma_x = Vec::with_capacity(n);
-    let mut async_sigma_y = Vec::with_capacity(n);
-    let mut async_sigma_r = Vec::with_capacity(n);
-    for j in 0..n {
-        let vx = var(acc.sq_x[j], ma[j]);
-        let vy = var(acc.sq_y[j], mqy[j]);
-        let cxy = (acc.sxy[j] - nf * ma[j] * mqy[j]) / (nf - 1.0);
-        let (c, s) = (cos_t[j], sin_t[j]);
-        async_sigma_x.push(vx.sqrt());
-        async_sigma_y.push(vy.sqrt());
-        async_sigma_r.push((c * c * vx + s * s * vy + 2.0 * c * s * cxy).max(0.0).sqrt());
+/// Each segment's form and synchronous motion, in segment order.
+struct SegmentSets {
+    revolutions: Vec<usize>,
+    form: Vec<Vec<f64>>,
+    x: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+}
+
+impl SegmentSets {
+    fn with_capacity(n: usize) -> Self {
+        SegmentSets {
+            revolutions: Vec::with_capacity(n),
+            form: Vec::with_capacity(n),
+            x: Vec::with_capacity(n),
+            y: Vec::with_capacity(n),
+        }
     }
-    let spread = |lo: &[f64], hi: &[f64]| lo.iter().zip(hi).map(|(l, h)| h - l).fold(0.0, f64::max);
-    let async_value_x = spread(&acc.min_x, &acc.max_x);
-    let async_value_y = spread(&acc.min_y, &acc.max_y);
 
-    // Segments.
-    let (form_mean, form_sigma) = mean_sigma(&seg_form);
-    let (x_mean, x_sigma) = mean_sigma(&seg_x);
-    let (y_mean, y_sigma) = mean_sigma(&seg_y);
-    let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let segments = SegmentStats {
-        revolutions: seg_count,
-        form_sigma_mean: avg(&form_sigma),
-        x_sigma_mean: avg(&x_sigma),
-        y_sigma_mean: avg(&y_sigma),
-        form: seg_form,
-        x: seg_x,
-        y: seg_y,
-        form_mean,
-        form_sigma,
-        x_mean,
-        x_sigma,
-        y_mean,
-        y_sigma,
-    };
+    fn keep(&mut self, res: SetResult) {
+        self.form.push(res.form);
+        self.x.push(res.x);
+        self.y.push(res.y);
+    }
 
-    // Spectra.
-    let (sx, sy) = spec.amplitudes2(&all.x, &all.y);
-    let (sr, _) = spec.amplitudes2(&sync_r, &all.form);
-    let scale = 2.0 / n as f64;
-    let form_amp: Vec<f64> = all.form_hat.iter().map(|h| scale * h.norm_sqr().sqrt()).collect();
-    let form_harmonics: Vec<(f64, f64)> = all.form_hat.iter().map(|h| (scale * h.re, -scale * h.im)).collect();
-    let mean_period = revs.mean_period();
-    let async_spectrum = opts.async_spectrum.then(|| acc.async_spectrum(ma, &mqy, n, n_rev, mean_period));
+    /// Their mean and spread per angle (§3.2.2.1).
+    fn stats(self) -> SegmentStats {
+        let (form_mean, form_sigma) = mean_sigma(&self.form);
+        let (x_mean, x_sigma) = mean_sigma(&self.x);
+        let (y_mean, y_sigma) = mean_sigma(&self.y);
+        let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        SegmentStats {
+            revolutions: self.revolutions,
+            form_sigma_mean: avg(&form_sigma),
+            x_sigma_mean: avg(&x_sigma),
+            y_sigma_mean: avg(&y_sigma),
+            form: self.form,
+            x: self.x,
+            y: self.y,
+            form_mean,
+            form_sigma,
+            x_mean,
+            x_sigma,
+            y_mean,
+            y_sigma,
+        }
+    }
+}
 
-    let mean_speed_rpm = revs.mean_speed_rpm();
-    let nyquist_upr = 30.0 * fs / mean_speed_rpm;
-    Ok(Separation {
-        samples_per_rev: n,
-        revolutions: n_rev,
-        mean_speed_rpm,
-        coefficients: (geo.a, geo.b),
-        ptv: PeakToValley { form: ptv(&all.form), x: ptv(&all.x), y: ptv(&all.y), r: ptv(&sync_r) },
-        angle,
-        form: all.form,
-        form_harmonics,
-        sync_spectrum: SyncSpectrum { x: sx, y: sy, r: sr, form: form_amp },
-        sync_x: all.x,
-        sync_y: all.y,
-        sync_r,
-        async_sigma_x,
-        async_sigma_y,
-        async_sigma_r,
-        async_value_x,
-        async_value_y,
-        async_spectrum,
-        nyquist_upr,
-        nyquist_exceeded: half as f64 > nyquist_upr,
-        unrecoverable: std::mem::take(&mut spec.unrecoverable),
-        segments,
-    })
+/// Asynchronous error motion: its standard deviation per angle in x, y and along the
+/// rotating sensitive direction, and its value (the widest band of the revolutions), m.
+struct AsyncSpread {
+    sigma_x: Vec<f64>,
+    sigma_y: Vec<f64>,
+    sigma_r: Vec<f64>,
+    value_x: f64,
+    value_y: f64,
+}
+
+impl AsyncSpread {
+    /// From the accumulated squares and extremes about the mean `mqx = m_A`, `mqy = ky·m`,
+    /// where the form cancels.
+    fn new(acc: &Accumulators, mqx: &[f64], mqy: &[f64], cos_t: &[f64], sin_t: &[f64], n_rev: usize) -> Self {
+        let nf = n_rev as f64;
+        let var = |sq: f64, m: f64| ((sq - nf * m * m) / (nf - 1.0)).max(0.0);
+        let n = mqx.len();
+        let mut sigma_x = Vec::with_capacity(n);
+        let mut sigma_y = Vec::with_capacity(n);
+        let mut sigma_r = Vec::with_capacity(n);
+        for j in 0..n {
+            let vx = var(acc.sq_x[j], mqx[j]);
+            let vy = var(acc.sq_y[j], mqy[j]);
+            let cxy = (acc.sxy[j] - nf * mqx[j] * mqy[j]) / (nf - 1.0);
+            let (c, s) = (cos_t[j], sin_t[j]);
+            sigma_x.push(vx.sqrt());
+            sigma_y.push(vy.sqrt());
+            sigma_r.push((c * c * vx + s * s * vy + 2.0 * c * s * cxy).max(0.0).sqrt());
+        }
+        let widest = |lo: &[f64], hi: &[f64]| lo.iter().zip(hi).map(|(l, h)| h - l).fold(0.0, f64::max);
+        AsyncSpread {
+            sigma_x,
+            sigma_y,
+            sigma_r,
+            value_x: widest(&acc.min_x, &acc.max_x),
+            value_y: widest(&acc.min_y, &acc.max_y),
+        }
+    }
 }
 
 /// Angle-block length of the pass. Revolutions are visited one after the other (long

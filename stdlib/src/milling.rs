@@ -175,33 +175,12 @@ fn check(name: &'static str, value: f64, ok: bool, requirement: &'static str) ->
 
 /// Runs a simulation.
 pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> {
-    let n_teeth = sim.cut.teeth;
-    check("depth", sim.depth, sim.depth.is_finite() && sim.depth >= 0.0, "finite and ≥ 0 m")?;
-    check(
-        "feed per tooth",
-        sim.feed_per_tooth,
-        sim.feed_per_tooth.is_finite() && sim.feed_per_tooth > 0.0,
-        "finite and > 0 m",
-    )?;
-    check("speed", sim.speed_rpm, sim.speed_rpm.is_finite() && sim.speed_rpm > 0.0, "finite and > 0 rpm")?;
-    check("revolutions", sim.revolutions as f64, sim.revolutions >= 2, "at least 2")?;
-    if !sim.runout.is_empty() && sim.runout.len() != n_teeth {
-        return Err(MillingError::Runout { given: sim.runout.len(), teeth: n_teeth });
-    }
-    for &r in &sim.runout {
-        check("runout", r, r.is_finite(), "finite (m)")?;
-    }
-    if let Some(pd) = &sim.process_damping {
-        let (kd, w, d) = (pd.indentation_n_per_m3, pd.wear_land_m, pd.diameter_m);
-        check("specific indentation force K_d", kd, kd.is_finite() && kd >= 0.0, "finite and ≥ 0 N/m³")?;
-        check("wear land w", w, w.is_finite() && w >= 0.0, "finite and ≥ 0 m")?;
-        check("tool diameter D", d, d.is_finite() && d > 0.0, "finite and > 0 m")?;
-    }
+    check_simulation(sim)?;
     let tau = sim.cut.tooth_period(sim.speed_rpm);
     let f_max = sim.modes.x.iter().chain(&sim.modes.y).map(|m| m.freq_hz).fold(0.0, f64::max);
     let spt = sim.steps_per_tooth.unwrap_or_else(|| 100.max((20.0 * f_max * tau).ceil() as usize));
     check("steps per tooth", spt as f64, spt >= 8, "at least 8")?;
-    let per_rev = spt * n_teeth;
+    let per_rev = spt * sim.cut.teeth;
     let total = per_rev.saturating_mul(sim.revolutions);
     if total > MAX_STEPS {
         return Err(MillingError::TooLong { steps: total, max: MAX_STEPS });
@@ -213,30 +192,7 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         sim.modes.y.iter().map(|m| ModeStep::new(m.freq_hz, m.damping_ratio, m.modal_mass, dt)).collect();
     let mut state_x = vec![[0.0; 2]; steps_x.len()];
     let mut state_y = vec![[0.0; 2]; steps_y.len()];
-
-    let (st, ex) = sim.cut.engagement();
-    let (kt, kn) = (sim.cut.coefficients.kt, sim.cut.coefficients.kn);
-    // Per angle bin: sin φ, cos φ, engaged, at the middle of the bin's step; and the surface
-    // left there. The force of a step is the chip at its midpoint, the motion there predicted
-    // from the velocity: held over the step it then lags the motion by O(dt²), not dt/2 (a
-    // half-step lag is a phase lag of πf dt in the regenerative loop and pulled the limit of
-    // a 922 Hz slotting benchmark more than 5 % low at 100 steps per tooth).
-    let bins: Vec<(f64, f64, bool)> = (0..per_rev)
-        .map(|k| {
-            let phi = TAU * (k as f64 + 0.5) / per_rev as f64;
-            let (s, c) = phi.sin_cos();
-            (s, c, phi >= st - 1e-12 && phi <= ex + 1e-12)
-        })
-        .collect();
-    let edges = edges(&sim.cut, sim.depth, sim.feed_per_tooth, spt);
-    let slices = edges.iter().map(|e| e.slice + 1).max().unwrap_or(1);
-    let slice_depth = sim.depth / slices as f64;
-    let bin_angle = TAU / per_rev as f64;
-    // The tooth path of each axial slice, one after the other.
-    let mut surface = vec![0.0; per_rev * slices];
-    let runout = |j: usize| sim.runout.get(j).copied().unwrap_or(0.0);
-    // Process damping of one cutting edge, `C a/V` (N·s/m); `None` leaves the force untouched.
-    let rub = sim.process_damping.map(|pd| pd.damping(slice_depth, sim.speed_rpm));
+    let mut cutter = Cutter::new(sim, spt);
 
     let mut out = MillingResult {
         dt,
@@ -255,72 +211,8 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
     };
     let (mut x, mut y) = (0.0f64, 0.0f64);
     let (mut vx, mut vy) = (0.0f64, 0.0f64);
-    let half = 0.5 * dt;
     for step in 0..total {
-        let (xm, ym) = (x + vx * half, y + vy * half);
-        let (mut fx, mut fy) = (0.0, 0.0);
-        for e in &edges {
-            let bin = (step + e.shift) % per_rev;
-            let surface = &mut surface[e.slice * per_rev..(e.slice + 1) * per_rev];
-            let rho = runout(e.tooth);
-            if e.frac == 0.0 {
-                let (s, c, engaged) = bins[bin];
-                if !engaged {
-                    continue;
-                }
-                let n = xm * s + ym * c + rho;
-                let h = e.feed * s + surface[bin] - n;
-                if h > 0.0 {
-                    let f = slice_depth * h;
-                    fx += f * (kt * c + kn * s);
-                    fy += f * (-kt * s + kn * c);
-                    if let Some(cd) = rub {
-                        let fd = -cd * (vx * s + vy * c);
-                        fx += fd * s;
-                        fy += fd * c;
-                    }
-                    surface[bin] = n;
-                } else {
-                    // Out of the cut: the surface stays, and the next tooth meets one more feed.
-                    surface[bin] += e.feed * s;
-                }
-                continue;
-            }
-            // An edge between bins: its chip on the surface interpolated at its angle (only from bins in the
-            // cut, which the edges ahead have written) ...
-            let phi = ((bin as f64 + 0.5 + e.frac) * bin_angle).rem_euclid(TAU);
-            if phi >= st - 1e-12 && phi <= ex + 1e-12 {
-                let (s, c) = phi.sin_cos();
-                let next = if bin + 1 == per_rev { 0 } else { bin + 1 };
-                let left = match (bins[bin].2, bins[next].2) {
-                    (true, true) => (1.0 - e.frac) * surface[bin] + e.frac * surface[next],
-                    (false, true) => surface[next],
-                    _ => surface[bin],
-                };
-                let h = e.feed * s + left - (xm * s + ym * c + rho);
-                if h > 0.0 {
-                    let f = slice_depth * h;
-                    fx += f * (kt * c + kn * s);
-                    fy += f * (-kt * s + kn * c);
-                    if let Some(cd) = rub {
-                        let fd = -cd * (vx * s + vy * c);
-                        fx += fd * s;
-                        fy += fd * c;
-                    }
-                }
-            }
-            // ... and the surface it leaves on the bin it passed `frac` steps ago.
-            let (s, c, engaged) = bins[bin];
-            if engaged {
-                let back = e.frac * dt;
-                let n = (xm - back * vx) * s + (ym - back * vy) * c + rho;
-                if e.feed * s + surface[bin] - n > 0.0 {
-                    surface[bin] = n;
-                } else {
-                    surface[bin] += e.feed * s;
-                }
-            }
-        }
+        let (fx, fy) = cutter.force(step, [x, y], [vx, vy], dt);
         for (m, st) in steps_x.iter().zip(state_x.iter_mut()) {
             m.advance(st, fx);
         }
@@ -336,7 +228,181 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         out.disp_x.push(x);
         out.disp_y.push(y);
     }
+    judge(sim, spt, &mut out);
+    out.surface_location_error = surface_location_error(sim, spt, &out.disp_y);
+    Ok(out)
+}
 
+/// Refuses a simulation whose depth, feed, speed, revolutions, runout or process damping
+/// cannot be simulated.
+fn check_simulation(sim: &MillingSimulation) -> Result<(), MillingError> {
+    check("depth", sim.depth, sim.depth.is_finite() && sim.depth >= 0.0, "finite and ≥ 0 m")?;
+    check(
+        "feed per tooth",
+        sim.feed_per_tooth,
+        sim.feed_per_tooth.is_finite() && sim.feed_per_tooth > 0.0,
+        "finite and > 0 m",
+    )?;
+    check("speed", sim.speed_rpm, sim.speed_rpm.is_finite() && sim.speed_rpm > 0.0, "finite and > 0 rpm")?;
+    check("revolutions", sim.revolutions as f64, sim.revolutions >= 2, "at least 2")?;
+    if !sim.runout.is_empty() && sim.runout.len() != sim.cut.teeth {
+        return Err(MillingError::Runout { given: sim.runout.len(), teeth: sim.cut.teeth });
+    }
+    for &r in &sim.runout {
+        check("runout", r, r.is_finite(), "finite (m)")?;
+    }
+    if let Some(pd) = &sim.process_damping {
+        let (kd, w, d) = (pd.indentation_n_per_m3, pd.wear_land_m, pd.diameter_m);
+        check("specific indentation force K_d", kd, kd.is_finite() && kd >= 0.0, "finite and ≥ 0 N/m³")?;
+        check("wear land w", w, w.is_finite() && w >= 0.0, "finite and ≥ 0 m")?;
+        check("tool diameter D", d, d.is_finite() && d > 0.0, "finite and > 0 m")?;
+    }
+    Ok(())
+}
+
+/// The cutting edges and the tooth paths they cut: the force on the tool at each step.
+struct Cutter<'a> {
+    /// Per angle bin: sin φ, cos φ, engaged, at the middle of the bin's step.
+    bins: Vec<(f64, f64, bool)>,
+    edges: Vec<Edge>,
+    /// The tooth path of each axial slice, one after the other: the surface left at each bin.
+    surface: Vec<f64>,
+    per_rev: usize,
+    /// Engaged arc, rad.
+    arc: (f64, f64),
+    bin_angle: f64,
+    runout: &'a [f64],
+    chip: ChipForce,
+}
+
+/// The force law of one edge's chip.
+#[derive(Clone, Copy)]
+struct ChipForce {
+    /// Axial length of an edge: the depth, or a helix slice's share, m.
+    slice_depth: f64,
+    kt: f64,
+    kn: f64,
+    /// Process damping of one cutting edge, `C a/V` (N·s/m); `None` leaves the force untouched.
+    rub: Option<f64>,
+}
+
+impl<'a> Cutter<'a> {
+    fn new(sim: &'a MillingSimulation, spt: usize) -> Self {
+        let per_rev = spt * sim.cut.teeth;
+        let (st, ex) = sim.cut.engagement();
+        let bins: Vec<(f64, f64, bool)> = (0..per_rev)
+            .map(|k| {
+                let phi = TAU * (k as f64 + 0.5) / per_rev as f64;
+                let (s, c) = phi.sin_cos();
+                (s, c, phi >= st - 1e-12 && phi <= ex + 1e-12)
+            })
+            .collect();
+        let edges = edges(&sim.cut, sim.depth, sim.feed_per_tooth, spt);
+        let slices = edges.iter().map(|e| e.slice + 1).max().unwrap_or(1);
+        let slice_depth = sim.depth / slices as f64;
+        Cutter {
+            bins,
+            edges,
+            surface: vec![0.0; per_rev * slices],
+            per_rev,
+            arc: (st, ex),
+            bin_angle: TAU / per_rev as f64,
+            runout: &sim.runout,
+            chip: ChipForce {
+                slice_depth,
+                kt: sim.cut.coefficients.kt,
+                kn: sim.cut.coefficients.kn,
+                rub: sim.process_damping.map(|pd| pd.damping(slice_depth, sim.speed_rpm)),
+            },
+        }
+    }
+
+    /// The force of step `step` on a tool at `[x, y]` moving at `[vx, vy]`, and the surface
+    /// each edge leaves. The force is the chip at the step's midpoint, the motion there
+    /// predicted from the velocity: held over the step it then lags the motion by O(dt²), not
+    /// dt/2 (a half-step lag is a phase lag of πf dt in the regenerative loop and pulled the
+    /// limit of a 922 Hz slotting benchmark more than 5 % low at 100 steps per tooth).
+    fn force(&mut self, step: usize, [x, y]: [f64; 2], [vx, vy]: [f64; 2], dt: f64) -> (f64, f64) {
+        let half = 0.5 * dt;
+        let (xm, ym) = (x + vx * half, y + vy * half);
+        let per_rev = self.per_rev;
+        let (st, ex) = self.arc;
+        let chip = self.chip;
+        let (mut fx, mut fy) = (0.0, 0.0);
+        for e in &self.edges {
+            let bin = (step + e.shift) % per_rev;
+            let surface = &mut self.surface[e.slice * per_rev..(e.slice + 1) * per_rev];
+            let rho = self.runout.get(e.tooth).copied().unwrap_or(0.0);
+            if e.frac == 0.0 {
+                let (s, c, engaged) = self.bins[bin];
+                if !engaged {
+                    continue;
+                }
+                let n = xm * s + ym * c + rho;
+                let h = e.feed * s + surface[bin] - n;
+                if h > 0.0 {
+                    chip.add(h, s, c, [vx, vy], &mut fx, &mut fy);
+                    surface[bin] = n;
+                } else {
+                    // Out of the cut: the surface stays, and the next tooth meets one more feed.
+                    surface[bin] += e.feed * s;
+                }
+                continue;
+            }
+            // An edge between bins: its chip on the surface interpolated at its angle (only from bins in the
+            // cut, which the edges ahead have written) ...
+            let phi = ((bin as f64 + 0.5 + e.frac) * self.bin_angle).rem_euclid(TAU);
+            if phi >= st - 1e-12 && phi <= ex + 1e-12 {
+                let (s, c) = phi.sin_cos();
+                let next = if bin + 1 == per_rev { 0 } else { bin + 1 };
+                let left = match (self.bins[bin].2, self.bins[next].2) {
+                    (true, true) => (1.0 - e.frac) * surface[bin] + e.frac * surface[next],
+                    (false, true) => surface[next],
+                    _ => surface[bin],
+                };
+                let h = e.feed * s + left - (xm * s + ym * c + rho);
+                if h > 0.0 {
+                    chip.add(h, s, c, [vx, vy], &mut fx, &mut fy);
+                }
+            }
+            // ... and the surface it leaves on the bin it passed `frac` steps ago.
+            let (s, c, engaged) = self.bins[bin];
+            if engaged {
+                let back = e.frac * dt;
+                let n = (xm - back * vx) * s + (ym - back * vy) * c + rho;
+                if e.feed * s + surface[bin] - n > 0.0 {
+                    surface[bin] = n;
+                } else {
+                    surface[bin] += e.feed * s;
+                }
+            }
+        }
+        (fx, fy)
+    }
+}
+
+impl ChipForce {
+    /// Adds the force of a chip `h` cut by an edge with normal `(s, c)`, and its flank's
+    /// process damping, to `(fx, fy)`.
+    #[inline]
+    fn add(&self, h: f64, s: f64, c: f64, [vx, vy]: [f64; 2], fx: &mut f64, fy: &mut f64) {
+        let f = self.slice_depth * h;
+        *fx += f * (self.kt * c + self.kn * s);
+        *fy += f * (-self.kt * s + self.kn * c);
+        if let Some(cd) = self.rub {
+            let fd = -cd * (vx * s + vy * c);
+            *fx += fd * s;
+            *fy += fd * c;
+        }
+    }
+}
+
+/// Samples the motion once per period and judges it: the chatter metric, the verdict and,
+/// in chatter, its frequency.
+fn judge(sim: &MillingSimulation, spt: usize, out: &mut MillingResult) {
+    let per_rev = spt * sim.cut.teeth;
+    let total = out.disp_x.len();
+    let dt = out.dt;
     // Once per period: the tooth period; with unequal pitch the shortest block of teeth whose pitch
     // pattern repeats (half a revolution for 70°/110°/70°/110°: sampled once a revolution a
     // period doubling of that pattern would stand still); the revolution when runout makes
@@ -375,13 +441,20 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
         out.chatter_frequency_hz =
             chatter_frequency(&out.disp_x[steady..], &out.disp_y[steady..], dt, out.sample_period);
     }
-    // The wall: entry angle in up-milling, exit in down-milling, bin of the tooth reaching it.
+}
+
+/// The mean over the steady half of the tool's `y` as a tooth's tip passes the wall it
+/// finishes: the entry angle in up-milling, the exit in down-milling.
+fn surface_location_error(sim: &MillingSimulation, spt: usize, disp_y: &[f64]) -> f64 {
+    let per_rev = spt * sim.cut.teeth;
+    let (st, ex) = sim.cut.engagement();
     let wall_bin = match sim.cut.direction {
         MillingDirection::Up => (st / TAU * per_rev as f64).round() as usize % per_rev,
         MillingDirection::Down => (ex / TAU * per_rev as f64).round() as usize % per_rev,
     };
     // The tip of each tooth (no helix lag), on its nearest bin.
-    let tips: Vec<usize> = (0..n_teeth)
+    let bin_angle = TAU / per_rev as f64;
+    let tips: Vec<usize> = (0..sim.cut.teeth)
         .map(|j| {
             if sim.cut.has_equal_pitch() {
                 j * spt
@@ -390,16 +463,16 @@ pub fn simulate(sim: &MillingSimulation) -> Result<MillingResult, MillingError> 
             }
         })
         .collect();
+    let total = disp_y.len();
     let mut sum = 0.0;
     let mut count = 0usize;
-    for step in steady..total {
+    for (step, y) in disp_y.iter().enumerate().skip(total / 2) {
         if tips.iter().any(|&t| (step + t) % per_rev == wall_bin) {
-            sum += out.disp_y[step];
+            sum += y;
             count += 1;
         }
     }
-    out.surface_location_error = if count > 0 { sum / count as f64 } else { 0.0 };
-    Ok(out)
+    if count > 0 { sum / count as f64 } else { 0.0 }
 }
 
 /// Strongest spectral line of the motion (`x` and `y` together) away from the harmonics of the

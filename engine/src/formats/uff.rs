@@ -764,53 +764,7 @@ fn skip_dataset(cur: &mut Cursor, hl: usize, head: &[u8], number: u32, binary: b
 }
 
 fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dataset58, FormatError> {
-    // 58b header: byte order (1 little, 2 big endian), floating point format (2 IEEE 754),
-    // ASCII lines that follow (11), bytes of binary data.
-    let mut little_endian = true;
-    let mut declared_bytes = 0usize;
-    if binary {
-        // The fields read; a line of more tokens is not gathered whole.
-        let fields: Vec<(usize, &[u8])> = tokens(head).skip(1).take(8).collect();
-        let field = |k: usize, what: &str| -> Result<Option<i64>, FormatError> {
-            match fields.get(k) {
-                None => Ok(None),
-                Some((col, t)) => std::str::from_utf8(t).ok().and_then(|s| s.parse().ok()).map(Some).ok_or_else(|| {
-                    FormatError::Expected {
-                        at: cur.loc(hl, *col),
-                        expected: format!("{what} in the 58b header line"),
-                        found: shown(t),
-                    }
-                }),
-            }
-        };
-        let col = |k: usize| fields.get(k).map_or(0, |f| f.0);
-        match field(0, "the byte-order flag")? {
-            Some(1) => little_endian = true,
-            Some(2) => little_endian = false,
-            other => {
-                return Err(FormatError::Unsupported {
-                    at: cur.loc(hl, col(0)),
-                    message: format!(
-                        "58b byte-order flag {}: expected 1 (little-endian) or 2 (big-endian)",
-                        other.map_or("missing".to_string(), |v| v.to_string())
-                    ),
-                });
-            }
-        }
-        match field(1, "the floating-point format flag")? {
-            Some(2) => {}
-            other => {
-                return Err(FormatError::Unsupported {
-                    at: cur.loc(hl, col(1)),
-                    message: format!(
-                        "58b floating-point format {}: only 2 (IEEE 754) is read, not 1 (DEC VMS) or 3 (IBM 370)",
-                        other.map_or("missing".to_string(), |v| v.to_string())
-                    ),
-                });
-            }
-        }
-        declared_bytes = field(3, "the number of bytes")?.and_then(|v| usize::try_from(v).ok()).unwrap_or(0);
-    }
+    let layout = if binary { binary_layout(cur, hl, head)? } else { BinaryLayout::default() };
     let kind = if binary { "dataset 58b" } else { "dataset 58" };
 
     let mut id: [String; 5] = Default::default();
@@ -836,59 +790,7 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
         direction: r6.int32(77, 4, "the reference direction")?,
     };
 
-    let (l7, t7) = cur.record(&format!("record 7 (data form) of {kind}"))?;
-    let fields7: Vec<(usize, &[u8])> = tokens(t7).take(8).collect();
-    let what7 = ["the ordinate data type", "the number of points", "the abscissa spacing (1 even, 0 uneven)"];
-    let mut ints = [0i64; 3];
-    for (k, slot) in ints.iter_mut().enumerate() {
-        let (col, t) = fields7.get(k).copied().unwrap_or((t7.len() + 1, b""));
-        *slot = std::str::from_utf8(t).ok().and_then(|s| s.parse().ok()).ok_or_else(|| FormatError::Expected {
-            at: cur.loc(l7, col),
-            expected: format!("{} in record 7", what7[k]),
-            found: if t.is_empty() { "the end of the line".into() } else { shown(t) },
-        })?;
-    }
-    let mut floats = [0f64; 3];
-    let what7f = ["the abscissa minimum", "the abscissa increment", "the Z-axis value"];
-    for (k, slot) in floats.iter_mut().enumerate() {
-        if let Some((col, t)) = fields7.get(3 + k) {
-            *slot = fortran_f64(t).filter(|v| v.is_finite()).ok_or_else(|| FormatError::Expected {
-                at: cur.loc(l7, *col),
-                expected: format!("{} (a finite number) in record 7", what7f[k]),
-                found: shown(t),
-            })?;
-        }
-    }
-    let ordinate_type = OrdinateType::from_code(ints[0]).ok_or_else(|| FormatError::Unsupported {
-        at: cur.loc(l7, fields7[0].0),
-        message: format!(
-            "ordinate data type {}: expected 2 (real single), 4 (real double), 5 (complex single) or 6 (complex double)",
-            ints[0]
-        ),
-    })?;
-    let points = usize::try_from(ints[1]).ok().filter(|n| *n >= 1).ok_or_else(|| FormatError::Expected {
-        at: cur.loc(l7, fields7[1].0),
-        expected: "a number of points of at least 1 in record 7".into(),
-        found: format!("`{}`", ints[1]),
-    })?;
-    let even = match ints[2] {
-        1 => true,
-        0 => false,
-        other => {
-            return Err(FormatError::Expected {
-                at: cur.loc(l7, fields7[2].0),
-                expected: "abscissa spacing 1 (even) or 0 (uneven) in record 7".into(),
-                found: format!("`{other}`"),
-            });
-        }
-    };
-    if even && fields7.len() < 5 {
-        return Err(FormatError::Expected {
-            at: cur.loc(l7, t7.len() + 1),
-            expected: "the abscissa minimum and increment of an even abscissa in record 7".into(),
-            found: "the end of the line".into(),
-        });
-    }
+    let form = DataForm::read(cur, kind)?;
 
     let mut axes: [Axis; 4] = Default::default();
     let names = [
@@ -902,19 +804,21 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
         *axis = read_axis(cur, l, t, name)?;
     }
 
+    let DataForm { ordinate_type, points, even, min, step, z_value, .. } = form;
     let per_point = usize::from(!even) + if ordinate_type.is_complex() { 2 } else { 1 };
     let needed = points.checked_mul(per_point).ok_or_else(|| FormatError::Unsupported {
-        at: cur.loc(l7, fields7[1].0),
+        at: cur.loc(form.line, form.points_col),
         message: format!("{points} points is more than this reader can hold"),
     })?;
     let values = if binary {
+        let BinaryLayout { little_endian, declared_bytes } = layout;
         read_binary(cur, hl, needed, ordinate_type, little_endian, declared_bytes, points, even)?
     } else {
         read_ascii(cur, hl, needed, points)?
     };
 
     let (abscissa, ys) = if even {
-        (Abscissa::Even { min: floats[0], step: floats[1] }, values)
+        (Abscissa::Even { min, step }, values)
     } else {
         let x: Vec<f64> = values.iter().step_by(per_point).copied().collect();
         let ys: Vec<f64> = values.chunks_exact(per_point).flat_map(|c| c[1..].iter().copied()).collect();
@@ -938,13 +842,157 @@ fn parse58(cur: &mut Cursor, hl: usize, head: &[u8], binary: bool) -> Result<Dat
         reference,
         ordinate_type,
         abscissa,
-        z_value: floats[2],
+        z_value,
         abscissa_axis,
         numerator,
         denominator,
         z_axis,
         ordinate,
     })
+}
+
+/// The 58b header's layout of the binary data: the byte order (flag 1 little, 2 big endian)
+/// and the bytes it declares. The floating-point format must be 2 (IEEE 754); the ASCII
+/// lines that follow (11) are not checked.
+#[derive(Clone, Copy)]
+struct BinaryLayout {
+    little_endian: bool,
+    declared_bytes: usize,
+}
+
+impl Default for BinaryLayout {
+    fn default() -> Self {
+        BinaryLayout { little_endian: true, declared_bytes: 0 }
+    }
+}
+
+/// Reads the 58b header line `head` (line `hl`).
+fn binary_layout(cur: &Cursor, hl: usize, head: &[u8]) -> Result<BinaryLayout, FormatError> {
+    // The fields read; a line of more tokens is not gathered whole.
+    let fields: Vec<(usize, &[u8])> = tokens(head).skip(1).take(8).collect();
+    let field = |k: usize, what: &str| -> Result<Option<i64>, FormatError> {
+        match fields.get(k) {
+            None => Ok(None),
+            Some((col, t)) => std::str::from_utf8(t).ok().and_then(|s| s.parse().ok()).map(Some).ok_or_else(|| {
+                FormatError::Expected {
+                    at: cur.loc(hl, *col),
+                    expected: format!("{what} in the 58b header line"),
+                    found: shown(t),
+                }
+            }),
+        }
+    };
+    let col = |k: usize| fields.get(k).map_or(0, |f| f.0);
+    let little_endian = match field(0, "the byte-order flag")? {
+        Some(1) => true,
+        Some(2) => false,
+        other => {
+            return Err(FormatError::Unsupported {
+                at: cur.loc(hl, col(0)),
+                message: format!(
+                    "58b byte-order flag {}: expected 1 (little-endian) or 2 (big-endian)",
+                    other.map_or("missing".to_string(), |v| v.to_string())
+                ),
+            });
+        }
+    };
+    match field(1, "the floating-point format flag")? {
+        Some(2) => {}
+        other => {
+            return Err(FormatError::Unsupported {
+                at: cur.loc(hl, col(1)),
+                message: format!(
+                    "58b floating-point format {}: only 2 (IEEE 754) is read, not 1 (DEC VMS) or 3 (IBM 370)",
+                    other.map_or("missing".to_string(), |v| v.to_string())
+                ),
+            });
+        }
+    }
+    let declared_bytes = field(3, "the number of bytes")?.and_then(|v| usize::try_from(v).ok()).unwrap_or(0);
+    Ok(BinaryLayout { little_endian, declared_bytes })
+}
+
+/// Record 7 (data form): the ordinate type, the number of points, an even or uneven
+/// abscissa with its minimum and increment, and the Z-axis value.
+#[derive(Clone, Copy)]
+struct DataForm {
+    ordinate_type: OrdinateType,
+    points: usize,
+    even: bool,
+    min: f64,
+    step: f64,
+    z_value: f64,
+    /// The record's line and the column of its number of points, for later errors.
+    line: usize,
+    points_col: usize,
+}
+
+impl DataForm {
+    fn read(cur: &mut Cursor, kind: &str) -> Result<DataForm, FormatError> {
+        let (l7, t7) = cur.record(&format!("record 7 (data form) of {kind}"))?;
+        let fields7: Vec<(usize, &[u8])> = tokens(t7).take(8).collect();
+        let what7 = ["the ordinate data type", "the number of points", "the abscissa spacing (1 even, 0 uneven)"];
+        let mut ints = [0i64; 3];
+        for (k, slot) in ints.iter_mut().enumerate() {
+            let (col, t) = fields7.get(k).copied().unwrap_or((t7.len() + 1, b""));
+            *slot = std::str::from_utf8(t).ok().and_then(|s| s.parse().ok()).ok_or_else(|| FormatError::Expected {
+                at: cur.loc(l7, col),
+                expected: format!("{} in record 7", what7[k]),
+                found: if t.is_empty() { "the end of the line".into() } else { shown(t) },
+            })?;
+        }
+        let mut floats = [0f64; 3];
+        let what7f = ["the abscissa minimum", "the abscissa increment", "the Z-axis value"];
+        for (k, slot) in floats.iter_mut().enumerate() {
+            if let Some((col, t)) = fields7.get(3 + k) {
+                *slot = fortran_f64(t).filter(|v| v.is_finite()).ok_or_else(|| FormatError::Expected {
+                    at: cur.loc(l7, *col),
+                    expected: format!("{} (a finite number) in record 7", what7f[k]),
+                    found: shown(t),
+                })?;
+            }
+        }
+        let ordinate_type = OrdinateType::from_code(ints[0]).ok_or_else(|| FormatError::Unsupported {
+            at: cur.loc(l7, fields7[0].0),
+            message: format!(
+                "ordinate data type {}: expected 2 (real single), 4 (real double), 5 (complex single) or 6 (complex double)",
+                ints[0]
+            ),
+        })?;
+        let points = usize::try_from(ints[1]).ok().filter(|n| *n >= 1).ok_or_else(|| FormatError::Expected {
+            at: cur.loc(l7, fields7[1].0),
+            expected: "a number of points of at least 1 in record 7".into(),
+            found: format!("`{}`", ints[1]),
+        })?;
+        let even = match ints[2] {
+            1 => true,
+            0 => false,
+            other => {
+                return Err(FormatError::Expected {
+                    at: cur.loc(l7, fields7[2].0),
+                    expected: "abscissa spacing 1 (even) or 0 (uneven) in record 7".into(),
+                    found: format!("`{other}`"),
+                });
+            }
+        };
+        if even && fields7.len() < 5 {
+            return Err(FormatError::Expected {
+                at: cur.loc(l7, t7.len() + 1),
+                expected: "the abscissa minimum and increment of an even abscissa in record 7".into(),
+                found: "the end of the line".into(),
+            });
+        }
+        Ok(DataForm {
+            ordinate_type,
+            points,
+            even,
+            min: floats[0],
+            step: floats[1],
+            z_value: floats[2],
+            line: l7,
+            points_col: fields7[1].0,
+        })
+    }
 }
 
 /// Record 12 in ASCII: `needed` numbers over as many lines as it takes, then `-1`.

@@ -306,153 +306,29 @@ fn stabilisation(
     let m = nmax + 1;
     let (lo, hi) = (f[0], f[f.len() - 1]);
     let orders_wanted: Vec<usize> = (2..=nmax).step_by(2).collect();
-    // Per FRF the Toeplitz sequences of R, T and S up to the highest order, in one pass over the
-    // lines: r_q = Σ w² cos qθ, t_q = Σ w²|H|² cos qθ, s±_q = −Σ w² H e^{±iqθ}.
-    struct Sequences {
-        r: Vec<f64>,
-        t: Vec<f64>,
-        sp: Vec<Complex64>,
-        sm: Vec<Complex64>,
-    }
-    let weights: Vec<Option<Vec<f64>>> = h
-        .iter()
-        .map(|ho| {
-            let rms = (ho.iter().map(|v| v.norm_sqr()).sum::<f64>() / ho.len() as f64).sqrt();
-            (rms > 0.0 && rms.is_finite()).then(|| {
-                ho.iter()
-                    .map(|v| match opts.weighting {
-                        Weighting::Absolute => 1.0 / (rms * rms),
-                        Weighting::Relative if v.norm_sqr() > 0.0 => 1.0 / v.norm_sqr(),
-                        Weighting::Relative => 0.0,
-                    })
-                    .collect()
-            })
-        })
-        .collect();
-    let zero = Complex64::from(0.0);
-    let mut seqs: Vec<Sequences> = weights
-        .iter()
-        .filter(|w| w.is_some())
-        .map(|_| Sequences { r: vec![0.0; m], t: vec![0.0; m], sp: vec![zero; m], sm: vec![zero; m] })
-        .collect();
+    let weights: Vec<Option<Vec<f64>>> = h.iter().map(|ho| line_weights(ho, opts.weighting)).collect();
+    let seqs = toeplitz_sequences(f, h, &weights, dt, m);
     if seqs.is_empty() {
         return Err(FitError::NothingLeft {
             method: "poly-reference LSCF",
             why: "every FRF is zero in the band".into(),
         });
     }
-    let mut zq = vec![zero; m];
-    for (k, &fk) in f.iter().enumerate() {
-        for (q, z) in zq.iter_mut().enumerate() {
-            *z = Complex64::from_polar(1.0, q as f64 * TAU * fk * dt);
-        }
-        let used = h.iter().zip(&weights).filter_map(|(ho, w)| w.as_ref().map(|w| (ho[k], w[k])));
-        for ((hk, w), s) in used.zip(seqs.iter_mut()) {
-            let hw = -w * hk;
-            let th = w * hk.norm_sqr();
-            for (q, &z) in zq.iter().enumerate() {
-                s.r[q] += w * z.re;
-                s.t[q] += th * z.re;
-                s.sp[q] += hw * z;
-                s.sm[q] += hw * z.conj();
-            }
-        }
-    }
-    // The reduced normal matrix of order n is the leading (n+1)×(n+1) block of
-    // Σ_o (T_o − S_oᵀ R_o⁻¹ S_o), and S_oᵀ R_o⁻¹ S_o = Y_oᵀ Y_o with Y_o = L_o⁻¹ S_o (L_o the
-    // Cholesky factor of R_o): the leading block of order n takes the first n+1 rows of Y_o only,
-    // so one factor at the highest order and a Gram matrix grown row by row give every order.
-    // `blocks[i]` sums those leading blocks over the FRFs for order `orders_wanted[i]`; `usable`
-    // is how many rows every factor reached (R loses rank at high orders on a narrow band).
-    let mut t_sum = vec![0.0; m * m];
-    let mut blocks: Vec<Vec<f64>> = orders_wanted.iter().map(|n| vec![0.0; (n + 1) * (n + 1)]).collect();
-    let mut usable = m;
-    let mut l = vec![0.0; m * m];
-    let mut y = vec![0.0; m * m];
-    let mut gram = vec![0.0; m * m];
-    for s in &seqs {
-        for i in 0..m {
-            for j in 0..m {
-                t_sum[i * m + j] += s.t[i.abs_diff(j)];
-            }
-        }
-        l.iter_mut().for_each(|v| *v = 0.0);
-        let mut rows = m;
-        'rows: for i in 0..m {
-            for j in 0..=i {
-                let mut v = s.r[i.abs_diff(j)];
-                for k in 0..j {
-                    v -= l[i * m + k] * l[j * m + k];
-                }
-                if i == j {
-                    if v <= 1e-13 * s.r[0] {
-                        rows = i;
-                        break 'rows;
-                    }
-                    l[i * m + i] = v.sqrt();
-                } else {
-                    l[i * m + j] = v / l[j * m + j];
-                }
-            }
-        }
-        usable = usable.min(rows);
-        let s_at = |i: usize, j: usize| if j >= i { s.sp[j - i].re } else { s.sm[i - j].re };
-        gram.iter_mut().for_each(|v| *v = 0.0);
-        let mut next = 0;
-        for i in 0..rows {
-            for j in 0..m {
-                let mut v = s_at(i, j);
-                for k in 0..i {
-                    v -= l[i * m + k] * y[k * m + j];
-                }
-                y[i * m + j] = v / l[i * m + i];
-            }
-            let row = &y[i * m..i * m + m];
-            for a in 0..m {
-                let ya = row[a];
-                if ya != 0.0 {
-                    for b in 0..m {
-                        gram[a * m + b] += ya * row[b];
-                    }
-                }
-            }
-            // Rows 0..=n are in: the block of order n is complete.
-            while next < orders_wanted.len() && orders_wanted[next] == i {
-                let size = i + 1;
-                let block = &mut blocks[next];
-                for a in 0..size {
-                    for b in 0..size {
-                        block[a * size + b] += gram[a * m + b];
-                    }
-                }
-                next += 1;
-            }
-        }
-    }
-    seqs.clear();
+    let normal = ReducedNormal::new(&seqs, m, &orders_wanted);
+    drop(seqs);
     let mut diagram: Vec<DiagramPole> = Vec::new();
     let mut orders = Vec::new();
     let mut previous: Vec<DiagramPole> = Vec::new();
-    for (&n, block) in orders_wanted.iter().zip(&blocks) {
-        let size = n + 1;
-        if size > usable {
+    for (&n, block) in orders_wanted.iter().zip(&normal.blocks) {
+        if n + 1 > normal.usable {
             break;
         }
-        let mut a = vec![0.0; n * n];
-        let mut rhs = vec![0.0; n];
-        for i in 0..n {
-            for j in 0..n {
-                a[i * n + j] = t_sum[i * m + j] - block[i * size + j];
-            }
-            rhs[i] = -(t_sum[i * m + n] - block[i * size + n]);
-        }
-        if lscf::solve(&mut a, &mut rhs, n, 1).is_none() {
+        let Some(denominator) = normal.denominator(n, block) else {
             previous.clear();
             continue;
-        }
-        rhs.push(1.0);
+        };
         orders.push(n);
-        let mut here: Vec<DiagramPole> = lscf::roots(&rhs)
+        let mut here: Vec<DiagramPole> = lscf::roots(&denominator)
             .into_iter()
             .filter_map(|zr| {
                 let lambda = zr.ln() / dt;
@@ -469,18 +345,7 @@ fn stabilisation(
             })
             .collect();
         here.sort_by(|p, q| p.f_hz.total_cmp(&q.f_hz));
-        for p in &mut here {
-            let nearest = previous.iter().min_by(|a, b| (a.f_hz - p.f_hz).abs().total_cmp(&(b.f_hz - p.f_hz).abs()));
-            if let Some(q) = nearest
-                && (q.f_hz - p.f_hz).abs() <= opts.stable_frequency * p.f_hz
-            {
-                p.stability = if (q.xi - p.xi).abs() <= opts.stable_damping * p.xi {
-                    Stability::Damping
-                } else {
-                    Stability::Frequency
-                };
-            }
-        }
+        classify(&mut here, &previous, opts);
         diagram.extend_from_slice(&here);
         previous = here;
     }
@@ -488,6 +353,190 @@ fn stabilisation(
         return Err(FitError::Singular { what: "poly-reference denominator at every order" });
     }
     Ok((diagram, orders))
+}
+
+/// Each line's weight in the least squares of one FRF: `1/rms²` (absolute) or `1/|H|²`
+/// (relative); `None` for an FRF that is zero or not finite in the band.
+fn line_weights(ho: &[Complex64], weighting: Weighting) -> Option<Vec<f64>> {
+    let rms = (ho.iter().map(|v| v.norm_sqr()).sum::<f64>() / ho.len() as f64).sqrt();
+    (rms > 0.0 && rms.is_finite()).then(|| {
+        ho.iter()
+            .map(|v| match weighting {
+                Weighting::Absolute => 1.0 / (rms * rms),
+                Weighting::Relative if v.norm_sqr() > 0.0 => 1.0 / v.norm_sqr(),
+                Weighting::Relative => 0.0,
+            })
+            .collect()
+    })
+}
+
+/// One FRF's Toeplitz sequences of R, T and S up to the highest order:
+/// `r_q = Σ w² cos qθ`, `t_q = Σ w²|H|² cos qθ`, `s±_q = −Σ w² H e^{±iqθ}`.
+struct Sequences {
+    r: Vec<f64>,
+    t: Vec<f64>,
+    sp: Vec<Complex64>,
+    sm: Vec<Complex64>,
+}
+
+/// The sequences of every weighted FRF (of length `m`), in one pass over the lines.
+fn toeplitz_sequences(
+    f: &[f64],
+    h: &[Vec<Complex64>],
+    weights: &[Option<Vec<f64>>],
+    dt: f64,
+    m: usize,
+) -> Vec<Sequences> {
+    let zero = Complex64::from(0.0);
+    let mut seqs: Vec<Sequences> = weights
+        .iter()
+        .filter(|w| w.is_some())
+        .map(|_| Sequences { r: vec![0.0; m], t: vec![0.0; m], sp: vec![zero; m], sm: vec![zero; m] })
+        .collect();
+    let mut zq = vec![zero; m];
+    for (k, &fk) in f.iter().enumerate() {
+        for (q, z) in zq.iter_mut().enumerate() {
+            *z = Complex64::from_polar(1.0, q as f64 * TAU * fk * dt);
+        }
+        let used = h.iter().zip(weights).filter_map(|(ho, w)| w.as_ref().map(|w| (ho[k], w[k])));
+        for ((hk, w), s) in used.zip(seqs.iter_mut()) {
+            let hw = -w * hk;
+            let th = w * hk.norm_sqr();
+            for (q, &z) in zq.iter().enumerate() {
+                s.r[q] += w * z.re;
+                s.t[q] += th * z.re;
+                s.sp[q] += hw * z;
+                s.sm[q] += hw * z.conj();
+            }
+        }
+    }
+    seqs
+}
+
+/// The reduced normal matrix of every order, summed over the FRFs.
+///
+/// The reduced normal matrix of order n is the leading (n+1)×(n+1) block of
+/// Σ_o (T_o − S_oᵀ R_o⁻¹ S_o), and S_oᵀ R_o⁻¹ S_o = Y_oᵀ Y_o with Y_o = L_o⁻¹ S_o (L_o the
+/// Cholesky factor of R_o): the leading block of order n takes the first n+1 rows of Y_o only,
+/// so one factor at the highest order and a Gram matrix grown row by row give every order.
+struct ReducedNormal {
+    m: usize,
+    /// Σ_o T_o at the highest order, `m × m`.
+    t_sum: Vec<f64>,
+    /// `blocks[i]` sums the leading blocks of `Y_oᵀ Y_o` over the FRFs for the `i`-th order.
+    blocks: Vec<Vec<f64>>,
+    /// How many rows every factor reached (R loses rank at high orders on a narrow band).
+    usable: usize,
+}
+
+impl ReducedNormal {
+    fn new(seqs: &[Sequences], m: usize, orders_wanted: &[usize]) -> Self {
+        let mut t_sum = vec![0.0; m * m];
+        let mut blocks: Vec<Vec<f64>> = orders_wanted.iter().map(|n| vec![0.0; (n + 1) * (n + 1)]).collect();
+        let mut usable = m;
+        let mut l = vec![0.0; m * m];
+        let mut y = vec![0.0; m * m];
+        let mut gram = vec![0.0; m * m];
+        for s in seqs {
+            for i in 0..m {
+                for j in 0..m {
+                    t_sum[i * m + j] += s.t[i.abs_diff(j)];
+                }
+            }
+            let rows = toeplitz_cholesky(&s.r, &mut l, m);
+            usable = usable.min(rows);
+            let s_at = |i: usize, j: usize| if j >= i { s.sp[j - i].re } else { s.sm[i - j].re };
+            gram.iter_mut().for_each(|v| *v = 0.0);
+            let mut next = 0;
+            for i in 0..rows {
+                for j in 0..m {
+                    let mut v = s_at(i, j);
+                    for k in 0..i {
+                        v -= l[i * m + k] * y[k * m + j];
+                    }
+                    y[i * m + j] = v / l[i * m + i];
+                }
+                let row = &y[i * m..i * m + m];
+                for a in 0..m {
+                    let ya = row[a];
+                    if ya != 0.0 {
+                        for b in 0..m {
+                            gram[a * m + b] += ya * row[b];
+                        }
+                    }
+                }
+                // Rows 0..=n are in: the block of order n is complete.
+                while next < orders_wanted.len() && orders_wanted[next] == i {
+                    let size = i + 1;
+                    let block = &mut blocks[next];
+                    for a in 0..size {
+                        for b in 0..size {
+                            block[a * size + b] += gram[a * m + b];
+                        }
+                    }
+                    next += 1;
+                }
+            }
+        }
+        ReducedNormal { m, t_sum, blocks, usable }
+    }
+
+    /// The monic denominator of order `n` (coefficients from the constant up, the last 1) from
+    /// its block; `None` where the normal equations are singular.
+    fn denominator(&self, n: usize, block: &[f64]) -> Option<Vec<f64>> {
+        let (m, size) = (self.m, n + 1);
+        let mut a = vec![0.0; n * n];
+        let mut rhs = vec![0.0; n];
+        for i in 0..n {
+            for j in 0..n {
+                a[i * n + j] = self.t_sum[i * m + j] - block[i * size + j];
+            }
+            rhs[i] = -(self.t_sum[i * m + n] - block[i * size + n]);
+        }
+        lscf::solve(&mut a, &mut rhs, n, 1)?;
+        rhs.push(1.0);
+        Some(rhs)
+    }
+}
+
+/// The Cholesky factor `l` (`m × m`, row-major, lower) of the symmetric Toeplitz matrix of `r`,
+/// as far as it stays positive definite; returns the number of rows factored.
+fn toeplitz_cholesky(r: &[f64], l: &mut [f64], m: usize) -> usize {
+    l.iter_mut().for_each(|v| *v = 0.0);
+    for i in 0..m {
+        for j in 0..=i {
+            let mut v = r[i.abs_diff(j)];
+            for k in 0..j {
+                v -= l[i * m + k] * l[j * m + k];
+            }
+            if i == j {
+                if v <= 1e-13 * r[0] {
+                    return i;
+                }
+                l[i * m + i] = v.sqrt();
+            } else {
+                l[i * m + j] = v / l[j * m + j];
+            }
+        }
+    }
+    m
+}
+
+/// Classes each pole of one order against the nearest pole of the previous order: stable in
+/// frequency, and also in damping, within the options' tolerances.
+fn classify(here: &mut [DiagramPole], previous: &[DiagramPole], opts: &SetOptions) {
+    for p in here {
+        let nearest = previous.iter().min_by(|a, b| (a.f_hz - p.f_hz).abs().total_cmp(&(b.f_hz - p.f_hz).abs()));
+        if let Some(q) = nearest
+            && (q.f_hz - p.f_hz).abs() <= opts.stable_frequency * p.f_hz
+        {
+            p.stability = if (q.xi - p.xi).abs() <= opts.stable_damping * p.xi {
+                Stability::Damping
+            } else {
+                Stability::Frequency
+            };
+        }
+    }
 }
 
 /// Peaks of `y` (local maxima over lines `f`) with their prominence: the ratio of the peak to the

@@ -489,17 +489,26 @@ impl RigConfig {
     /// Checks every field; the error names the field and what it must satisfy.
     pub fn validate(&self) -> Result<(), RigError> {
         positive("sample_rate", self.sample_rate)?;
-        let fs = self.sample_rate;
-        let nyquist = 0.5 * fs;
+        let nyquist = 0.5 * self.sample_rate;
         non_negative("speed", self.speed)?;
         positive("ref_speed", self.ref_speed)?;
         if !(self.speed_drift.is_finite() && (0.0..0.1).contains(&self.speed_drift)) {
             return Err(bad("speed_drift", self.speed_drift, "must lie in [0, 0.1)"));
         }
-        let n = self.samples()?;
-        let record = n as f64 / fs;
+        let record = self.samples()? as f64 / self.sample_rate;
+        self.validate_modes(nyquist)?;
+        self.validate_error_motions(nyquist)?;
+        self.validate_sensors()?;
+        self.validate_tach()?;
+        self.validate_impacts(record)?;
+        if self.force_range.is_nan() || self.force_range <= 0.0 {
+            return Err(bad("force_range", self.force_range, "must be positive (INFINITY for no clipping)"));
+        }
+        Ok(())
+    }
 
-        // Structure.
+    /// The modes at rest and at speed: positive, underdamped and below Nyquist.
+    fn validate_modes(&self, nyquist: f64) -> Result<(), RigError> {
         for (name, modes) in [("modes_x", &self.modes_x), ("modes_y", &self.modes_y)] {
             for (i, m) in modes.iter().enumerate() {
                 let f = |field: &str| format!("{name}[{i}].{field}");
@@ -531,9 +540,12 @@ impl RigConfig {
                 }
             }
         }
+        Ok(())
+    }
 
-        // Artifact and synchronous error motions: every harmonic below Nyquist at the
-        // fastest drifting speed (Eq. 3.15).
+    /// The artifact form, the synchronous and the asynchronous error motions: every harmonic and
+    /// tone below Nyquist, the harmonics at the fastest drifting speed (Eq. 3.15).
+    fn validate_error_motions(&self, nyquist: f64) -> Result<(), RigError> {
         let f_rot_max = self.speed * (1.0 + self.speed_drift) / TAU;
         for (name, terms) in [("form", &self.form), ("sync_x", &self.sync_x), ("sync_y", &self.sync_y)] {
             for (i, u) in terms.iter().enumerate() {
@@ -569,8 +581,11 @@ impl RigConfig {
                 });
             }
         }
+        Ok(())
+    }
 
-        // Probes and sensor chain.
+    /// The probes, the sensor's phase lag, the noise and the converters.
+    fn validate_sensors(&self) -> Result<(), RigError> {
         if self.probe_angles.is_empty() {
             return Err(RigError::NoProbes);
         }
@@ -594,8 +609,11 @@ impl RigConfig {
         non_negative("adc.force_lsb", self.adc.force_lsb)?;
         non_negative("adc.probe_lsb", self.adc.probe_lsb)?;
         non_negative("adc.tach_lsb", self.adc.tach_lsb)?;
+        Ok(())
+    }
 
-        // Tachometer.
+    /// The tachometer's levels and a pulse long enough for its edges at the fastest speed.
+    fn validate_tach(&self) -> Result<(), RigError> {
         finite("tach.high", self.tach.high)?;
         finite("tach.low", self.tach.low)?;
         positive("tach.edge_time", self.tach.edge_time)?;
@@ -615,8 +633,12 @@ impl RigConfig {
                 ));
             }
         }
+        Ok(())
+    }
 
-        // Impacts.
+    /// The impacts: their spacing, every one inside the record, a hammer that meets the struck
+    /// direction's modes, and double hits that name impacts.
+    fn validate_impacts(&self, record: f64) -> Result<(), RigError> {
         if self.impacts > 0 {
             positive("impact_interval", self.impact_interval)?;
             non_negative("impact_jitter", self.impact_jitter)?;
@@ -661,9 +683,6 @@ impl RigConfig {
                     format!("is not an impact index (0..{} for {} impacts)", self.impacts, self.impacts),
                 ));
             }
-        }
-        if self.force_range.is_nan() || self.force_range <= 0.0 {
-            return Err(bad("force_range", self.force_range, "must be positive (INFINITY for no clipping)"));
         }
         Ok(())
     }
