@@ -542,30 +542,12 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
     check_grid(freqs_hz, h)?;
     check_options(opts)?;
     let range = fit_range(freqs_hz, opts)?;
-    let scaled: Vec<Complex64>;
-    let h_pick = if opts.kind_order == 0 {
-        h
-    } else {
-        scaled = freqs_hz.iter().zip(h).map(|(&f, &v)| v * (TAU * f).powi(opts.kind_order)).collect();
-        &scaled
-    };
-    let mut peaks = pick_modes_signed(
-        freqs_hz,
-        h_pick,
-        range.clone(),
-        opts.h_sens,
-        opts.v_sens,
-        10f64.powf(opts.prominence_db / 20.0),
-        opts.signed,
-    )?;
-    for p in &mut peaks {
-        p.im /= (TAU * p.freq_hz).powi(opts.kind_order);
-    }
+    let peaks = picked_peaks(freqs_hz, h, range.clone(), opts)?;
     let picked_hz: Vec<f64> = peaks.iter().map(|p| p.freq_hz).collect();
     let (lo, hi) = (freqs_hz[range.start], freqs_hz[range.end - 1]);
     let df = (hi - lo) / (range.len() - 1) as f64;
     let complex = opts.residues == Residues::Complex;
-    let (mut modes, bands, deleted, iterations) = match opts.method {
+    let (mut modes, mut bands, deleted, iterations) = match opts.method {
         Method::Simplex => {
             let (modes, _, bands, deleted, iterations) = simplex::fit_modes(freqs_hz, h, range.clone(), &peaks, opts)?;
             (modes, bands, deleted, iterations)
@@ -586,48 +568,7 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
             (modes, mode_bands(&centres, lo, hi, df), rejected, orders)
         }
     };
-    let residue_fit = if complex {
-        let r = lsfd::lsfd_weighted(&freqs_hz[range.clone()], &h[range.clone()], &modes, opts.weighting)?;
-        for (m, a) in modes.iter_mut().zip(&r.residues) {
-            *m = if opts.signed {
-                signed_mode_of_residue(m.freq_hz, m.damping_ratio, *a)
-            } else {
-                mode_of_residue(m.freq_hz, m.damping_ratio, *a)
-            };
-        }
-        r
-    } else {
-        let fits: Vec<Complex64> =
-            range.clone().map(|k| modes.iter().map(|m| m.receptance(TAU * freqs_hz[k])).sum()).collect();
-        let (relative_residual, weighted_residual) = lsfd::residual_measures(&h[range.clone()], &fits);
-        ResidueFit {
-            residues: modes.iter().map(real_residue).collect(),
-            lower: 0.0,
-            upper: 0.0,
-            relative_residual,
-            weighted_residual,
-        }
-    };
-    let mut residue_fit = residue_fit;
-    {
-        let poles: Vec<Complex64> = modes.iter().map(pole).collect();
-        let r = &residue_fit;
-        let scale = |f: f64| (TAU * f).powi(opts.kind_order);
-        let lines: Vec<usize> = range.clone().filter(|&k| freqs_hz[k] > 0.0).collect();
-        let fits: Vec<Complex64> = lines
-            .iter()
-            .map(|&k| {
-                let w = TAU * freqs_hz[k];
-                let modal: Complex64 = r.residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum();
-                (modal - r.lower / (w * w) + r.upper) * scale(freqs_hz[k])
-            })
-            .collect();
-        let measured: Vec<Complex64> = lines.iter().map(|&k| h[k] * scale(freqs_hz[k])).collect();
-        let (global, weighted) = lsfd::residual_measures(&measured, &fits);
-        residue_fit.relative_residual = global;
-        residue_fit.weighted_residual = weighted;
-    }
-    let mut bands = bands;
+    let residue_fit = fit_residues(freqs_hz, h, range, &mut modes, opts)?;
     for (b, m) in bands.iter_mut().zip(&modes) {
         b.clipped = clips(m, lo, hi, df);
     }
@@ -661,39 +602,8 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
         })
         .collect();
     let fitted: Vec<Complex64> = lines.iter().map(|r| r.h).collect();
-    let mapped_h: Vec<refit::FastH> = mapped.iter().map(|b| refit::FastH::new(b.beam)).collect();
-    let band_errors = bands
-        .iter()
-        .zip(&modes)
-        .map(|(b, m)| {
-            let (mut num_m, mut num_b, mut num_p, mut den) = (0.0, 0.0, 0.0, 0.0);
-            let a = freqs_hz.partition_point(|&f| f < b.lo_hz);
-            let e = freqs_hz.partition_point(|&f| f <= b.hi_hz);
-            for k in a..e {
-                let w = TAU * freqs_hz[k];
-                let modal: Complex64 = modes.iter().map(|q| q.receptance(w)).sum();
-                num_m += (h[k] - modal).norm();
-                num_b += (h[k] - fitted[k]).norm();
-                if opts.beam_refit {
-                    let plain: Complex64 = mapped_h.iter().map(|q| q.h(w.sqrt())).sum();
-                    num_p += (h[k] - plain).norm();
-                }
-                den += h[k].norm();
-            }
-            if !opts.beam_refit {
-                num_p = num_b;
-            }
-            let den = if den > 0.0 { den } else { f64::INFINITY };
-            BandError {
-                f_hz: m.freq_hz,
-                lo_hz: b.lo_hz,
-                hi_hz: b.hi_hz,
-                modal: num_m / den,
-                beam: num_b / den,
-                mapped: num_p / den,
-            }
-        })
-        .collect();
+    let mapped = opts.beam_refit.then_some(mapped.as_slice());
+    let band_errors = band_errors(freqs_hz, h, &bands, &modes, &fitted, mapped);
     Ok(ModalFit {
         modes,
         bands,
@@ -707,4 +617,130 @@ pub fn fit(freqs_hz: &[f64], h: &[Complex64], opts: &FitOptions) -> Result<Modal
         refit_sweeps,
         residue_fit,
     })
+}
+
+/// The peaks picked in the fit band (§5.2.1), on `h` times `ω^kind_order` (an accelerance or
+/// mobility is picked as measured), with their heights back in receptance.
+fn picked_peaks(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    range: std::ops::Range<usize>,
+    opts: &FitOptions,
+) -> Result<Vec<Peak>, FitError> {
+    let scaled: Vec<Complex64>;
+    let h_pick = if opts.kind_order == 0 {
+        h
+    } else {
+        scaled = freqs_hz.iter().zip(h).map(|(&f, &v)| v * (TAU * f).powi(opts.kind_order)).collect();
+        &scaled
+    };
+    let mut peaks = pick_modes_signed(
+        freqs_hz,
+        h_pick,
+        range,
+        opts.h_sens,
+        opts.v_sens,
+        10f64.powf(opts.prominence_db / 20.0),
+        opts.signed,
+    )?;
+    for p in &mut peaks {
+        p.im /= (TAU * p.freq_hz).powi(opts.kind_order);
+    }
+    Ok(peaks)
+}
+
+/// The residues of the fitted poles: complex by least squares in the frequency domain (the
+/// modes then take the residues' modal constants), or the modes' own real ones; with the
+/// residuals of the whole model over the fit band, in the measured kind.
+fn fit_residues(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    range: std::ops::Range<usize>,
+    modes: &mut [Mode],
+    opts: &FitOptions,
+) -> Result<ResidueFit, FitError> {
+    let mut residue_fit = if opts.residues == Residues::Complex {
+        let r = lsfd::lsfd_weighted(&freqs_hz[range.clone()], &h[range.clone()], modes, opts.weighting)?;
+        for (m, a) in modes.iter_mut().zip(&r.residues) {
+            *m = if opts.signed {
+                signed_mode_of_residue(m.freq_hz, m.damping_ratio, *a)
+            } else {
+                mode_of_residue(m.freq_hz, m.damping_ratio, *a)
+            };
+        }
+        r
+    } else {
+        let fits: Vec<Complex64> =
+            range.clone().map(|k| modes.iter().map(|m| m.receptance(TAU * freqs_hz[k])).sum()).collect();
+        let (relative_residual, weighted_residual) = lsfd::residual_measures(&h[range.clone()], &fits);
+        ResidueFit {
+            residues: modes.iter().map(real_residue).collect(),
+            lower: 0.0,
+            upper: 0.0,
+            relative_residual,
+            weighted_residual,
+        }
+    };
+    let poles: Vec<Complex64> = modes.iter().map(pole).collect();
+    let r = &residue_fit;
+    let scale = |f: f64| (TAU * f).powi(opts.kind_order);
+    let lines: Vec<usize> = range.filter(|&k| freqs_hz[k] > 0.0).collect();
+    let fits: Vec<Complex64> = lines
+        .iter()
+        .map(|&k| {
+            let w = TAU * freqs_hz[k];
+            let modal: Complex64 = r.residues.iter().zip(&poles).map(|(&a, &l)| pair_h(a, l, w)).sum();
+            (modal - r.lower / (w * w) + r.upper) * scale(freqs_hz[k])
+        })
+        .collect();
+    let measured: Vec<Complex64> = lines.iter().map(|&k| h[k] * scale(freqs_hz[k])).collect();
+    let (global, weighted) = lsfd::residual_measures(&measured, &fits);
+    residue_fit.relative_residual = global;
+    residue_fit.weighted_residual = weighted;
+    Ok(residue_fit)
+}
+
+/// Each mode's band error (Eq. 5.14): the modal model's, the fitted beams' and, when the beams
+/// were refitted, the beams as first mapped (`mapped`; otherwise the fitted beams' again).
+fn band_errors(
+    freqs_hz: &[f64],
+    h: &[Complex64],
+    bands: &[Band],
+    modes: &[Mode],
+    fitted: &[Complex64],
+    mapped: Option<&[EquivalentBeam]>,
+) -> Vec<BandError> {
+    let mapped_h: Vec<refit::FastH> = mapped.unwrap_or_default().iter().map(|b| refit::FastH::new(b.beam)).collect();
+    bands
+        .iter()
+        .zip(modes)
+        .map(|(b, m)| {
+            let (mut num_m, mut num_b, mut num_p, mut den) = (0.0, 0.0, 0.0, 0.0);
+            let a = freqs_hz.partition_point(|&f| f < b.lo_hz);
+            let e = freqs_hz.partition_point(|&f| f <= b.hi_hz);
+            for k in a..e {
+                let w = TAU * freqs_hz[k];
+                let modal: Complex64 = modes.iter().map(|q| q.receptance(w)).sum();
+                num_m += (h[k] - modal).norm();
+                num_b += (h[k] - fitted[k]).norm();
+                if mapped.is_some() {
+                    let plain: Complex64 = mapped_h.iter().map(|q| q.h(w.sqrt())).sum();
+                    num_p += (h[k] - plain).norm();
+                }
+                den += h[k].norm();
+            }
+            if mapped.is_none() {
+                num_p = num_b;
+            }
+            let den = if den > 0.0 { den } else { f64::INFINITY };
+            BandError {
+                f_hz: m.freq_hz,
+                lo_hz: b.lo_hz,
+                hi_hz: b.hi_hz,
+                modal: num_m / den,
+                beam: num_b / den,
+                mapped: num_p / den,
+            }
+        })
+        .collect()
 }
