@@ -326,12 +326,15 @@ pub fn speed_dependent_lobes(
         f.frf.validate()?;
     }
     stationary.validate()?;
+    // FRFs measured at one speed only, which is also the stationary one (a tool measured at rest): the
+    // spline in speed is that FRF at every speed, so the two diagrams are one, computed once.
+    let one_frf = frfs.len() == 1 && frfs[0].frf == *stationary;
     let refined: Vec<SpeedFrf> = frfs
         .iter()
         .map(|f| SpeedFrf { speed_rpm: f.speed_rpm, frf: refine(&f.frf, options.resolution_hz).into_owned() })
         .collect();
     let frfs = &refined[..];
-    let stationary = &*refine(stationary, options.resolution_hz);
+    let stationary = if one_frf { &frfs[0].frf } else { &*refine(stationary, options.resolution_hz) };
     let grid = &frfs[0].frf.freqs_hz;
     for f in frfs {
         if f.frf.freqs_hz.len() != grid.len()
@@ -402,6 +405,9 @@ pub fn speed_dependent_lobes(
                 cross: with_cross.then_some((&scratch.xy[..], &scratch.yx[..])),
             };
             let dynamic = limit_at_speed_pruned(frf, &milling, count, s, &mut scratch.limit);
+            if one_frf {
+                return Ok([dynamic, dynamic]);
+            }
             let fixed_frf = stationary.slices(needed(&stationary.freqs_hz));
             let fixed = limit_at_speed_pruned(fixed_frf, &milling, count, s, &mut scratch.limit);
             Ok([dynamic, fixed])

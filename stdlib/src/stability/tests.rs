@@ -480,6 +480,39 @@ fn speed_dependent_equals_stationary_for_constant_frfs() {
     ));
 }
 
+/// A tool measured at one speed, which is also the stationary FRF (the imported cases' tool at rest), with
+/// coefficients that change with speed: the two diagrams are computed once and are the same, and they equal
+/// the diagrams of that FRF given at two speeds (the spline path) to rounding, on a coarse grid refined first.
+#[test]
+fn one_measured_speed_gives_one_diagram_twice() {
+    let model = ModalModel::new(
+        vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
+        vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
+    )
+    .unwrap();
+    let freqs: Vec<f64> = (1..=800).map(|i| 2.5 * i as f64).collect();
+    let frf = model.receptance(&freqs).unwrap();
+    let table = CoefficientTable::KsBeta(vec![[0.0, 8e8, 1.2], [4000.0, 7e8, 1.25]]);
+    let opts = SpeedDependentOptions {
+        range_rpm: Some((500.0, 4000.0)),
+        allow_extrapolation: true,
+        ..SpeedDependentOptions::default()
+    };
+    let at = |knots: &[f64]| {
+        let frfs: Vec<SpeedFrf> = knots.iter().map(|&s| SpeedFrf { speed_rpm: s, frf: frf.clone() }).collect();
+        speed_dependent_lobes(&frfs, &table, 4, 0.25, MillingDirection::Up, &frf, &opts).unwrap()
+    };
+    let (one, two) = (at(&[0.0]), at(&[0.0, 4000.0]));
+    assert_eq!(one.speed_dependent, one.stationary);
+    assert_eq!(one.stationary, two.stationary);
+    let mut finite = 0;
+    for (i, (&a, &b)) in one.speed_dependent.depth_m.iter().zip(&two.speed_dependent.depth_m).enumerate() {
+        assert!(a == b || (a / b - 1.0).abs() < 1e-12, "{} rpm: {a} vs {b}", one.speed_dependent.speed_rpm[i]);
+        finite += usize::from(a.is_finite());
+    }
+    assert!(finite > 600, "{finite}");
+}
+
 /// The cubic speed interpolation is exact for FRFs linear in speed and follows the natural spline weights.
 #[test]
 fn speed_interpolation_is_exact_for_linear_change() {
