@@ -326,10 +326,13 @@ pub fn speed_dependent_lobes(
         f.frf.validate()?;
     }
     stationary.validate()?;
-    // FRFs measured at one speed only, which is also the stationary one (a tool measured at rest): the
-    // spline in speed is that FRF at every speed, so the two diagrams are one, computed once.
-    let one_frf = frfs.len() == 1 && frfs[0].frf == *stationary;
-    let refined: Vec<SpeedFrf> = frfs
+    // FRFs that do not change with speed (one speed measured, or a spindle without a speed law) are one FRF
+    // at every speed: it is refined and interpolated once. When it is also the stationary one (a tool measured
+    // at rest), the two diagrams are one, computed once.
+    let constant = frfs.iter().all(|f| f.frf == frfs[0].frf);
+    let one_frf = constant && frfs[0].frf == *stationary;
+    let distinct = if constant { &frfs[..1] } else { frfs };
+    let refined: Vec<SpeedFrf> = distinct
         .iter()
         .map(|f| SpeedFrf { speed_rpm: f.speed_rpm, frf: refine(&f.frf, options.resolution_hz).into_owned() })
         .collect();
@@ -384,7 +387,7 @@ pub fn speed_dependent_lobes(
     let needed = lobes_needed(band_top, teeth, n_min);
     let count = lobe_count(options.lobes, band_top, teeth, n_min)?;
     let with_cross = frfs.iter().all(|f| f.frf.cross.is_some());
-    let curves = SplineFrf::new(&knots, frfs, with_cross);
+    let curves = SplineFrf::new(&knots[..frfs.len()], frfs, with_cross);
     let per_tooth = 60.0 / teeth as f64;
     let rows: Vec<[(f64, f64, Option<usize>); 2]> = speeds
         .par_iter()

@@ -480,11 +480,12 @@ fn speed_dependent_equals_stationary_for_constant_frfs() {
     ));
 }
 
-/// A tool measured at one speed, which is also the stationary FRF (the imported cases' tool at rest), with
-/// coefficients that change with speed: the two diagrams are computed once and are the same, and they equal
-/// the diagrams of that FRF given at two speeds (the spline path) to rounding, on a coarse grid refined first.
+/// FRFs that do not change with speed (one measured speed, or a spindle without a speed law) and are also the
+/// stationary FRF, with coefficients that change with speed: they are taken as one FRF and the two diagrams are
+/// computed once. Both equal the stationary diagram, and the spline path on FRFs a few ulps apart agrees to
+/// rounding, on a coarse grid refined first.
 #[test]
-fn one_measured_speed_gives_one_diagram_twice() {
+fn frfs_constant_in_speed_give_one_diagram_twice() {
     let model = ModalModel::new(
         vec![Mode { freq_hz: 600.0, damping_ratio: 0.04, modal_mass: 0.4 }],
         vec![Mode { freq_hz: 650.0, damping_ratio: 0.03, modal_mass: 0.3 }],
@@ -498,15 +499,23 @@ fn one_measured_speed_gives_one_diagram_twice() {
         allow_extrapolation: true,
         ..SpeedDependentOptions::default()
     };
-    let at = |knots: &[f64]| {
-        let frfs: Vec<SpeedFrf> = knots.iter().map(|&s| SpeedFrf { speed_rpm: s, frf: frf.clone() }).collect();
-        speed_dependent_lobes(&frfs, &table, 4, 0.25, MillingDirection::Up, &frf, &opts).unwrap()
+    let at =
+        |frfs: &[SpeedFrf]| speed_dependent_lobes(frfs, &table, 4, 0.25, MillingDirection::Up, &frf, &opts).unwrap();
+    let speed = |speed_rpm: f64, scale: f64| {
+        let mut f = frf.clone();
+        for v in f.xx.iter_mut().chain(f.yy.iter_mut()) {
+            *v *= scale;
+        }
+        SpeedFrf { speed_rpm, frf: f }
     };
-    let (one, two) = (at(&[0.0]), at(&[0.0, 4000.0]));
+    let one = at(&[speed(0.0, 1.0)]);
+    let three = at(&[speed(0.0, 1.0), speed(2000.0, 1.0), speed(4000.0, 1.0)]);
+    let apart = at(&[speed(0.0, 1.0), speed(4000.0, 1.0 + 4.0 * f64::EPSILON)]);
     assert_eq!(one.speed_dependent, one.stationary);
-    assert_eq!(one.stationary, two.stationary);
+    assert_eq!(three, one);
+    assert_eq!(apart.stationary, one.stationary);
     let mut finite = 0;
-    for (i, (&a, &b)) in one.speed_dependent.depth_m.iter().zip(&two.speed_dependent.depth_m).enumerate() {
+    for (i, (&a, &b)) in one.speed_dependent.depth_m.iter().zip(&apart.speed_dependent.depth_m).enumerate() {
         assert!(a == b || (a / b - 1.0).abs() < 1e-12, "{} rpm: {a} vs {b}", one.speed_dependent.speed_rpm[i]);
         finite += usize::from(a.is_finite());
     }
