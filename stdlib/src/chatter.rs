@@ -179,7 +179,70 @@ pub fn detect_chatter(
     teeth: usize,
     options: &ChatterOptions,
 ) -> Result<ChatterReport, ChatterError> {
-    for (channel, r) in [("x", &x), ("y", &y)] {
+    check_inputs(&x, &y, speed_rpm, teeth, options)?;
+    let fs = x.sample_rate_hz;
+    let n = x.samples.len();
+    let rev_hz = speed_rpm / 60.0;
+    let tooth_hz = teeth as f64 * rev_hz;
+    let needed = ((4.0 * fs / rev_hz).ceil() as usize).max(64);
+    if n < needed {
+        return Err(ChatterError::TooShort {
+            samples: n,
+            sample_rate_hz: fs,
+            resolution_hz: fs / n.max(1) as f64,
+            rev_hz,
+            needed,
+        });
+    }
+    if tooth_hz >= 0.5 * fs {
+        return Err(ChatterError::ToothAboveNyquist { tooth_hz, nyquist_hz: 0.5 * fs });
+    }
+
+    let amplitude = amplitude_spectrum(&x, &y);
+    let lines = amplitude.len();
+    let df = fs / n as f64;
+    let freqs_hz: Vec<f64> = (0..lines).map(|i| i as f64 * df).collect();
+    let f_max = options.max_freq_hz.unwrap_or(0.5 * fs).min(0.5 * fs);
+    let half_width = |f: f64| options.notch_lines * df + options.notch_relative * f;
+    let (notched, tooth_amplitude) = notches(&amplitude, df, 0.5 * fs, rev_hz, teeth, f_max, &half_width);
+    // The inputs are finite, so the amplitudes are too.
+    if tooth_amplitude <= 0.0 {
+        return Err(ChatterError::NoToothContent { tooth_hz });
+    }
+    let (peak_hz, peak_amplitude) = largest_peak(&amplitude, &notched, df, f_max);
+    let ratio = peak_amplitude / tooth_amplitude;
+    let chatter = ratio > options.threshold;
+    let kind = chatter.then(|| {
+        // Distance of f/f_tooth from the nearest odd half.
+        let u = peak_hz / tooth_hz;
+        let off = (u - (u - 0.5).round() - 0.5).abs() * tooth_hz;
+        if off <= half_width(peak_hz).max(df) { ChatterKind::PeriodDoubling } else { ChatterKind::QuasiPeriodic }
+    });
+    Ok(ChatterReport {
+        freqs_hz,
+        amplitude,
+        notched,
+        tooth_hz,
+        tooth_amplitude,
+        peak_hz,
+        peak_amplitude,
+        ratio,
+        chatter,
+        chatter_hz: chatter.then_some(peak_hz),
+        kind,
+    })
+}
+
+/// Refuses records that cannot be compared (rates, lengths, non-finite samples), a cut without
+/// teeth or speed, and options out of their range.
+fn check_inputs(
+    x: &Record<'_>,
+    y: &Record<'_>,
+    speed_rpm: f64,
+    teeth: usize,
+    options: &ChatterOptions,
+) -> Result<(), ChatterError> {
+    for (channel, r) in [("x", x), ("y", y)] {
         if !(r.sample_rate_hz.is_finite() && r.sample_rate_hz > 0.0) {
             return Err(ChatterError::InvalidSampleRate { channel, value: r.sample_rate_hz });
         }
@@ -218,32 +281,19 @@ pub fn detect_chatter(
     if let Some(f) = options.max_freq_hz {
         check("max_freq_hz", f, f.is_finite() && f > 0.0, "finite and > 0 Hz")?;
     }
-    let fs = x.sample_rate_hz;
-    let n = x.samples.len();
-    let rev_hz = speed_rpm / 60.0;
-    let tooth_hz = teeth as f64 * rev_hz;
-    let needed = ((4.0 * fs / rev_hz).ceil() as usize).max(64);
-    if n < needed {
-        return Err(ChatterError::TooShort {
-            samples: n,
-            sample_rate_hz: fs,
-            resolution_hz: fs / n.max(1) as f64,
-            rev_hz,
-            needed,
-        });
-    }
-    if tooth_hz >= 0.5 * fs {
-        return Err(ChatterError::ToothAboveNyquist { tooth_hz, nyquist_hz: 0.5 * fs });
-    }
+    Ok(())
+}
 
-    // Hann-windowed amplitude spectra, scaled so that a sinusoid of amplitude a on a line reads a.
+/// `|A_x(f)| + |A_y(f)|` of the mean-removed, Hann-windowed records on lines `0..=n/2`, scaled so
+/// that a sinusoid of amplitude `a` on a line reads `a`.
+fn amplitude_spectrum(x: &Record<'_>, y: &Record<'_>) -> Vec<f64> {
+    let n = x.samples.len();
     let window: Vec<f64> = (0..n).map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / n as f64).cos()).collect();
     let gain = 2.0 / window.iter().sum::<f64>();
     let fft = FftPlanner::<f64>::new().plan_fft_forward(n);
-    let lines = n / 2 + 1;
-    let mut amplitude = vec![0.0; lines];
+    let mut amplitude = vec![0.0; n / 2 + 1];
     let mut buf = vec![Complex64::new(0.0, 0.0); n];
-    for r in [&x, &y] {
+    for r in [x, y] {
         let mean = r.samples.iter().sum::<f64>() / n as f64;
         for ((b, s), w) in buf.iter_mut().zip(r.samples).zip(&window) {
             *b = Complex64::new((s - mean) * w, 0.0);
@@ -254,19 +304,28 @@ pub fn detect_chatter(
         }
     }
     amplitude[0] *= 0.5;
-    let df = fs / n as f64;
-    let freqs_hz: Vec<f64> = (0..lines).map(|i| i as f64 * df).collect();
-    let f_max = options.max_freq_hz.unwrap_or(0.5 * fs).min(0.5 * fs);
+    amplitude
+}
 
-    // Notches: every runout harmonic k Ω/60 (k ≥ 0, which includes the tooth harmonics) except the half-tooth
-    // lines (k + ½) N Ω/60 of an even tooth count.
-    let half_width = |f: f64| options.notch_lines * df + options.notch_relative * f;
+/// The lines notched as runout harmonics `k Ω/60` (`k ≥ 0`, which includes the tooth harmonics),
+/// except the half-tooth lines `(k + ½) N Ω/60` of an even tooth count; and the largest amplitude
+/// at a tooth-passing harmonic up to `f_max`, the criterion's reference.
+fn notches(
+    amplitude: &[f64],
+    df: f64,
+    nyquist: f64,
+    rev_hz: f64,
+    teeth: usize,
+    f_max: f64,
+    half_width: &dyn Fn(f64) -> f64,
+) -> (Vec<bool>, f64) {
+    let lines = amplitude.len();
     let mut notched = vec![false; lines];
     let mut tooth_amplitude = 0.0f64;
     let mut k = 0usize;
     loop {
         let f = k as f64 * rev_hz;
-        if f - half_width(f) > 0.5 * fs {
+        if f - half_width(f) > nyquist {
             break;
         }
         let half_tooth = teeth.is_multiple_of(2) && k % teeth == teeth / 2;
@@ -283,58 +342,33 @@ pub fn detect_chatter(
         }
         k += 1;
     }
-    // The inputs are finite, so the amplitudes are too.
-    if tooth_amplitude <= 0.0 {
-        return Err(ChatterError::NoToothContent { tooth_hz });
-    }
+    (notched, tooth_amplitude)
+}
 
-    // The largest remaining line below f_max.
+/// The largest line left below `f_max` on lines `df` apart (frequency interpolated parabolically in the log amplitude,
+/// exact for a Gaussian peak and within a few hundredths of a line for the Hann main lobe) and its
+/// amplitude; `(0, 0)` when every line is notched.
+fn largest_peak(amplitude: &[f64], notched: &[bool], df: f64, f_max: f64) -> (f64, f64) {
+    let lines = amplitude.len();
     let mut best: Option<usize> = None;
     for i in 1..lines {
-        if notched[i] || freqs_hz[i] > f_max {
+        if notched[i] || i as f64 * df > f_max {
             continue;
         }
         if best.is_none_or(|b| amplitude[i] > amplitude[b]) {
             best = Some(i);
         }
     }
-    let (peak_hz, peak_amplitude) = match best {
-        None => (0.0, 0.0),
-        Some(i) => {
-            // Parabolic interpolation of the log amplitude (exact for a Gaussian peak, within a few hundredths of
-            // a line for the Hann main lobe).
-            let mut offset = 0.0;
-            if i + 1 < lines && amplitude[i - 1] > 0.0 && amplitude[i + 1] > 0.0 {
-                let (a, b, c) = (amplitude[i - 1].ln(), amplitude[i].ln(), amplitude[i + 1].ln());
-                let den = a - 2.0 * b + c;
-                if den < 0.0 {
-                    offset = (0.5 * (a - c) / den).clamp(-0.5, 0.5);
-                }
-            }
-            ((i as f64 + offset) * df, amplitude[i])
+    let Some(i) = best else { return (0.0, 0.0) };
+    let mut offset = 0.0;
+    if i + 1 < lines && amplitude[i - 1] > 0.0 && amplitude[i + 1] > 0.0 {
+        let (a, b, c) = (amplitude[i - 1].ln(), amplitude[i].ln(), amplitude[i + 1].ln());
+        let den = a - 2.0 * b + c;
+        if den < 0.0 {
+            offset = (0.5 * (a - c) / den).clamp(-0.5, 0.5);
         }
-    };
-    let ratio = peak_amplitude / tooth_amplitude;
-    let chatter = ratio > options.threshold;
-    let kind = chatter.then(|| {
-        // Distance of f/f_tooth from the nearest odd half.
-        let u = peak_hz / tooth_hz;
-        let off = (u - (u - 0.5).round() - 0.5).abs() * tooth_hz;
-        if off <= half_width(peak_hz).max(df) { ChatterKind::PeriodDoubling } else { ChatterKind::QuasiPeriodic }
-    });
-    Ok(ChatterReport {
-        freqs_hz,
-        amplitude,
-        notched,
-        tooth_hz,
-        tooth_amplitude,
-        peak_hz,
-        peak_amplitude,
-        ratio,
-        chatter,
-        chatter_hz: chatter.then_some(peak_hz),
-        kind,
-    })
+    }
+    ((i as f64 + offset) * df, amplitude[i])
 }
 
 #[cfg(test)]

@@ -352,9 +352,6 @@ pub(super) fn fit_modes(
     let mut previous = f64::INFINITY;
     let mut iterations = 0;
     let dims = if opts.residues == Residues::Complex { 2 } else { 3 };
-    let snapshot = |slots: &[Slot]| -> Vec<(Mode, Complex64, Complex64)> {
-        slots.iter().map(|s| (s.mode, s.residue, pole(&s.mode))).collect()
-    };
     let mut current = snapshot(&slots);
     let complex = opts.residues == Residues::Complex;
     while iterations < opts.iterations {
@@ -370,58 +367,9 @@ pub(super) fn fit_modes(
         };
         for j in 0..slots.len() {
             let slot = &mut slots[j];
-            for (held, &w) in slot.held.iter_mut().zip(&slot.w) {
-                *held = if complex {
-                    current
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| *i != j)
-                        .map(|(_, (_, a, l))| pair_h(*a, *l, w))
-                        .sum::<Complex64>()
-                        - lower / (w * w)
-                        + upper
-                } else {
-                    current
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| *i != j)
-                        .map(|(_, (m, _, _))| mode_h(m.modal_mass, TAU * m.freq_hz, m.damping_ratio, w))
-                        .sum()
-                };
-            }
-            let c = if complex {
-                let r: Vec<Complex64> = slot.hm.iter().zip(&slot.held).map(|(a, b)| a - b).collect();
-                let rr = r.iter().map(|v| v.norm_sqr()).sum();
-                let cost = ComplexModeCost { w: &slot.w, r: &r, rr, bounds: slot.bounds, scale: slot.scale_l2 };
-                let z0 = slot.bounds.z_at(x_of(&slot.mode))[..2].to_vec();
-                let (z, c) = nelder_mead(cost, z0, 0.05, 200, slot.mode.freq_hz)?;
-                let cost = ComplexModeCost { w: &slot.w, r: &r, rr, bounds: slot.bounds, scale: slot.scale_l2 };
-                let (a, _) = cost.project(&z);
-                let x = slot.bounds.x_at(&[z[0], z[1], 0.0]);
-                slot.mode = if opts.signed {
-                    super::lsfd::signed_mode_of_residue(x[0], x[1], a)
-                } else {
-                    super::lsfd::mode_of_residue(x[0], x[1], a)
-                };
-                slot.residue = a;
-                c
-            } else {
-                let cost = ModeCost {
-                    w: &slot.w,
-                    hm: &slot.hm,
-                    held: &slot.held,
-                    bounds: slot.bounds,
-                    imag_only: false,
-                    scale: slot.scale,
-                    sign: slot.sign,
-                };
-                let (z, c) = nelder_mead(cost, slot.bounds.z_at(x_of(&slot.mode)), 0.05, 200, slot.mode.freq_hz)?;
-                slot.mode = params_of(slot.bounds.x_at(&z), slot.sign);
-                slot.residue = real_residue(&slot.mode);
-                c
-            };
+            slot.hold_others(j, &current, complex, (lower, upper));
+            total += slot.refit(complex, opts.signed)?;
             current[j] = (slot.mode, slot.residue, pole(&slot.mode));
-            total += c;
         }
         iterations += 1;
         let converged = (previous - total).abs() <= CONVERGED * total;
@@ -429,14 +377,9 @@ pub(super) fn fit_modes(
         if !deletion_done && (iterations >= opts.delete_after || converged) {
             deletion_done = true;
             let before = slots.len();
-            let mut kept = Vec::with_capacity(before);
-            for s in slots.drain(..) {
-                if s.bounds.stuck(x_of(&s.mode), dims, df / (2.0 * s.mode.freq_hz)) {
-                    deleted.push(s.mode);
-                } else {
-                    kept.push(s);
-                }
-            }
+            let (kept, stuck): (Vec<Slot>, Vec<Slot>) =
+                slots.drain(..).partition(|s| !s.bounds.stuck(x_of(&s.mode), dims, df / (2.0 * s.mode.freq_hz)));
+            deleted.extend(stuck.iter().map(|s| s.mode));
             slots = kept;
             current = snapshot(&slots);
             if slots.len() < before {
@@ -459,4 +402,80 @@ pub(super) fn fit_modes(
     let residues = slots.iter().map(|s| s.residue).collect();
     let bands = slots.iter().map(|s| s.band).collect();
     Ok((modes, residues, bands, deleted, iterations))
+}
+
+/// Each slot's mode, residue and pole as they stand.
+fn snapshot(slots: &[Slot]) -> Vec<(Mode, Complex64, Complex64)> {
+    slots.iter().map(|s| (s.mode, s.residue, pole(&s.mode))).collect()
+}
+
+impl Slot {
+    /// Sets the receptance the other modes give on this slot's lines (`current` without mode `j`):
+    /// with complex residues their pole pairs and the LSFD residual terms `(lower, upper)`, else
+    /// their real modes.
+    fn hold_others(
+        &mut self,
+        j: usize,
+        current: &[(Mode, Complex64, Complex64)],
+        complex: bool,
+        residuals: (f64, f64),
+    ) {
+        let (lower, upper) = residuals;
+        for (held, &w) in self.held.iter_mut().zip(&self.w) {
+            *held = if complex {
+                current
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != j)
+                    .map(|(_, (_, a, l))| pair_h(*a, *l, w))
+                    .sum::<Complex64>()
+                    - lower / (w * w)
+                    + upper
+            } else {
+                current
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != j)
+                    .map(|(_, (m, _, _))| mode_h(m.modal_mass, TAU * m.freq_hz, m.damping_ratio, w))
+                    .sum()
+            };
+        }
+    }
+
+    /// Refits this slot's mode against the measurement less the held modes (Eq. 5.9): frequency and
+    /// damping by the simplex with the complex residue projected out, or the real mode's three
+    /// parameters. Returns the cost reached.
+    fn refit(&mut self, complex: bool, signed: bool) -> Result<f64, FitError> {
+        if complex {
+            let r: Vec<Complex64> = self.hm.iter().zip(&self.held).map(|(a, b)| a - b).collect();
+            let rr = r.iter().map(|v| v.norm_sqr()).sum();
+            let cost = ComplexModeCost { w: &self.w, r: &r, rr, bounds: self.bounds, scale: self.scale_l2 };
+            let z0 = self.bounds.z_at(x_of(&self.mode))[..2].to_vec();
+            let (z, c) = nelder_mead(cost, z0, 0.05, 200, self.mode.freq_hz)?;
+            let cost = ComplexModeCost { w: &self.w, r: &r, rr, bounds: self.bounds, scale: self.scale_l2 };
+            let (a, _) = cost.project(&z);
+            let x = self.bounds.x_at(&[z[0], z[1], 0.0]);
+            self.mode = if signed {
+                super::lsfd::signed_mode_of_residue(x[0], x[1], a)
+            } else {
+                super::lsfd::mode_of_residue(x[0], x[1], a)
+            };
+            self.residue = a;
+            Ok(c)
+        } else {
+            let cost = ModeCost {
+                w: &self.w,
+                hm: &self.hm,
+                held: &self.held,
+                bounds: self.bounds,
+                imag_only: false,
+                scale: self.scale,
+                sign: self.sign,
+            };
+            let (z, c) = nelder_mead(cost, self.bounds.z_at(x_of(&self.mode)), 0.05, 200, self.mode.freq_hz)?;
+            self.mode = params_of(self.bounds.x_at(&z), self.sign);
+            self.residue = real_residue(&self.mode);
+            Ok(c)
+        }
+    }
 }
