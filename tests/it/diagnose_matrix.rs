@@ -83,6 +83,17 @@ fn matrix() -> Vec<Case> {
             ("flute_reduced_stiffness", vec![("flute_d_equivalent", 11.0)]),
             ("speed_dependent_cutting_coefficients", vec![("cutting_ks_change", -0.2), ("cutting_beta_change", 2.0)]),
         ],
+        vec![
+            (
+                "interface_compliance",
+                vec![("joint_kt", 2e8), ("joint_ct", 250.0), ("joint_kr", 4e5), ("joint_cr", 4.0)],
+            ),
+            ("mass_loading", vec![("added_tip_mass", 4.0)]),
+        ],
+        vec![
+            ("spindle_speed_stiffening", vec![("spindle_x0_kf", 0.03), ("spindle_y0_kf", 0.02)]),
+            ("flute_reduced_stiffness", vec![("flute_d_equivalent", 11.0)]),
+        ],
     ];
     for p in pairs {
         let name = p.iter().map(|e| e.0).collect::<Vec<_>>().join(" + ");
@@ -98,7 +109,7 @@ fn matrix() -> Vec<Case> {
 }
 
 #[test]
-#[ignore = "slow: twenty-five diagnoses, about ten minutes on two cores"]
+#[ignore = "slow: thirty-three diagnoses, about four minutes on two cores"]
 fn the_synthetic_matrix_is_identified_without_false_alarms() {
     let only = std::env::var("SPINDLELAB_MATRIX_ONLY").unwrap_or_default();
     let cases: Vec<Case> = matrix().into_iter().filter(|c| c.name.contains(&only)).collect();
