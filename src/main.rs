@@ -426,8 +426,8 @@ fn compile_with(
     registry: &mut engine::node::Registry,
     plugins: &mut Plugins,
 ) -> Result<Compiled, ExitCode> {
-    let compiled = spindlelab::plugins::compile_file(path, set, registry, plugins)
-        .and_then(|c| if CONFINE.load(Ordering::Relaxed) { engine::check_confined(&c).map(|()| c) } else { Ok(c) });
+    let reach = if CONFINE.load(Ordering::Relaxed) { engine::Reach::RecipeFolder } else { engine::Reach::Anywhere };
+    let compiled = spindlelab::plugins::compile_file_within(path, set, registry, plugins, reach);
     match compiled {
         Ok(c) => {
             if !c.warnings.is_empty() {

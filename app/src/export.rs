@@ -6,6 +6,7 @@
 //! nothing polls. The same Snakefile runs with the local executor, on a cluster
 //! (`--executor cluster-generic`, Slurm, Kubernetes) given a shared folder for the cache.
 
+use crate::codegen::{CodegenError, file_pattern, path_text, python_str};
 use crate::engine::Compiled;
 use crate::engine::exec::{Shard, shard};
 use crate::engine::node::Registry;
@@ -28,38 +29,28 @@ pub struct Workflow {
     pub shards: usize,
 }
 
-/// Python's string literal of `s` (the Snakefile names paths with it).
-fn py(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '\\' => out.push_str("\\\\"),
-            '"' => out.push_str("\\\""),
-            '\n' => out.push_str("\\n"),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
-}
-
 /// The Snakefile of `compiled` split into `shards` shards per level.
-pub fn snakemake(compiled: &Compiled, registry: &Registry, places: &Places<'_>, shards: usize) -> Workflow {
+pub fn snakemake(
+    compiled: &Compiled,
+    registry: &Registry,
+    places: &Places<'_>,
+    shards: usize,
+) -> Result<Workflow, CodegenError> {
     let shards = shards.max(1);
     let levels = shard::levels(&compiled.graph, registry);
     let one = Shard { index: 1, count: shards, level: Some(0) };
     let markers = one.marker(places.cache, &compiled.graph);
     let markers = markers.parent().expect("a marker lies in a folder");
-    let show = |p: &Path| py(&p.display().to_string());
     let snakefile = format!(
-        r#"# The workflow of recipe {recipe_name}, written by `spindlelab export snakemake`.
-# {levels} level(s) of its graph × {shards} shard(s): each job computes its shard's instances into
+        r#"# The workflow of the recipe named in RECIPE_NAME, written by `spindlelab export snakemake`.
+# {levels} level(s) of its graph, {shards} shard(s) each: each job computes its shard's instances into
 # the shared cache and leaves a marker there; `collect` then runs the recipe, which finds every
 # result in the cache, and commits the outputs to OUT. Run it with
 #   snakemake --profile PROFILE_DIR            (the local executor: ./profile)
 # or with a cluster executor (`--executor cluster-generic`, `slurm`, `kubernetes`) when OUT and
 # CACHE are on storage every node sees.
 
+RECIPE_NAME = {recipe_name}
 SPINDLELAB = {exe}
 RECIPE = {recipe}
 OUT = {out}
@@ -67,6 +58,7 @@ CACHE = {cache}
 MARKERS = {markers}
 LEVELS = {levels}
 SHARDS = {shards}
+
 
 wildcard_constraints:
     level=r"\d+",
@@ -107,17 +99,18 @@ rule shard:
     shell:
         "{{SPINDLELAB:q}} run {{RECIPE:q}} -o {{OUT:q}} --cache {{CACHE:q}} --shard {{wildcards.shard}}/{{SHARDS}} --level {{wildcards.level}} -q"
 "#,
-        recipe_name = compiled.recipe.name,
-        exe = show(places.spindlelab),
-        recipe = show(places.recipe),
-        out = show(places.out),
-        cache = show(places.cache),
-        markers = show(markers),
+        recipe_name = python_str(&compiled.recipe.name),
+        exe = python_str(path_text("the spindlelab command", places.spindlelab)?),
+        recipe = python_str(path_text("the recipe", places.recipe)?),
+        out = python_str(path_text("the output folder", places.out)?),
+        cache = python_str(path_text("the cache folder", places.cache)?),
+        markers = python_str(file_pattern("the cache folder", markers)?),
     );
-    let profile =
-        "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n".to_string();
-    Workflow { snakefile, profile, levels, shards }
+    Ok(Workflow { snakefile, profile: PROFILE.to_string(), levels, shards })
 }
+
+/// The profile of the local executor; it holds no text of the user's.
+const PROFILE: &str = "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n";
 
 /// A batch of diagnoses as a Snakefile: one job per case (`diagnose --batch CASE --no-summary`,
 /// which leaves the case's row beside its diagnosis) and one that gathers the summary
@@ -127,9 +120,12 @@ pub fn snakemake_batch(
     pattern: &str,
     cases: &[(std::path::PathBuf, String)],
     out: &Path,
-) -> Workflow {
-    let show = |p: &Path| py(&p.display().to_string());
-    let list: String = cases.iter().map(|(case, name)| format!("    {}: {},\n", py(name), show(case))).collect();
+) -> Result<Workflow, CodegenError> {
+    let mut list = String::new();
+    for (case, name) in cases {
+        file_pattern("a case's folder", Path::new(name))?;
+        list.push_str(&format!("    {}: {},\n", python_str(name), python_str(path_text("a case", case)?)));
+    }
     let snakefile = format!(
         r#"# A batch of diagnoses, written by `spindlelab export snakemake --batch`: one job per case
 # (import and diagnose it into OUT/<case>/), then one that gathers OUT/summary.csv and
@@ -142,6 +138,7 @@ CASES = {{
 {list}}}
 
 
+
 rule all:
     input:
         f"{{OUT}}/summary.csv",
@@ -149,7 +146,7 @@ rule all:
 
 rule summary:
     input:
-        expand(f"{{OUT}}/{{{{name}}}}/row.csv", name=CASES),
+        [f"{{OUT}}/{{name}}/row.csv" for name in CASES],
     output:
         f"{{OUT}}/summary.csv",
         f"{{OUT}}/summary.md",
@@ -166,11 +163,9 @@ rule case:
     shell:
         "{{SPINDLELAB:q}} diagnose --batch {{params.case:q}} -o {{OUT:q}} --no-summary -q || test -f {{output:q}}"
 "#,
-        exe = show(spindlelab),
-        pattern = py(pattern),
-        out = show(out),
+        exe = python_str(path_text("the spindlelab command", spindlelab)?),
+        pattern = python_str(pattern),
+        out = python_str(file_pattern("the output folder", out)?),
     );
-    let profile =
-        "# The local executor: every job a process on this machine.\ncores: all\nprintshellcmds: true\n".to_string();
-    Workflow { snakefile, profile, levels: 1, shards: cases.len() }
+    Ok(Workflow { snakefile, profile: PROFILE.to_string(), levels: 1, shards: cases.len() })
 }

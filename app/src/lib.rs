@@ -4,6 +4,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod codegen;
 pub mod crib;
 pub mod diagnose;
 pub mod export;

@@ -146,6 +146,17 @@ pub fn compile_file(
     registry: &mut Registry,
     plugins: &mut Plugins,
 ) -> Result<Compiled, CompileError> {
+    compile_file_within(path, set, registry, plugins, engine::Reach::Anywhere)
+}
+
+/// [`compile_file`] reading only the files `reach` allows (`--confine`).
+pub fn compile_file_within(
+    path: &Path,
+    set: &[(String, String)],
+    registry: &mut Registry,
+    plugins: &mut Plugins,
+    reach: engine::Reach,
+) -> Result<Compiled, CompileError> {
     let mut diags = Diagnostics::new();
     let loaded = syntax::load_file(path, &mut diags);
     let sources: Vec<SourceFile> = loaded.iter().flat_map(|l| l.sources()).collect();
@@ -158,7 +169,7 @@ pub fn compile_file(
     }
     let refs = plugin_refs(&raw, &mut diags);
     plugins.load_refs(&refs, registry, &mut diags);
-    engine::compile_raw(path, raw, set, sources, registry, diags)
+    engine::compile_raw_within(path, raw, set, sources, registry, diags, reach)
 }
 
 impl Plugins {

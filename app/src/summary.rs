@@ -125,9 +125,12 @@ fn summarize_graph(name: &str, graph: &Graph, result: &RunResult) -> String {
                     let _ = writeln!(out, "  warning: {}", shown(w));
                 }
             }
-            Outcome::Unneeded { cached } => {
+            Outcome::Unneeded { cached, .. } => {
                 let how = if *cached { "cached" } else { "not cached" };
                 let _ = writeln!(out, "  not loaded ({how}; every consumer came from the cache)");
+                for w in outcome.warnings() {
+                    let _ = writeln!(out, "  warning: {}", shown(w));
+                }
             }
         }
     }

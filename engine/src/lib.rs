@@ -109,17 +109,45 @@ pub fn compile_raw(
     path: &Path,
     raw: syntax::Raw,
     overrides: &[(String, String)],
+    sources: Vec<SourceFile>,
+    registry: &Registry,
+    diags: Diagnostics,
+) -> Result<Compiled, CompileError> {
+    compile_raw_within(path, raw, overrides, sources, registry, diags, Reach::Anywhere)
+}
+
+/// Which files a recipe may read besides itself: its libraries, the recipes it runs as steps
+/// and its data files. (A Rhai recipe's modules are always its own folder's.)
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Reach {
+    /// Wherever they are named; the manifest records each data file with its hash.
+    #[default]
+    Anywhere,
+    /// `--confine`, for recipes from elsewhere: only files inside the recipe's folder, judged
+    /// by name (absolute, or climbing out with `..`, is outside) before a byte of them is read,
+    /// so a refused file is never quoted.
+    RecipeFolder,
+}
+
+/// [`compile_raw`] with the files the recipe may read limited by `reach`.
+pub fn compile_raw_within(
+    path: &Path,
+    raw: syntax::Raw,
+    overrides: &[(String, String)],
     mut sources: Vec<SourceFile>,
     registry: &Registry,
     mut diags: Diagnostics,
+    reach: Reach,
 ) -> Result<Compiled, CompileError> {
-    let expanded = model::expand(raw, registry, &mut sources, &mut diags);
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let confine = (reach == Reach::RecipeFolder).then_some(folder);
+    let expanded = model::expand_within(raw, registry, confine, &mut sources, &mut diags);
     let (raw, library) = (expanded.raw, expanded.library);
     if diags.has_errors() {
         diags.sort();
         return Err(CompileError { diagnostics: diags, sources });
     }
-    let recipe = model::resolve(&raw, overrides, registry, &mut diags).map(|mut r| {
+    let recipe = model::resolve_within(&raw, overrides, registry, confine, &mut diags).map(|mut r| {
         r.library = library;
         r
     });
@@ -131,51 +159,6 @@ pub fn compile_raw(
         }
         _ => Err(CompileError { diagnostics: diags, sources }),
     }
-}
-
-/// Refuses, for `--confine`, every data file named outside the recipe's folder, and every
-/// library, recipe run as a step or module read from outside it: an absolute path or one
-/// that climbs out with `..` (by name; links inside the folder are followed as the system
-/// does). Without it, data files are read wherever they are named, and the
-/// manifest records each with its hash.
-pub fn check_confined(compiled: &Compiled) -> Result<(), CompileError> {
-    let base = compiled.path.parent().unwrap_or(Path::new(""));
-    let mut diags = Diagnostics::new();
-    let inside = |p: &Path| {
-        p.strip_prefix(base).is_ok_and(|rel| {
-            rel.components().all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir))
-        })
-    };
-    // The libraries, recipes run as steps and modules it took, by the name they were read under.
-    for used in compiled.used_files().keys() {
-        if !inside(Path::new(used)) {
-            diags.error_help(
-                Some(&diag::Span::file_only(compiled.sources[0].path.clone())),
-                format!("the recipe uses `{used}`, which lies outside its folder, which --confine refuses"),
-                "copy the library or recipe beside the recipe, or run without --confine",
-            );
-        }
-    }
-    for f in compiled.recipe.data_files() {
-        let inside = inside(f.path);
-        if !inside {
-            diags.error_help(
-                f.span,
-                format!(
-                    "step `{}`, `{}`: `{}` lies outside the recipe's folder, which --confine refuses",
-                    f.step,
-                    f.param,
-                    f.path.display()
-                ),
-                "copy the file beside the recipe, or run without --confine",
-            );
-        }
-    }
-    if diags.has_errors() {
-        diags.sort();
-        return Err(CompileError { diagnostics: diags, sources: compiled.sources.clone() });
-    }
-    Ok(())
 }
 
 /// Why a run did not complete.

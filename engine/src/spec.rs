@@ -10,7 +10,7 @@ use spindlelab_domain::Speed;
 use spindlelab_grammar::{self as grammar, Dimension};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 
 /// The kinds of named entity a recipe declares and steps refer to by name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -372,6 +372,8 @@ pub struct Ctx<'a> {
     pub entities: &'a EntityNames,
     /// The folder of the recipe file, against which file parameters are resolved.
     pub base_dir: Option<&'a Path>,
+    /// `--confine`: the folder every file parameter must lie in, by name.
+    pub confine: Option<&'a Path>,
 }
 
 /// Keys a mode once had and the one name each has now (`f` a natural frequency, `zeta` a
@@ -468,7 +470,7 @@ fn default_raw(def: &str, ty: &FieldType) -> Raw {
 /// Checks that every default in a field table is valid for its field; a registry test calls it.
 pub fn check_defaults(fields: &[Field]) -> Result<(), String> {
     let names = EntityNames::default();
-    let ctx = Ctx { entities: &names, base_dir: None };
+    let ctx = Ctx { entities: &names, base_dir: None, confine: None };
     for f in fields {
         if let Some(def) = f.default {
             let mut d = Diagnostics::new();
@@ -827,6 +829,33 @@ pub fn check_value(raw: &Raw, ty: &FieldType, what: &str, ctx: &Ctx, diags: &mut
     }
 }
 
+/// `a/./b/../c` as `a/c`, by name (a leading `..` is kept).
+pub fn normalize(path: &Path) -> PathBuf {
+    let mut out: Vec<Component> = Vec::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out.iter().collect()
+}
+
+/// Whether `path` lies inside `folder` by name (`--confine`): relative to it, with no `..`
+/// that climbs out and no root. Judged on the names alone, before anything is opened.
+pub fn within(folder: &Path, path: &Path) -> bool {
+    normalize(path)
+        .strip_prefix(normalize(folder))
+        .is_ok_and(|rel| rel.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir)))
+}
+
+/// The largest data file read (CSV, UFF, trials) or hashed for a cache key: a device or a pipe
+/// named as a file stops here instead of filling memory.
+pub const MAX_DATA_BYTES: u64 = 512 * 1024 * 1024;
+
 /// Resolves a file parameter against the recipe's folder, checks that it is a readable file
 /// and hashes its contents.
 fn check_file(raw: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Option<ParamValue> {
@@ -845,6 +874,16 @@ fn check_file(raw: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Opti
         Some(base) => base.join(written),
         None => PathBuf::from(written),
     };
+    if let Some(root) = ctx.confine
+        && !within(root, &path)
+    {
+        diags.error_help(
+            Some(&raw.span),
+            format!("{what}: `{}` lies outside the recipe's folder, which --confine refuses", path.display()),
+            "copy the file beside the recipe, or run without --confine",
+        );
+        return None;
+    }
     let folder = match ctx.base_dir {
         Some(b) if !b.as_os_str().is_empty() => format!("`{}`", b.display()),
         _ => "the current folder".to_string(),
@@ -862,10 +901,26 @@ fn check_file(raw: &Raw, what: &str, ctx: &Ctx, diags: &mut Diagnostics) -> Opti
         return None;
     }
     let mut hasher = blake3::Hasher::new();
-    let hashed = std::fs::File::open(&path).and_then(|f| hasher.update_reader(f).map(|_| ()));
-    if let Err(e) = hashed {
-        diags.error(Some(&raw.span), format!("cannot read {}: {e}", path.display()));
-        return None;
+    // Hashed as far as a reader would read it: a device or a pipe named as a file stops at the cap.
+    let cap = MAX_DATA_BYTES;
+    let hashed = std::fs::File::open(&path).and_then(|f| {
+        let mut capped = std::io::Read::take(f, cap + 1);
+        std::io::copy(&mut capped, &mut hasher)
+    });
+    match hashed {
+        Ok(n) if n > cap => {
+            diags.error_help(
+                Some(&raw.span),
+                format!("{what}: {} is larger than the {} MiB limit of a data file", path.display(), cap >> 20),
+                "name a data file (CSV or UFF), not a device or an archive",
+            );
+            return None;
+        }
+        Ok(_) => {}
+        Err(e) => {
+            diags.error(Some(&raw.span), format!("cannot read {}: {e}", path.display()));
+            return None;
+        }
     }
     Some(ParamValue::File { path, hash: hasher.finalize().to_hex().to_string() })
 }

@@ -28,7 +28,13 @@ pub(crate) fn cmd_export_snakemake(
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
     let (recipe_abs, out_abs, cache_abs) = (abs(recipe), abs(&out), abs(&cache));
     let places = spindlelab::export::Places { spindlelab: &exe, recipe: &recipe_abs, out: &out_abs, cache: &cache_abs };
-    let wf = spindlelab::export::snakemake(&c, registry, &places, shards);
+    let wf = match spindlelab::export::snakemake(&c, registry, &places, shards) {
+        Ok(wf) => wf,
+        Err(e) => {
+            eoutln!("error: {}", esc(e));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
     let snakefile = match write_workflow(dir, &wf.snakefile, &wf.profile) {
         Ok(path) => path,
         Err(code) => return code,
@@ -68,7 +74,13 @@ pub(crate) fn cmd_export_batch(pattern: &str, dir: &Path, out: Option<PathBuf>) 
     }
     let out = abs(&out.unwrap_or_else(|| PathBuf::from("out/batch")));
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("spindlelab"));
-    let wf = spindlelab::export::snakemake_batch(&exe, &pattern_abs, &cases, &out);
+    let wf = match spindlelab::export::snakemake_batch(&exe, &pattern_abs, &cases, &out) {
+        Ok(wf) => wf,
+        Err(e) => {
+            eoutln!("error: {}", esc(e));
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
     let snakefile = match write_workflow(dir, &wf.snakefile, &wf.profile) {
         Ok(path) => path,
         Err(code) => return code,

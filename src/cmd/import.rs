@@ -5,7 +5,7 @@ use crate::*;
 /// `spindlelab import CASE`: writes (or prints) the recipe of a baseline case file, and its library if asked.
 pub(crate) fn cmd_import(case: &Path, out: Option<PathBuf>, library: Option<PathBuf>) -> ExitCode {
     let shown = case.display().to_string();
-    let text = match std::fs::read_to_string(case) {
+    let text = match engine::formats::read_text_capped(case, engine::formats::MAX_CASE_BYTES) {
         Ok(t) => t,
         Err(e) => {
             eoutln!("error: cannot read {}: {e}", esc(&shown));

@@ -86,7 +86,6 @@ pub(crate) fn cmd_run_shard(
         .map(|(inst, _)| inst.id.as_str())
         .collect();
     let cached = result.outcomes.iter().filter(|o| matches!(o, engine::exec::Outcome::Cached { .. })).count();
-    let marker = shard.marker(opts.cache().dir(), &c.graph);
     let record = serde_json::json!({
         "recipe": c.recipe.name,
         "shard": format!("{}/{}", shard.index, shard.count),
@@ -95,9 +94,13 @@ pub(crate) fn cmd_run_shard(
         "from_cache": cached,
     });
     let text = serde_json::to_string_pretty(&record).expect("a marker serialises") + "\n";
-    if let Err(code) = write_together(&[(Some(&marker), Some(text.as_str()))]) {
-        return code;
-    }
+    let marker = match shard.write_marker(opts.cache().dir(), &c.graph, &text) {
+        Ok(path) => path,
+        Err(e) => {
+            eoutln!("error: {}", esc(&e));
+            return ExitCode::from(if e.is_bad_input() { EXIT_BAD_INPUT } else { EXIT_FAILURE });
+        }
+    };
     if !args.work.quiet {
         let level = shard.level.map(|l| format!(", level {l}")).unwrap_or_default();
         outln!(

@@ -79,7 +79,7 @@ fn second_run_comes_from_the_cache_and_a_changed_parameter_reruns_only_its_cone(
     // consumers are all cached, are not even loaded.
     for (inst, o) in c.graph.instances.iter().zip(&second.result.outcomes) {
         match inst.step.as_str() {
-            "hit" => assert!(matches!(o, Outcome::Unneeded { cached: true }), "{}: {o:?}", inst.id),
+            "hit" => assert!(matches!(o, Outcome::Unneeded { cached: true, .. }), "{}: {o:?}", inst.id),
             _ => assert!(matches!(o, Outcome::Cached { .. }), "{}: {o:?}", inst.id),
         }
     }
@@ -268,7 +268,7 @@ fn a_rerun_does_not_remake_uncached_recordings_whose_consumers_are_cached() {
     for (inst, o) in c.graph.instances.iter().zip(&second.result.outcomes) {
         match inst.step.as_str() {
             "frf" => assert!(matches!(o, Outcome::Cached { .. }), "{o:?}"),
-            _ => assert!(matches!(o, Outcome::Unneeded { cached: false }), "{}: {o:?}", inst.id),
+            _ => assert!(matches!(o, Outcome::Unneeded { cached: false, .. }), "{}: {o:?}", inst.id),
         }
     }
     assert_eq!(std::fs::read(dir.path().join("frf.csv")).unwrap(), frf);

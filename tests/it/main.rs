@@ -4,6 +4,8 @@
 mod common;
 
 mod architecture;
+mod audit_inputs;
+mod audit_output;
 mod case_model;
 mod chatter_frequency;
 mod cli_units_and_folders;

@@ -384,7 +384,7 @@ fn plugin_outputs_are_cached_under_the_plugin_s_hash() {
     engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
     let second = engine::run(&c, &registry, &opts, &|_, _| {}).unwrap();
     let i = c.graph.instances.iter().position(|i| i.id == "with_sensor").unwrap();
-    assert!(matches!(second.result.outcomes[i], Outcome::Cached { .. } | Outcome::Unneeded { cached: true }));
+    assert!(matches!(second.result.outcomes[i], Outcome::Cached { .. } | Outcome::Unneeded { cached: true, .. }));
 }
 
 #[test]

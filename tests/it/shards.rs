@@ -132,7 +132,7 @@ fn a_shard_is_refused_when_it_is_not_k_of_n() {
 
 /// Snakemake on PATH (or `SPINDLELAB_SNAKEMAKE`); without it the test says so and passes,
 /// except where `SPINDLELAB_REQUIRE_SNAKEMAKE` is set (CI installs it), where it fails.
-fn snakemake() -> Option<String> {
+pub(crate) fn snakemake() -> Option<String> {
     let exe = std::env::var("SPINDLELAB_SNAKEMAKE").unwrap_or_else(|_| "snakemake".into());
     if Command::new(&exe).arg("--version").output().is_ok_and(|o| o.status.success()) {
         return Some(exe);

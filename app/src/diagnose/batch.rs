@@ -42,7 +42,8 @@ pub fn case_name(case: &Path) -> String {
 
 /// Imports `case` into `dir/recipe.yaml` and diagnoses it into `dir/diagnosis`.
 pub fn diagnose_case(case: &Path, dir: &Path, registry: &Registry) -> Result<Diagnosis, String> {
-    let text = std::fs::read_to_string(case).map_err(|e| format!("cannot read {}: {e}", case.display()))?;
+    let text = crate::engine::formats::read_text_capped(case, crate::engine::formats::MAX_CASE_BYTES)
+        .map_err(|e| format!("cannot read {}: {e}", case.display()))?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot make {}: {e}", dir.display()))?;
     let case_dir = match case.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),

@@ -498,7 +498,9 @@ fn trial_speeds(c: &Compiled, roles: &Roles) -> Vec<f64> {
     let Some(file) = roles.trials.as_ref().and_then(|t| c.recipe.step(t)).and_then(|s| s.params.file("file")) else {
         return vec![];
     };
-    let Ok(text) = std::fs::read_to_string(file) else { return vec![] };
+    let Ok(text) = crate::engine::formats::read_text_capped(file, crate::engine::formats::MAX_DATA_BYTES) else {
+        return vec![];
+    };
     let Ok(trials) = crate::stdlib::nodes::parse_trials(&text, &file.display().to_string()) else { return vec![] };
     let mut speeds: Vec<f64> = trials.iter().map(|t| t.speed_rpm).collect();
     speeds.sort_by(f64::total_cmp);
@@ -754,7 +756,7 @@ fn load_recipe(path: &Path, shown: &str, registry: &Registry) -> Result<(RecipeT
             "a diagnosis edits the recipe's text; give a YAML recipe (a Rhai script builds its recipe in code)".into(),
         ));
     }
-    let text = std::fs::read_to_string(path).map_err(|e| recipe_err(format!("cannot read the recipe: {e}")))?;
+    let text = read_recipe_text(path).map_err(|e| recipe_err(format!("cannot read the recipe: {e}")))?;
     let base = RecipeText::new(shown, text).map_err(|e| recipe_err(e.to_string()))?;
     let compiled = compile_text(&base, path, &[], registry).map_err(DiagnoseError::Input)?;
     if compiled.recipe.fit.is_some() {
@@ -1428,13 +1430,18 @@ pub fn write(d: &Diagnosis, out: &Path) -> Result<(), DiagnoseError> {
     staged.commit().map_err(DiagnoseError::Output)
 }
 
+/// A recipe's text, read as far as a recipe may be long.
+fn read_recipe_text(path: &Path) -> std::io::Result<String> {
+    crate::engine::formats::read_text_capped(path, crate::engine::syntax::MAX_RECIPE_BYTES)
+}
+
 /// Evaluates the recipe at `path` as written: every gap step against its measurement and the
 /// trials against the lobes at the trials' speeds, with nothing fitted. This is the number a
 /// diagnosis starts from, and what a recipe with effects added by hand comes to.
 pub fn evaluate_file(path: &Path, registry: &Registry) -> Result<Evaluation, DiagnoseError> {
     let shown = path.display().to_string();
     let err = |message: String| DiagnoseError::Recipe { path: shown.clone(), message };
-    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the recipe: {e}")))?;
+    let text = read_recipe_text(path).map_err(|e| err(format!("cannot read the recipe: {e}")))?;
     let base = RecipeText::new(&shown, text).map_err(|e| err(e.to_string()))?;
     let compiled = compile_text(&base, path, &[], registry).map_err(DiagnoseError::Input)?;
     let roles = Roles::find(&compiled);
@@ -1456,7 +1463,7 @@ pub fn with_effects(
 ) -> Result<String, DiagnoseError> {
     let shown = path.display().to_string();
     let err = |message: String| DiagnoseError::Recipe { path: shown.clone(), message };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+    let text = read_recipe_text(path).map_err(|e| err(e.to_string()))?;
     let mut r = RecipeText::new(&shown, text).map_err(|e| err(e.to_string()))?;
     let compiled = compile_text(&r, path, &[], registry).map_err(DiagnoseError::Input)?;
     let mut roles = Roles::find(&compiled);

@@ -10,7 +10,7 @@
 use super::files::{self, Refused};
 use crate::node::Outputs;
 use crate::value::Value;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 8] = b"SPLCACH8";
@@ -55,29 +55,56 @@ impl Cache {
     }
 
     /// The entry under `key`: present and intact, absent, or present but unusable (and why).
+    ///
+    /// Only the header and the payload length it declares are read: a file longer than that
+    /// (padded to a gigabyte behind a valid header) is damage, found from its length alone.
     pub fn lookup(&self, key: &str) -> Lookup {
         let path = self.path(key);
-        if path.parent().is_some_and(files::is_link) {
-            return Lookup::Damaged("its folder is a symbolic link".into());
+        let parent = path.parent().expect("entry has a parent");
+        match std::fs::symlink_metadata(parent) {
+            Ok(m) if m.file_type().is_symlink() => return Lookup::Damaged("its folder is a symbolic link".into()),
+            Ok(m) if !m.is_dir() => {
+                return Lookup::Damaged(format!(
+                    "`{}` is a file where the cache keeps a folder of entries, so nothing under it can be stored; spindlelab does not remove it: move it away or remove it (`rm '{}'`)",
+                    parent.display(),
+                    parent.display()
+                ));
+            }
+            _ => {}
         }
-        let bytes = match files::read_regular(&path, HEADER as u64 + MAX_ENTRY_BYTES) {
-            Ok(b) => b,
+        let mut f = match files::open_regular(&path, std::fs::OpenOptions::new().read(true)) {
+            Ok(f) => f,
             Err(Refused::Missing) => return Lookup::Miss,
+            Err(Refused::Special) if path.is_dir() => return Lookup::Damaged(folder_at_entry(&path)),
             Err(e) => return Lookup::Damaged(e.to_string()),
         };
-        if bytes.len() < HEADER || &bytes[..8] != MAGIC {
+        let len = match f.metadata() {
+            Ok(m) => m.len(),
+            Err(e) => return Lookup::Damaged(e.to_string()),
+        };
+        let mut header = [0u8; HEADER];
+        if len < HEADER as u64 || f.read_exact(&mut header).is_err() || &header[..8] != MAGIC {
             return Lookup::Damaged("written by another version or cut short".into());
         }
-        let declared = u64::from_le_bytes(bytes[8..16].try_into().expect("eight bytes"));
-        let payload = &bytes[HEADER..];
-        if declared != payload.len() as u64 {
+        let declared = u64::from_le_bytes(header[8..16].try_into().expect("eight bytes"));
+        if declared > MAX_ENTRY_BYTES {
+            return Lookup::Damaged(format!("its header declares {declared} bytes, more than an entry may hold"));
+        }
+        let held = len - HEADER as u64;
+        if held > declared {
+            return Lookup::Damaged(format!(
+                "the file holds {held} bytes where its header declares {declared}; the rest was not read"
+            ));
+        }
+        let mut payload = Vec::new();
+        if (&mut f).take(declared).read_to_end(&mut payload).is_err() || (payload.len() as u64) < declared {
             return Lookup::Damaged(format!("it holds {} bytes where its header declares {declared}", payload.len()));
         }
-        if blake3::hash(payload).as_bytes() != &bytes[16..HEADER] {
+        if blake3::hash(&payload).as_bytes() != &header[16..HEADER] {
             return Lookup::Damaged("its checksum does not match its contents".into());
         }
         type Stored = (String, Vec<String>, Vec<(String, Value)>);
-        let Ok((stored_key, warnings, pairs)) = postcard::from_bytes::<Stored>(payload) else {
+        let Ok((stored_key, warnings, pairs)) = postcard::from_bytes::<Stored>(&payload) else {
             return Lookup::Damaged("its contents cannot be decoded".into());
         };
         if stored_key != key {
@@ -88,8 +115,10 @@ impl Cache {
 
     /// Stores outputs under `key` atomically. The entry is created with the process's umask,
     /// so users who share an output folder share its cache. A link standing in place of the
-    /// entry's folder is removed (never written through); an entry over [`MAX_ENTRY_BYTES`]
-    /// is not stored.
+    /// entry's folder is removed (never written through), and so is an empty folder standing
+    /// at the entry's name (it holds nothing of anyone's); a folder holding files is left and
+    /// the entry not stored ([`Cache::lookup`] says how to fix it). An entry over
+    /// [`MAX_ENTRY_BYTES`] is not stored.
     pub fn put(&self, key: &str, outputs: &Outputs, warnings: &[String]) -> std::io::Result<()> {
         static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let path = self.path(key);
@@ -116,6 +145,9 @@ impl Cache {
             f.write_all(&payload)?;
             // No fsync: an entry torn by a power cut fails its length or checksum and is
             // recomputed, and a sweep of 50,000 small entries is not 50,000 disk flushes.
+            if path.is_dir() && !files::is_link(&path) {
+                std::fs::remove_dir(&path)?; // only an empty one goes
+            }
             std::fs::rename(&tmp, &path)
         })();
         if written.is_err() {
@@ -225,6 +257,19 @@ impl Cache {
             .map(|(_, key, _)| key)
             .collect();
         self.retain(|k| keep.contains(k))
+    }
+}
+
+/// Why a folder standing at an entry's name cannot be used, and what will be done or is to do.
+fn folder_at_entry(path: &Path) -> String {
+    let empty = std::fs::read_dir(path).is_ok_and(|mut rd| rd.next().is_none());
+    if empty {
+        "an empty folder stands at its name; it is removed and the entry written in its place".into()
+    } else {
+        format!(
+            "a folder holding files stands at its name, so the entry cannot be stored; spindlelab does not remove it: move what it holds elsewhere and remove it (`rm -r '{}'`)",
+            path.display()
+        )
     }
 }
 

@@ -6,6 +6,8 @@
 //! OUT/.spindlelab/lock            held (exclusive) by the run that writes OUT
 //! OUT/.spindlelab/runs/run-XXXX/  one folder per run: its files and manifest.json
 //! OUT/.spindlelab/current         symbolic link → runs/run-XXXX, the committed run
+//! OUT/.spindlelab/previous        symbolic link → the run before it, kept until the next run
+//! OUT/.spindlelab/tmp/            links being made, renamed into place by the commit
 //! OUT/<file>                      symbolic link → .spindlelab/current/<file>
 //! OUT/<folder>                    symbolic link → .spindlelab/current/<folder> (outputs in it)
 //! OUT/.spindlelab-cache/          the cache (see [`super::Cache`])
@@ -21,9 +23,16 @@
 //! The folder is the user's too: a file or folder spindlelab did not make is never replaced
 //! or removed (the run is refused before it computes, naming it), and a run folder in which
 //! the user left or changed a file is kept when it ages out. The run before the committed one
-//! is kept until the next run; older run folders, staging folders of killed runs and the
-//! cache's temporary files are removed when the next run takes the lock. The lock, the
-//! manifest and cache entries are opened without following links (see [`super::files`]).
+//! is kept until the next run; older run folders, links a killed run left in
+//! `.spindlelab/tmp`, the tool's links that no longer lead to a file of the committed run and
+//! the cache's temporary files are removed when the next run takes the lock. Every link the
+//! commit puts in the folder is made under a fresh name inside `.spindlelab/tmp` and renamed
+//! into place, so no temporary name of the tool's is ever visible beside the user's files and
+//! no name the tool did not make is removed. The lock, the manifest and cache entries are
+//! opened without following links (see [`super::files`]).
+//!
+//! [`FAULT_COMMIT_STEP`] is a test hook: it makes the process abort right after a given step
+//! of the commit, so that every moment of it can be killed deterministically.
 
 use super::Cache;
 use super::files::{self, Refused};
@@ -37,6 +46,17 @@ const RUNS: &str = "runs";
 const CURRENT: &str = "current";
 const PREVIOUS: &str = "previous";
 const LOCK: &str = "lock";
+/// Where a commit makes its links before renaming them into place (inside [`META_DIR`]).
+const TMP: &str = "tmp";
+/// The prefix of a link made beside its place when `.spindlelab/tmp` is on another file system
+/// than the place (a rename cannot cross): unmistakably the tool's, and removed by the next run.
+const NEAR_PREFIX: &str = ".spindlelab-link-";
+
+/// The environment variable that makes a run abort right after step `N` (1-based) of its
+/// commit: a link made, a link renamed into place, the folder synced, a stale link removed, old
+/// runs removed. A test hook only (`tests/it/audit_output.rs` kills every step with it); a
+/// value that is not a number is ignored.
+pub const FAULT_COMMIT_STEP: &str = "SPINDLELAB_FAULT_COMMIT_STEP";
 
 /// Why an output folder could not be opened or a run not committed.
 #[derive(Debug, thiserror::Error)]
@@ -57,6 +77,18 @@ pub enum CommitError {
         "`{0}` is not a regular file (a pipe, a device or a folder); remove it, or give this run another folder with -o"
     )]
     Special(PathBuf),
+    /// The output folder the user named, or a folder on its path, is a file (or a link to
+    /// nothing): there is no folder to write into, and nothing of it is replaced.
+    #[error(
+        "`{0}` is not a folder (a file, or a link that leads nowhere), so the outputs cannot go into it; give this run a folder with -o, or move the file away"
+    )]
+    NotAFolder(PathBuf),
+    /// Something stands where spindlelab keeps its own folders in the output folder (a file at
+    /// `OUT/.spindlelab/runs`): it is left as it is, and the run is refused.
+    #[error(
+        "`{path}` is a {what} where spindlelab keeps {purpose}; it is left as it is: move it away (or remove it if it is not yours) and run again"
+    )]
+    InTheWay { path: PathBuf, what: &'static str, purpose: &'static str },
     #[error("`{path}`: {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
@@ -88,12 +120,12 @@ impl OutputDir {
     /// Creates `root` if needed, takes its lock (refusing if another run holds it) and removes
     /// what killed runs left behind.
     pub fn open(root: &Path) -> Result<OutputDir, CommitError> {
-        std::fs::create_dir_all(root).map_err(io(root))?;
+        user_folder(root)?;
         let meta = root.join(META_DIR);
-        refuse_link(&meta)?;
         refuse_link(&super::cache_dir(root))?;
-        std::fs::create_dir_all(meta.join(RUNS)).map_err(io(&meta))?;
-        refuse_link(&meta.join(RUNS))?;
+        own_folder(&meta, "its runs, its lock and the links to the committed run")?;
+        own_folder(&meta.join(RUNS), "the folders of its runs")?;
+        own_folder(&meta.join(TMP), "the links a commit makes before putting them in place")?;
         let lock_path = meta.join(LOCK);
         let lock = match files::open_regular(&lock_path, File::options().create(true).truncate(false).write(true)) {
             Ok(f) => f,
@@ -175,24 +207,23 @@ impl OutputDir {
         notes
     }
 
-    /// Removes run folders other than the current and previous one, staging folders of the
-    /// older layout, temporary files of interrupted cache writes and links in the cache.
+    /// Removes what killed runs left: run folders other than the current and previous one,
+    /// links in `.spindlelab/tmp` (and the `.tmp*` links of older versions beside `current`),
+    /// the tool's links that lead to no file of the committed run, temporary files of
+    /// interrupted cache writes and links in the cache. Nothing outside the tool's own folders
+    /// is removed unless it is a link the tool made (see [`remove_stale_links`]); a name that
+    /// merely looks like the tool's (`OUT/.staging-x`, `OUT/.link-1`) is the user's.
     fn clean_leftovers(&self) -> Vec<String> {
         let mut notes = self.remove_old_runs();
-        if let Ok(rd) = std::fs::read_dir(&self.meta) {
-            for e in rd.flatten() {
-                if e.file_name().to_string_lossy().starts_with(".tmp") {
+        for dir in [self.meta.clone(), self.meta.join(TMP)] {
+            for e in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+                let leftover = dir != self.meta || e.file_name().to_string_lossy().starts_with(".tmp");
+                if leftover && e.file_type().is_ok_and(|t| t.is_symlink()) {
                     let _ = std::fs::remove_file(e.path());
                 }
             }
         }
-        if let Ok(rd) = std::fs::read_dir(&self.root) {
-            for e in rd.flatten() {
-                if e.file_name().to_string_lossy().starts_with(".staging-") {
-                    let _ = std::fs::remove_dir_all(e.path());
-                }
-            }
-        }
+        remove_stale_links(&self.root, &self.root, 0, &mut Steps::none());
         notes.extend(self.cache().remove_links());
         if let Ok(rd) = std::fs::read_dir(super::cache_dir(&self.root)) {
             for sub in rd.flatten().filter(|e| e.file_type().is_ok_and(|t| t.is_dir())) {
@@ -253,6 +284,49 @@ fn refuse_link(path: &Path) -> Result<(), CommitError> {
     }
 }
 
+/// Makes the output folder the user named (and the folders on its path) unless it is a folder
+/// already; the user's path is followed as the system does, links included. A file, or a link
+/// to nothing, at that path or on it is refused, naming it.
+fn user_folder(root: &Path) -> Result<(), CommitError> {
+    if std::fs::metadata(root).is_ok_and(|m| m.is_dir()) {
+        return Ok(());
+    }
+    std::fs::create_dir_all(root).map_err(|e| {
+        // The first part of the path that stands but is not a folder is the one to name.
+        let mut at = PathBuf::new();
+        for c in root.components() {
+            at.push(c);
+            let stands = std::fs::symlink_metadata(&at).is_ok();
+            if stands && !std::fs::metadata(&at).is_ok_and(|m| m.is_dir()) {
+                return CommitError::NotAFolder(at);
+            }
+        }
+        io(root)(e)
+    })
+}
+
+/// Makes one of the tool's own folders inside the output folder (`.spindlelab`, its `runs`),
+/// never through a link, and refuses, naming it, what else stands at its name.
+fn own_folder(path: &Path, purpose: &'static str) -> Result<(), CommitError> {
+    for _ in 0..2 {
+        match std::fs::symlink_metadata(path) {
+            Ok(m) if m.file_type().is_symlink() => return Err(CommitError::ForeignLink(path.to_path_buf())),
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(m) => {
+                let what = if m.is_file() { "file" } else { "pipe, device or socket" };
+                return Err(CommitError::InTheWay { path: path.to_path_buf(), what, purpose });
+            }
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(path)(e)),
+            Err(_) => match std::fs::create_dir(path) {
+                // Made by another run in between: looked at again.
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+                made => return made.map_err(io(path)),
+            },
+        }
+    }
+    Err(io(path)(std::io::Error::other("it appeared and disappeared while the run opened the folder")))
+}
+
 /// Checks that `rel` is a plain relative path that stays inside the folder.
 pub fn is_confined(rel: &str) -> bool {
     let p = Path::new(rel);
@@ -291,30 +365,108 @@ impl Staged<'_> {
 
     /// Makes this run the folder's run: links every file, then switches `current` in one rename
     /// and removes the links of files the run did not write.
+    ///
+    /// Each link is made under a fresh name in `.spindlelab/tmp` and renamed into place: a kill
+    /// at any step leaves either the previous run (the new run's own names dangle, so they read
+    /// as absent) or this one (the previous run's names dangle until the next run removes them),
+    /// and no temporary name outside `.spindlelab`.
     pub fn commit(self) -> Result<(), CommitError> {
+        let mut steps = Steps::from_env();
         let root = &self.dir.root;
         let meta = &self.dir.meta;
         for (rel, _) in &self.files {
             if let Some((at, prefix)) = place(root, rel)? {
-                let parent = at.parent().unwrap_or(root);
-                let tmp = parent.join(format!(".link-{}", std::process::id()));
-                let _ = std::fs::remove_file(&tmp);
-                symlink(&link_text(&prefix), &tmp).map_err(io(&tmp))?;
-                std::fs::rename(&tmp, &at).map_err(io(&at))?;
+                self.dir.put_link(&link_text(&prefix), &at, &mut steps)?;
             }
         }
         let run_rel = Path::new(RUNS).join(self.run.file_name().unwrap_or_default());
         let old = self.dir.link_target(CURRENT);
-        switch_link(meta, CURRENT, &run_rel)?;
+        // `previous` first: a kill before the switch then leaves both naming the committed run,
+        // and the one before it ages out as it would have after this commit.
         if let Some(old) = old.filter(|o| *o != run_rel) {
-            let _ = switch_link(meta, PREVIOUS, &old);
+            let _ = self.dir.put_link(&old, &meta.join(PREVIOUS), &mut steps);
         }
+        // The commit point.
+        self.dir.put_link(&run_rel, &meta.join(CURRENT), &mut steps)?;
         if let Ok(d) = File::open(meta) {
             let _ = d.sync_all();
         }
-        remove_dangling_links(root, 0);
+        steps.done();
+        remove_stale_links(root, root, 0, &mut steps);
         let _ = self.dir.remove_old_runs();
+        steps.done();
         Ok(())
+    }
+}
+
+impl OutputDir {
+    /// Puts a link reading `text` at `at` (replacing the tool's link there, if any): made under
+    /// a fresh name in `.spindlelab/tmp` and renamed into place. Should the rename cross file
+    /// systems (a folder of the user's mounted inside the output folder), the link is made
+    /// under a fresh [`NEAR_PREFIX`] name beside its place instead; either way only a name this
+    /// call created is ever removed.
+    fn put_link(&self, text: &Path, at: &Path, steps: &mut Steps) -> Result<(), CommitError> {
+        let tmp = fresh_link(text, &self.meta.join(TMP), "link-")?;
+        steps.done();
+        let tmp = match std::fs::rename(&tmp, at) {
+            Ok(()) => None,
+            Err(e) if e.kind() == std::io::ErrorKind::CrossesDevices => {
+                let _ = std::fs::remove_file(&tmp);
+                let near = fresh_link(text, at.parent().unwrap_or(&self.root), NEAR_PREFIX)?;
+                steps.done();
+                std::fs::rename(&near, at).err().map(|e| (near, e))
+            }
+            Err(e) => Some((tmp, e)),
+        };
+        if let Some((made, e)) = tmp {
+            let _ = std::fs::remove_file(&made);
+            return Err(io(at)(e));
+        }
+        steps.done();
+        Ok(())
+    }
+}
+
+/// Makes a link reading `text` under a name in `dir` that did not exist (`prefix`, the process
+/// id and a counter; `symlink` never replaces a name, so a taken one is skipped) and returns it.
+fn fresh_link(text: &Path, dir: &Path, prefix: &str) -> Result<PathBuf, CommitError> {
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    loop {
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let path = dir.join(format!("{prefix}{}-{n}", std::process::id()));
+        match symlink(text, &path) {
+            Ok(()) => return Ok(path),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && n < u64::MAX => continue,
+            Err(e) => return Err(io(dir)(e)),
+        }
+    }
+}
+
+/// The steps of a commit, counted so that [`FAULT_COMMIT_STEP`] can abort the process right
+/// after one of them.
+struct Steps {
+    done: usize,
+    abort_after: Option<usize>,
+}
+
+impl Steps {
+    /// Counting against the hook of the environment, if set.
+    fn from_env() -> Steps {
+        let abort_after = std::env::var(FAULT_COMMIT_STEP).ok().and_then(|v| v.trim().parse().ok());
+        Steps { done: 0, abort_after }
+    }
+
+    /// Counting only (outside a commit).
+    fn none() -> Steps {
+        Steps { done: 0, abort_after: None }
+    }
+
+    /// One more step is done; aborts the process if the hook asks for this one.
+    fn done(&mut self) {
+        self.done += 1;
+        if self.abort_after == Some(self.done) {
+            std::process::abort();
+        }
     }
 }
 
@@ -372,17 +524,13 @@ fn is_ours(path: &Path) -> bool {
     })
 }
 
-fn switch_link(meta: &Path, name: &str, target: &Path) -> Result<(), CommitError> {
-    let tmp = meta.join(format!(".tmp-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_file(&tmp);
-    symlink(target, &tmp).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, meta.join(name)).map_err(io(meta))
-}
-
-/// Removes links through `current` whose file the committed run does not have. Does not
-/// descend into nested output folders (those with their own `.spindlelab`), and removes no
-/// folder: the ones on an output's path are the user's.
-fn remove_dangling_links(dir: &Path, depth: usize) {
+/// Removes the tool's links whose file the committed run does not have (they dangle), and
+/// links a commit made beside their place ([`NEAR_PREFIX`]) and never renamed. A link is the
+/// tool's when it reads exactly what the tool writes at its place (up to the output folder,
+/// then through `current`), so a link of the user's is never removed. Does not descend into
+/// nested output folders (those with their own `.spindlelab`), and removes no folder: the ones
+/// on an output's path are the user's.
+fn remove_stale_links(root: &Path, dir: &Path, depth: usize, steps: &mut Steps) {
     if depth > 32 {
         return;
     }
@@ -395,11 +543,16 @@ fn remove_dangling_links(dir: &Path, depth: usize) {
         let path = e.path();
         let Ok(ft) = e.file_type() else { continue };
         if ft.is_symlink() {
-            if is_ours(&path) && std::fs::metadata(&path).is_err() {
+            let rel = path.strip_prefix(root).unwrap_or(&path).to_string_lossy().replace('\\', "/");
+            let exact = std::fs::read_link(&path).ok().as_deref() == Some(link_text(&rel).as_path());
+            let dangling = std::fs::metadata(&path).is_err();
+            let near = name.to_string_lossy().starts_with(NEAR_PREFIX) && is_ours(&path);
+            if (exact && dangling) || near {
                 let _ = std::fs::remove_file(&path);
+                steps.done();
             }
         } else if ft.is_dir() && !path.join(META_DIR).exists() {
-            remove_dangling_links(&path, depth + 1);
+            remove_stale_links(root, &path, depth + 1, steps);
         }
     }
 }
@@ -641,6 +794,25 @@ mod tests {
         bytes.extend_from_slice(&[0; 16]);
         std::fs::write(&entry, &bytes).unwrap();
         assert!(matches!(cache.lookup(&key), super::super::Lookup::Damaged(m) if m.contains("declares")));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn only_the_tools_own_links_are_removed_as_stale() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        run(root, &[("a.csv", b"1")]).unwrap();
+        // The user's dangling links: one to nowhere, one reading like the tool's link of
+        // another name.
+        symlink(Path::new("nowhere"), &root.join("mine")).unwrap();
+        symlink(&link_text("gone.csv"), &root.join("other.csv")).unwrap();
+        run(root, &[("c.csv", b"2")]).unwrap();
+        assert!(std::fs::symlink_metadata(root.join("a.csv")).is_err(), "the tool's stale link goes");
+        for kept in ["mine", "other.csv"] {
+            assert!(std::fs::symlink_metadata(root.join(kept)).is_ok(), "the user's `{kept}` was removed");
+        }
+        let tmp_links = std::fs::read_dir(root.join(META_DIR).join(TMP)).unwrap().count();
+        assert_eq!(tmp_links, 0, "a commit leaves nothing in .spindlelab/tmp");
     }
 
     #[test]

@@ -114,8 +114,8 @@ impl Manifest {
                     Outcome::Cached { .. } => ("cached", 0.0, None),
                     Outcome::Failed(e) => ("failed", 0.0, Some(e.to_string())),
                     Outcome::Skipped => ("skipped", 0.0, None),
-                    Outcome::Unneeded { cached: true } => ("cached", 0.0, None),
-                    Outcome::Unneeded { cached: false } => ("unneeded", 0.0, None),
+                    Outcome::Unneeded { cached: true, .. } => ("cached", 0.0, None),
+                    Outcome::Unneeded { cached: false, .. } => ("unneeded", 0.0, None),
                 };
                 ManifestNode {
                     id: inst.id.clone(),

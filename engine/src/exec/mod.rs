@@ -86,8 +86,15 @@ impl RunOptions {
     }
 
     /// The cache directory for this output directory.
+    ///
+    /// A cache folder the user names (`--cache DIR`) is the user's path, resolved as the
+    /// system does: given as a link (a shared cache on a cluster often is), it is the folder
+    /// the link leads to. The output folder's own cache is never reached through a link.
     pub fn cache(&self) -> Cache {
-        Cache::new(self.cache_dir.clone().unwrap_or_else(|| cache_dir(&self.out_dir)))
+        match &self.cache_dir {
+            Some(dir) => Cache::new(std::fs::canonicalize(dir).unwrap_or_else(|_| dir.clone())),
+            None => Cache::new(cache_dir(&self.out_dir)),
+        }
     }
 }
 
@@ -120,9 +127,11 @@ pub enum Outcome {
     /// Not run because an input failed (or the run stopped).
     Skipped,
     /// Not run or loaded: no output file reads it and every consumer came from the cache.
-    /// `cached` says whether a valid cache entry exists for it.
+    /// `cached` says whether a valid cache entry exists for it; `warnings` are those its entry
+    /// holds, so a cached run records what a fresh one does.
     Unneeded {
         cached: bool,
+        warnings: Vec<String>,
     },
     /// Computed, used by every consumer, then dropped (see [`RunOptions::release_consumed`]).
     Released {
@@ -144,7 +153,8 @@ impl Outcome {
         match self {
             Outcome::Computed { warnings, .. }
             | Outcome::Cached { warnings, .. }
-            | Outcome::Released { warnings, .. } => warnings,
+            | Outcome::Released { warnings, .. }
+            | Outcome::Unneeded { warnings, .. } => warnings,
             _ => &[],
         }
     }
@@ -405,7 +415,11 @@ fn settle_known(
     for i in 0..n {
         match (needed[i], entries[i].take()) {
             (true, Some((outputs, warnings))) => outcomes[i] = Some(Outcome::Cached { outputs, warnings }),
-            (false, e) => outcomes[i] = Some(Outcome::Unneeded { cached: e.is_some() }),
+            (false, e) => {
+                let cached = e.is_some();
+                let warnings = e.map(|(_, w)| w).unwrap_or_default();
+                outcomes[i] = Some(Outcome::Unneeded { cached, warnings });
+            }
             (true, None) => {}
         }
     }

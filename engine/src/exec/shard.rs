@@ -48,6 +48,95 @@ impl Shard {
     }
 }
 
+/// Why a shard's marker could not be written; the entries the shard computed stay cached.
+#[derive(Debug, thiserror::Error)]
+pub enum MarkerError {
+    /// A link stands where the cache keeps its markers (`CACHE/shards`, a graph's folder, the
+    /// marker itself): nothing is written where it leads.
+    #[error(
+        "`{0}` is a symbolic link where the cache keeps its shard markers; spindlelab does not write through links in its cache, and wrote nothing where it leads: remove the link and run the shard again (what it computed is cached)"
+    )]
+    Link(PathBuf),
+    /// The output folder's own cache is a link: nothing was stored through it, entries included.
+    #[error(
+        "`{0}`, the output folder's cache, is a symbolic link; spindlelab never writes through it, so this shard stored nothing: remove the link (or name a shared cache with --cache) and run the shard again"
+    )]
+    CacheLink(PathBuf),
+    /// A file, a pipe or a device stands where the cache keeps a folder of markers, or a
+    /// folder, a pipe or a device where the marker goes.
+    #[error(
+        "`{0}` stands where the cache keeps its shard markers and is not what spindlelab puts there; move it away and run the shard again (what it computed is cached)"
+    )]
+    InTheWay(PathBuf),
+    #[error("cannot write the shard marker `{path}`: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+impl MarkerError {
+    /// Whether the error is the user's to fix (something planted in the cache) rather than a
+    /// failure of the machine.
+    pub fn is_bad_input(&self) -> bool {
+        !matches!(self, MarkerError::Io { .. })
+    }
+}
+
+impl Shard {
+    /// Writes `text` as this shard's marker ([`Shard::marker`]) under `cache_dir`, and returns
+    /// its path. The cache folder itself is made if missing (a cache the user names is resolved
+    /// before, see [`super::RunOptions::cache`], so a link there is the output folder's own
+    /// cache replaced, and refused); the folders inside it (`shards`,
+    /// the graph's digest) are made, and the marker written, without following a link: a link
+    /// or anything else standing there is refused, never written through. The marker is written
+    /// whole to a fresh name beside it and renamed into place.
+    pub fn write_marker(&self, cache_dir: &Path, graph: &Graph, text: &str) -> Result<PathBuf, MarkerError> {
+        use std::io::Write;
+        static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let path = self.marker(cache_dir, graph);
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| MarkerError::Io { path, source }
+        };
+        if super::files::is_link(cache_dir) {
+            return Err(MarkerError::CacheLink(cache_dir.to_path_buf()));
+        }
+        std::fs::create_dir_all(cache_dir).map_err(io(cache_dir))?;
+        let mut dir = cache_dir.to_path_buf();
+        let inner = path.parent().and_then(|p| p.strip_prefix(cache_dir).ok()).unwrap_or(Path::new(""));
+        for part in inner.components() {
+            dir.push(part);
+            match std::fs::symlink_metadata(&dir) {
+                Ok(m) if m.file_type().is_symlink() => return Err(MarkerError::Link(dir)),
+                Ok(m) if m.is_dir() => {}
+                Ok(_) => return Err(MarkerError::InTheWay(dir)),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => match std::fs::create_dir(&dir) {
+                    Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => return Err(io(&dir)(e)),
+                    _ if super::files::is_link(&dir) => return Err(MarkerError::Link(dir)),
+                    _ => {}
+                },
+                Err(e) => return Err(io(&dir)(e)),
+            }
+        }
+        match std::fs::symlink_metadata(&path) {
+            Ok(m) if m.file_type().is_symlink() => return Err(MarkerError::Link(path)),
+            Ok(m) if !m.is_file() => return Err(MarkerError::InTheWay(path)),
+            _ => {}
+        }
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = dir.join(format!(".tmp-{}-{n}", std::process::id()));
+        let written = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .and_then(|mut f| f.write_all(text.as_bytes()))
+            .and_then(|()| std::fs::rename(&tmp, &path));
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(io(&path)(e));
+        }
+        Ok(path)
+    }
+}
+
 /// The shard (1-based) of `count` a cache key falls into: its first 64 bits modulo `count`.
 pub fn bucket(key: &str, count: usize) -> usize {
     let head = key.get(..16).and_then(|h| u64::from_str_radix(h, 16).ok()).unwrap_or(0);

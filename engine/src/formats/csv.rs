@@ -285,6 +285,41 @@ impl<'a> Sheet<'a> {
                 break;
             }
         }
+        // Names and labels travel into output headers, legends and messages: none longer than
+        // a label can be, whatever the file says.
+        // A list (`# units:`, `# text:`) is bounded entry by entry, other values whole.
+        let long_meta = numbered(text, 0, 1).filter_map(|(n, raw)| meta_line(raw, n)).find_map(|m| {
+            let pieces: Vec<&str> =
+                if matches!(m.key, "units" | "text") { m.value.split(',').collect() } else { vec![m.value] };
+            let mut at = 0;
+            pieces.into_iter().find_map(|piece| {
+                let found = (piece.len() > MAX_LABEL_BYTES).then(|| {
+                    (
+                        m.line,
+                        m.column + m.value[..at].chars().count(),
+                        piece.len(),
+                        "a name or value in a `# key:` line",
+                    )
+                });
+                at += piece.len() + 1;
+                found
+            })
+        });
+        let long_name = header.as_ref().and_then(|&(n, raw)| {
+            let mut at = 0;
+            raw.split([',', ';']).find_map(|cell| {
+                let found = (cell.len() > MAX_LABEL_BYTES).then_some(at);
+                at += cell.len() + 1;
+                found.map(|at| (n, column_of(raw, at), cell.len(), "a column name"))
+            })
+        });
+        if let Some((n, column, len, what)) = long_meta.or(long_name) {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, n, column),
+                expected: format!("{what} of at most {MAX_LABEL_BYTES} bytes"),
+                found: format!("{len} bytes"),
+            });
+        }
         let Some((line, raw)) = header else {
             return Ok(Sheet { text, header: None, header_width: 0, rows_at: text.len(), semicolons: false });
         };
@@ -323,6 +358,10 @@ impl<'a> Sheet<'a> {
         lines.min(rest.len() / row_bytes.max(1) + 1)
     }
 }
+
+/// The longest name or label a file may give (a channel name, a `# direction:`): it is written
+/// into output headers, plot legends and messages.
+pub const MAX_LABEL_BYTES: usize = 4096;
 
 /// Cells of a line beyond which no reader looks: the widest header read, and one more to see
 /// that a line is wider.
@@ -840,6 +879,20 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
             });
         }
         let f = &mut blocks.last_mut().expect("pushed").frf;
+        if let Some(why) = super::frequency_problem(f.freq_hz.last().copied(), row[0]) {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, line, 1 + lead),
+                expected: why.into(),
+                found: format!("{} Hz", row[0]),
+            });
+        }
+        if with_coherence && !(0.0..=1.0).contains(&row[3]) {
+            return Err(FormatError::Expected {
+                at: Loc::new(path, line, 4 + lead),
+                expected: "a coherence between 0 and 1".into(),
+                found: format!("{}", row[3]),
+            });
+        }
         f.freq_hz.push(row[0]);
         f.values.push(Complex64::new(row[1], row[2]) * scale);
         if let Some(c) = f.coherence.as_mut() {

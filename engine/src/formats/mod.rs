@@ -185,7 +185,7 @@ pub struct Loaded<T> {
 
 /// The largest data file read (CSV, UFF, trials): a device or a pipe named as a file stops
 /// here instead of filling memory.
-pub const MAX_DATA_BYTES: u64 = 512 * 1024 * 1024;
+pub const MAX_DATA_BYTES: u64 = crate::spec::MAX_DATA_BYTES;
 
 /// Reads at most `cap` bytes of any kind of file (a regular file, `/dev/zero`, a pipe); more
 /// is an error that says so, never an allocation sized by the file.
@@ -203,6 +203,28 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
         ));
     }
     Ok(bytes)
+}
+
+/// What is wrong with the frequency `f` of an FRF after the line before it (`None`: the first
+/// line), or `None`: frequencies are not negative and rise from line to line.
+pub(crate) fn frequency_problem(before: Option<f64>, f: f64) -> Option<&'static str> {
+    if f < 0.0 {
+        Some("a frequency of at least 0 Hz")
+    } else if before.is_some_and(|b| f <= b) {
+        Some("a frequency above the one before it (an FRF's frequencies rise, each once)")
+    } else {
+        None
+    }
+}
+
+/// The largest case file (`case.json`) read: a case is a page of text that names its data
+/// files, as a recipe is.
+pub const MAX_CASE_BYTES: u64 = crate::syntax::MAX_RECIPE_BYTES;
+
+/// [`read_capped`] as UTF-8 text; text that is not is an error that says so.
+pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
+    String::from_utf8(read_capped(path, cap)?)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, format!("not UTF-8 text ({e})")))
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {

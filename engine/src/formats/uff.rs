@@ -312,6 +312,25 @@ impl Dataset58 {
         let factor = sign(self.response.direction) * sign(self.reference.direction) * nscale / dscale;
         let n = self.len();
         let freq_hz: Vec<f64> = (0..n).map(|i| self.abscissa_at(i) * fscale).collect();
+        if let Abscissa::Even { step, .. } = self.abscissa
+            && n > 1
+            && step.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        {
+            return Err(FormatError::Unsupported {
+                at: self.at(path),
+                message: format!("abscissa increment {step:e}: an FRF needs a positive frequency step"),
+            });
+        }
+        let mut before = None;
+        for (i, &f) in freq_hz.iter().enumerate() {
+            if let Some(why) = super::frequency_problem(before, f) {
+                return Err(FormatError::Unsupported {
+                    at: self.at(path),
+                    message: format!("point {} is at {f} Hz, where the dataset needs {why}", i + 1),
+                });
+            }
+            before = Some(f);
+        }
         let values: Vec<Complex64> = (0..n).map(|i| self.value_at(i) * factor).collect();
         let unit = match (nsym.is_empty(), dsym.is_empty()) {
             (_, true) => nsym,

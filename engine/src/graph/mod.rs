@@ -48,7 +48,7 @@ impl Instance {
 
 /// The most node instances a recipe may expand to (sweeps and their products); each costs a
 /// few kilobytes before it runs, and far fewer suffice for any study we know of.
-pub const MAX_INSTANCES: usize = 50_000;
+pub const MAX_INSTANCES: usize = crate::model::MAX_STEPS;
 
 /// The compiled graph: instances in a topological order.
 #[derive(Debug, Clone)]

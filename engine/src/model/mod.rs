@@ -11,6 +11,8 @@ mod plugins;
 mod resolve;
 mod reuse;
 
+pub use crate::spec::normalize;
+pub use crate::spec::within;
 pub use entities::{
     Assembly, Component, Cutting, Entities, Joint, Machine, Material, Section, Sensor, Spindle, SpindleMode,
     fields as entity_fields,
@@ -18,13 +20,17 @@ pub use entities::{
 pub use fit::{FitMethod, FitScale, FitSpec, FreeParam};
 pub use params::{ParamQuantity, Parameter, command_line_span};
 pub use plugins::{PluginRef, plugin_refs};
-pub use resolve::resolve;
+pub use resolve::{resolve, resolve_within};
 pub(crate) use reuse::source_folder;
-pub use reuse::{Expanded, INPUTS, RECIPE_KIND, expand, is_library, library_search_path, normalize};
+pub use reuse::{Expanded, INPUTS, RECIPE_KIND, expand, expand_within, is_library, library_search_path};
 
 use crate::diag::Span;
 use crate::spec::{EntityKind, ParamValue, Params};
 use indexmap::IndexMap;
+
+/// The most steps a recipe may have once the recipes it runs as steps are inlined: as many as
+/// the node instances it may expand to (each step is at least one), checked before inlining.
+pub const MAX_STEPS: usize = 50_000;
 
 /// The recipe format version this engine reads.
 pub const FORMAT_VERSION: i64 = 1;

@@ -90,6 +90,18 @@ pub fn resolve(
     registry: &Registry,
     diags: &mut Diagnostics,
 ) -> Option<Recipe> {
+    resolve_within(raw, overrides, registry, None, diags)
+}
+
+/// [`resolve`] for `--confine`: a data file named outside `confine` (the recipe's folder) is
+/// refused by its name, before any byte of it is read or hashed.
+pub fn resolve_within(
+    raw: &Raw,
+    overrides: &[(String, String)],
+    registry: &Registry,
+    confine: Option<&std::path::Path>,
+    diags: &mut Diagnostics,
+) -> Option<Recipe> {
     let errors_before = diags.error_count();
     let (substituted, params) = super::params::substitute(raw, overrides, diags);
     let base_dir = std::path::Path::new(&*raw.span.file).parent().map(std::path::Path::to_path_buf);
@@ -154,7 +166,7 @@ pub fn resolve(
     // File parameters are relative to the recipe's folder, for YAML and Rhai recipes alike
     // (the root value's span names the recipe file).
     let recipe_path = std::path::Path::new(&*raw.span.file);
-    let ctx = Ctx { entities: &names, base_dir: recipe_path.parent() };
+    let ctx = Ctx { entities: &names, base_dir: recipe_path.parent(), confine };
     let mut checked: IndexMap<EntityKind, IndexMap<String, Params>> = IndexMap::new();
     for kind in EntityKind::ALL {
         let out = checked.entry(kind).or_default();
@@ -641,7 +653,7 @@ fn resolve_steps(raw: Option<&Raw>, root: &Span, registry: &Registry, ctx: &Ctx,
         // File parameters are relative to the file the step is written in (a recipe run as a
         // step reads its data beside itself).
         let folder = super::source_folder(&key.span.file);
-        let step_ctx = Ctx { entities: ctx.entities, base_dir: Some(&folder) };
+        let step_ctx = Ctx { entities: ctx.entities, base_dir: Some(&folder), confine: ctx.confine };
         if let Some(step) = resolve_step(key, sraw, &kinds, registry, &step_ctx, diags) {
             steps.push(step);
         }

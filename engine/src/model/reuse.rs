@@ -23,12 +23,12 @@ use super::measurements;
 use super::params::ParamQuantity;
 use crate::diag::{Diagnostics, SourceFile, Span};
 use crate::node::Registry;
-use crate::spec::{EntityKind, suggest};
+use crate::spec::{EntityKind, normalize, suggest};
 use crate::syntax::{self, Key, Raw, RawKind};
 use crate::value::PortType;
 use indexmap::IndexMap;
 use std::collections::HashMap;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The step kind that runs another recipe as a step.
@@ -106,6 +106,18 @@ pub fn is_library(raw: &Raw) -> bool {
 /// `sources` (so diagnostics quote them and the manifest lists them) and every problem into
 /// `diags`. A tree without either comes back as it was.
 pub fn expand(raw: Raw, registry: &Registry, sources: &mut Vec<SourceFile>, diags: &mut Diagnostics) -> Expanded {
+    expand_within(raw, registry, None, sources, diags)
+}
+
+/// [`expand`] for `--confine`: a library or recipe named outside `confine` (the recipe's
+/// folder) is refused by its name, before any byte of it is read.
+pub fn expand_within(
+    raw: Raw,
+    registry: &Registry,
+    confine: Option<&Path>,
+    sources: &mut Vec<SourceFile>,
+    diags: &mut Diagnostics,
+) -> Expanded {
     if raw.as_map().is_none() {
         return Expanded { raw, library: false };
     }
@@ -118,6 +130,7 @@ pub fn expand(raw: Raw, registry: &Registry, sources: &mut Vec<SourceFile>, diag
     let root_file: Arc<str> = Arc::from(file_of(&raw.span));
     let mut ex = Expander {
         registry,
+        confine,
         search: library_search_path(),
         sources,
         diags,
@@ -146,6 +159,21 @@ pub fn expand(raw: Raw, registry: &Registry, sources: &mut Vec<SourceFile>, diag
         return Expanded { raw: tree, library };
     }
     ex.merge_uses(&mut tree, 0);
+    // The recipes run as steps may run others, each more than once: the size is counted from
+    // the files before any is inlined, so a fan-out is refused at its size, not built.
+    let size = ex.quietly(|ex| ex.expanded_size(&tree, 0, &mut HashMap::new()));
+    if size > super::MAX_STEPS as u64 {
+        let span = tree.get("steps").map_or_else(|| tree.span.clone(), |s| s.span.clone());
+        ex.diags.error_help(
+            Some(&span),
+            format!(
+                "the recipes this recipe runs as steps would make it {size} steps, over the limit of {}",
+                super::MAX_STEPS
+            ),
+            "run fewer recipes per recipe, or sweep a parameter instead of repeating a step",
+        );
+        return Expanded { raw: tree, library };
+    }
     ex.expand_steps(&mut tree, 0);
     Expanded { raw: tree, library }
 }
@@ -181,21 +209,6 @@ fn key(name: &str, span: &Span) -> Key {
 
 fn canonical(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| normalize(path))
-}
-
-/// `a/./b/../c` as `a/c`, by name (a leading `..` is kept).
-pub fn normalize(path: &Path) -> PathBuf {
-    let mut out: Vec<Component> = Vec::new();
-    for c in path.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
-                out.pop();
-            }
-            c => out.push(c),
-        }
-    }
-    out.iter().collect()
 }
 
 fn map_mut(raw: &mut Raw) -> Option<&mut Vec<(Key, Raw)>> {
@@ -343,6 +356,8 @@ struct Given {
 
 struct Expander<'a> {
     registry: &'a Registry,
+    /// `--confine`: the folder every file read must lie in, by name.
+    confine: Option<&'a Path>,
     search: Vec<PathBuf>,
     sources: &'a mut Vec<SourceFile>,
     diags: &'a mut Diagnostics,
@@ -355,8 +370,64 @@ struct Expander<'a> {
 }
 
 impl Expander<'_> {
+    /// Runs `f` with its diagnostics set aside: for looking ahead at files that the expansion
+    /// proper reports on.
+    fn quietly<T>(&mut self, f: impl FnOnce(&mut Self) -> T) -> T {
+        let kept = std::mem::take(self.diags);
+        let out = f(self);
+        *self.diags = kept;
+        out
+    }
+
+    /// How many steps `tree` has once its recipes run as steps are inlined (saturating), read
+    /// from the files without inlining them; `memo` holds each file's count by canonical path.
+    /// A step that cannot be followed (a missing file, a cycle, too deep) counts as one: the
+    /// expansion reports it.
+    fn expanded_size(&mut self, tree: &Raw, depth: usize, memo: &mut HashMap<PathBuf, u64>) -> u64 {
+        let Some(steps) = tree.get("steps").and_then(Raw::as_map) else { return 0 };
+        let mut n: u64 = 0;
+        for (_, step) in steps {
+            let file = step.get("file").filter(|_| step.get("kind").and_then(Raw::as_str) == Some(RECIPE_KIND));
+            let found = file.filter(|_| depth < MAX_DEPTH).and_then(|f| Some((f.as_str()?, &f.span)));
+            let Some(path) = found.and_then(|(written, span)| self.locate(written, span, "recipe")) else {
+                n = n.saturating_add(1);
+                continue;
+            };
+            let canon = canonical(&path);
+            let k = match memo.get(&canon) {
+                Some(&k) => k,
+                None => {
+                    memo.insert(canon.clone(), 1); // a cycle counts once
+                    let mut scratch = Diagnostics::new();
+                    let sub = syntax::load_file(&path, &mut scratch).and_then(|l| l.raw);
+                    let k = sub.map_or(1, |sub| self.expanded_size(&sub, depth + 1, memo));
+                    memo.insert(canon, k);
+                    k
+                }
+            };
+            n = n.saturating_add(k);
+        }
+        n
+    }
+
     /// The file `written` names from the file `from`: beside it, else on the search path.
     fn locate(&mut self, written: &str, from: &Span, what: &str) -> Option<PathBuf> {
+        let found = self.find_file(written, from, what)?;
+        match self.confine {
+            Some(root) if !super::within(root, &found) => {
+                self.diags.error_help(
+                    Some(from),
+                    format!("{what} `{written}` lies outside the recipe's folder, which --confine refuses"),
+                    "copy it beside the recipe, or run without --confine",
+                );
+                None
+            }
+            _ => Some(found),
+        }
+    }
+
+    /// The file `written` names from the file `from`, wherever it is.
+    fn find_file(&mut self, written: &str, from: &Span, what: &str) -> Option<PathBuf> {
         let base = source_folder(&from.file);
         let p = Path::new(written);
         let beside = normalize(&base.join(p));
@@ -1114,6 +1185,8 @@ impl Expander<'_> {
                             Some((s, _)) if s.starts_with(&format!("{name}/")) => {
                                 exports.insert(ek.name.clone(), ev.as_str().unwrap_or_default().to_string());
                             }
+                            // A step of its own that could not be expanded: reported where it is.
+                            Some((s, _)) if own_steps.iter().any(|o| o == s) => {}
                             Some((s, _)) => self.diags.error_help(
                                 Some(&ev.span),
                                 format!("export `{}` names `{s}`, which is not a step of {written}", ek.name),

@@ -287,9 +287,28 @@ fn eval_recipe(engine: &Engine, modules: &RecipeModules, file: &SourceFile, diag
                     return None;
                 }
                 EvalAltResult::ErrorInModule(written, inner, pos) => {
+                    // Down the chain of modules to the one where it failed, keeping the place
+                    // of the import that reached it.
+                    let (mut written, mut inner, mut span) = (written, inner, position_span(&file.path, pos));
+                    while let EvalAltResult::ErrorInModule(next, deeper, at) = *inner {
+                        if let Some(shown) = modules.shown(&written) {
+                            span = position_span(&shown, at);
+                        }
+                        (written, inner) = (next, deeper);
+                    }
+                    if let EvalAltResult::ErrorModuleNotFound(refused, at) = &*inner
+                        && let Some(why) = modules.refusal(refused)
+                    {
+                        let place = modules.shown(&written).map_or(span, |shown| position_span(&shown, *at));
+                        diags.push(
+                            Diagnostic::error(Some(place), format!("Rhai recipe cannot import `{refused}`: {why}"))
+                                .with_help(IMPORT_HELP),
+                        );
+                        return None;
+                    }
                     let span = match modules.shown(&written) {
                         Some(shown) if inner.position().line().is_some() => position_span(&shown, inner.position()),
-                        _ => position_span(&file.path, pos),
+                        _ => span,
                     };
                     (inner, span)
                 }

@@ -144,6 +144,20 @@ pub struct Host {
     slots: Arc<node::Slots>,
 }
 
+/// The address space this process may map (`ulimit -v`, in bytes), if it is limited.
+fn address_space_limit() -> Option<u64> {
+    #[cfg(unix)]
+    {
+        let mut limit = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+        // SAFETY: getrlimit writes the one struct it is given.
+        let ok = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } == 0;
+        if ok && limit.rlim_cur != libc::RLIM_INFINITY {
+            return Some(limit.rlim_cur);
+        }
+    }
+    None
+}
+
 /// What to load and what to expect of it.
 #[derive(Debug, Clone, Default)]
 pub struct Expect {
@@ -178,6 +192,30 @@ impl Host {
         // plugin version (the compiled form is cached).
         config.compiler_inlining(wasmtime::Inlining::Yes);
         config.wasm_component_model(true);
+        let engine = match address_space_limit() {
+            None => Engine::new(&Self::pooled(config.clone(), &policy)),
+            Some(_) => Err(wasmtime::Error::msg("the address space is limited")),
+        }
+        .or_else(|_| {
+            // Under `ulimit -v` a pool's reservations (hundreds of GiB of address space, never
+            // touched) cannot be made: each call's memory is then mapped when it is made, as
+            // large as it grows, with explicit bounds checks.
+            config.memory_reservation(0).memory_guard_size(0).memory_reservation_for_growth(1 << 20);
+            config.allocation_strategy(wasmtime::InstanceAllocationStrategy::OnDemand);
+            Engine::new(&config)
+        })
+        .map_err(|e| match address_space_limit() {
+            Some(limit) => format!(
+                "cannot start the WebAssembly engine under an address-space limit of {} MiB (`ulimit -v`): {e}; raise the limit, or run without plugins",
+                limit >> 20
+            ),
+            None => format!("cannot start the WebAssembly engine: {e}"),
+        })?;
+        Ok(Host { engine, policy, cache_dir, slots: Arc::new(node::Slots::new(CONCURRENT_CALLS as usize)) })
+    }
+
+    /// `config` with a pool of instance slots: the layout when the address space is not limited.
+    fn pooled(mut config: Config, policy: &Policy) -> Config {
         // A pool of instance slots, each with room for the largest memory the policy allows:
         // a fresh instance per call then costs microseconds (its memory slot is reset, not
         // mapped anew). The limiter still caps each call at its own plugin's limit.
@@ -201,8 +239,7 @@ impl Host {
             .pagemap_scan(wasmtime::Enabled::Auto)
             .decommit_batch_size(16);
         config.allocation_strategy(wasmtime::InstanceAllocationStrategy::Pooling(pool));
-        let engine = Engine::new(&config).map_err(|e| format!("cannot start the WebAssembly engine: {e}"))?;
-        Ok(Host { engine, policy, cache_dir, slots: Arc::new(node::Slots::new(CONCURRENT_CALLS as usize)) })
+        config
     }
 
     pub fn policy(&self) -> &Policy {

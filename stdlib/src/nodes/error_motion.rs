@@ -578,7 +578,7 @@ mod tests {
     /// Parameters as the compiler would give them: defaults, then `set` (recipe text).
     fn params(spec: &NodeSpec, set: &[(&str, &str)]) -> Params {
         let names = EntityNames::default();
-        let ctx = Ctx { entities: &names, base_dir: None };
+        let ctx = Ctx { entities: &names, base_dir: None, confine: None };
         let mut values = IndexMap::new();
         for f in &spec.params {
             let text = set.iter().find(|(k, _)| *k == f.name).map(|(_, v)| *v).or(f.default);

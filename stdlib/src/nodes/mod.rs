@@ -114,8 +114,14 @@ pub(crate) mod test_support {
         let mut d = Diagnostics::new();
         let raw = load_yaml(&file, &mut d).unwrap_or_else(|| panic!("{d}"));
         let names = EntityNames::default();
-        spec::check_object(&raw, &node.spec().params, "params", &Ctx { entities: &names, base_dir: None }, &mut d)
-            .unwrap_or_else(|| panic!("{d}"))
+        spec::check_object(
+            &raw,
+            &node.spec().params,
+            "params",
+            &Ctx { entities: &names, base_dir: None, confine: None },
+            &mut d,
+        )
+        .unwrap_or_else(|| panic!("{d}"))
     }
 
     /// A recipe with no entities, steps or outputs, for a node run on its own.
