@@ -41,7 +41,7 @@ fn bench_rcsa(c: &mut Criterion) {
         SpindleMode::new(1900.0, 0.07, 0.04),
         SpindleMode::new(3300.0, 0.05, 0.03),
     ];
-    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
+    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs, None)
         .expect("valid modes");
     let artifact = rigid_body(&freqs, 1.2, 1.5e-3, 0.08, 0.03);
     let tool = rigid_body(&freqs, 0.3, 1e-4, 0.1, 0.04);
@@ -56,8 +56,15 @@ fn bench_rcsa(c: &mut Criterion) {
     });
     c.bench_function("eb_modes/3 modes/10000", |b| {
         b.iter(|| {
-            spindle_receptance(black_box(&modes), &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
-                .expect("ok")
+            spindle_receptance(
+                black_box(&modes),
+                &Material::STEEL,
+                Speed::ZERO,
+                Speed::from_rpm(10_000.0),
+                &freqs,
+                None,
+            )
+            .expect("ok")
         })
     });
 }

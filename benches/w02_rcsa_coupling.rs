@@ -42,7 +42,7 @@ fn bench(c: &mut Criterion) {
     let d = [0.110, 0.100, 0.095, 0.090, 0.085, 0.080, 0.075, 0.070];
     let eta = [0.05, 0.045, 0.04, 0.035, 0.03, 0.025, 0.022, 0.02];
     let modes: Vec<SpindleMode> = (0..8).map(|i| SpindleMode::new(f1[i], d[i], eta[i])).collect();
-    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs)
+    let spindle = spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs, None)
         .expect("valid modes");
     let w_ref = TAU * 1000.0;
     let joint = Interface::diagonal(2e8, 0.05 * 2e8 / w_ref, 1e6, 0.05 * 1e6 / w_ref);

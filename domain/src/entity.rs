@@ -80,15 +80,39 @@ pub struct SpindleMode {
     /// `k(n) = k (1 + kk (n/n_ref)²)` at the mode's mass, so the frequency moves with `√k` and
     /// the modal flexibility with `1/k`; zero for bearings that keep their stiffness.
     pub stiffness_change: f64,
-    /// Gyroscopic whirl split (`split`): at speed `n` the mode is a forward and a backward whirl
-    /// at `f (1 ± split n/n_ref)`, each with half the mode's residue; zero for no split.
-    pub split: f64,
+    /// Gyroscopic coefficient of the rotor in this mode (`gyro`): its polar over its diametral
+    /// moment of inertia, `g = I_p/I_d` (0 for a mode without gyroscopic coupling, 2 for a thin
+    /// disk). At spin `Ω` the mode whirls forward and backward at `ω (√(1+e²) ± e)`, `e =
+    /// gΩ/(2ω)` (see [`whirl_frequency`]); the two whirls decouple for the whole spinning
+    /// assembly, so a coupling takes each whirl whole and averages the results.
+    pub gyro: f64,
+}
+
+/// A whirl of a spinning, isotropic rotor: in the coordinates `x ± i y` its bending planes
+/// decouple, and each mode whirls forward (with the spin, its frequency rising) or backward.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Whirl {
+    Forward,
+    Backward,
+}
+
+/// The frequency (Hz) of a mode at rest frequency `freq_hz` with gyroscopic coefficient `gyro`
+/// whirling `whirl` at spin `n`: the roots of `ω² ∓ gΩω − ω_n² = 0`, the isotropic two-plane
+/// mode `m(ẍ + ω_n² x) + gmΩ ẏ = 0`, `m(ÿ + ω_n² y) − gmΩ ẋ = 0` in whirl coordinates, which
+/// are `ω_n (√(1+e²) ± e)` with `e = gΩ/(2ω_n)`.
+pub fn whirl_frequency(freq_hz: f64, gyro: f64, n: Speed, whirl: Whirl) -> f64 {
+    let e = gyro * n.rad_s() / (2.0 * std::f64::consts::TAU * freq_hz);
+    let root = e.hypot(1.0);
+    match whirl {
+        Whirl::Forward => freq_hz * (root + e),
+        Whirl::Backward => freq_hz * (root - e),
+    }
 }
 
 impl SpindleMode {
     /// A mode that does not change with speed.
     pub fn new(freq_hz: f64, diameter: f64, loss_factor: f64) -> SpindleMode {
-        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE, stiffness_change: 0.0, split: 0.0 }
+        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE, stiffness_change: 0.0, gyro: 0.0 }
     }
 
     /// A mode stated modally, as the equivalent beam the spindle model uses: the solid
@@ -106,7 +130,7 @@ impl SpindleMode {
         let (e, rho) = (material.youngs_modulus, material.density);
         let length = (stiffness * b4 * e / (std::f64::consts::PI * rho * rho * w.powi(4))).powf(0.2);
         let diameter = 4.0 * w * length * length / (FIXED_FREE_FIRST_ROOT.powi(2) * (e / rho).sqrt());
-        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law, stiffness_change: 0.0, split: 0.0 }
+        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law, stiffness_change: 0.0, gyro: 0.0 }
     }
 
     /// Natural frequency (Hz) and loss factor at speed `n`, by the law about `reference`.
@@ -114,21 +138,22 @@ impl SpindleMode {
         (self.law.frequency(self.freq_hz, n, reference), self.law.damping(self.loss_factor, n, reference))
     }
 
-    /// The equivalent beams the mode is at speed `n`, each `(frequency Hz, diameter m, loss
-    /// factor, weight)`: the speed law's frequency and loss factor, the bearing stiffness change
-    /// at the mode's mass, and the whirl split into a forward and a backward whirl of weight ½
-    /// each (one beam of weight 1 without a split). A beam keeps its modal mass when its
-    /// frequency moves by a factor `r` and its stiffness by `r²` if its diameter moves by `r^⅕`
-    /// (from [`SpindleMode::from_modal`]: `d ∝ ω L²`, `L⁵ ∝ k/ω⁴`).
-    pub fn beams_at(&self, n: Speed, reference: Speed) -> Vec<(f64, f64, f64, f64)> {
+    /// The equivalent beam the mode is at speed `n`, `(frequency Hz, diameter m, loss factor)`:
+    /// the speed law's frequency and loss factor, then the bearing stiffness change at the
+    /// mode's mass. A beam keeps its modal mass when its frequency moves by a factor `r` and its
+    /// stiffness by `r²` if its diameter moves by `r^⅕` (from [`SpindleMode::from_modal`]:
+    /// `d ∝ ω L²`, `L⁵ ∝ k/ω⁴`).
+    pub fn beam_at(&self, n: Speed, reference: Speed) -> (f64, f64, f64) {
         let (f, eta) = self.at_speed(n, reference);
         let stiffness = 1.0 + self.stiffness_change * SpeedLaw::ratio_squared(n, reference);
-        let (f, d) = (f * stiffness.sqrt(), self.diameter * stiffness.powf(0.1));
-        let split = self.split * SpeedLaw::ratio_squared(n, reference).sqrt();
-        if split == 0.0 {
-            return vec![(f, d, eta, 1.0)];
-        }
-        [1.0 + split, 1.0 - split].iter().map(|r| (f * r, d * r.powf(0.2), eta, 0.5)).collect()
+        (f * stiffness.sqrt(), self.diameter * stiffness.powf(0.1), eta)
+    }
+
+    /// The frequency (Hz) of the mode whirling `whirl` at speed `n` ([`whirl_frequency`] of its
+    /// frequency there); its frequency there when it has no gyroscopic coefficient or at rest.
+    pub fn whirl_at(&self, n: Speed, reference: Speed, whirl: Whirl) -> f64 {
+        let (f, _, _) = self.beam_at(n, reference);
+        if self.gyro == 0.0 || n.is_rest() { f } else { whirl_frequency(f, self.gyro, n, whirl) }
     }
 }
 

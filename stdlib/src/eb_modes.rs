@@ -13,7 +13,7 @@
 
 use crate::rcsa::{Receptance, ReceptanceFrf};
 use num_complex::Complex64;
-use spindlelab_domain::entity::SpindleMode;
+use spindlelab_domain::entity::{SpindleMode, Whirl};
 use spindlelab_domain::{Material, Speed};
 use std::f64::consts::{PI, TAU};
 use thiserror::Error;
@@ -253,14 +253,60 @@ fn series(x: Complex64) -> (Complex64, Complex64, Complex64, Complex64) {
 
 /// Free-end receptances of one spindle direction at `speed`: the sum over the equivalent modes of the
 /// fixed-free beam receptances (Eqs. 5.5–5.7, 5.10–5.12), each mode at `speed` by its speed law
-/// about `reference`, on the grid `freqs_hz`.
+/// about `reference`, on the grid `freqs_hz`. In `whirl` (none: without gyroscopic coupling)
+/// each mode with a gyroscopic coefficient is taken in that whirl's coordinate, `F = P − iQ`
+/// or `B = P + iQ` of [`spindle_gyroscopic`] with the direction its own partner (an isotropic
+/// spindle).
 pub fn spindle_receptance(
     modes: &[SpindleMode],
     material: &Material,
     speed: Speed,
     reference: Speed,
     freqs_hz: &[f64],
+    whirl: Option<Whirl>,
 ) -> Result<ReceptanceFrf, EbError> {
+    let s = match whirl {
+        None => return spindle_still(modes, material, speed, reference, freqs_hz),
+        Some(Whirl::Forward) => Complex64::new(0.0, -1.0),
+        Some(Whirl::Backward) => Complex64::new(0.0, 1.0),
+    };
+    let (p, q) = spindle_gyroscopic(modes, modes, material, speed, reference, freqs_hz)?;
+    let lines = p.lines.iter().zip(&q.lines).map(|(p, q)| *p + *q * s).collect();
+    Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
+}
+
+/// The spindle without gyroscopic coupling: the sum of the equivalent beams at `speed`.
+fn spindle_still(
+    modes: &[SpindleMode],
+    material: &Material,
+    speed: Speed,
+    reference: Speed,
+    freqs_hz: &[f64],
+) -> Result<ReceptanceFrf, EbError> {
+    let beams = still_beams(modes, material, speed, reference, freqs_hz)?;
+    let lines = freqs_hz
+        .iter()
+        .map(|&f| {
+            let w = TAU * f;
+            beams.iter().fold(Receptance::ZERO, |acc, (b, _)| acc + b.at(w))
+        })
+        .collect();
+    Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
+}
+
+/// An equivalent beam's tip receptance with the `(frequency Hz, diameter m, loss factor)` it
+/// was made from.
+type StillBeam = (TipReceptance, (f64, f64, f64));
+
+/// Each mode's equivalent beam at `speed` with its frequency, diameter and loss factor there,
+/// the speed and the grid checked.
+fn still_beams(
+    modes: &[SpindleMode],
+    material: &Material,
+    speed: Speed,
+    reference: Speed,
+    freqs_hz: &[f64],
+) -> Result<Vec<StillBeam>, EbError> {
     check_material(material)?;
     if !speed.rad_s().is_finite() {
         return Err(EbError::InvalidParameter { name: "speed", value: speed.rpm(), requirement: "must be finite" });
@@ -275,28 +321,74 @@ pub fn spindle_receptance(
     }
     let mut beams = Vec::with_capacity(modes.len());
     for (i, m) in modes.iter().enumerate() {
-        // A mode at speed is one equivalent beam, or two whirls of half weight each.
-        for (f, d, eta, weight) in m.beams_at(speed, reference) {
-            if !(f.is_finite() && f > 0.0) {
-                return Err(EbError::SpeedLaw { mode: i, speed, what: "frequency", value: f });
-            }
-            if !(eta.is_finite() && eta >= 0.0) {
-                return Err(EbError::SpeedLaw { mode: i, speed, what: "loss factor", value: eta });
-            }
-            beams.push((FixedFreeBeam::equivalent(f, d, eta, *material)?.tip(), weight));
+        let (f, d, eta) = m.beam_at(speed, reference);
+        if !(f.is_finite() && f > 0.0) {
+            return Err(EbError::SpeedLaw { mode: i, speed, what: "frequency", value: f });
         }
+        if !(eta.is_finite() && eta >= 0.0) {
+            return Err(EbError::SpeedLaw { mode: i, speed, what: "loss factor", value: eta });
+        }
+        beams.push((FixedFreeBeam::equivalent(f, d, eta, *material)?.tip(), (f, d, eta)));
     }
-    let lines = freqs_hz
-        .iter()
-        .map(|&f| {
-            let w = TAU * f;
-            beams.iter().fold(Receptance::ZERO, |acc, (b, weight)| {
-                let r = b.at(w);
-                if *weight == 1.0 { acc + r } else { acc + r * Complex64::from(*weight) }
-            })
-        })
-        .collect();
-    Ok(ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines })
+    Ok(beams)
+}
+
+/// The in-plane and cross-plane blocks `(P, Q)` at the spindle nose of one direction whose
+/// modes are `modes`, across from the direction whose modes are `partner` (the same list for
+/// an isotropic spindle). Mode `i` with a gyroscopic coefficient `g` and its partner's mode `i`
+/// are one rotor mode in two planes, `ẍ + ω_x²(1+iη_x) x + G ẏ = F/m`, `ÿ + ω_y²(1+iη_y) y − G ẋ
+/// = 0`, `G = gΩ`: its first-mode term `A/(ω_x²(1+iη_x) − ω²)` becomes `A (ω_y²(1+iη_y) − ω²)/Δ`
+/// in `P` and `−iGω A/Δ` in `Q`, `Δ = (ω_x²(1+iη_x) − ω²)(ω_y²(1+iη_y) − ω²) − G²ω²`, whose
+/// roots are the forward and backward whirls (`ω_n(√(1+e²) ± e)`, `e = G/(2ω_n)`, when `ω_x =
+/// ω_y`). The equivalent beam's higher modes, which only round out its static compliance, stay
+/// as they are. `A` is the beam's residue at its first mode.
+pub fn spindle_gyroscopic(
+    modes: &[SpindleMode],
+    partner: &[SpindleMode],
+    material: &Material,
+    speed: Speed,
+    reference: Speed,
+    freqs_hz: &[f64],
+) -> Result<(ReceptanceFrf, ReceptanceFrf), EbError> {
+    let beams = still_beams(modes, material, speed, reference, freqs_hz)?;
+    // Per gyroscopic mode: its residue, its pole and its partner's (with damping), and G.
+    let mut pairs: Vec<(Receptance, Complex64, Complex64, f64)> = Vec::new();
+    for (i, (m, (_, (f, d, eta)))) in modes.iter().zip(&beams).enumerate() {
+        if m.gyro == 0.0 || speed.is_rest() {
+            continue;
+        }
+        let (fp, etap) = partner.get(i).map_or((*f, *eta), |pm| {
+            let (fp, _, etap) = pm.beam_at(speed, reference);
+            (fp, etap)
+        });
+        // At its first natural frequency a nearly undamped beam is its first mode,
+        // A/(iη ω₁²), to a part in 1e9.
+        const PROBE: f64 = 1e-9;
+        let w1 = TAU * f;
+        let a =
+            FixedFreeBeam::equivalent(*f, *d, PROBE, *material)?.tip().at(w1) * Complex64::new(0.0, PROBE * w1 * w1);
+        let pole = |f: f64, eta: f64| Complex64::new(1.0, eta) * (TAU * f).powi(2);
+        pairs.push((a, pole(*f, *eta), pole(fp, etap), m.gyro * speed.rad_s()));
+    }
+    let (mut p, mut q) = (Vec::with_capacity(freqs_hz.len()), Vec::with_capacity(freqs_hz.len()));
+    for &f in freqs_hz {
+        let w = TAU * f;
+        let w2 = w * w;
+        let still = beams.iter().fold(Receptance::ZERO, |acc, (b, _)| acc + b.at(w));
+        let (mut pl, mut ql) = (still, Receptance::ZERO);
+        for (a, own, other, g) in &pairs {
+            let (dx, dy) = (*own - w2, *other - w2);
+            let delta = dx * dy - (g * w).powi(2);
+            pl = pl + *a * (dy / delta - dx.inv());
+            ql = ql + *a * (Complex64::new(0.0, -g * w) / delta);
+        }
+        p.push(pl);
+        q.push(ql);
+    }
+    Ok((
+        ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines: p },
+        ReceptanceFrf { freqs_hz: freqs_hz.to_vec(), lines: q },
+    ))
 }
 
 #[cfg(test)]
@@ -442,7 +534,7 @@ mod tests {
         let mut m0 = SpindleMode::new(900.0, 0.09, 0.04);
         let m1 = SpindleMode::new(2500.0, 0.05, 0.03);
         let grid: Vec<f64> = (0..200).map(|i| 20.0 * i as f64).collect();
-        let s = spindle_receptance(&[m0, m1], &mat, Speed::ZERO, rpm(10000.0), &grid).unwrap();
+        let s = spindle_receptance(&[m0, m1], &mat, Speed::ZERO, rpm(10000.0), &grid, None).unwrap();
         let b0 = FixedFreeBeam::equivalent(900.0, 0.09, 0.04, mat).unwrap();
         let b1 = FixedFreeBeam::equivalent(2500.0, 0.05, 0.03, mat).unwrap();
         for (i, &f) in grid.iter().enumerate() {
@@ -455,51 +547,96 @@ mod tests {
         m0.law = SpeedLaw { kf: 0.02, kd: -0.05 };
         let (f, eta) = m0.at_speed(rpm(20000.0), rpm(10000.0));
         assert!((f - 900.0 * 1.08).abs() < 1e-9 && (eta - 0.04 * 0.8).abs() < 1e-12);
-        let fast = spindle_receptance(&[m0], &mat, rpm(20000.0), rpm(10000.0), &[f]).unwrap();
+        let fast = spindle_receptance(&[m0], &mat, rpm(20000.0), rpm(10000.0), &[f], None).unwrap();
         let want = FixedFreeBeam::equivalent(f, 0.09, eta, mat).unwrap().tip_receptance(TAU * f);
         assert_eq!(fast.lines[0], want);
         m0.law.kf = -2.0;
         assert!(matches!(
-            spindle_receptance(&[m0], &mat, rpm(10000.0), rpm(10000.0), &grid),
+            spindle_receptance(&[m0], &mat, rpm(10000.0), rpm(10000.0), &grid, None),
             Err(EbError::SpeedLaw { mode: 0, .. })
         ));
         assert!(matches!(
-            spindle_receptance(&[m1], &mat, Speed::ZERO, rpm(1.0), &[-1.0]),
+            spindle_receptance(&[m1], &mat, Speed::ZERO, rpm(1.0), &[-1.0], None),
             Err(EbError::InvalidFrequency { index: 0, .. })
         ));
     }
 
     /// A bearing stiffness change keeps the modal mass: the frequency moves with √q and the
-    /// static flexibility with 1/q. A whirl split gives two half-weight beams at f (1 ± ε),
-    /// nothing at rest, and each carries half the mode's modal mass residue.
+    /// static flexibility with 1/q. A whirl moves the mode's first-mode term to its whirl
+    /// frequency, forward above and backward below (their product the square of the mode's), and
+    /// leaves the equivalent beam's higher modes where they are; at rest, or without a
+    /// gyroscopic coefficient, neither whirl moves anything.
     #[test]
-    fn bearing_change_keeps_the_mass_and_the_split_halves_the_mode() {
+    fn bearing_change_keeps_the_mass_and_a_whirl_moves_only_the_mode() {
         let mat = Material::STEEL;
         let rpm = Speed::from_rpm;
-        let mode = SpindleMode::from_modal(800.0, 1.5e8, 0.03, &mat, SpeedLaw::NONE);
+        let mode = SpindleMode::from_modal(800.0, 1.5e8, 0.01, &mat, SpeedLaw::NONE);
         let soft = SpindleMode { stiffness_change: -0.19, ..mode };
-        let beams = soft.beams_at(rpm(10000.0), rpm(10000.0));
-        assert_eq!(beams.len(), 1);
-        let (f, d, _, w) = beams[0];
-        assert!((f - 800.0 * 0.9).abs() < 1e-9 && w == 1.0, "{f}");
+        let (f, d, _) = soft.beam_at(rpm(10000.0), rpm(10000.0));
+        assert!((f - 800.0 * 0.9).abs() < 1e-9, "{f}");
         let at = |f: f64, d: f64| FixedFreeBeam::equivalent(f, d, 0.0, mat).unwrap().tip_receptance(0.0).h.re;
         assert!((at(800.0, mode.diameter) / at(f, d) - 0.81).abs() < 1e-9);
-        // At rest neither acts.
-        let split = SpindleMode { split: 0.05, ..soft };
-        assert_eq!(split.beams_at(Speed::ZERO, rpm(10000.0)), vec![(800.0, mode.diameter, 0.06, 1.0)]);
-        let whirls = split.beams_at(rpm(20000.0), rpm(10000.0));
+        let gyro = SpindleMode { gyro: 0.4, ..soft };
+        for w in [Whirl::Forward, Whirl::Backward] {
+            assert_eq!(gyro.whirl_at(Speed::ZERO, rpm(10000.0), w), 800.0);
+            assert_eq!(soft.whirl_at(rpm(20000.0), rpm(10000.0), w), soft.beam_at(rpm(20000.0), rpm(10000.0)).0);
+        }
         let f0 = 800.0 * (1.0 - 0.19 * 4.0f64).sqrt();
-        assert!((whirls[0].0 - f0 * 1.1).abs() < 1e-9 && (whirls[1].0 - f0 * 0.9).abs() < 1e-9);
-        assert!(whirls.iter().all(|b| b.3 == 0.5));
-        // Each whirl keeps the mode's mass: its static flexibility goes as 1/f².
-        let fd = |b: &(f64, f64, f64, f64)| at(b.0, b.1) * b.0 * b.0;
-        assert!((fd(&whirls[0]) / fd(&whirls[1]) - 1.0).abs() < 1e-9);
-        let g = spindle_receptance(&[split], &mat, rpm(20000.0), rpm(10000.0), &[f0 * 1.1]).unwrap();
-        let want = (FixedFreeBeam::equivalent(whirls[0].0, whirls[0].1, 0.06, mat)
-            .unwrap()
-            .tip_receptance(TAU * f0 * 1.1)
-            + FixedFreeBeam::equivalent(whirls[1].0, whirls[1].1, 0.06, mat).unwrap().tip_receptance(TAU * f0 * 1.1))
-            * Complex64::from(0.5);
-        assert!((g.lines[0] - want).max_norm() <= 1e-12 * want.max_norm());
+        let (ff, fb) = (
+            gyro.whirl_at(rpm(20000.0), rpm(10000.0), Whirl::Forward),
+            gyro.whirl_at(rpm(20000.0), rpm(10000.0), Whirl::Backward),
+        );
+        assert!(ff > f0 && fb < f0 && (ff * fb - f0 * f0).abs() < 1e-6 * f0 * f0, "{ff} {fb} {f0}");
+        // The receptance in each whirl peaks at the whirl's frequency; far above, by the beam's
+        // second mode (6.27 f), it is the still beam's.
+        let grid: Vec<f64> = (1..=20000).map(|k| 0.1 * k as f64).collect();
+        let still = spindle_receptance(&[gyro], &mat, rpm(20000.0), rpm(10000.0), &grid, None).unwrap();
+        for (w, want) in [(Whirl::Forward, ff), (Whirl::Backward, fb)] {
+            let r = spindle_receptance(&[gyro], &mat, rpm(20000.0), rpm(10000.0), &grid, Some(w)).unwrap();
+            let peak =
+                grid[(0..grid.len()).max_by(|&i, &j| r.lines[i].h.norm().total_cmp(&r.lines[j].h.norm())).unwrap()];
+            assert!((peak - want).abs() < 0.5, "{w:?}: peak at {peak} Hz, whirl at {want} Hz");
+            let far = [6.27 * f0];
+            let (a, b) = (
+                spindle_receptance(&[gyro], &mat, rpm(20000.0), rpm(10000.0), &far, Some(w)).unwrap(),
+                spindle_receptance(&[gyro], &mat, rpm(20000.0), rpm(10000.0), &far, None).unwrap(),
+            );
+            // Only the first-mode term differs there: a few per cent of the still response.
+            assert!((a.lines[0].h - b.lines[0].h).norm() < 0.05 * b.lines[0].h.norm());
+        }
+        assert!(still.lines.iter().all(|l| l.h.is_finite()));
+    }
+
+    /// The whirls of an isotropic mode with gyroscopic coupling, against the two-plane equations
+    /// solved directly: `m(ẍ + ω_n² x) + gmΩ ẏ = F`, `m(ÿ + ω_n² y) − gmΩ ẋ = 0`, whose undamped
+    /// `x/F` has its poles where `det [[ω_n² − ω², iωgΩ], [−iωgΩ, ω_n² − ω²]] = 0`, found here by
+    /// bisection on the determinant (not by the closed form `ω_n (√(1+e²) ∓ e)`).
+    #[test]
+    fn whirl_frequencies_are_the_poles_of_the_gyroscopic_pair() {
+        use spindlelab_domain::entity::whirl_frequency;
+        for (f_n, g, rpm) in
+            [(600.0, 0.22, 15000.0), (600.0, 0.22, 30000.0), (1200.0, 1.0, 24000.0), (300.0, 2.0, 40000.0)]
+        {
+            let (wn, spin) = (TAU * f_n, Speed::from_rpm(rpm).rad_s());
+            let det = |w: f64| (wn * wn - w * w).powi(2) - (w * g * spin).powi(2);
+            let root = |mut lo: f64, mut hi: f64| {
+                for _ in 0..200 {
+                    let mid = 0.5 * (lo + hi);
+                    if det(lo).signum() == det(mid).signum() { lo = mid } else { hi = mid }
+                }
+                0.5 * (lo + hi) / TAU
+            };
+            // One pole below ω_n and one above it.
+            let (backward, forward) = (root(1e-3 * wn, wn), root(wn, 10.0 * wn));
+            let n = Speed::from_rpm(rpm);
+            let got = (whirl_frequency(f_n, g, n, Whirl::Backward), whirl_frequency(f_n, g, n, Whirl::Forward));
+            assert!(
+                (got.0 / backward - 1.0).abs() < 1e-9 && (got.1 / forward - 1.0).abs() < 1e-9,
+                "{got:?} {backward} {forward}"
+            );
+            // The closed form of the issue: e = gΩ/(2ω_n).
+            let e = g * spin / (2.0 * wn);
+            assert!((got.1 / (f_n * ((1.0 + e * e).sqrt() + e)) - 1.0).abs() < 1e-12);
+        }
     }
 }

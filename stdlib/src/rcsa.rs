@@ -990,7 +990,7 @@ mod tests {
 
     fn spindle(freqs: &[f64]) -> ReceptanceFrf {
         let modes = [SpindleMode::new(700.0, 0.11, 0.05), SpindleMode::new(1900.0, 0.07, 0.04)];
-        spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10000.0), freqs).unwrap()
+        spindle_receptance(&modes, &Material::STEEL, Speed::ZERO, Speed::from_rpm(10000.0), freqs, None).unwrap()
     }
 
     /// The four-line kernels give every line the bits of the scalar formulas, on groups that

@@ -182,7 +182,7 @@ fn the_spindle_effects_act_where_their_physics_does() {
     };
     let at_speed = ["x 12000", "y 12000"];
     assert_eq!(changed(&ratios(&[("bearing_stiffness_change", vec![("bearing_kk", -0.05)])])), at_speed);
-    assert_eq!(changed(&ratios(&[("gyroscopic_mode_split", vec![("spindle_0_split", 0.08)])])), at_speed);
+    assert_eq!(changed(&ratios(&[("gyroscopic_mode_split", vec![("spindle_0_gyro", 0.3)])])), at_speed);
     let machine =
         ratios(&[("machine_resonance", vec![("machine_y_f", 1200.0), ("machine_y_k", 2e8), ("machine_y_zeta", 0.03)])]);
     assert_eq!(changed(&machine), ["y 0", "y 12000"]);

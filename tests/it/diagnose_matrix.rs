@@ -42,7 +42,7 @@ fn matrix() -> Vec<Case> {
                 vec![("spindle_x0_kf", 0.04), ("spindle_x1_kf", 0.02), ("spindle_y0_kf", 0.03)],
             ],
         ),
-        ("gyroscopic_mode_split", vec![vec![("spindle_0_split", 0.06)], vec![("spindle_0_split", 0.1)]]),
+        ("gyroscopic_mode_split", vec![vec![("spindle_0_gyro", 0.25)], vec![("spindle_0_gyro", 0.4)]]),
         ("bearing_stiffness_change", vec![vec![("bearing_kk", -0.03)], vec![("bearing_kk", -0.06)]]),
         (
             "machine_resonance",

@@ -89,9 +89,8 @@ fn draw(effect: &'static str, rng: &mut ChaCha8Rng, base: &Base) -> (&'static st
         "spindle_speed_stiffening" => {
             vec![("spindle_x0_kf", rng.random_range(0.015..0.05)), ("spindle_y0_kf", rng.random_range(0.01..0.04))]
         }
-        // The split of the first mode's whirls at the fastest measured speed, 5–15 % of its
-        // frequency.
-        "gyroscopic_mode_split" => vec![("spindle_0_split", rng.random_range(0.05..0.15) / at_top)],
+        // The first mode's gyroscopic coefficient I_p/I_d, of a slender rotor to a stubby one.
+        "gyroscopic_mode_split" => vec![("spindle_0_gyro", rng.random_range(0.2..0.6))],
         // The bearings 3–10 % softer at the fastest measured speed.
         "bearing_stiffness_change" => vec![("bearing_kk", -rng.random_range(0.03..0.10) / at_top.powi(2))],
         // A mode of the machine along x or y at 30–85 % of the spindle's highest mode there.

@@ -92,11 +92,14 @@ fn report_of_a_run_folder_writes_the_same_sections_and_refuses_a_folder_without_
     assert!(e.contains("holds no readable manifest.json") && e.contains("give the output folder of a run"), "{e}");
 }
 
-/// Loads the report in headless Chromium (Debian's `chromium`) and fails on any console
-/// error. Without a browser it says so and passes, except where `SPINDLELAB_REQUIRE_BROWSER`
-/// is set (CI installs Chromium and sets it), so there a missing browser fails the test.
+/// Loads the report in headless Chromium (Debian's `chromium`) as a reader would see it: every
+/// figure decoded (its natural size above zero, checked by a script added to a copy of the
+/// page, which writes what it found into the page), a screenshot that is not blank where the
+/// figures are, and no console error. Without a browser it says so and passes, except where
+/// `SPINDLELAB_REQUIRE_BROWSER` is set (CI installs Chromium and sets it), so there a missing
+/// browser fails the test. A copy with one figure's data broken must fail the same checks.
 #[test]
-fn the_report_loads_in_a_headless_browser_without_console_errors() {
+fn the_report_loads_in_a_headless_browser_with_every_figure_shown() {
     let Some(browser) = ["chromium", "chromium-browser", "google-chrome"]
         .iter()
         .find(|b| Command::new(b).arg("--version").output().is_ok_and(|o| o.status.success()))
@@ -108,20 +111,72 @@ fn the_report_loads_in_a_headless_browser_without_console_errors() {
         eprintln!("no Chromium on this machine: the browser check is skipped");
         return;
     };
-    let (dir, out, _) = reported();
-    let url = format!("file://{}", out.join("report.html").canonicalize().unwrap().display());
-    let o = Command::new(browser)
-        .args(["--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0"])
-        .arg(format!("--user-data-dir={}", dir.path().join("profile").display()))
-        .args(["--dump-dom", &url])
-        .output()
-        .expect("browser runs");
-    let dom = String::from_utf8_lossy(&o.stdout);
-    let log = String::from_utf8_lossy(&o.stderr);
-    assert!(dom.contains("<h1>speed-dependent-sld</h1>"), "the page did not load:\n{log}");
+    let (dir, out, html) = reported();
+    let figures = html.matches("<figure").count();
+    assert!(figures >= 2, "{figures} figures in the report");
+    // Counts the figures the browser shows (an image decoded to a natural size above zero, an
+    // inline drawing laid out with a size and something in it) and writes the count where
+    // --dump-dom shows it.
+    let check = r#"<script>
+window.addEventListener("load", () => {
+  const figs = [...document.querySelectorAll("figure")];
+  const shown = figs.filter(f => {
+    const img = f.querySelector("img");
+    if (img) return img.complete && img.naturalWidth > 0 && img.naturalHeight > 0;
+    const svg = f.querySelector("svg");
+    if (!svg) return false;
+    const r = svg.getBoundingClientRect();
+    return r.width > 0 && r.height > 0 && svg.childElementCount > 0;
+  }).length;
+  const p = document.createElement("p");
+  p.id = "figure-check";
+  p.textContent = `figures shown: ${shown} of ${figs.length}`;
+  document.body.prepend(p);
+});
+</script>"#;
+    let load = |name: &str, page: &str| {
+        let path = out.join(name);
+        std::fs::write(&path, page.replace("</body>", &format!("{check}</body>"))).unwrap();
+        let url = format!("file://{}", path.canonicalize().unwrap().display());
+        let shot = dir.path().join(format!("{name}.png"));
+        let run = |extra: &[&str]| {
+            Command::new(browser)
+                .args(["--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0"])
+                .args(["--hide-scrollbars", "--window-size=1000,2400", "--virtual-time-budget=5000"])
+                .arg(format!("--user-data-dir={}", dir.path().join("profile").display()))
+                .args(extra)
+                .arg(&url)
+                .output()
+                .expect("browser runs")
+        };
+        let o = run(&["--dump-dom"]);
+        let dom = String::from_utf8_lossy(&o.stdout).to_string();
+        let mut log = String::from_utf8_lossy(&o.stderr).to_string();
+        let s = run(&[&format!("--screenshot={}", shot.display())]);
+        log.push_str(&String::from_utf8_lossy(&s.stderr));
+        (dom, log, std::fs::read(&shot).unwrap_or_default())
+    };
+    let (dom, log, shot) = load("checked.html", &html);
     let console: Vec<&str> = log
         .lines()
         .filter(|l| l.contains("CONSOLE") || l.contains("Uncaught") || l.contains("ERR_FILE_NOT_FOUND"))
         .collect();
     assert!(console.is_empty(), "console errors:\n{}", console.join("\n"));
+    assert!(dom.contains(&format!("figures shown: {figures} of {figures}")), "not every figure decoded:\n{log}");
+    // The screenshot: a page, not a blank, with the first figure's colours on it.
+    let mut reader = png::Decoder::new(std::io::Cursor::new(&shot)).read_info().expect("a screenshot");
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).expect("a frame");
+    let channels = info.color_type.samples();
+    let drawn = buf[..info.buffer_size()].chunks(channels).filter(|p| p[..3].iter().any(|&c| c < 200)).count();
+    let share = drawn as f64 / (info.width * info.height) as f64;
+    assert!(share > 0.02, "the screenshot is nearly blank: {:.2} % drawn", 100.0 * share);
+    // One figure broken (an image's data, or an inline drawing emptied to no size): the check
+    // sees it.
+    let broken = match html.find("base64,") {
+        Some(at) => format!("{}!!!!{}", &html[..at + 7], &html[at + 11..]),
+        None => html.replacen("<svg", "<svg style=\"display:none\"", 1),
+    };
+    let (dom, _, _) = load("broken.html", &broken);
+    assert!(dom.contains(&format!("figures shown: {} of {figures}", figures - 1)), "a broken figure went unseen");
 }

@@ -57,8 +57,9 @@ fn every_recipe_in_scripts() {
 }
 
 /// Compares a plot with `tests/figures/RECIPE/FILE.png`, the image a person reviewed: the
-/// same size, and at most 0.5 % of the pixels off by more than a faint shade (so a change of
-/// font hinting passes and a moved curve, axis or legend fails). With
+/// same size, and at most [`DATA_PIXELS_OFF`] of its drawn pixels (those not background in
+/// either image: curves, markers, axes, text) off by more than a faint shade, so a change of
+/// font hinting passes and an erased or moved curve, axis or legend fails. With
 /// `SPINDLELAB_UPDATE_FIGURES=1` the references are rewritten for review instead; a failing
 /// figure is saved beside the test's temporary files to look at.
 fn check_figure(recipe: &std::path::Path, file: &str, png: &[u8]) {
@@ -88,18 +89,93 @@ fn check_figure(recipe: &std::path::Path, file: &str, png: &[u8]) {
         keep();
         panic!("{stem}/{file}: {:?} pixels, the reference {:?}; see {}", a.0, b.0, actual.display());
     }
-    let off =
-        a.1.chunks(3).zip(b.1.chunks(3)).filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > 48)).count();
-    let fraction = off as f64 / (a.0.0 * a.0.1) as f64;
-    if fraction > 0.005 {
+    let fraction = drawn_pixels_off(&a.1, &b.1);
+    if fraction > DATA_PIXELS_OFF {
         keep();
         panic!(
-            "{stem}/{file}: {:.2} % of the pixels differ from the reference; see {} against {}",
+            "{stem}/{file}: {:.2} % of the drawn pixels differ from the reference; see {} against {}",
             100.0 * fraction,
             actual.display(),
             reference.display()
         );
     }
+}
+
+/// The share of drawn pixels two renderings may differ in: text rasterised a shade apart at a
+/// few edges, not a curve (a curve is several per cent of what is drawn).
+const DATA_PIXELS_OFF: f64 = 0.01;
+
+/// The background of a plot: white, and anything within a faint shade of it.
+fn is_background(p: &[u8]) -> bool {
+    p.iter().all(|&c| c >= 250)
+}
+
+/// The share of the pixels drawn in either RGB image (not background) that differ by more than
+/// a faint shade in some channel.
+fn drawn_pixels_off(a: &[u8], b: &[u8]) -> f64 {
+    let (mut drawn, mut off) = (0usize, 0usize);
+    for (p, q) in a.chunks(3).zip(b.chunks(3)) {
+        if is_background(p) && is_background(q) {
+            continue;
+        }
+        drawn += 1;
+        if p.iter().zip(q).any(|(x, y)| x.abs_diff(*y) > 48) {
+            off += 1;
+        }
+    }
+    if drawn == 0 { 0.0 } else { off as f64 / drawn as f64 }
+}
+
+/// The comparison sees a curve: in every reference figure, erasing the pixels of its most
+/// common curve colour, or moving them three pixels up and right, differs by more than the allowance;
+/// the figure against itself differs by nothing.
+#[test]
+fn the_figure_check_fails_when_a_curve_is_erased_or_moved() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/figures");
+    let mut checked = 0;
+    for recipe in std::fs::read_dir(&root).unwrap().flatten() {
+        for figure in std::fs::read_dir(recipe.path()).unwrap().flatten() {
+            let ((w, h), px) = pixels(&std::fs::read(figure.path()).unwrap());
+            let (w, h) = (w as usize, h as usize);
+            // A curve's colour: the most common saturated colour (not a grey of text or axes).
+            let mut counts = std::collections::HashMap::new();
+            for p in px.chunks(3) {
+                let (lo, hi) = (p.iter().min().unwrap(), p.iter().max().unwrap());
+                if hi - lo > 60 {
+                    *counts.entry([p[0], p[1], p[2]]).or_insert(0usize) += 1;
+                }
+            }
+            let Some((&colour, _)) = counts.iter().max_by_key(|(c, n)| (**n, **c)) else { continue };
+            let name = figure.path().display().to_string();
+            assert_eq!(drawn_pixels_off(&px, &px), 0.0, "{name}");
+            let is_curve = |i: usize| px[3 * i..3 * i + 3] == colour;
+            let mut erased = px.clone();
+            let mut moved = px.clone();
+            for i in 0..w * h {
+                if is_curve(i) {
+                    erased[3 * i..3 * i + 3].copy_from_slice(&[255, 255, 255]);
+                    moved[3 * i..3 * i + 3].copy_from_slice(&[255, 255, 255]);
+                }
+            }
+            // Three pixels up and three to the right: a curve of any slope, or a bar, moves.
+            for i in (3 * w)..w * h {
+                if is_curve(i) && i % w + 3 < w {
+                    let to = i - 3 * w + 3;
+                    moved[3 * to..3 * to + 3].copy_from_slice(&colour);
+                }
+            }
+            for (what, image) in [("erased", &erased), ("moved", &moved)] {
+                let off = drawn_pixels_off(image, &px);
+                assert!(
+                    off > DATA_PIXELS_OFF,
+                    "{name}: its curve {what}, {:.2} % of the drawn pixels differ",
+                    100.0 * off
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked >= 20, "{checked} figures");
 }
 
 /// A PNG's size and RGB bytes.

@@ -341,7 +341,8 @@ fn w02_rigid_coupling_peak_matches_the_numpy_peer() {
     let eta = [0.05, 0.045, 0.04, 0.035, 0.03, 0.025, 0.022, 0.02];
     let spindle_modes: Vec<SpindleMode> = (0..8).map(|i| SpindleMode::new(f1[i], d[i], eta[i])).collect();
     let spindle =
-        spindle_receptance(&spindle_modes, &EbMaterial::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs).unwrap();
+        spindle_receptance(&spindle_modes, &EbMaterial::STEEL, Speed::ZERO, Speed::from_rpm(10_000.0), &freqs, None)
+            .unwrap();
     let g = couple(&holder, &spindle, &Interface::Rigid, &RcsaOptions::default()).unwrap();
     let (k, peak) =
         g.lines.iter().map(|b| b.h.norm()).enumerate().fold((0, 0.0), |a, (k, v)| if v > a.1 { (k, v) } else { a });

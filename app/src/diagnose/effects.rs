@@ -9,7 +9,9 @@ use crate::engine::node::{EffectSpec, Registry};
 use crate::engine::syntax::Raw;
 use crate::engine::syntax::edit::{EditError, RecipeText, Seg, path};
 use serde_json::{Map, Value as Json, json};
+use spindlelab_domain::entity::{Whirl, whirl_frequency};
 use spindlelab_domain::{Speed, SpeedLaw};
+use spindlelab_stdlib::nodes::kinds;
 use spindlelab_stdlib::nodes::kinds::{FRF_ADD_MODE, FRF_PHASE_SLOPE, RECEPTANCE_TIP_MASS, SUBSTRUCTURE_JOINT};
 
 /// Where an effect acts; a measurement-only effect leaves the cutting configuration alone,
@@ -665,10 +667,12 @@ impl Effect for BearingStiffnessChange {
     }
 }
 
-/// Spindle modes splitting into a forward and a backward whirl with speed (gyroscopic
-/// coupling of an isotropic rotor): mode `i` of every direction at `f (1 ± s n/n_ref)`, each
-/// whirl with half the mode's residue, one split `s` per mode index (x and y see the same
-/// whirling mode).
+/// Spindle modes whirling forward and backward with speed (gyroscopic coupling of an
+/// isotropic rotor), in the form the physics gives it: mode `i` has a gyroscopic coefficient
+/// `g = I_p/I_d` (one per mode index, x and y see the same rotor), its whirls are at
+/// `ω (√(1+e²) ± e)`, `e = gΩ/(2ω)`, and the whole assembly is coupled in each whirl's
+/// coordinates and the two averaged (spindle.receptance's `cross` wired into each coupling's
+/// `spindle_cross`): the split of the coupled modes then follows each one's shape.
 pub struct GyroscopicModeSplit;
 
 impl GyroscopicModeSplit {
@@ -678,6 +682,9 @@ impl GyroscopicModeSplit {
             s.modes.iter().filter(|(d, _)| roles.directions.contains(d)).map(|(_, m)| m.len()).max().unwrap_or(0)
         })
     }
+
+    /// The largest gyroscopic coefficient: a thin disk's, `I_p = 2 I_d`.
+    const MAX_GYRO: f64 = 2.0;
 }
 
 impl Effect for GyroscopicModeSplit {
@@ -688,59 +695,74 @@ impl Effect for GyroscopicModeSplit {
         Scope::Structure
     }
     fn description(&self) -> &'static str {
-        "spindle modes splitting into forward and backward whirls at f (1 ± s n/n_ref), half the residue each; measured and cutting"
+        "spindle modes whirling forward and backward at ω(√(1+e²) ± e), e = gΩ/(2ω), g = I_p/I_d per mode, the assembly coupled in each whirl and the two averaged; measured and cutting"
     }
     fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
-        let (machine, spindle, top) = spindle_at_speed(roles, c, "a whirl split")?;
+        let (machine, spindle, _) = spindle_at_speed(roles, c, "a gyroscopic whirl")?;
         let count = Self::count(roles, c);
         if count == 0 {
             return Err("the machine has no spindle modes in the measured directions".into());
         }
-        // At the fastest measured speed each whirl moves by at most 30 %, at the fastest speed
-        // the recipe uses by at most 60 % (the backward whirl keeps a frequency).
-        let ratio = |rpm: f64| SpeedLaw::ratio_squared(Speed::from_rpm(rpm), spindle.ref_speed).sqrt();
-        let max = (0.3 / ratio(top)).min(0.6 / ratio(roles.top_speed_rpm.max(top)));
         let mut free = Vec::new();
         for i in 0..count {
-            let name = format!("spindle_{i}_split");
+            let name = format!("spindle_{i}_gyro");
             let mut start = 0.0;
             for (d, modes) in spindle.modes.iter().filter(|(_, m)| m.len() > i) {
-                start = modes[i].split;
+                start = modes[i].gyro;
                 let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
-                r.set_key(&p, "split", &Raw::param(&name)).map_err(e)?;
+                r.set_key(&p, "gyro", &Raw::param(&name)).map_err(e)?;
             }
-            free.push(Free::lin(&name, "", start.clamp(0.0, max), 0.0, max.max(start)));
+            free.push(Free::lin(&name, "", start.clamp(0.0, Self::MAX_GYRO), 0.0, Self::MAX_GYRO));
+        }
+        // Every coupling of the spindle model takes its whirls.
+        let mut wired = 0;
+        for coupling in roles.measured_couplings.iter().chain(&roles.cutting_couplings) {
+            let Some(step) = c.recipe.step(coupling) else { continue };
+            let Some(from) = step.inputs.iter().find(|b| b.port == "spindle").map(|b| &b.from) else { continue };
+            if c.recipe.step(&from.step).is_none_or(|s| s.kind != kinds::SPINDLE_RECEPTANCE) {
+                continue;
+            }
+            let cross = Raw::text(format!("@{}.cross", from.step));
+            r.set_key(&path(&["steps", coupling, "inputs"]), "spindle_cross", &cross).map_err(e)?;
+            wired += 1;
+        }
+        if wired == 0 {
+            return Err("no coupling takes its spindle from a spindle model".into());
         }
         declare(r, &free)?;
         Ok(free)
     }
-    /// The split is even in `s` (the residual is flat at no split) and moves the whirls by
+    /// The whirls are even in `g` about no coupling (the residual is flat there) and move by
     /// several bandwidths over its range: a scan finds the well.
     fn starts(&self, free: &[Free]) -> usize {
         12 * free.len()
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let spindle = roles.machine.as_ref().and_then(|m| c.recipe.machines.get(m)).and_then(|m| m.spindle.as_ref());
-        let reference = spindle.map_or(f64::NAN, |s| s.ref_speed.rpm());
-        let splits: Vec<Json> = (0..Self::count(roles, c))
+        let top = roles.speeds_rpm.iter().copied().fold(0.0, f64::max);
+        let modes: Vec<Json> = (0..Self::count(roles, c))
             .map(|i| {
-                let s = value(values, &format!("spindle_{i}_split"));
-                // The split rate of each direction's mode at rest, Hz per 1000 rpm.
-                let rates: Map<String, Json> = spindle
+                let g = value(values, &format!("spindle_{i}_gyro"));
+                // Each direction's whirls at the fastest measured speed, Hz, from its frequency at rest.
+                let whirls: Map<String, Json> = spindle
                     .map(|sp| {
                         sp.modes
                             .iter()
                             .filter(|(_, m)| m.len() > i)
-                            .map(|(d, m)| (d.clone(), json!(s * m[i].freq_hz * 1000.0 / reference)))
+                            .map(|(d, m)| {
+                                let at = |w| whirl_frequency(m[i].freq_hz, g, Speed::from_rpm(top), w);
+                                (d.clone(), json!({ "backward_hz": at(Whirl::Backward), "forward_hz": at(Whirl::Forward) }))
+                            })
                             .collect()
                     })
                     .unwrap_or_default();
-                json!({ "mode_index": i, "split": s, "rate_hz_per_1000_rpm": rates })
+                // The whirls part by g Ω/2 for small e: Hz per 1000 rpm.
+                json!({ "mode_index": i, "gyro_ratio": g, "rate_hz_per_1000_rpm": g * 1000.0 / 60.0 / 2.0, "whirls_at_fastest_measured": whirls })
             })
             .collect();
         let mut m = Map::new();
-        m.insert("reference_rpm".into(), json!(reference));
-        m.insert("splits".into(), Json::Array(splits));
+        m.insert("fastest_measured_rpm".into(), json!(top));
+        m.insert("modes".into(), Json::Array(modes));
         m
     }
 }

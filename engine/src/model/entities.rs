@@ -50,9 +50,9 @@ pub const SPINDLE_MODE: &[Field] = &[
         "bearing stiffness over speed: k(n) = k (1 + kk (n/ref_speed)^2) at the mode's mass (f with its root); default 0",
     ),
     Field::opt(
-        "split",
+        "gyro",
         RATIO,
-        "gyroscopic whirl split: forward and backward whirls at f (1 ± split n/ref_speed), half the mode each; default 0",
+        "gyroscopic coefficient g = I_p/I_d of the rotor in this mode: at spin Ω it whirls forward and backward at ω(√(1+e²) ± e), e = gΩ/(2ω); wire spindle.receptance's `cross` into rcsa.couple's `spindle_cross` to couple each whirl; default 0",
     ),
 ];
 

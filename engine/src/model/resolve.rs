@@ -558,7 +558,7 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                                 };
                                 SpindleMode {
                                     stiffness_change: m.f64("kk").unwrap_or(0.0),
-                                    split: m.f64("split").unwrap_or(0.0),
+                                    gyro: m.f64("gyro").unwrap_or(0.0),
                                     ..mode
                                 }
                             })

@@ -182,8 +182,8 @@ pub fn main_param(effect: &str, truth: &[(&str, f64)], d: &Diagnosis) -> Option<
         }
         "bearing_stiffness_change" => (t("bearing_kk")?, p["relative_change_at_reference"].as_f64()?),
         "gyroscopic_mode_split" => {
-            let s = p["splits"].as_array()?.iter().find(|s| s["mode_index"] == 0)?;
-            (t("spindle_0_split")?, s["split"].as_f64()?)
+            let m = p["modes"].as_array()?.iter().find(|m| m["mode_index"] == 0)?;
+            (t("spindle_0_gyro")?, m["gyro_ratio"].as_f64()?)
         }
         "machine_resonance" => {
             let (name, k) = truth.iter().find(|(k, _)| k.starts_with("machine_") && k.ends_with("_k"))?;

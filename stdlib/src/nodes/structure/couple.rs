@@ -5,7 +5,7 @@ use super::{
     rcsa_error, rcsa_options, sensor_mass, to_frf, to_set, two_port, two_port_of,
 };
 use crate::beam;
-use crate::rcsa::{self, Interface, Receptance, TwoPort};
+use crate::rcsa::{self, Complex64, Interface, Receptance, TwoPort};
 use spindlelab_domain::Speed;
 use spindlelab_engine::model::Joint;
 
@@ -68,7 +68,7 @@ impl RcsaCouple {
                     PortSpec::new(
                         "spindle_cross",
                         PortType::ReceptanceSet,
-                        "the cross-plane block Q of a spinning spindle (rotor.receptance's `cross`): the assembly then spins at the spindle's speed and is coupled in forward and backward whirl coordinates",
+                        "the cross-plane block Q of a spinning spindle (rotor.receptance's or spindle.receptance's `cross`): the assembly is coupled in the forward and backward whirl coordinates and the two averaged; an `assembly` meshed here also spins at the spindle's speed, a `structure` does not",
                     )
                     .optional(),
                 ],
@@ -97,65 +97,109 @@ impl Node for RcsaCouple {
         let spindle = input_on_grid(ctx, "spindle", p.grid_mismatch)?;
         let interface = holder_interface(ctx, p.interface, p.machine)?;
         let tip_mass = sensor_mass(ctx, p.sensor)?;
-        let freqs = spindle.freq_hz.clone();
-        let base = to_frf(&spindle);
-        let opts = rcsa_options(p.max_condition);
-        let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
         if !ctx.inputs_of("spindle_cross").is_empty() {
             let cross = input_on_grid(ctx, "spindle_cross", p.grid_mismatch)?;
-            return couple_spinning(ctx, &p, spindle, cross, interface, tip_mass);
+            check_same_spindle(&spindle, &cross)?;
+            if ctx.inputs_of("structure").is_empty() {
+                return couple_spinning(ctx, &p, spindle, cross, interface, tip_mass);
+            }
+            // A structure that does not spin on a spindle that whirls: in the whirl coordinates
+            // the planes decouple, so the structure is coupled to the forward whirl F = P − iQ
+            // and to the backward whirl B = P + iQ, and the tip's in-plane block is the mean.
+            let (base, q) = (to_frf(&spindle), to_frf(&cross));
+            let whirl = |s: f64| rcsa::ReceptanceFrf {
+                freqs_hz: base.freqs_hz.clone(),
+                lines: base.lines.iter().zip(&q.lines).map(|(p, q)| *p + *q * Complex64::new(0.0, s)).collect(),
+            };
+            let (gf, gb) = (
+                couple_still(ctx, &p, &whirl(-1.0), interface, tip_mass)?,
+                couple_still(ctx, &p, &whirl(1.0), interface, tip_mass)?,
+            );
+            let half = Complex64::new(0.5, 0.0);
+            let g = rcsa::ReceptanceFrf {
+                freqs_hz: gf.freqs_hz.clone(),
+                lines: gf.lines.iter().zip(&gb.lines).map(|(f, b)| (*f + *b) * half).collect(),
+            };
+            let set = to_set(&g, spindle.direction.clone(), spindle.speed);
+            let frf = h_of(&set);
+            return Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]));
         }
-        let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
-            Some(Value::Substructure(s)) => {
-                let ports = s.parts.iter().map(|part| cached_two_port(part, &freqs)).collect::<Result<Vec<_>, _>>()?;
-                (ports, s.tool_joint)
-            }
-            Some(other) => {
-                return Err(NodeError::input(
-                    "structure",
-                    format!("expected a substructure, got {}", other.port_type()),
-                ));
-            }
-            None => {
-                let name = p.assembly.ok_or_else(|| {
-                    NodeError::param(
-                        "assembly",
-                        "rcsa.couple needs `assembly`, or a substructure connected to `structure`",
-                    )
-                })?;
-                let a = assembly(ctx, "assembly", name)?;
-                let (parts, joint) = assembly_parts(a, name, false)?;
-                let mesh = mesh(p.max_element, p.shear);
-                let ports = parts
-                    .iter()
-                    .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly").map(Arc::new))
-                    .collect::<Result<Vec<_>, _>>()?;
-                (ports, joint)
-            }
-        };
-        let mut g = match (&ports[..], tool_joint) {
-            ([whole], _) => {
-                rcsa::couple(whole, &base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?
-            }
-            ([holder, tool], joint) => {
-                let at_tool = match joint {
-                    Some([kt, ct, kr, cr]) => Interface::diagonal(kt, ct, kr, cr),
-                    None => Interface::Rigid,
-                };
-                rcsa::couple_chain(&base, &[(&**holder, interface), (&**tool, at_tool)], &opts)
-                    .map_err(|e| rcsa_error("spindle", e, hint))?
-            }
-            _ => return Err(NodeError::input("structure", "a substructure has one part, or two (holder and tool)")),
-        };
-        if tip_mass > 0.0 {
-            g = rcsa::with_point_mass(&g, tip_mass).map_err(|e| {
-                rcsa_error("sensor", e, "the sensor mass resonates with the structure exactly on a line")
-            })?;
-        }
+        let g = couple_still(ctx, &p, &to_frf(&spindle), interface, tip_mass)?;
         let set = to_set(&g, spindle.direction.clone(), spindle.speed);
         let frf = h_of(&set);
         Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
     }
+}
+
+/// The tip receptance of the structure on `structure` (or the `assembly` meshed here, not
+/// spinning) coupled to the spindle receptance `base` through `interface`, with the sensor's
+/// `tip_mass` on it.
+fn couple_still(
+    ctx: &NodeContext,
+    p: &RcsaCoupleParams,
+    base: &rcsa::ReceptanceFrf,
+    interface: Interface,
+    tip_mass: f64,
+) -> Result<rcsa::ReceptanceFrf, NodeError> {
+    let freqs = base.freqs_hz.clone();
+    let opts = rcsa_options(p.max_condition);
+    let hint = "the spindle receptance and the assembly's joint receptance cancel there; check the spindle model and the joint";
+    let (ports, tool_joint) = match ctx.inputs_of("structure").first().map(|l| l.value.as_ref()) {
+        Some(Value::Substructure(s)) => {
+            let ports = s.parts.iter().map(|part| cached_two_port(part, &freqs)).collect::<Result<Vec<_>, _>>()?;
+            (ports, s.tool_joint)
+        }
+        Some(other) => {
+            return Err(NodeError::input("structure", format!("expected a substructure, got {}", other.port_type())));
+        }
+        None => {
+            let name = p.assembly.ok_or_else(|| {
+                NodeError::param("assembly", "rcsa.couple needs `assembly`, or a substructure connected to `structure`")
+            })?;
+            let a = assembly(ctx, "assembly", name)?;
+            let (parts, joint) = assembly_parts(a, name, false)?;
+            let mesh = mesh(p.max_element, p.shear);
+            let ports = parts
+                .iter()
+                .map(|(_, sections)| two_port(sections, &mesh, 0.0, &freqs, "assembly").map(Arc::new))
+                .collect::<Result<Vec<_>, _>>()?;
+            (ports, joint)
+        }
+    };
+    let mut g = match (&ports[..], tool_joint) {
+        ([whole], _) => rcsa::couple(whole, base, &interface, &opts).map_err(|e| rcsa_error("spindle", e, hint))?,
+        ([holder, tool], joint) => {
+            let at_tool = match joint {
+                Some([kt, ct, kr, cr]) => Interface::diagonal(kt, ct, kr, cr),
+                None => Interface::Rigid,
+            };
+            rcsa::couple_chain(base, &[(&**holder, interface), (&**tool, at_tool)], &opts)
+                .map_err(|e| rcsa_error("spindle", e, hint))?
+        }
+        _ => return Err(NodeError::input("structure", "a substructure has one part, or two (holder and tool)")),
+    };
+    if tip_mass > 0.0 {
+        g = rcsa::with_point_mass(&g, tip_mass)
+            .map_err(|e| rcsa_error("sensor", e, "the sensor mass resonates with the structure exactly on a line"))?;
+    }
+    Ok(g)
+}
+
+/// Refuses a cross-plane block that is not of the same spindle step as the in-plane one.
+fn check_same_spindle(spindle: &ReceptanceSet, cross: &ReceptanceSet) -> Result<(), NodeError> {
+    if spindle.speed.unwrap_or(Speed::ZERO) != cross.speed.unwrap_or(Speed::ZERO)
+        || !super::same_grid(&spindle.freq_hz, &cross.freq_hz)
+    {
+        return Err(NodeError::input(
+            "spindle_cross",
+            format!(
+                "`spindle` and `spindle_cross` must come from one rotor.receptance or spindle.receptance step (same speed and lines); got {} and {}",
+                spindle.speed.unwrap_or(Speed::ZERO),
+                cross.speed.unwrap_or(Speed::ZERO)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// `rcsa.couple` on a spinning spindle: the assembly meshed, spinning at the spindle's speed, and
@@ -169,24 +213,6 @@ fn couple_spinning(
     interface: Interface,
     tip_mass: f64,
 ) -> Result<Outputs, NodeError> {
-    if !ctx.inputs_of("structure").is_empty() {
-        return Err(NodeError::input(
-            "structure",
-            "a spinning spindle (`spindle_cross`) needs the assembly meshed here: give `assembly` instead of `structure`",
-        ));
-    }
-    if spindle.speed.unwrap_or(Speed::ZERO) != cross.speed.unwrap_or(Speed::ZERO)
-        || !super::same_grid(&spindle.freq_hz, &cross.freq_hz)
-    {
-        return Err(NodeError::input(
-            "spindle_cross",
-            format!(
-                "`spindle` and `spindle_cross` must come from one rotor.receptance step (same speed and lines); got {} and {}",
-                spindle.speed.unwrap_or(Speed::ZERO),
-                cross.speed.unwrap_or(Speed::ZERO)
-            ),
-        ));
-    }
     let name = p
         .assembly
         .ok_or_else(|| NodeError::param("assembly", "a spinning coupling needs `assembly`, the holder and tool"))?;

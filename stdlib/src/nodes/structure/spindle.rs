@@ -2,6 +2,7 @@
 
 use super::{SPINDLE_RECEPTANCE, grid, grid_port, h_of, outputs, to_set};
 use crate::eb_modes;
+use crate::rcsa::ReceptanceFrf;
 use spindlelab_domain::Speed;
 
 use super::{LINES, MAX_FREQUENCY, RESOLUTION};
@@ -45,11 +46,20 @@ impl SpindleReceptance {
         SpindleReceptance {
             spec: NodeSpec {
                 kind: SPINDLE_RECEPTANCE,
-                version: 2,
-                description: "Spindle-machine receptances at the holder base as the sum of equivalent fixed-free Euler-Bernoulli modes (Eqs. 5.5-5.7, 5.10-5.12) at a speed.",
+                version: 3,
+                description: "Spindle-machine receptances at the holder base as the sum of equivalent fixed-free Euler-Bernoulli modes (Eqs. 5.5-5.7, 5.10-5.12) at a speed. Modes with a gyroscopic coefficient (`gyro`) whirl forward and backward at speed; wire `cross` into rcsa.couple's `spindle_cross` so the assembly is coupled in each whirl.",
                 inputs: vec![grid_port()],
                 outputs: vec![
-                    PortSpec::new("receptance", PortType::ReceptanceSet, "2x2 receptances at the holder base"),
+                    PortSpec::new(
+                        "receptance",
+                        PortType::ReceptanceSet,
+                        "2x2 receptances at the holder base (in-plane block P, the mean of the two whirls)",
+                    ),
+                    PortSpec::new(
+                        "cross",
+                        PortType::ReceptanceSet,
+                        "cross-plane block Q of the gyroscopic coupling, i(F - B)/2 of the forward and backward whirls (zero without one), for rcsa.couple's `spindle_cross`",
+                    ),
                     PortSpec::new("frf", PortType::Frf, "its H = y/F (m/N)"),
                 ],
                 params: SpindleReceptanceParams::fields(),
@@ -107,10 +117,30 @@ impl Node for SpindleReceptance {
         let freqs = grid(ctx, p.max_frequency, p.resolution, p.lines)?;
         // The measured FRF's speed where the step gives none.
         let speed = p.speed.map(Speed::from_rad_s).or(measured.and_then(|f| f.speed)).unwrap_or(Speed::ZERO);
-        let r = eb_modes::spindle_receptance(modes, &spindle.material, speed, spindle.ref_speed, &freqs)
-            .map_err(|e| NodeError::param("machine", format!("spindle of machine `{name}`, direction {dir}: {e}")))?;
-        let set = to_set(&r, Some(dir.to_string()), Some(speed));
+        let err = |e: eb_modes::EbError| {
+            NodeError::param("machine", format!("spindle of machine `{name}`, direction {dir}: {e}"))
+        };
+        // With gyroscopic coupling at speed, each mode and the same mode across (y for x) are
+        // one rotor mode in two planes: the in-plane block P and the cross-plane block Q.
+        let (p_block, q_block) = if modes.iter().any(|m| m.gyro != 0.0) && !speed.is_rest() {
+            let across = if dir == "x" { "y" } else { "x" };
+            let partner = spindle.modes.iter().find(|(d, _)| d == across).map_or(&modes[..], |(_, m)| &m[..]);
+            eb_modes::spindle_gyroscopic(modes, partner, &spindle.material, speed, spindle.ref_speed, &freqs)
+                .map_err(err)?
+        } else {
+            let p = eb_modes::spindle_receptance(modes, &spindle.material, speed, spindle.ref_speed, &freqs, None)
+                .map_err(err)?;
+            let zero =
+                ReceptanceFrf { freqs_hz: freqs.clone(), lines: vec![crate::rcsa::Receptance::ZERO; freqs.len()] };
+            (p, zero)
+        };
+        let set = to_set(&p_block, Some(dir.to_string()), Some(speed));
+        let cross = to_set(&q_block, Some(dir.to_string()), Some(speed));
         let frf = h_of(&set);
-        Ok(outputs(vec![("receptance", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]))
+        Ok(outputs(vec![
+            ("receptance", Value::ReceptanceSet(set)),
+            ("cross", Value::ReceptanceSet(cross)),
+            ("frf", Value::Frf(frf)),
+        ]))
     }
 }

@@ -396,24 +396,19 @@ fn bad_options_are_named() {
     assert!(run(vec![1000.0], ProcessDampingOptions { max_depth_m: -1.0, ..d() }).contains("maximum depth"));
 }
 
-/// A 400-speed diagram (500–20 450 rpm) on 4000 lines of a two-mode tool in a 50 % cut, in well under a second
-/// (about 0.2 s on two cores; the test profile is optimised, so run it with `--ignored`).
+/// A 400-speed diagram (500–20 450 rpm) on 4000 lines of a two-mode tool in a 50 % cut converges at every
+/// speed (its time is measured in `benches/stability.rs`, `stability/process damping/400 speeds, 4000 lines`).
 #[test]
-#[ignore = "timing: run with --ignored"]
-fn four_hundred_speeds_on_four_thousand_lines() {
+fn four_hundred_speeds_on_four_thousand_lines_converge() {
     let freqs: Vec<f64> = (1..=4000).map(|i| i as f64).collect();
     let x = sdof(F_N, ZETA, K, &freqs);
     let y = sdof(1150.0, 0.025, 1.5 * K, &freqs);
     let frf = ToolPointFrf::new(freqs, x, y).unwrap();
     let mill = Milling::new(4, 0.5, MillingDirection::Down, CuttingCoefficients::from_kt_kn(KT, KN).unwrap()).unwrap();
     let speeds: Vec<f64> = (0..400).map(|i| 500.0 + 50.0 * i as f64).collect();
-    let t = std::time::Instant::now();
     let r =
         zoa_lobes_with_process_damping(&frf, &mill, &contact(), &options(speeds), &ProcessDampingOptions::default())
             .unwrap();
-    let elapsed = t.elapsed();
-    let total: usize = r.evaluations.iter().sum();
-    eprintln!("400 speeds, 4000 lines: {elapsed:?}, {total} evaluations, {} lobes", r.lobe_count);
     assert!(r.converged.iter().all(|&c| c));
-    assert!(elapsed.as_secs_f64() < 1.0, "{elapsed:?}");
+    assert!(r.limit.depth_m.iter().zip(&r.without.depth_m).all(|(w, o)| w >= o), "process damping only adds");
 }
