@@ -325,3 +325,35 @@ fn plugins_run_under_an_address_space_limit() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(home.path().join("o/chatter-energy-ratio.csv").is_file());
 }
+
+/// A lattice of Rhai modules (each importing the next twice) is refused at its depth or its
+/// count of imports, at once; values nested deeper than a recipe can be (closures that capture
+/// closures, arrays in arrays) are dropped without overflowing the stack, and a recipe nested
+/// that deep is refused with exit 2.
+#[test]
+fn rhai_module_lattices_and_deep_values_are_bounded() {
+    let tmp = tempfile::tempdir().unwrap();
+    for i in 1..=22 {
+        write(
+            &tmp.path().join(format!("w{i}.rhai")),
+            &format!("import \"w{n}\" as a;\nimport \"w{n}\" as b;\nfn f() {{ 1 }}\n", n = i + 1),
+        );
+    }
+    write(&tmp.path().join("w23.rhai"), "fn f() { 1 }\n");
+    write(&tmp.path().join("t.rhai"), "import \"w1\" as x;\n#{ spindlelab: 1, name: \"r\", steps: #{} }\n");
+    let said = refused(&run_in(tmp.path(), &["check", "t.rhai"]));
+    assert!(said.contains("deep") || said.contains("imports"), "{said}");
+    write(
+        &tmp.path().join("c.rhai"),
+        "let f = |x| x;\nfor i in 0..50000 { let g = f; f = |x| g.call(x); }\n#{ spindlelab: 1, name: \"r\", steps: #{} }\n",
+    );
+    let o = run_in(tmp.path(), &["check", "c.rhai"]);
+    no_panic(&o);
+    assert!(o.status.success(), "{}", text(&o));
+    write(
+        &tmp.path().join("n.rhai"),
+        "let a = [];\nfor i in 0..2000 { a = [a]; }\n#{ spindlelab: 1, name: \"r\", steps: #{}, extra: a }\n",
+    );
+    let said = refused(&run_in(tmp.path(), &["check", "n.rhai"]));
+    assert!(said.contains("nests deeper than 64"), "{said}");
+}

@@ -10,6 +10,7 @@ mod case_model;
 mod chatter_frequency;
 mod cli_units_and_folders;
 mod crib;
+mod dev_cases;
 mod diagnose;
 mod diagnose_matrix;
 mod diagnose_out_of_sample;

@@ -883,14 +883,14 @@ pub fn read_frf_blocks(bytes: &[u8], path: &str) -> Result<Vec<FrfBlock>, Format
             return Err(FormatError::Expected {
                 at: Loc::new(path, line, 1 + lead),
                 expected: why.into(),
-                found: format!("{} Hz", row[0]),
+                found: format!("{:?} Hz", row[0]),
             });
         }
         if with_coherence && !(0.0..=1.0).contains(&row[3]) {
             return Err(FormatError::Expected {
                 at: Loc::new(path, line, 4 + lead),
                 expected: "a coherence between 0 and 1".into(),
-                found: format!("{}", row[3]),
+                found: format!("{:?}", row[3]),
             });
         }
         f.freq_hz.push(row[0]);

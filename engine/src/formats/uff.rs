@@ -326,7 +326,7 @@ impl Dataset58 {
             if let Some(why) = super::frequency_problem(before, f) {
                 return Err(FormatError::Unsupported {
                     at: self.at(path),
-                    message: format!("point {} is at {f} Hz, where the dataset needs {why}", i + 1),
+                    message: format!("point {} is at {f:?} Hz, where the dataset needs {why}", i + 1),
                 });
             }
             before = Some(f);

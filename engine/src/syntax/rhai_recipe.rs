@@ -86,8 +86,16 @@ pub struct RecipeModules {
     state: Mutex<ModuleState>,
 }
 
+/// The most imports a recipe's script and its modules run (a module imported again counts
+/// again) and how deep modules may import modules: a module's index holds every function of
+/// the modules below it, so a lattice of imports grows with the number of paths through it.
+const MAX_IMPORTS: usize = 64;
+const MAX_MODULE_DEPTH: usize = 6;
+
 #[derive(Default)]
 struct ModuleState {
+    /// Imports run so far, cached or not.
+    imports: usize,
     /// Modules evaluated, by relative path, so a module imported twice runs once.
     done: HashMap<PathBuf, rhai::Shared<rhai::Module>>,
     /// Modules being evaluated: importing one of them again is a cycle.
@@ -180,7 +188,18 @@ impl rhai::ModuleResolver for RecipeModules {
         };
         let (rel, real) = self.locate(path).map_err(refuse)?;
         {
-            let st = self.state();
+            let mut st = self.state();
+            st.imports += 1;
+            if st.imports > MAX_IMPORTS {
+                drop(st);
+                return Err(refuse(format!(
+                    "the script runs more than {MAX_IMPORTS} imports; import each module once, where it is used"
+                )));
+            }
+            if st.running.len() >= MAX_MODULE_DEPTH {
+                drop(st);
+                return Err(refuse(format!("modules import modules more than {MAX_MODULE_DEPTH} deep here")));
+            }
             if let Some(m) = st.done.get(&rel) {
                 return Ok(m.clone());
             }
@@ -233,12 +252,47 @@ pub fn load_rhai_with_modules(
     limits: &RhaiLimits,
     diags: &mut Diagnostics,
 ) -> (Option<Raw>, Vec<SourceFile>) {
-    let mut engine = sandboxed_engine(limits);
-    let modules = Rc::new(RecipeModules::new(Path::new(&*file.path)));
-    engine.set_module_resolver(SharedResolver(modules.clone()));
-    let raw = eval_recipe(&engine, &modules, file, diags);
-    (raw, modules.files())
+    // A script can build values nested as deep as its operations allow (closures that capture
+    // closures, arrays in arrays), which are dropped, and converted, by recursion: it runs on a
+    // thread of its own with a deep stack (address space; pages are touched only as used).
+    let run = || {
+        let mut found = Diagnostics::new();
+        let mut engine = sandboxed_engine(limits);
+        let modules = Rc::new(RecipeModules::new(Path::new(&*file.path)));
+        engine.set_module_resolver(SharedResolver(modules.clone()));
+        let raw = eval_recipe(&engine, &modules, file, &mut found);
+        drop(engine);
+        (raw, modules.files(), found)
+    };
+    let ran = std::thread::scope(|s| {
+        std::thread::Builder::new()
+            .name("rhai recipe".into())
+            .stack_size(SCRIPT_STACK)
+            .spawn_scoped(s, run)
+            .map(|h| h.join())
+    });
+    match ran {
+        Ok(Ok((raw, files, found))) => {
+            diags.extend(found);
+            (raw, files)
+        }
+        Ok(Err(panic)) => std::panic::resume_unwind(panic),
+        // No thread to be had (a limit on threads or memory): the script is not run.
+        Err(_) => {
+            diags.push(
+                Diagnostic::error(
+                    Some(Span::file_only(file.path.clone())),
+                    "the Rhai recipe could not be run: no thread for it",
+                )
+                .with_help("raise the process's thread or memory limit"),
+            );
+            (None, Vec::new())
+        }
+    }
 }
+
+/// The stack of the thread a Rhai recipe runs on.
+const SCRIPT_STACK: usize = 1 << 30;
 
 /// The resolver behind an `Rc`, so its files can be read after the engine is done.
 struct SharedResolver(Rc<RecipeModules>);
@@ -267,6 +321,18 @@ fn eval_recipe(engine: &Engine, modules: &RecipeModules, file: &SourceFile, diag
                         format!("a Rhai recipe must end with an object map, found {}", value.type_name()),
                     )
                     .with_help("end the script with `#{ spindlelab: 1, steps: #{ ... } }`"),
+                );
+                return None;
+            }
+            if nests_deeper(&value, MAX_NESTING) {
+                diags.push(
+                    Diagnostic::error(
+                        Some(root),
+                        format!(
+                            "the recipe the script built nests deeper than {MAX_NESTING} levels of maps and arrays"
+                        ),
+                    )
+                    .with_help("a recipe is a few levels deep: build its lists flat"),
                 );
                 return None;
             }
@@ -335,6 +401,30 @@ fn eval_recipe(engine: &Engine, modules: &RecipeModules, file: &SourceFile, diag
             None
         }
     }
+}
+
+/// The deepest a recipe built by a script may nest maps and arrays (a YAML recipe's parser
+/// has a limit of its own).
+const MAX_NESTING: usize = 64;
+
+/// Whether `value` nests maps and arrays deeper than `max`, walked without recursion.
+fn nests_deeper(value: &Dynamic, max: usize) -> bool {
+    let mut stack: Vec<(Dynamic, usize)> = vec![(value.clone(), 0)];
+    while let Some((v, depth)) = stack.pop() {
+        if depth > max {
+            return true;
+        }
+        if v.is_array() {
+            if let Ok(a) = v.into_array() {
+                stack.extend(a.into_iter().map(|x| (x, depth + 1)));
+            }
+        } else if v.is_map()
+            && let Some(m) = v.try_cast::<rhai::Map>()
+        {
+            stack.extend(m.into_values().map(|x| (x, depth + 1)));
+        }
+    }
+    false
 }
 
 /// What a refused or missing import should be instead.
