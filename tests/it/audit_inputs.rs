@@ -357,3 +357,48 @@ fn rhai_module_lattices_and_deep_values_are_bounded() {
     let said = refused(&run_in(tmp.path(), &["check", "n.rhai"]));
     assert!(said.contains("nests deeper than 64"), "{said}");
 }
+
+/// A pipe named on the command line (a recipe, a case) is opened without waiting for a
+/// writer: with none it reads as empty and is refused at once; one being written is read.
+#[test]
+fn a_pipe_named_on_the_command_line_is_not_waited_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    for name in ["p.yaml", "case.json"] {
+        let c = std::ffi::CString::new(tmp.path().join(name).to_str().unwrap()).unwrap();
+        // SAFETY: mkfifo with a valid path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    }
+    for args in [&["check", "p.yaml"][..], &["import", "case.json"][..]] {
+        let mut child = bin()
+            .args(args)
+            .current_dir(tmp.path())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut waited = 0;
+        while child.try_wait().unwrap().is_none() && waited < 100 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            waited += 1;
+        }
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
+            panic!("{args:?}: waited on a pipe with no writer");
+        }
+        refused(&child.wait_with_output().unwrap());
+    }
+    // A pipe with a writer (as `<(…)` gives): the recipe arrives through it.
+    let mut child = bin()
+        .args(["check", "/dev/stdin"])
+        .current_dir(tmp.path())
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    std::io::Write::write_all(child.stdin.as_mut().unwrap(), impact_recipe("piped").as_bytes()).unwrap();
+    drop(child.stdin.take());
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+}

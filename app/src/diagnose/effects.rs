@@ -698,11 +698,16 @@ impl Effect for GyroscopicModeSplit {
         "spindle modes whirling forward and backward at ω(√(1+e²) ± e), e = gΩ/(2ω), g = I_p/I_d per mode, the assembly coupled in each whirl and the two averaged; measured and cutting"
     }
     fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
-        let (machine, spindle, _) = spindle_at_speed(roles, c, "a gyroscopic whirl")?;
+        let (machine, spindle, top) = spindle_at_speed(roles, c, "a gyroscopic whirl")?;
         let count = Self::count(roles, c);
         if count == 0 {
             return Err("the machine has no spindle modes in the measured directions".into());
         }
+        // At most a thin disk's, and at most what moves the lowest mode's whirls by 40 % at the
+        // fastest measured speed (e = gΩ/(2ω) ≤ 0.4): a mode split further is no longer that
+        // mode. The whirls of every mode part by about gΩ/2, so one range serves them all.
+        let lowest = spindle.modes.iter().flat_map(|(_, m)| m.iter().map(|m| m.freq_hz)).fold(f64::INFINITY, f64::min);
+        let max = Self::MAX_GYRO.min(0.8 * lowest / (top / 60.0));
         let mut free = Vec::new();
         for i in 0..count {
             let name = format!("spindle_{i}_gyro");
@@ -712,7 +717,7 @@ impl Effect for GyroscopicModeSplit {
                 let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
                 r.set_key(&p, "gyro", &Raw::param(&name)).map_err(e)?;
             }
-            free.push(Free::lin(&name, "", start.clamp(0.0, Self::MAX_GYRO), 0.0, Self::MAX_GYRO));
+            free.push(Free::lin(&name, "", start.clamp(0.0, max), 0.0, max.max(start)));
         }
         // Every coupling of the spindle model takes its whirls.
         let mut wired = 0;
@@ -735,7 +740,7 @@ impl Effect for GyroscopicModeSplit {
     /// The whirls are even in `g` about no coupling (the residual is flat there) and move by
     /// several bandwidths over its range: a scan finds the well.
     fn starts(&self, free: &[Free]) -> usize {
-        12 * free.len()
+        16 * free.len()
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let spindle = roles.machine.as_ref().and_then(|m| c.recipe.machines.get(m)).and_then(|m| m.spindle.as_ref());

@@ -190,12 +190,18 @@ pub const MAX_DATA_BYTES: u64 = crate::spec::MAX_DATA_BYTES;
 /// Reads at most `cap` bytes of any kind of file (a regular file, `/dev/zero`, a pipe); more
 /// is an error that says so, never an allocation sized by the file.
 pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
-    let f = std::fs::File::open(path)?;
-    // A regular file's length, to the cap, is read into one allocation; a device or a pipe
-    // (length 0) grows the buffer as it is read.
-    let hint = f.metadata().map_or(0, |m| if m.is_file() { m.len().min(cap) } else { 0 });
-    let mut bytes = Vec::with_capacity(usize::try_from(hint).unwrap_or(0).saturating_add(1));
-    std::io::Read::read_to_end(&mut std::io::Read::take(f, cap + 1), &mut bytes)?;
+    let meta = std::fs::metadata(path)?;
+    let bytes = if meta.is_file() {
+        let f = std::fs::File::open(path)?;
+        // A regular file's length, to the cap, is read into one allocation.
+        let hint = meta.len().min(cap);
+        let mut bytes = Vec::with_capacity(usize::try_from(hint).unwrap_or(0).saturating_add(1));
+        std::io::Read::read_to_end(&mut std::io::Read::take(f, cap + 1), &mut bytes)?;
+        bytes
+    } else {
+        // A device or a pipe: opened without waiting for a writer, grown as it is read.
+        crate::syntax::read_up_to(path, cap)?
+    };
     if bytes.len() as u64 > cap {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidData,

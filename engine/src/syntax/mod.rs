@@ -46,11 +46,34 @@ enum RecipeRead {
 
 /// The bytes of a recipe, at most [`MAX_RECIPE_BYTES`] of them, from any kind of file.
 fn read_recipe_bytes(path: &Path) -> Result<Vec<u8>, RecipeRead> {
-    let f = std::fs::File::open(path).map_err(RecipeRead::Io)?;
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut std::io::Read::take(f, MAX_RECIPE_BYTES + 1), &mut bytes)
-        .map_err(RecipeRead::Io)?;
+    let bytes = read_up_to(path, MAX_RECIPE_BYTES).map_err(RecipeRead::Io)?;
     if bytes.len() as u64 > MAX_RECIPE_BYTES { Err(RecipeRead::TooLarge) } else { Ok(bytes) }
+}
+
+/// At most `cap + 1` bytes of any kind of file the user names. It is opened without waiting
+/// for a writer (`O_NONBLOCK`): a pipe nobody writes reads as empty at once, one being written
+/// (`<(…)`) is read as its data comes, `/dev/zero` as far as the cap.
+pub fn read_up_to(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut o = std::fs::OpenOptions::new();
+    o.read(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut o, libc::O_NONBLOCK);
+    let mut f = o.open(path)?.take(cap + 1);
+    let mut bytes = Vec::new();
+    let mut chunk = [0u8; 64 * 1024];
+    loop {
+        match f.read(&mut chunk) {
+            Ok(0) => return Ok(bytes),
+            Ok(n) => bytes.extend_from_slice(&chunk[..n]),
+            // A pipe whose writer has not written yet.
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 /// Reads a recipe file (`.yaml`, `.yml` or `.rhai`) and parses it, pushing every problem found.
