@@ -103,6 +103,14 @@ impl Node for RcsaCouple {
             if ctx.inputs_of("structure").is_empty() {
                 return couple_spinning(ctx, &p, spindle, cross, interface, tip_mass);
             }
+            // No cross-plane block (at rest, or no gyroscopic mode): both whirls are the spindle.
+            let zero = Complex64::new(0.0, 0.0);
+            if [&cross.h, &cross.l, &cross.n, &cross.p].iter().all(|v| v.iter().all(|c| *c == zero)) {
+                let g = couple_still(ctx, &p, &to_frf(&spindle), interface, tip_mass)?;
+                let set = to_set(&g, spindle.direction.clone(), spindle.speed);
+                let frf = h_of(&set);
+                return Ok(outputs(vec![("tip", Value::ReceptanceSet(set)), ("frf", Value::Frf(frf))]));
+            }
             // A structure that does not spin on a spindle that whirls: in the whirl coordinates
             // the planes decouple, so the structure is coupled to the forward whirl F = P − iQ
             // and to the backward whirl B = P + iQ, and the tip's in-plane block is the mean.
