@@ -47,6 +47,16 @@ pub(crate) fn cache_command(action: CacheAction) -> ExitCode {
     let mut code = ExitCode::SUCCESS;
     for folder in folders {
         let cache = Cache::new(engine::exec::cache_dir(&folder));
+        // The output folder's own cache is the tool's: a link there is never followed, not even
+        // to measure what it leads to.
+        if std::fs::symlink_metadata(cache.dir()).is_ok_and(|m| m.file_type().is_symlink()) {
+            eoutln!(
+                "error: `{}` is a symbolic link inside the output folder; spindlelab never follows links it did not make (remove it, or name a shared cache with --cache DIR)",
+                esc(cache.dir().display())
+            );
+            code = ExitCode::from(EXIT_BAD_INPUT);
+            continue;
+        }
         if !cache.dir().is_dir() {
             outln!("{}: no cache", folder.display());
             continue;

@@ -402,3 +402,19 @@ fn a_pipe_named_on_the_command_line_is_not_waited_on() {
     let o = child.wait_with_output().unwrap();
     assert!(o.status.success(), "{}", text(&o));
 }
+
+/// `cache du` on an output folder whose cache is a link refuses it as `gc` and `clean` do,
+/// without measuring where it leads.
+#[test]
+fn cache_du_does_not_follow_a_linked_cache() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(tmp.path().join("elsewhere/ab")).unwrap();
+    std::fs::write(tmp.path().join("elsewhere/ab/entry"), "x").unwrap();
+    std::fs::create_dir_all(tmp.path().join("out")).unwrap();
+    std::os::unix::fs::symlink(tmp.path().join("elsewhere"), tmp.path().join("out/.spindlelab-cache")).unwrap();
+    for verb in ["du", "gc", "clean"] {
+        let said = refused(&run_in(tmp.path(), &["cache", verb, "out"]));
+        assert!(said.contains("symbolic link"), "{verb}: {said}");
+    }
+    assert!(tmp.path().join("elsewhere/ab/entry").is_file(), "nothing removed where the link leads");
+}
