@@ -22,6 +22,23 @@ fn impact_recipe(name: &str) -> String {
     )
 }
 
+/// Runs `command`, giving it ten seconds; `None` (the process killed) when it takes longer.
+fn within_ten_seconds(command: &mut Command) -> Option<std::process::Output> {
+    let mut child = command.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    for _ in 0..100 {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    if child.try_wait().unwrap().is_some() {
+        return Some(child.wait_with_output().unwrap());
+    }
+    child.kill().unwrap();
+    let _ = child.wait();
+    None
+}
+
 fn refused(o: &std::process::Output) -> String {
     no_panic(o);
     assert_eq!(o.status.code(), Some(2), "{}", text(o));
@@ -141,24 +158,9 @@ fn confine_refuses_files_outside_by_their_path_before_reading_a_byte() {
         ("data file", "steps:\n  m: { kind: read.frf, params: { file: ../pipe.csv } }\n".to_string()),
     ] {
         write(&dir.join("r.yaml"), &format!("spindlelab: 1\nname: c\n{body}"));
-        let mut child = bin()
-            .args(["--confine", "check", "r.yaml"])
-            .current_dir(&dir)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        // A reader of the pipe would wait for a writer for ever: give it ten seconds.
-        let mut waited = 0;
-        while child.try_wait().unwrap().is_none() && waited < 100 {
-            std::thread::sleep(std::time::Duration::from_millis(100));
-            waited += 1;
-        }
-        if child.try_wait().unwrap().is_none() {
-            child.kill().unwrap();
-            panic!("{what}: `--confine check` opened the pipe outside the recipe's folder");
-        }
-        let o = child.wait_with_output().unwrap();
+        // A reader of the pipe would wait for a writer for ever.
+        let o = within_ten_seconds(bin().args(["--confine", "check", "r.yaml"]).current_dir(&dir))
+            .unwrap_or_else(|| panic!("{what}: `--confine check` opened the pipe outside the recipe's folder"));
         let said = refused(&o);
         assert!(said.contains("outside the recipe's folder") && said.contains("--confine"), "{what}: {said}");
         assert!(said.contains("r.yaml:"), "{what}: the refusal is placed in the recipe: {said}");
@@ -369,23 +371,9 @@ fn a_pipe_named_on_the_command_line_is_not_waited_on() {
         assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
     }
     for args in [&["check", "p.yaml"][..], &["import", "case.json"][..]] {
-        let mut child = bin()
-            .args(args)
-            .current_dir(tmp.path())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut waited = 0;
-        while child.try_wait().unwrap().is_none() && waited < 100 {
-            std::thread::sleep(std::time::Duration::from_millis(100));
-            waited += 1;
-        }
-        if child.try_wait().unwrap().is_none() {
-            child.kill().unwrap();
-            panic!("{args:?}: waited on a pipe with no writer");
-        }
-        refused(&child.wait_with_output().unwrap());
+        let o = within_ten_seconds(bin().args(args).current_dir(tmp.path()))
+            .unwrap_or_else(|| panic!("{args:?}: waited on a pipe with no writer"));
+        refused(&o);
     }
     // A pipe with a writer (as `<(…)` gives): the recipe arrives through it.
     let mut child = bin()

@@ -82,23 +82,11 @@ fn files_of(m: &serde_json::Value) -> BTreeMap<String, String> {
 /// Every name under `dir` outside the tool's own folders (`.spindlelab`, `.spindlelab-cache`),
 /// relative, sorted, following no link.
 fn visible(dir: &Path) -> Vec<String> {
-    fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
-        for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-            let name = e.file_name();
-            if dir == root && (name == ".spindlelab" || name == ".spindlelab-cache") {
-                continue;
-            }
-            let p = e.path();
-            out.push(p.strip_prefix(root).unwrap().display().to_string());
-            if e.file_type().is_ok_and(|t| t.is_dir()) {
-                walk(root, &p, out);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    walk(dir, dir, &mut out);
-    out.sort();
-    out
+    let own = |rel: &String| {
+        let top = Path::new(rel).components().next().map(|c| c.as_os_str().to_owned());
+        top.is_some_and(|t| t == ".spindlelab" || t == ".spindlelab-cache")
+    };
+    crate::guarantees::tree(dir).into_iter().filter(|rel| !own(rel)).collect()
 }
 
 /// The names a set of files stands for: the files and the folders on their paths.
