@@ -185,6 +185,36 @@ const MAX_KEY_BYTES: usize = 128;
 const MAX_NAME_BYTES: usize = 255;
 const MAX_PATH_BYTES: usize = 4096;
 
+/// The fastest spindle speed a case may state: beyond any machine tool's spindle.
+const MAX_SPEED_RPM: f64 = 1e6;
+
+/// Checks every spindle speed of the case: finite, not negative, below [`MAX_SPEED_RPM`]; the
+/// first that is not is the error, naming its field.
+fn check_speeds(case: &Case) -> Result<(), String> {
+    let mut speeds: Vec<(String, f64)> = Vec::new();
+    if let Some(m) = &case.measurements {
+        speeds.extend(m.frf.iter().enumerate().map(|(i, f)| (format!("measurements.frf[{i}].speed_rpm"), f.speed_rpm)));
+    }
+    speeds.extend(case.spindle.ref_speed_rpm.map(|v| ("spindle.ref_speed_rpm".to_string(), v)));
+    if let Some(c) = &case.cutting {
+        speeds.extend(
+            c.coefficients_calibrated_at_rpm.map(|v| ("cutting.coefficients_calibrated_at_rpm".to_string(), v)),
+        );
+        if let Some([a, b]) = c.trial_rpm_range {
+            speeds
+                .extend([("cutting.trial_rpm_range[0]".to_string(), a), ("cutting.trial_rpm_range[1]".to_string(), b)]);
+        }
+    }
+    match speeds.into_iter().find(|(_, v)| !(0.0..=MAX_SPEED_RPM).contains(v)) {
+        Some((field, v)) => Err(format!(
+            "`{field}` is {} rpm; a spindle speed is between 0 and {} rpm: correct it in the case file",
+            spindlelab_domain::sig(v, 6),
+            spindlelab_domain::sig(MAX_SPEED_RPM, 6)
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Checks every string of the case that the recipe states, so that each reads back as
 /// exactly what the case says and means there what it means in the case; the first string
 /// that cannot is the error, naming its field.
@@ -517,6 +547,7 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
     let case: Case = serde_json::from_str(json).map_err(|source| ImportError::Json { path: path.into(), source })?;
     let invalid = |message: String| ImportError::Invalid { path: path.into(), message };
     check_strings(&case).map_err(invalid)?;
+    check_speeds(&case).map_err(invalid)?;
     let data_path = |file: &str| match placement {
         Some(p) => p.data_path(file).map_err(|m| ImportError::Invalid { path: path.into(), message: m }),
         None => Ok(file.to_string()),
@@ -541,7 +572,7 @@ fn import_parts(json: &str, path: &str, placement: Option<Placement<'_>>) -> Res
     let frfs: &[CaseFrf] = meas.map_or(&[], |m| &m.frf);
     let trials_file = meas.and_then(|m| m.trials.as_deref());
     if !frfs.is_empty() {
-        rest.push(("measurements".to_string(), measurements(frfs, &data_path, &mut notes)?));
+        rest.push(("measurements".to_string(), measurements(path, frfs, &data_path, &mut notes)?));
     }
     rest.push(("steps".into(), steps(&case, frfs, trials_file, &data_path, &mut notes)?));
     let cutting = case.cutting.is_some();
@@ -696,6 +727,7 @@ fn cutting(c: &CaseCutting, notes: &mut Notes) -> Raw {
 
 /// `measurements:`, one set of every measured FRF named from the recipe's folder.
 fn measurements(
+    path: &str,
     frfs: &[CaseFrf],
     data_path: &impl Fn(&str) -> Result<String, ImportError>,
     notes: &mut Notes,
@@ -708,9 +740,21 @@ fn measurements(
         notes.after(&["measurements", "tool_tip", "files", &at], format!("{}, {} rpm", f.direction, num(f.speed_rpm)));
     }
     let mut set = vec![("files", Raw::list(files))];
-    let units: Vec<&str> = frfs.iter().filter_map(|f| f.units.as_deref()).collect();
-    if let Some(u) = units.first().filter(|u| units.iter().all(|v| v == *u)) {
-        set.push(("units", Raw::text(*u)));
+    let units: Vec<(usize, &str)> =
+        frfs.iter().enumerate().filter_map(|(i, f)| Some((i, f.units.as_deref()?))).collect();
+    if let Some(&(i, other)) = units.iter().find(|(_, u)| *u != units[0].1) {
+        return Err(ImportError::Invalid {
+            path: path.into(),
+            message: format!(
+                "`measurements.frf[{i}].units` is {} where `measurements.frf[{}].units` is {}: a recipe reads the measured FRFs as one set, in one unit; convert the files to one unit and correct the case",
+                shown(other),
+                units[0].0,
+                shown(units[0].1)
+            ),
+        });
+    }
+    if let Some(&(_, u)) = units.first() {
+        set.push(("units", Raw::text(u)));
     }
     Ok(map([("tool_tip", Raw::mapping(set))]))
 }

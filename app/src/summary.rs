@@ -17,7 +17,7 @@ fn shown(s: &str) -> std::borrow::Cow<'_, str> {
 }
 
 fn n(x: f64) -> String {
-    format!("{}", round_sig(x, SIGNIFICANT_DIGITS))
+    spindlelab_domain::sig(x, SIGNIFICANT_DIGITS)
 }
 
 fn describe(v: &Value) -> String {

@@ -17,6 +17,6 @@ pub mod speed;
 pub mod value;
 
 pub use entity::Material;
-pub use num::round_sig;
+pub use num::{round_sig, sig};
 pub use speed::{Speed, SpeedLaw};
 pub use value::Mode;

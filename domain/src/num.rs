@@ -1,5 +1,13 @@
 //! Numbers as people read them.
 
+/// `x` to `digits` significant digits as text: plain (`12000`, `0.0025`) in the range numbers
+/// of this field take, with an exponent (`-1e308`) outside it, so a value from a hostile file
+/// never prints hundreds of digits.
+pub fn sig(x: f64, digits: i32) -> String {
+    let r = round_sig(x, digits);
+    if r != 0.0 && r.is_finite() && (r.abs() >= 1e16 || r.abs() < 1e-12) { format!("{r:e}") } else { format!("{r}") }
+}
+
 /// Rounds to `digits` significant digits: snapshots, summaries and labels state their
 /// precision.
 pub fn round_sig(x: f64, digits: i32) -> f64 {

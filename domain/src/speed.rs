@@ -72,7 +72,7 @@ impl Speed {
 impl fmt::Display for Speed {
     /// In rpm to six significant digits: `12000 rpm`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} rpm", crate::round_sig(self.rpm(), 6))
+        write!(f, "{} rpm", crate::sig(self.rpm(), 6))
     }
 }
 

@@ -252,9 +252,9 @@ pub fn fmt_quantity(value: f64, dim: Dimension) -> String {
         return Speed::from_rad_s(value).to_string();
     }
     if dim == Dimension::FREQUENCY {
-        return format!("{} Hz", spindlelab_domain::round_sig(value, 6));
+        return format!("{} Hz", spindlelab_domain::sig(value, 6));
     }
-    let num = format!("{}", spindlelab_domain::round_sig(value, 6));
+    let num = spindlelab_domain::sig(value, 6);
     if dim == Dimension::DIMENSIONLESS { num } else { format!("{num} {}", dim.si_unit()) }
 }
 

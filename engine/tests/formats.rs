@@ -1,13 +1,33 @@
 //! The UFF reader against files written by an independent writer (pyuff), checked field by
-//! field against `tests/data/uff/expected.json`, plus a hand-written file whose other
-//! datasets must be skipped and listed.
+//! field against their `expected.json`, plus a hand-written file of ours whose other datasets
+//! must be skipped and listed. pyuff's files are not in the repository: they are read from
+//! `../shared/data/uff/` beside the checkout (described in the README there); without them the
+//! tests that need them say so and pass, except under CI (`CI` set), where their absence fails.
 
 use spindlelab_engine::formats::uff::{self, Abscissa};
 use spindlelab_engine::formats::{self, FileFormat, FormatError, FrfSelect, Skipped};
 use std::path::{Path, PathBuf};
 
+/// Our own UFF file `name`.
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/uff").join(name)
+}
+
+/// The file `rel` of `../shared` beside the checkout, or `None` when it is not there: the test
+/// says on stderr that `what` is skipped and returns. Under CI its absence fails the test.
+fn shared(rel: &str, what: &str) -> Option<PathBuf> {
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared")).join(rel);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(std::env::var_os("CI").is_none(), "CI needs {} (../shared beside the checkout)", path.display());
+    eprintln!("no {}: {what} is skipped", path.display());
+    None
+}
+
+/// pyuff's file `name` in `../shared/data/uff/`, or `None` (said) when it is not there.
+fn pyuff(name: &str, what: &str) -> Option<PathBuf> {
+    shared(&format!("data/uff/{name}"), what)
 }
 
 /// ASCII values carry 12 significant digits (README: compare to about 1e-10); binary
@@ -23,12 +43,14 @@ fn assert_close(found: f64, expected: f64, binary: bool, what: &str) {
 
 #[test]
 fn every_expected_field_of_the_pyuff_fixtures() {
-    let expected: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(data("expected.json")).unwrap()).unwrap();
+    let what = "the check of every field against pyuff";
+    let Some(expected) = pyuff("expected.json", what) else { return };
+    let expected: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(expected).unwrap()).unwrap();
     let files = expected.as_object().unwrap();
     assert_eq!(files.len(), 3);
     for (name, sets) in files {
-        let bytes = std::fs::read(data(name)).unwrap();
+        let Some(path) = pyuff(name, what) else { return };
+        let bytes = std::fs::read(path).unwrap();
         let file = uff::parse(&bytes, name).unwrap_or_else(|e| panic!("{e}"));
         let sets = sets.as_array().unwrap();
         assert_eq!(file.datasets.len(), sets.len(), "{name}");
@@ -59,7 +81,11 @@ fn every_expected_field_of_the_pyuff_fixtures() {
 
 #[test]
 fn fixtures_map_to_typed_values_in_si() {
-    let x = formats::read_frf(&data("frf_x_ascii.uff"), FileFormat::Uff, &FrfSelect::default()).unwrap();
+    let what = "the typed values of pyuff's files";
+    let Some(x_file) = pyuff("frf_x_ascii.uff", what) else { return };
+    let Some(path) = pyuff("frf_xy_binary.uff", what) else { return };
+    let Some(force_file) = pyuff("force_time_ascii.uff", what) else { return };
+    let x = formats::read_frf(&x_file, FileFormat::Uff, &FrfSelect::default()).unwrap();
     assert!(x.notes.is_empty());
     let frf = x.value;
     assert_eq!((frf.unit.symbol.as_str(), frf.direction.as_deref()), ("m/N", Some("x")));
@@ -67,7 +93,6 @@ fn fixtures_map_to_typed_values_in_si() {
     assert!(frf.coherence.is_none() && frf.speed.is_none());
 
     // Two FRFs in one binary file: either is chosen by direction or by position, never guessed.
-    let path = data("frf_xy_binary.uff");
     let y = |select: FrfSelect| formats::read_frf(&path, FileFormat::Uff, &select).unwrap().value;
     let by_dir = y(FrfSelect { direction: Some("y".into()), ..Default::default() });
     let by_index = y(FrfSelect { dataset: Some(2), ..Default::default() });
@@ -80,13 +105,13 @@ fn fixtures_map_to_typed_values_in_si() {
         formats::read_frf(&path, FileFormat::Uff, &FrfSelect { dataset: Some(3), ..Default::default() }).unwrap_err();
     assert!(matches!(e, FormatError::Selection { .. }), "{e}");
 
-    let ts = formats::read_time_series(&data("force_time_ascii.uff"), FileFormat::Uff, None).unwrap().value;
+    let ts = formats::read_time_series(&force_file, FileFormat::Uff, None).unwrap().value;
     assert_eq!((ts.sample_rate, ts.t0, ts.len()), (100_000.0, 0.0, 2048));
     assert_eq!(ts.channels[0].name, "impact force");
     assert_eq!(ts.channels[0].unit.symbol, "N");
     assert_eq!(ts.channels[0].samples.iter().fold(0.0f64, |m, v| m.max(v.abs())), 400.0);
     // A time file asked for an FRF says what it holds.
-    let e = formats::read_frf(&data("force_time_ascii.uff"), FileFormat::Uff, &FrfSelect::default()).unwrap_err();
+    let e = formats::read_frf(&force_file, FileFormat::Uff, &FrfSelect::default()).unwrap_err();
     assert!(e.to_string().contains("a time response"), "{e}");
     assert_eq!(FileFormat::detect(&path).unwrap(), FileFormat::Uff);
 }
@@ -120,7 +145,8 @@ fn other_datasets_before_a_58_are_skipped_and_listed() {
 
 #[test]
 fn a_truncated_binary_file_is_reported_at_its_dataset() {
-    let bytes = std::fs::read(data("frf_xy_binary.uff")).unwrap();
+    let Some(path) = pyuff("frf_xy_binary.uff", "the truncated binary file") else { return };
+    let bytes = std::fs::read(path).unwrap();
     let cut = &bytes[..bytes.len() - 5000];
     let e = uff::parse(cut, "cut.uff").unwrap_err();
     match &e {

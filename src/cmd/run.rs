@@ -86,6 +86,24 @@ pub(crate) fn cmd_run_shard(
         .map(|(inst, _)| inst.id.as_str())
         .collect();
     let cached = result.outcomes.iter().filter(|o| matches!(o, engine::exec::Outcome::Cached { .. })).count();
+    // A shard's work is the cache entries it leaves: one it could not store fails it, with no
+    // marker, so the collect step does not take it for done.
+    let cache_dir = opts.cache().dir().to_path_buf();
+    if engine::exec::files::is_link(&cache_dir) {
+        let e = engine::exec::shard::MarkerError::CacheLink(cache_dir);
+        eoutln!("error: {}", esc(&e));
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    if let Some((inst, why)) =
+        c.graph.instances.iter().zip(&result.outcomes).find_map(|(inst, o)| o.not_cached().map(|w| (inst, w)))
+    {
+        eoutln!(
+            "error: the result of `{}` could not be stored in the cache ({}); the shard wrote no marker: free space or fix the cache folder's permissions and run the shard again",
+            esc(&inst.id),
+            esc(why)
+        );
+        return ExitCode::from(EXIT_FAILURE);
+    }
     let record = serde_json::json!({
         "recipe": c.recipe.name,
         "shard": format!("{}/{}", shard.index, shard.count),

@@ -331,7 +331,8 @@ fn plugins_run_under_an_address_space_limit() {
 /// A lattice of Rhai modules (each importing the next twice) is refused at its depth or its
 /// count of imports, at once; values nested deeper than a recipe can be (closures that capture
 /// closures, arrays in arrays) are dropped without overflowing the stack, and a recipe nested
-/// that deep is refused with exit 2.
+/// that deep is refused with exit 2, and one whose building grows quadratically is stopped by
+/// the time limit.
 #[test]
 fn rhai_module_lattices_and_deep_values_are_bounded() {
     let tmp = tempfile::tempdir().unwrap();
@@ -358,6 +359,16 @@ fn rhai_module_lattices_and_deep_values_are_bounded() {
     );
     let said = refused(&run_in(tmp.path(), &["check", "n.rhai"]));
     assert!(said.contains("nests deeper than 64"), "{said}");
+    // Thirty thousand deep, each level costs more to build than the last: the time limit
+    // stops the script long before the operation limit would.
+    write(
+        &tmp.path().join("d.rhai"),
+        &std::fs::read_to_string(tmp.path().join("n.rhai")).unwrap().replace("2000", "30000"),
+    );
+    let o = within_ten_seconds(bin().args(["check", "d.rhai"]).current_dir(tmp.path()))
+        .expect("a script nesting arrays 30,000 deep is stopped within ten seconds");
+    let said = refused(&o);
+    assert!(said.contains("ran longer than 5 s") || said.contains("nests deeper than 64"), "{said}");
 }
 
 /// A pipe named on the command line (a recipe, a case) is opened without waiting for a

@@ -308,6 +308,29 @@ fn shard_markers_are_not_written_through_planted_links() {
     assert!(empty(elsewhere.path()), "wrote through OUT/.spindlelab-cache");
 }
 
+/// A shard whose results cannot be stored (a file stands at every folder the cache would put
+/// an entry in) fails with exit 1 and writes no marker; a plain run in the same state runs,
+/// and its manifest says what it could not cache.
+#[test]
+fn a_shard_that_cannot_store_its_results_fails_without_a_marker() {
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = recipe_a(tmp.path());
+    let r = recipe.to_str().unwrap();
+    let cache = tmp.path().join("c");
+    std::fs::create_dir_all(&cache).unwrap();
+    for i in 0..256 {
+        std::fs::write(cache.join(format!("{i:02x}")), "in the way").unwrap();
+    }
+    let o = run_in(tmp.path(), &["run", r, "--cache", "c", "--shard", "1/1", "-q"]);
+    no_panic(&o);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("could not be stored in the cache"), "{}", text(&o));
+    assert!(!cache.join("shards").exists(), "a marker was written for a shard that stored nothing");
+    ok(tmp.path(), &["run", r, "-o", "o", "--cache", "c", "-q"]);
+    let m = std::fs::read_to_string(tmp.path().join("o/manifest.json")).unwrap();
+    assert!(m.contains("could not be stored in the cache"), "{m}");
+}
+
 /// Runs the binary and returns its output with its peak resident memory in bytes (from
 /// `wait4`, this child's own).
 #[allow(clippy::zombie_processes, reason = "the child is reaped by wait4, which also gives its rusage")]

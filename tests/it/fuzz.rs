@@ -2,6 +2,7 @@
 //! loader and compiler, the quantity grammar, and the CSV and UFF readers. Each input is a
 //! real file with random byte-level damage (flips, deletions, insertions, duplicated and
 //! swapped spans); the only acceptable outcomes are a value or an error, never a panic.
+//! Mutated recipes that compile are also run, under memory and time limits.
 //! Run with `--nocapture` for the tries per class.
 
 use spindlelab::engine::{self, formats};
@@ -168,11 +169,72 @@ fn mutated_recipes_compile_or_fail_without_panicking() {
     // The same beside a copy of the example data, so references to files resolve and mutants
     // reach the deeper stages.
     copy_dir(&root().join("scripts/data"), &dir.path().join("data"));
+    // Mutants that compile to a small graph are kept, to be run below.
+    let runnable = std::sync::Mutex::new(Vec::new());
     let result = campaign("recipes beside their data", &seeds, 300, 0x5eed_0002, |bytes| {
         std::fs::write(&path, bytes).unwrap();
-        let _ = engine::compile_file(&path, &registry);
+        if let Ok(c) = engine::compile_file(&path, &registry)
+            && c.graph.instances.len() <= MAX_RUN_INSTANCES
+            && !seeds.iter().any(|s| s == bytes)
+        {
+            runnable.lock().unwrap().push(bytes.to_vec());
+        }
     });
     assert_no_panic("recipes beside their data", result);
+    run_mutants(dir.path(), runnable.into_inner().unwrap());
+}
+
+/// The most node instances a compiled mutant may have to be run, and how many are run.
+const MAX_RUN_INSTANCES: usize = 40;
+const MUTANTS_RUN: usize = 12;
+
+/// Runs compiled mutants through the binary, each under a memory limit (`ulimit -v`, 4 GiB)
+/// and a ten-second deadline: it may succeed, fail its run (1) or be refused (2), never panic
+/// or die of a signal. A mutant still running at its deadline is stopped and counted apart
+/// (a mutated duration may ask for a long simulation); it is not a failure.
+fn run_mutants(dir: &Path, mutants: Vec<Vec<u8>>) {
+    assert!(mutants.len() >= MUTANTS_RUN, "only {} mutants compiled to a small graph", mutants.len());
+    let step = mutants.len() / MUTANTS_RUN;
+    let (mut finished, mut stopped) = (0, 0);
+    for (k, m) in mutants.iter().step_by(step).take(MUTANTS_RUN).enumerate() {
+        let recipe = dir.join(format!("run-{k}.yaml"));
+        std::fs::write(&recipe, m).unwrap();
+        let mut child = std::process::Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 4194304 && exec \"$0\" run \"$1\" -o \"$2\" --no-cache -q -j 1")
+            .arg(env!("CARGO_BIN_EXE_spindlelab"))
+            .arg(&recipe)
+            .arg(dir.join(format!("out-{k}")))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while child.try_wait().unwrap().is_none() && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
+            let _ = child.wait();
+            stopped += 1;
+            continue;
+        }
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        let text = String::from_utf8_lossy(m);
+        assert!(
+            matches!(o.status.code(), Some(0..=2)),
+            "a mutant ended with {:?}:\n{err}\n--- the mutant:\n{text}",
+            o.status
+        );
+        assert!(
+            !err.contains("panicked") && !err.contains("internal error"),
+            "a mutant panicked:\n{err}\n--- the mutant:\n{text}"
+        );
+        finished += 1;
+    }
+    println!("compiled mutants run: {finished} finished, {stopped} stopped at their deadline");
+    assert!(finished > 0, "every mutant run was stopped at its deadline");
 }
 
 #[test]
@@ -228,9 +290,13 @@ fn mutated_csv_and_uff_files_read_or_fail_without_panicking() {
         let _ = formats::csv::read_scalars(bytes, "m.csv");
     });
     assert_no_panic("csv", result);
-    let uff_seeds: Vec<Vec<u8>> = ["frf_x_ascii.uff", "frf_xy_binary.uff", "force_time_ascii.uff", "skip_then_frf.uff"]
-        .iter()
-        .map(|p| std::fs::read(root().join("engine/tests/data/uff").join(p)).unwrap())
+    // pyuff's files from `../shared` when it is there (each skipped without it), and our own.
+    let pyuff = ["frf_x_ascii.uff", "frf_xy_binary.uff", "force_time_ascii.uff"]
+        .into_iter()
+        .filter_map(|p| crate::common::shared(&format!("data/uff/{p}"), "this seed of the UFF campaign"));
+    let uff_seeds: Vec<Vec<u8>> = pyuff
+        .chain([root().join("engine/tests/data/uff/skip_then_frf.uff")])
+        .map(|p| std::fs::read(p).unwrap())
         .map(|b| b[..b.len().min(20000)].to_vec())
         .collect();
     let result = campaign("uff", &uff_seeds, 1500, 0x5eed_0005, |bytes| {
@@ -268,8 +334,11 @@ fn mutated_cases_import_or_fail_without_panicking_or_injecting() {
             injected.lock().unwrap().push(json.chars().take(400).collect::<String>());
         }
     });
-    println!("cases: {} imported", imported.lock().unwrap());
+    let imported = imported.into_inner().unwrap();
+    println!("cases: {imported} imported");
     assert_no_panic("cases", result);
+    // The injection check means something only if mutants got through the importer.
+    assert!(imported >= 100, "only {imported} of 3000 mutated cases imported: the check above saw too few");
     let injected = injected.into_inner().unwrap();
     assert!(injected.is_empty(), "{} mutants gained a step or an output; the first:\n{}", injected.len(), injected[0]);
 }

@@ -433,6 +433,26 @@ fn the_import_command_writes_hostile_names_as_text_and_refuses_what_a_recipe_can
         ),
         "{err}"
     );
+
+    // A speed no spindle has is refused by its field, the number short.
+    let mut fast = case.clone();
+    *fast.pointer_mut("/measurements/frf/0/speed_rpm").unwrap() = serde_json::json!(-1e308);
+    std::fs::write(dir.path().join("fast.json"), fast.to_string()).unwrap();
+    let (code, _, err) = spindlelab_in(dir.path(), &["import", "fast.json"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("`measurements.frf[0].speed_rpm` is -1e308 rpm"), "{err}");
+    assert!(err.len() < 300, "{err}");
+
+    // Files in two units are not one measurement set: refused, not read in the first's unit.
+    let mut mixed = case.clone();
+    *mixed.pointer_mut("/measurements/frf/1/units").unwrap() = serde_json::json!("m/s^2/N");
+    std::fs::write(dir.path().join("mixed.json"), mixed.to_string()).unwrap();
+    let (code, _, err) = spindlelab_in(dir.path(), &["import", "mixed.json"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("`measurements.frf[1].units` is \"m/s^2/N\" where `measurements.frf[0].units` is \"m/N\""),
+        "{err}"
+    );
 }
 
 /// `--library` writes the case's entities to a library and a recipe that uses it: the two

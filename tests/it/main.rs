@@ -23,6 +23,7 @@ mod fit;
 mod frf_low_lines;
 mod fuzz;
 mod guarantees;
+mod impact_study;
 mod import;
 mod imported_recipes;
 mod measured_set_fit;

@@ -1,11 +1,12 @@
 //! A measurement set fitted as one: the three measured beam accelerances of
-//! `tests/data/measured/` (source and licence in its README) read as one FRF set, their poles
-//! shared (`modal.fit_set`), validated against sdypy-EMA's joint fit; the set written as UFF and
-//! CSV and read back with its node numbers; FRFs on different grids refused.
+//! `../shared/data/measured/` beside the checkout (source and licence in its README; the tests
+//! are skipped without it, except under CI) read as one FRF set, their poles shared
+//! (`modal.fit_set`), validated against sdypy-EMA's joint fit; the set written as UFF and CSV and
+//! read back with its node numbers; FRFs on different grids refused.
 
 use crate::common;
 
-use common::measured::{data, recipe_file, run_recipe};
+use common::measured::{beam_file, recipe_file, run_recipe};
 use common::{Ran, assert_has, run_at};
 use spindlelab::engine::formats::{self, FileFormat, FrfSelect};
 use spindlelab::engine::value::{Frf, FrfDofs, FrfSet, Table, UnitLabel, Value};
@@ -68,9 +69,10 @@ const JOINT: &str = "spindlelab: 1\nname: beam-set\nsteps:\n  beam:\n    kind: r
 
 #[test]
 fn joint_fit_of_three_measured_beam_accelerances_matches_sdypy_ema() {
+    let Some(beam) = beam_file("the joint fit of the measured beam accelerances against sdypy-EMA") else { return };
     let given = ", frequencies: [52 Hz, 142 Hz, 279 Hz, 460 Hz, 687 Hz, 959 Hz]";
     for poles in [given, ""] {
-        let (_d, ran) = run_recipe(&JOINT.replace("POLES", poles));
+        let (_d, ran) = run_recipe(&beam, &JOINT.replace("POLES", poles));
         let t = ran.table("fit", "modal_table");
         let f = column(&t, "frequency");
         assert_eq!(f.len(), 6, "{poles:?}: {f:?}");
@@ -130,14 +132,15 @@ fn small_set(shift: f64) -> Vec<Frf> {
 
 #[test]
 fn a_set_output_reads_back_from_uff_and_csv_with_its_node_numbers_through_the_binary() {
+    let Some(beam) = beam_file("the measured set written and read back") else { return };
     let (dir, path) = recipe_file(
+        &beam,
         "spindlelab: 1\nname: set\nsteps:\n  beam:\n    kind: read.frf_set\n    params: { file: BEAM, response: 1 }\n  fit:\n    kind: modal.fit_set\n    params: { min_frequency: 10 Hz, max_frequency: 999 Hz, modes: 6 }\n    inputs: { set: \"@beam.set\" }\noutputs:\n  - { from: \"@beam.set\", file: set.uff }\n  - { from: \"@beam.set\", file: set.csv }\n  - { from: \"@fit.fitted\", file: fitted.uff }\n  - { from: \"@fit.stabilisation\", file: stabilisation.csv }\n  - { from: \"@fit.stabilisation\", with: \"@beam.set\", file: stabilisation.svg }\n  - { from: \"@beam.set\", with: \"@fit.fitted\", file: set.svg }\n",
     );
     let out = dir.path().join("out");
     let o = run_binary(&path, &out);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    let original =
-        formats::read_frf_set(&data("beam-accelerance.uff"), FileFormat::Uff, &FrfSelect::default()).unwrap().value;
+    let original = formats::read_frf_set(&beam, FileFormat::Uff, &FrfSelect::default()).unwrap().value;
     let read = |name: &str, format| -> FrfSet {
         formats::read_frf_set(&out.join(name), format, &FrfSelect::default()).unwrap_or_else(|e| panic!("{e}")).value
     };

@@ -1,10 +1,11 @@
 //! Measurements as labs have them: measured accelerances of a beam from another lab's files
-//! (`tests/data/measured/`, source and licence in its README), node and direction numbers,
-//! FRF kinds and cross FRFs in the modal fit.
+//! (`../shared/data/measured/` beside the checkout, source and licence in its README; the tests
+//! are skipped without it, except under CI), node and direction numbers, FRF kinds and cross
+//! FRFs in the modal fit.
 
 use crate::common;
 
-use common::measured::{data, recipe_file, run_recipe};
+use common::measured::{beam_file, recipe_file, run_recipe};
 use common::{Ran, assert_has};
 use spindlelab::engine::formats::{self, FileFormat, FrfSelect};
 use spindlelab::engine::value::{Frf, FrfDofs, Table};
@@ -12,8 +13,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 /// Runs `recipe` through the binary into `DIR/out`; returns the folder and the process output.
-fn run_binary(recipe: &str) -> (tempfile::TempDir, Output) {
-    let (dir, path) = recipe_file(recipe);
+fn run_binary(beam: &Path, recipe: &str) -> (tempfile::TempDir, Output) {
+    let (dir, path) = recipe_file(beam, recipe);
     let o = Command::new(env!("CARGO_BIN_EXE_spindlelab"))
         .args(["run", "--no-cache", "-o"])
         .arg(dir.path().join("out"))
@@ -68,10 +69,14 @@ const SDYPY_EMA_SIGNS: [[f64; 6]; 3] =
 
 #[test]
 fn default_fit_of_measured_beam_accelerances_matches_sdypy_ema() {
+    let Some(beam) = beam_file("the fit of each measured beam accelerance against sdypy-EMA") else { return };
     for (k, reference) in [1, 2, 3].into_iter().enumerate() {
-        let (_d, ran) = run_recipe(&format!(
-            "spindlelab: 1\nname: beam\nsteps:\n  beam:\n    kind: read.frf\n    params: {{ file: BEAM, reference: {reference} }}\n  fit:\n    kind: modal.fit\n    inputs: {{ frf: \"@beam.frf\" }}\n"
-        ));
+        let (_d, ran) = run_recipe(
+            &beam,
+            &format!(
+                "spindlelab: 1\nname: beam\nsteps:\n  beam:\n    kind: read.frf\n    params: {{ file: BEAM, reference: {reference} }}\n  fit:\n    kind: modal.fit\n    inputs: {{ frf: \"@beam.frf\" }}\n"
+            ),
+        );
         let t = ran.table("fit", "modal_table");
         let (f, m) = (column(&t, "frequency"), column(&t, "modal_mass"));
         assert_eq!(f.len(), 6, "reference {reference}: {f:?}");
@@ -102,12 +107,14 @@ fn default_fit_of_measured_beam_accelerances_matches_sdypy_ema() {
 
 #[test]
 fn read_frf_selects_by_node_numbers_and_writes_them_back_through_the_binary() {
+    let Some(beam) = beam_file("the selection of measured FRFs by node numbers") else { return };
     let (dir, o) = run_binary(
+        &beam,
         "spindlelab: 1\nname: nodes\nsteps:\n  beam:\n    kind: read.frf\n    params: { file: BEAM, response: 1, reference: 3 }\noutputs:\n  - { from: \"@beam.frf\", file: beam.uff }\n  - { from: \"@beam.frf\", file: beam.csv }\n",
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let want = FrfDofs { response_node: 1, response_direction: 1, reference_node: 3, reference_direction: 1 };
-    let original = read(&data("beam-accelerance.uff"), FrfSelect { dataset: Some(3), ..Default::default() });
+    let original = read(&beam, FrfSelect { dataset: Some(3), ..Default::default() });
     let out = dir.path().join("out");
     let uff = read(&out.join("beam.uff"), FrfSelect::default());
     assert_eq!(uff.dofs, Some(want));
@@ -120,6 +127,7 @@ fn read_frf_selects_by_node_numbers_and_writes_them_back_through_the_binary() {
     assert_eq!(csv.values, original.values);
     // A node the file does not hold: exit 2, and the datasets listed with their node numbers.
     let (_d, o) = run_binary(
+        &beam,
         "spindlelab: 1\nname: nodes\nsteps:\n  beam:\n    kind: read.frf\n    params: { file: BEAM, reference: 9 }\n",
     );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
@@ -128,12 +136,14 @@ fn read_frf_selects_by_node_numbers_and_writes_them_back_through_the_binary() {
 
 #[test]
 fn frf_convert_takes_a_measured_accelerance_to_receptance_through_the_binary() {
+    let Some(beam) = beam_file("the conversion of a measured accelerance") else { return };
     let (dir, o) = run_binary(
+        &beam,
         "spindlelab: 1\nname: convert\nsteps:\n  beam:\n    kind: read.frf\n    params: { file: BEAM, reference: 2 }\n  receptance:\n    kind: frf.convert\n    params: { to: receptance }\n    inputs: { frf: \"@beam.frf\" }\n  back:\n    kind: frf.convert\n    params: { to: accelerance }\n    inputs: { frf: \"@receptance.frf\" }\noutputs:\n  - { from: \"@receptance.frf\", file: receptance.uff }\n  - { from: \"@back.frf\", file: back.uff }\n",
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert_has(&text(&o), &["0 Hz line has no receptance"]);
-    let a = read(&data("beam-accelerance.uff"), FrfSelect { dataset: Some(2), ..Default::default() });
+    let a = read(&beam, FrfSelect { dataset: Some(2), ..Default::default() });
     let out = dir.path().join("out");
     let h = read(&out.join("receptance.uff"), FrfSelect::default());
     assert_eq!(h.unit.symbol, "m/N");
@@ -149,6 +159,7 @@ fn frf_convert_takes_a_measured_accelerance_to_receptance_through_the_binary() {
     assert_eq!(back.dofs, a.dofs);
     // Comparing different kinds is refused with the conversion to use.
     let (_d, o) = run_binary(
+        &beam,
         "spindlelab: 1\nname: kinds\nsteps:\n  beam:\n    kind: read.frf\n    params: { file: BEAM, reference: 2 }\n  receptance:\n    kind: frf.convert\n    params: { to: receptance }\n    inputs: { frf: \"@beam.frf\" }\n  compare:\n    kind: frf.compare\n    inputs: { frf: \"@receptance.frf\", reference: \"@beam.frf\" }\n",
     );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));

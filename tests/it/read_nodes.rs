@@ -1,6 +1,8 @@
 //! Reader nodes end to end: a recipe names data files relative to its folder, the file's
 //! contents key the cache, read problems point into the data file, and what the outputs
-//! write the readers read back.
+//! write the readers read back. The UFF files written by pyuff are read from
+//! `../shared/data/uff/` beside the checkout; the tests that need them are skipped without it,
+//! except under CI.
 
 use spindlelab::engine::exec::{Outcome, RunOptions};
 use spindlelab::engine::formats::{self, FileFormat, FrfSelect};
@@ -9,12 +11,20 @@ use spindlelab::engine::value::Value;
 use spindlelab::engine::{self, Compiled};
 use std::path::{Path, PathBuf};
 
+use crate::common::shared;
+
 fn root(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
+/// Our own UFF file `name`.
 fn fixture(name: &str) -> PathBuf {
     root("engine/tests/data/uff").join(name)
+}
+
+/// pyuff's UFF file `name` in `../shared`, or `None` when it is not there (`what` is skipped).
+fn pyuff(name: &str, what: &str) -> Option<PathBuf> {
+    shared(&format!("data/uff/{name}"), what)
 }
 
 fn compile(path: &Path) -> Compiled {
@@ -36,17 +46,26 @@ fn frf_of(outcome: &Outcome) -> spindlelab::engine::value::Frf {
 
 #[test]
 fn a_recipe_reads_a_measured_frf_and_its_outputs_read_back() {
-    let c = compile(&root("tests/data/read-frf.yaml"));
+    let what = "the recipe that reads pyuff's files";
+    let Some(frf_file) = pyuff("frf_xy_binary.uff", what) else { return };
+    let Some(force_file) = pyuff("force_time_ascii.uff", what) else { return };
+    // The recipe names the files as they lie beside the checkout; it runs from a temporary
+    // folder with their paths written in full.
+    let text = std::fs::read_to_string(root("tests/data/read-frf.yaml")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("read-frf.yaml");
+    let text = text
+        .replace("../../../shared/data/uff/frf_xy_binary.uff", &frf_file.display().to_string())
+        .replace("../../../shared/data/uff/force_time_ascii.uff", &force_file.display().to_string());
+    std::fs::write(&recipe, text).unwrap();
+    let c = compile(&recipe);
     let out = tempfile::tempdir().unwrap();
     let report = run(&c, out.path(), false).unwrap_or_else(|e| panic!("{e}"));
     let frf = frf_of(&report.result.outcomes[c.graph.by_step["measured"][0]]);
-    let direct = formats::read_frf(
-        &fixture("frf_xy_binary.uff"),
-        FileFormat::Uff,
-        &FrfSelect { direction: Some("y".into()), ..Default::default() },
-    )
-    .unwrap()
-    .value;
+    let direct =
+        formats::read_frf(&frf_file, FileFormat::Uff, &FrfSelect { direction: Some("y".into()), ..Default::default() })
+            .unwrap()
+            .value;
     assert_eq!(frf, direct);
     assert_eq!(frf.direction.as_deref(), Some("y"));
 
@@ -63,10 +82,11 @@ fn a_recipe_reads_a_measured_frf_and_its_outputs_read_back() {
 
 #[test]
 fn the_data_file_content_keys_the_cache_and_a_missing_file_is_reported_where_it_is_named() {
+    let Some(ascii) = pyuff("frf_x_ascii.uff", "the cache test on an edited data file") else { return };
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     std::fs::create_dir(&data).unwrap();
-    let text = std::fs::read_to_string(fixture("frf_x_ascii.uff")).unwrap();
+    let text = std::fs::read_to_string(ascii).unwrap();
     std::fs::write(data.join("h.uff"), &text).unwrap();
     let recipe = dir.path().join("r.yaml");
     std::fs::write(&recipe, "spindlelab: 1\nsteps:\n  h:\n    kind: read.frf\n    params: { file: data/h.uff }\n")

@@ -262,6 +262,8 @@ pub struct Diagnosis {
     pub unexplained: Vec<Unexplained>,
     pub gap: GapReport,
     pub candidates: Vec<Candidate>,
+    /// What the search declined to name, and why.
+    pub notes: Vec<String>,
     pub recipe: String,
     pub seconds: f64,
     #[serde(skip)]
@@ -815,12 +817,20 @@ struct Search<'l> {
     named: Vec<&'l dyn Effect>,
     named_values: Vec<(String, f64)>,
     unknown_fit: Option<UnknownMode>,
+    /// What the search declined to name, and why.
+    notes: Vec<String>,
 }
 
 /// Searches the library for the effects the model lacks: structural and measurement effects
 /// when the FRFs disagree, then cutting effects when the trials still do.
 fn search_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>]) -> Search<'l> {
-    let mut search = Search { candidates: Vec::new(), named: Vec::new(), named_values: Vec::new(), unknown_fit: None };
+    let mut search = Search {
+        candidates: Vec::new(),
+        named: Vec::new(),
+        named_values: Vec::new(),
+        unknown_fit: None,
+        notes: Vec::new(),
+    };
     let mut current = ctx.baseline.clone();
     if !ctx.baseline.at_floor() {
         search_frf_effects(ctx, lib, &mut search, &mut current);
@@ -960,16 +970,37 @@ fn try_unknown_mode(
 }
 
 /// Fits each cutting effect on top of the named ones when the trials disagree with the model
-/// so far (`current`), and names the first that fixes enough of them.
+/// so far (`current`), and names the first that fixes enough of them — unless the structure
+/// itself is still wrong: while a measured FRF stays off its floor, the lobes are wrong for
+/// that reason, and a cutting law fitted to the trials would absorb it. It is then fitted and
+/// listed among the candidates, and the diagnosis says why it was not named.
 fn search_cutting_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>], search: &mut Search<'l>, current: &Evaluation) {
     if current.misclassified() < MIN_FIXED {
         return;
     }
+    let off_floor = current.files.iter().filter(|f| f.discrepant()).count();
+    let open = match (off_floor, &search.unknown_fit) {
+        (0, None) => None,
+        (0, Some(_)) => Some("a mode outside the library stands in for what the named effects leave".to_string()),
+        (n, _) => Some(format!("{n} measured FRF{} off the noise floor", if n == 1 { "" } else { "s" })),
+    };
     for e in lib.iter().filter(|e| e.scope() == Scope::Cutting) {
         let c = try_candidate(ctx, &[e.as_ref()], &search.named, &search.named_values, &[], current);
         let fixes = c
             .trials_misclassified_after
             .is_some_and(|m| current.misclassified() - m.min(current.misclassified()) >= MIN_FIXED);
+        if c.skipped.is_none()
+            && c.delta_bic > BIC_STRONG
+            && fixes
+            && let Some(open) = &open
+        {
+            search.notes.push(format!(
+                "`{}` would fix the trials but is not named: the library does not explain the measured FRFs ({open}), so the structure, not the cutting law, may be what mispredicts the trials; explain the FRFs first",
+                e.name()
+            ));
+            search.candidates.push(c);
+            break;
+        }
         if c.skipped.is_none() && c.delta_bic > BIC_STRONG && fixes {
             search.named.push(e.as_ref());
             search.named_values = c.values.clone();
@@ -1030,6 +1061,7 @@ fn assemble_report(
         unexplained,
         gap,
         candidates: search.candidates,
+        notes: search.notes,
         recipe: shown,
         seconds: t0.elapsed().as_secs_f64(),
         diagnosed_recipe: format!("{header}{}", diagnosed.text),
@@ -1075,7 +1107,10 @@ fn named_effects(ctx: &Ctx, search: &Search) -> Vec<NamedEffect> {
                     c.fitted
                         .iter()
                         .map(|p| {
-                            (p.name.clone(), serde_json::json!({ "value": p.value, "sigma": p.sigma, "unit": p.unit }))
+                            let p_json = serde_json::json!({
+                                "value": p.value, "sigma": p.sigma, "unit": p.unit, "at_bound": p.at_bound
+                            });
+                            (p.name.clone(), p_json)
                         })
                         .collect()
                 })
@@ -1174,20 +1209,61 @@ fn diagnosed_header(
     crate::engine::syntax::emit::comment_lines(s.trim_end_matches('\n'))
 }
 
-/// A value as a person reads it: numbers to five significant digits, keys unquoted.
+/// An effect's reported parameters as a person reads them: `name = value unit` with the unit
+/// its key names (`equivalent_diameter_m` → `equivalent_diameter = 10.98 mm`, a ratio or a
+/// relative change in %), four significant digits, lists of objects one per item.
 fn readable(v: &Json) -> String {
     match v {
-        Json::Number(n) => {
-            let x = n.as_f64().unwrap_or(f64::NAN);
-            if x == x.trunc() && x.abs() < 1e6 { format!("{x}") } else { format!("{x:.4e}") }
-        }
+        Json::Object(m) => m.iter().map(|(k, v)| readable_field(k, v)).collect::<Vec<_>>().join(", "),
+        other => readable_value(other),
+    }
+}
+
+fn readable_value(v: &Json) -> String {
+    match v {
+        Json::Number(n) => spindlelab_domain::sig(n.as_f64().unwrap_or(f64::NAN), 4),
         Json::String(s) => s.clone(),
-        Json::Array(a) => format!("[{}]", a.iter().map(readable).collect::<Vec<_>>().join(", ")),
-        Json::Object(m) => {
-            format!("{{{}}}", m.iter().map(|(k, v)| format!("{k}: {}", readable(v))).collect::<Vec<_>>().join(", "))
-        }
+        Json::Array(a) => format!("[{}]", a.iter().map(readable_item).collect::<Vec<_>>().join("; ")),
+        Json::Object(_) => format!("({})", readable(v)),
         other => other.to_string(),
     }
+}
+
+fn readable_item(v: &Json) -> String {
+    match v {
+        Json::Object(_) => readable(v),
+        other => readable_value(other),
+    }
+}
+
+/// One `key = value unit`, the unit taken from the key's suffix.
+fn readable_field(key: &str, v: &Json) -> String {
+    const UNITS: [(&str, f64, &str); 11] = [
+        ("_per_10000_rpm", 1.0, " per 10000 rpm"),
+        ("_hz_per_1000_rpm", 1.0, " Hz per 1000 rpm"),
+        ("_deg_per_khz", 1.0, " deg/kHz"),
+        ("_nms_per_rad", 1.0, " N·m·s/rad"),
+        ("_nm_per_rad", 1.0, " N·m/rad"),
+        ("_ns_per_m", 1.0, " N·s/m"),
+        ("_n_per_m", 1.0, " N/m"),
+        ("_hz", 1.0, " Hz"),
+        ("_rpm", 1.0, " rpm"),
+        ("_m", 1e3, " mm"),
+        ("_s", 1.0, " s"),
+    ];
+    let Some(x) = v.as_f64() else { return format!("{key} = {}", readable_value(v)) };
+    let percent = key.ends_with("_ratio") || key.starts_with("relative_change") || key.contains("relative_change_per");
+    for (suffix, scale, unit) in UNITS {
+        if let Some(name) = key.strip_suffix(suffix) {
+            // `ks_relative_change_per_10000_rpm`: a relative change, in % per 10000 rpm.
+            let (x, unit) = if percent { (x * 100.0, format!(" %{unit}")) } else { (x * scale, unit.to_string()) };
+            return format!("{name} = {}{unit}", spindlelab_domain::sig(x, 4));
+        }
+    }
+    if percent {
+        return format!("{key} = {} %", spindlelab_domain::sig(x * 100.0, 4));
+    }
+    format!("{key} = {}", spindlelab_domain::sig(x, 4))
 }
 
 /// `value ± sigma` with sigma to two significant digits and the value rounded to the same
@@ -1244,7 +1320,12 @@ pub fn markdown(d: &Diagnosis) -> String {
                     let v = p["value"].as_f64().unwrap_or(f64::NAN);
                     let unit = p["unit"].as_str().unwrap_or("");
                     let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
-                    format!("{name} = {}{unit}", value_pm(v, p["sigma"].as_f64()))
+                    let bound = if p["at_bound"].as_bool() == Some(true) {
+                        " (at its bound: the data ask for more than this effect can give)"
+                    } else {
+                        ""
+                    };
+                    format!("{name} = {}{unit}{bound}", value_pm(v, p["sigma"].as_f64()))
                 })
                 .collect();
             s.push_str(&format!("  - fitted: {}\n", fitted.join(", ")));
@@ -1276,6 +1357,9 @@ pub fn markdown(d: &Diagnosis) -> String {
                 (t.margin.exp() - 1.0) * 100.0
             )),
         }
+    }
+    for n in &d.notes {
+        s.push_str(&format!("- {n}\n"));
     }
     let drawn = pictures_listed(d);
     if !drawn.is_empty() {

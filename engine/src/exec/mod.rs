@@ -140,10 +140,23 @@ pub enum Outcome {
     },
 }
 
+/// The start of the warning a result that could not be stored in the cache carries.
+pub const NOT_CACHED: &str = "the result could not be stored in the cache: ";
+
 impl Outcome {
     pub fn outputs(&self) -> Option<&Arc<Produced>> {
         match self {
             Outcome::Computed { outputs, .. } | Outcome::Cached { outputs, .. } => Some(outputs),
+            _ => None,
+        }
+    }
+
+    /// Why a result computed in this run could not be stored in the cache, if it could not.
+    pub fn not_cached(&self) -> Option<&str> {
+        match self {
+            Outcome::Computed { warnings, .. } | Outcome::Released { warnings, .. } => {
+                warnings.iter().find_map(|w| w.strip_prefix(NOT_CACHED))
+            }
             _ => None,
         }
     }
@@ -516,10 +529,13 @@ fn run_one(
                     }
                 }
             }
-            let warnings = ctx.take_warnings();
-            if let Some(c) = cache {
-                // A cache that cannot be written costs speed next time, not correctness now.
-                let _ = c.put(&inst.key, &outputs, &warnings);
+            let mut warnings = ctx.take_warnings();
+            if let Some(c) = cache
+                && let Err(e) = c.put(&inst.key, &outputs, &warnings)
+            {
+                // A cache that cannot be written costs speed next time, not correctness now;
+                // the run says so (and a shard, whose work is to fill the cache, fails on it).
+                warnings.push(format!("{NOT_CACHED}{e}"));
             }
             Outcome::Computed { outputs: share(outputs), seconds, warnings }
         }

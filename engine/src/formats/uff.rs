@@ -6,7 +6,8 @@
 //! number of points, abscissa spacing), records 8–11 the abscissa, ordinate numerator,
 //! ordinate denominator and Z-axis data characteristics, and record 12 the data. Records 6
 //! and 8–11 are read by their published columns (their names and labels may hold spaces);
-//! record 7 and the data values by whitespace, which every writer leaves between numbers.
+//! record 7 by its columns where they hold its three integers, else (and the data values) by
+//! whitespace, which every writer leaves between real numbers.
 //! Other datasets are skipped and listed.
 
 use super::{FormatError, Loc, Skipped, unit_to_si};
@@ -931,6 +932,31 @@ fn binary_layout(cur: &Cursor, hl: usize, head: &[u8]) -> Result<BinaryLayout, F
     Ok(BinaryLayout { little_endian, declared_bytes })
 }
 
+/// The fields of record 7 with their 1-based columns. Written to its format (`3I10,3E13.5`),
+/// a number of points that fills its ten columns touches the field before it, so the three
+/// integers are read by their columns when those hold integers; the rest, and a record
+/// written free-form, by whitespace.
+fn record7_fields(t7: &[u8]) -> Vec<(usize, &[u8])> {
+    let fixed: Option<Vec<(usize, &[u8])>> = (t7.len() >= 30)
+        .then(|| {
+            (0..3)
+                .map(|k| {
+                    let field = &t7[10 * k..10 * k + 10];
+                    let lead = field.iter().take_while(|b| **b == b' ').count();
+                    let digits = field[lead..].trim_ascii_end();
+                    let int =
+                        std::str::from_utf8(digits).ok().is_some_and(|d| !d.is_empty() && d.parse::<i64>().is_ok());
+                    int.then_some((10 * k + lead + 1, digits))
+                })
+                .collect()
+        })
+        .flatten();
+    match fixed {
+        Some(ints) => ints.into_iter().chain(tokens(&t7[30..]).map(|(c, t)| (c + 30, t))).take(8).collect(),
+        None => tokens(t7).take(8).collect(),
+    }
+}
+
 /// Record 7 (data form): the ordinate type, the number of points, an even or uneven
 /// abscissa with its minimum and increment, and the Z-axis value.
 #[derive(Clone, Copy)]
@@ -949,7 +975,7 @@ struct DataForm {
 impl DataForm {
     fn read(cur: &mut Cursor, kind: &str) -> Result<DataForm, FormatError> {
         let (l7, t7) = cur.record(&format!("record 7 (data form) of {kind}"))?;
-        let fields7: Vec<(usize, &[u8])> = tokens(t7).take(8).collect();
+        let fields7 = record7_fields(t7);
         let what7 = ["the ordinate data type", "the number of points", "the abscissa spacing (1 even, 0 uneven)"];
         let mut ints = [0i64; 3];
         for (k, slot) in ints.iter_mut().enumerate() {
@@ -1604,6 +1630,19 @@ mod tests {
             assert!((a - b * 1e-3).norm() <= 1e-12 * b.norm(), "{a} {b}");
         }
         assert_eq!(back.dofs, f.dofs);
+    }
+
+    #[test]
+    fn record_7_is_read_by_its_columns_when_a_field_fills_them() {
+        let full = b"         61234567890         1  0.00000E+00  1.00000E+00  0.00000E+00";
+        let f = record7_fields(full);
+        let texts: Vec<&[u8]> = f.iter().map(|(_, t)| *t).collect();
+        assert_eq!(texts, [&b"6"[..], b"1234567890", b"1", b"0.00000E+00", b"1.00000E+00", b"0.00000E+00"]);
+        assert_eq!(f.iter().map(|(c, _)| *c).collect::<Vec<_>>(), [10, 11, 30, 33, 46, 59]);
+        // Free-form, as some writers leave it: by whitespace.
+        let free = b"6 4096 1 0.0 2.5 0.0";
+        let texts: Vec<&[u8]> = record7_fields(free).iter().map(|(_, t)| *t).collect();
+        assert_eq!(texts, [&b"6"[..], b"4096", b"1", b"0.0", b"2.5", b"0.0"]);
     }
 
     #[test]

@@ -243,7 +243,7 @@ impl SweepAxis {
     pub fn show(&self, v: &ParamValue) -> String {
         match (v, &self.unit) {
             (ParamValue::Quantity { value, .. }, Some((unit, scale))) => {
-                format!("{} {unit}", spindlelab_domain::round_sig(value / scale, 6))
+                format!("{} {unit}", spindlelab_domain::sig(value / scale, 6))
             }
             _ => v.display(),
         }

@@ -23,6 +23,9 @@ pub struct RhaiLimits {
     pub max_array_size: usize,
     pub max_map_size: usize,
     pub max_expr_depth: usize,
+    /// Wall-clock time a script may run. Operations are counted, but some (cloning a value
+    /// nested thousands deep) cost more the larger the script's data grows; this bounds them.
+    pub max_time: std::time::Duration,
 }
 
 impl Default for RhaiLimits {
@@ -34,6 +37,7 @@ impl Default for RhaiLimits {
             max_array_size: 100_000,
             max_map_size: 10_000,
             max_expr_depth: 128,
+            max_time: std::time::Duration::from_secs(5),
         }
     }
 }
@@ -49,6 +53,21 @@ pub fn sandboxed_engine(limits: &RhaiLimits) -> Engine {
     engine.set_max_map_size(limits.max_map_size);
     engine.set_max_expr_depths(limits.max_expr_depth, limits.max_expr_depth);
     engine.set_module_resolver(rhai::module_resolvers::DummyModuleResolver::new());
+    // The clock is read every 1024 operations; a run's first reading starts its clock (the
+    // count starts again at each run, so a reading not above the last one is a new run).
+    let budget = limits.max_time;
+    let clock = Mutex::new((0u64, std::time::Instant::now()));
+    engine.on_progress(move |ops| {
+        if ops % 1024 != 0 {
+            return None;
+        }
+        let mut c = clock.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if ops <= c.0 {
+            c.1 = std::time::Instant::now();
+        }
+        c.0 = ops;
+        (c.1.elapsed() > budget).then(|| Dynamic::from(TIME_LIMIT))
+    });
     engine.disable_symbol("eval");
     engine.on_print(|_| {});
     engine.on_debug(|_, _, _| {});
@@ -60,6 +79,9 @@ pub fn sandboxed_engine(limits: &RhaiLimits) -> Engine {
     });
     engine
 }
+
+/// The token a script stopped by its time limit ends with.
+const TIME_LIMIT: &str = "time limit";
 
 fn fmt_num(v: f64) -> String {
     // Shortest text that reads back as the same number.
@@ -388,11 +410,19 @@ fn eval_recipe(engine: &Engine, modules: &RecipeModules, file: &SourceFile, diag
                     "the script ran past its operation limit: a loop that never ends, or a sweep too large for a recipe"
                 }
                 EvalAltResult::ErrorStackOverflow(_) => "the script recursed too deep",
+                EvalAltResult::ErrorTerminated(..) => {
+                    "the script ran past its time limit: a recipe builds its steps in well under a second; build its lists flat, not nested"
+                }
                 EvalAltResult::ErrorDataTooLarge(..) => "a string, array or map in the script grew past its limit",
                 EvalAltResult::ErrorModuleNotFound(..) => IMPORT_HELP,
                 _ => "fix the script; it runs at compile time and must return the recipe as an object map",
             };
-            let msg = e.to_string();
+            let msg = match *e {
+                EvalAltResult::ErrorTerminated(..) => {
+                    format!("ran longer than {} s and was stopped", RhaiLimits::default().max_time.as_secs())
+                }
+                _ => e.to_string(),
+            };
             let msg = match msg.rfind(" (line ") {
                 Some(i) if msg.ends_with(')') => msg[..i].to_string(),
                 _ => msg,

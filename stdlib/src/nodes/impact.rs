@@ -85,7 +85,7 @@ impl ImpactSimulate {
         ImpactSimulate {
             spec: NodeSpec {
                 kind: "impact.simulate",
-                version: 1,
+                version: 2,
                 description: "Hertz hammer–target impact with hysteresis damping (§2.1, Eqs. 2.2–2.7): force, response and figures of merit.",
                 inputs: vec![],
                 outputs: vec![
@@ -97,9 +97,19 @@ impl ImpactSimulate {
                     ),
                     PortSpec::new("impulse_time", PortType::Scalar, "first to last contact (s), §2.1 (ii)"),
                     PortSpec::new(
+                        "first_impulse_time",
+                        PortType::Scalar,
+                        "the first contact alone (s): the impulse a lab keeps when it rejects a double hit",
+                    ),
+                    PortSpec::new(
                         "excited_bandwidth",
                         PortType::Scalar,
                         "where the force spectrum first falls 10 dB below DC (Hz), §2.1 (i)",
+                    ),
+                    PortSpec::new(
+                        "first_excited_bandwidth",
+                        PortType::Scalar,
+                        "the same of the first contact's force alone (Hz)",
                     ),
                     PortSpec::new(
                         "response_magnitude",
@@ -265,7 +275,16 @@ impl Node for ImpactSimulate {
         out.insert("force".into(), series(forces));
         out.insert("displacement".into(), series(disps));
         out.insert("impulse_time".into(), scalar(r.impulse_time, "s"));
+        out.insert("first_impulse_time".into(), scalar(r.first_impulse_time, "s"));
         out.insert("excited_bandwidth".into(), scalar(r.excited_bandwidth, "Hz"));
+        out.insert("first_excited_bandwidth".into(), scalar(r.first_excited_bandwidth, "Hz"));
+        if r.contact_count() > 1 {
+            ctx.warn(format!(
+                "double hit: the hammer struck {} times in the record (the last {:.3} ms after the first); a lab rejects such a hit — impulse_time and excited_bandwidth span every contact, first_impulse_time and first_excited_bandwidth the first alone",
+                r.contact_count(),
+                r.contacts.last().map_or(0.0, |c| c.start) * 1e3
+            ));
+        }
         out.insert("response_magnitude".into(), scalar(r.response_magnitude, "m"));
         out.insert("peak_force".into(), scalar(r.peak_force, "N"));
         out.insert("contacts".into(), scalar(r.contact_count() as f64, ""));

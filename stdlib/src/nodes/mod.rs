@@ -68,10 +68,15 @@ fn positive(p: &Params, names: &[&str]) -> Result<(), NodeError> {
         if let Some(v) = p.f64(name)
             && v <= 0.0
         {
-            return Err(NodeError::param(name, format!("must be positive, got {v}")));
+            return Err(NodeError::param(name, format!("must be positive, got {}", shown(p, name, v))));
         }
     }
     Ok(())
+}
+
+/// A parameter's value as a recipe writes it, with its unit.
+fn shown(p: &Params, name: &str, v: f64) -> String {
+    p.get(name).map_or_else(|| spindlelab_domain::sig(v, 6), |pv| pv.display())
 }
 
 /// Checks that each named parameter, where given, is not negative.
@@ -80,7 +85,7 @@ fn non_negative(p: &Params, names: &[&str]) -> Result<(), NodeError> {
         if let Some(v) = p.f64(name)
             && v < 0.0
         {
-            return Err(NodeError::param(name, format!("must not be negative, got {v}")));
+            return Err(NodeError::param(name, format!("must not be negative, got {}", shown(p, name, v))));
         }
     }
     Ok(())

@@ -35,8 +35,8 @@ mod tests;
 pub use cutting::{CuttingCoefficients, MAX_LAG_PER_SLICE, Milling, MillingDirection};
 pub use pitch::{PitchLimit, alternating_pitch, variable_pitch_limits};
 pub use process_damping::{
-    ProcessDampedLimit, ProcessDamping, ProcessDampingOptions, engagement_matrix, with_damper,
-    zoa_lobes_with_process_damping,
+    ProcessDampedLimit, ProcessDamping, ProcessDampingFormulation, ProcessDampingOptions, average_tooth_angle_damping,
+    average_tooth_angle_factors, engagement_matrix, with_damper, zoa_lobes_with_process_damping,
 };
 pub use sdm::{
     AUTO_STEPS_PER_NATURAL_PERIOD, Bifurcation, DepthLimit, ModalModel, Mode, SdOptions, SdPoint, StabilityMap,

@@ -20,7 +20,8 @@
 //! instead put one tooth at the average angle `φ_ave` and keep only the diagonal, `c sin²φ_ave` along x and
 //! `c cos²φ_ave` along y: for a four-tooth slot both give `C b/V` along the feed (theirs none along y), but at low
 //! immersion, where `N* < 1`, theirs assumes a tooth always in the cut, and in a partial cut their diagonal also
-//! damps motion along the mean tangent, which the normal force does not. `E` is in general full (off the slot
+//! damps motion along the mean tangent, which the normal force does not (their whole method is available as
+//! [`ProcessDampingFormulation::AverageToothAngle`], below). `E` is in general full (off the slot
 //! `⟨sin φ cos φ⟩ ≠ 0`), so the damper is added to the full 2×2 receptance matrix: in parallel at the tool point,
 //! `G'⁻¹ = G⁻¹ + iω D`, computed per line as `G' = (I + iω G D)⁻¹ G` (no inverse of `G` needed). A strong damper
 //! along the mean normal then mostly locks that direction and leaves the tangential one, so on a tool flexible
@@ -39,12 +40,29 @@
 //! safe where that does not hold. When no root exists (the damping grows faster than the depth it must
 //! stabilise, at the lowest speeds) the steps run past [`ProcessDampingOptions::max_depth_m`] and the limit is
 //! `+∞`: the linear model gives no finite depth there.
+//!
+//! **The textbook's formulation.** [`ProcessDampingFormulation::AverageToothAngle`] replaces the ZOA and `E` by
+//! Tlusty's average-tooth-angle method as Schmitz & Smith use it for process damping (*Machining Dynamics*,
+//! §4.8; their converging analysis): one tooth at `φ_ave = (φ_st + φ_ex)/2` stands for the
+//! `N* = N(φ_ex − φ_st)/2π` teeth in the cut. That is the midpoint rule for the ZOA's directional factors,
+//! `[α] ≈ (φ_ex − φ_st) A(φ_ave)` with `A = −2h/Kt` ([`average_tooth_angle_factors`]), a rank-one matrix
+//! `−(2 Ks/Kt)(φ_ex − φ_st) u rᵀ` (`u = (Kn r + Kt t)/Ks` the force direction, `t = (cos φ, −sin φ)`), whose one
+//! non-zero eigenvalue turns the ZOA depth `2π/(N Kt Re λ)` into the scalar limit
+//! `b_lim = −1/(2 Ks N* Re Φ_or)` of the oriented FRF `Φ_or = rᵀΦu = μ_x Φxx + μ_y Φyy` (plus
+//! `r_x u_y Φxy + r_y u_x Φyx` with cross terms), `μ_x = sin(φ_ave + β) sin φ_ave`,
+//! `μ_y = cos(φ_ave + β) cos φ_ave` — their `cos(β − (90° − φ_ave)) cos(90° − φ_ave)` and
+//! `cos((180° − φ_ave) − β) cos(180° − φ_ave)`. The damping is their diagonal,
+//! `D = (C b/V) diag(sin²φ_ave, cos²φ_ave)` ([`average_tooth_angle_damping`]). The lobes, the damper in
+//! parallel and the fixed point are the same as above. For a partial cut this scalar method can sit far from the
+//! coupled ZOA, whose arc-integrated factors couple x and y and have complex eigenvalues: in the textbook's 50 %
+//! up-milling case (`textbook_case.rs`) its lobes' minimum is 2.2 times as deep, and SD and a time-domain model
+//! side with the coupled ZOA. It is there to compare with the textbook, not as the better estimate.
 
 use super::StabilityError;
 use super::cutting::Milling;
 use super::zoa::{
-    FrfSlices, LimitScratch, StabilityLimit, ToolPointFrf, ZoaOptions, band_top_hz, limit_at_speed_pruned, line_roots,
-    lobe_count, lobes_needed, refine,
+    FrfSlices, LimitScratch, StabilityLimit, ToolPointFrf, ZoaOptions, band_top_hz, limit_at_speed_oriented,
+    line_roots_oriented, lobe_count, lobes_needed, refine,
 };
 use num_complex::Complex64;
 use rayon::prelude::*;
@@ -52,6 +70,9 @@ use std::f64::consts::{PI, TAU};
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod textbook_case;
 
 /// The flank–surface contact of the process damping model: `C = K_d w²/4` with the tool diameter for the cutting
 /// speed (module docs).
@@ -121,6 +142,60 @@ pub fn engagement_matrix(milling: &Milling) -> [[f64; 2]; 2] {
     let scale = milling.teeth as f64 / TAU;
     let (xx, xy, yy) = (scale * (b[0] - a[0]), scale * (b[1] - a[1]), scale * (b[2] - a[2]));
     [[xx, xy], [xy, yy]]
+}
+
+/// Tlusty's average-tooth-angle directional factors (module docs): the arc integral `[α] = ∫ A(φ) dφ` of
+/// [`Milling::directional_factors`], `A(φ) = −2 h(φ)/Kt` with `h` the [tooth matrix](Milling::tooth_matrix), taken
+/// by the midpoint rule, `(φ_ex − φ_st) A(φ_ave)`. Its non-zero eigenvalue with `[Φ]` is
+/// `−(2 Ks/Kt)(φ_ex − φ_st)(μ_x Φxx + μ_y Φyy)` without cross terms.
+pub fn average_tooth_angle_factors(milling: &Milling) -> [[f64; 2]; 2] {
+    let (st, ex) = milling.engagement();
+    let h = milling.tooth_matrix(0.5 * (st + ex));
+    let s = -2.0 * (ex - st) / milling.coefficients.kt;
+    [[s * h[0][0], s * h[0][1]], [s * h[1][0], s * h[1][1]]]
+}
+
+/// The textbook's projection of one flank contact's damping `c` in the average-tooth-angle method (Schmitz &
+/// Smith, Eqs. 4.113–4.116): `diag(sin²φ_ave, cos²φ_ave)` in `(x, y)`, their `cos²(90° − φ_ave)` and
+/// `cos²(180° − φ_ave)` — one contact always in the cut, no cross term (module docs).
+pub fn average_tooth_angle_damping(milling: &Milling) -> [[f64; 2]; 2] {
+    let (st, ex) = milling.engagement();
+    let (s, c) = (0.5 * (st + ex)).sin_cos();
+    [[s * s, 0.0], [0.0, c * c]]
+}
+
+/// How the cut enters the zero-order limit with process damping (module docs): the directional factors of the
+/// cutting force and the distribution of the flank contact's damping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ProcessDampingFormulation {
+    /// The coupled ZOA (Altintas & Budak 1995): directional factors integrated over the engaged arc
+    /// ([`Milling::directional_factors`]), both eigenvalues of the 2×2 problem, and the damping averaged over the
+    /// arc, `D = (C b/V) E` ([`engagement_matrix`]).
+    #[default]
+    ArcAverage,
+    /// Tlusty's average tooth angle as Schmitz & Smith apply it to process damping: one tooth at `φ_ave` carries
+    /// the `N*` teeth in the cut ([`average_tooth_angle_factors`]), a scalar oriented FRF, and their diagonal
+    /// damping `(C b/V) diag(sin²φ_ave, cos²φ_ave)` ([`average_tooth_angle_damping`]). It reproduces the textbook's
+    /// converging analysis; it is not the better estimate of the limit (module docs).
+    AverageToothAngle,
+}
+
+impl ProcessDampingFormulation {
+    /// The directional factors `[α]` the lobes are solved with.
+    pub fn directional_factors(self, milling: &Milling) -> [[f64; 2]; 2] {
+        match self {
+            ProcessDampingFormulation::ArcAverage => milling.directional_factors(),
+            ProcessDampingFormulation::AverageToothAngle => average_tooth_angle_factors(milling),
+        }
+    }
+
+    /// The damping matrix of one flank contact's damping `c = 1` N·s/m: the cut's damper is `c` times it.
+    pub fn damping_shape(self, milling: &Milling) -> [[f64; 2]; 2] {
+        match self {
+            ProcessDampingFormulation::ArcAverage => engagement_matrix(milling),
+            ProcessDampingFormulation::AverageToothAngle => average_tooth_angle_damping(milling),
+        }
+    }
 }
 
 /// The receptances with a viscous damper `damping` (N·s/m, in `(x, y)`) added in parallel at the tool point:
@@ -197,11 +272,18 @@ pub struct ProcessDampingOptions {
     pub max_evaluations: usize,
     /// The depth beyond which the search stops and reports `+∞` (no finite limit below it), m.
     pub max_depth_m: f64,
+    /// The formulation of the limit, for both the damped and the undamped limit (the coupled ZOA by default).
+    pub formulation: ProcessDampingFormulation,
 }
 
 impl Default for ProcessDampingOptions {
     fn default() -> Self {
-        ProcessDampingOptions { tolerance: 1e-6, max_evaluations: 60, max_depth_m: 1.0 }
+        ProcessDampingOptions {
+            tolerance: 1e-6,
+            max_evaluations: 60,
+            max_depth_m: 1.0,
+            formulation: ProcessDampingFormulation::default(),
+        }
     }
 }
 
@@ -212,7 +294,8 @@ pub struct ProcessDampedLimit {
     /// below [`ProcessDampingOptions::max_depth_m`] or no lobe passes), with the chatter frequency and lobe of
     /// the damped FRF there.
     pub limit: StabilityLimit,
-    /// The limit without process damping (the ZOA envelope of [`super::zoa_lobes`] at the same speeds).
+    /// The limit without process damping at the same speeds: the ZOA envelope of [`super::zoa_lobes`], or with
+    /// [`ProcessDampingFormulation::AverageToothAngle`] that formulation's envelope.
     pub without: StabilityLimit,
     /// Evaluations of the damped limit `L` per speed (0 where the undamped limit is already `+∞`).
     pub evaluations: Vec<usize>,
@@ -315,8 +398,8 @@ fn fixed_point(b0: Limit, options: &ProcessDampingOptions, mut eval: impl FnMut(
 }
 
 /// The ZOA limit with process damping at each speed of `options.speeds_rpm` (the fixed point of the module
-/// docs), and the limit without it. `options.lobes` and `options.resolution_hz` act as in [`super::zoa_lobes`]
-/// (`keep_lobes` is not used: no lobe curves are kept).
+/// docs), and the limit without it, in the formulation of `search.formulation`. `options.lobes` and
+/// `options.resolution_hz` act as in [`super::zoa_lobes`] (`keep_lobes` is not used: no lobe curves are kept).
 pub fn zoa_lobes_with_process_damping(
     frf: &ToolPointFrf,
     milling: &Milling,
@@ -366,8 +449,9 @@ pub fn zoa_lobes_with_process_damping(
         });
     }
     let frf = &*refine(frf, options.resolution_hz);
+    let factors = search.formulation.directional_factors(milling);
     let mut roots = Vec::new();
-    line_roots(frf.slices(usize::MAX), milling, false, &mut roots);
+    line_roots_oriented(frf.slices(usize::MAX), &factors, milling, false, &mut roots);
     if roots.iter().all(|r| r.iter().all(Option::is_none)) {
         return Err(StabilityError::NoResonance {
             f_lo: frf.freqs_hz.first().copied().unwrap_or(0.0),
@@ -378,7 +462,7 @@ pub fn zoa_lobes_with_process_damping(
     let n_min = grid.first().copied().unwrap_or(f64::INFINITY);
     let needed = lobes_needed(band_top, milling.teeth, n_min);
     let count = lobe_count(options.lobes, band_top, milling.teeth, n_min)?;
-    let engaged = engagement_matrix(milling);
+    let shape = search.formulation.damping_shape(milling);
     let per_tooth = 60.0 / milling.teeth as f64;
     let freqs = &frf.freqs_hz;
     let rows: Vec<(Limit, Solved)> = grid
@@ -388,13 +472,14 @@ pub fn zoa_lobes_with_process_damping(
             // so the eigenproblem is solved on those lines and the next one only.
             let tau = per_tooth / n;
             let lines = (freqs.partition_point(|&f| f * tau <= count as f64 + 1e-6) + 1).min(freqs.len());
-            let without = limit_at_speed_pruned(frf.slices(lines), milling, count, n, &mut scratch.limit);
+            let without = limit_at_speed_oriented(frf.slices(lines), &factors, milling, count, n, &mut scratch.limit);
             let solved = fixed_point(without, search, |depth| {
                 let c = process_damping.damping(depth, n);
-                let d = [[c * engaged[0][0], c * engaged[0][1]], [c * engaged[1][0], c * engaged[1][1]]];
+                let d = [[c * shape[0][0], c * shape[0][1]], [c * shape[1][0], c * shape[1][1]]];
                 scratch.fill(frf.slices(lines), d);
                 let mut limit = std::mem::take(&mut scratch.limit);
-                let l = limit_at_speed_pruned(scratch.slices(&freqs[..lines]), milling, count, n, &mut limit);
+                let l =
+                    limit_at_speed_oriented(scratch.slices(&freqs[..lines]), &factors, milling, count, n, &mut limit);
                 scratch.limit = limit;
                 l
             });

@@ -492,13 +492,24 @@ pub(crate) fn line_roots(
     exact_phase: bool,
     out: &mut Vec<[Option<LineRoot>; 2]>,
 ) {
-    let a = milling.directional_factors();
+    line_roots_oriented(frf, &milling.directional_factors(), milling, exact_phase, out);
+}
+
+/// [`line_roots`] with the directional factors `a` given instead of [`Milling::directional_factors`] (the
+/// average-tooth-angle formulation of [`super::process_damping`] takes them at one angle).
+pub(crate) fn line_roots_oriented(
+    frf: FrfSlices<'_>,
+    a: &[[f64; 2]; 2],
+    milling: &Milling,
+    exact_phase: bool,
+    out: &mut Vec<[Option<LineRoot>; 2]>,
+) {
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     out.clear();
     out.reserve(frf.freqs_hz.len());
     // First the eigenvalues of every line (independent lines, so the square roots overlap), then the branch
     // matching and the roots.
-    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len()).map(|j| eigenvalues(oriented(&frf, &a, j))).collect();
+    let lams: Vec<[Complex64; 2]> = (0..frf.freqs_hz.len()).map(|j| eigenvalues(oriented(&frf, a, j))).collect();
     let mut prev: Option<[Complex64; 2]> = None;
     for (j, &lam) in lams.iter().enumerate() {
         let lam = prev.map_or(lam, |p| matched(lam, &p));
@@ -780,8 +791,20 @@ pub(crate) fn limit_at_speed_pruned(
     speed_rpm: f64,
     scratch: &mut LimitScratch,
 ) -> (f64, f64, Option<usize>) {
+    limit_at_speed_oriented(frf, &milling.directional_factors(), milling, lobes, speed_rpm, scratch)
+}
+
+/// [`limit_at_speed_pruned`] with the directional factors `a` given instead of [`Milling::directional_factors`]
+/// (as [`line_roots_oriented`]).
+pub(crate) fn limit_at_speed_oriented(
+    frf: FrfSlices<'_>,
+    a: &[[f64; 2]; 2],
+    milling: &Milling,
+    lobes: usize,
+    speed_rpm: f64,
+    scratch: &mut LimitScratch,
+) -> (f64, f64, Option<usize>) {
     let n = frf.freqs_hz.len();
-    let a = milling.directional_factors();
     let n_kt = milling.teeth as f64 * milling.coefficients.kt;
     let segment = Segment::at(milling.teeth, lobes, speed_rpm);
     let mut best = (f64::INFINITY, 0.0, None);
@@ -803,7 +826,7 @@ pub(crate) fn limit_at_speed_pruned(
             let (cx, cy) = (a[0][0] * a[0][0] + a[1][0] * a[1][0], a[0][1] * a[0][1] + a[1][1] * a[1][1]);
             norm2.extend(frf.xx.iter().zip(frf.yy).map(|(x, y)| widen(x.norm_sqr() * cx + y.norm_sqr() * cy)));
         }
-        Some(_) => norm2.extend((0..n).map(|j| widen(oriented(&frf, &a, j).iter().map(|z| z.norm_sqr()).sum()))),
+        Some(_) => norm2.extend((0..n).map(|j| widen(oriented(&frf, a, j).iter().map(|z| z.norm_sqr()).sum()))),
     }
     // Per segment (ending at line j), the larger of its two lines.
     let mut largest = 0.0f64;
@@ -830,7 +853,7 @@ pub(crate) fn limit_at_speed_pruned(
             if best.0.is_finite() && norm2[j] < needed(best.0) {
                 continue;
             }
-            let mut solved = |i: usize| *lam[i].get_or_insert_with(|| eigenvalues(oriented(&frf, &a, i)));
+            let mut solved = |i: usize| *lam[i].get_or_insert_with(|| eigenvalues(oriented(&frf, a, i)));
             let p = solved(j - 1);
             let q = matched(solved(j), &p);
             let (f1, f2) = (frf.freqs_hz[j - 1], frf.freqs_hz[j]);

@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests: run a recipe and pick its outputs by step and
-//! port, and run the binary on a bad fixture of `tests/bad/`.
+//! port, run the binary on a bad fixture of `tests/bad/`, and find the data of other projects
+//! in `../shared` (or skip).
 #![allow(dead_code)] // each test crate uses a different part
 
 pub mod binary;
@@ -68,6 +69,19 @@ pub fn run_at(path: &Path, out: &Path) -> Ran {
 pub fn run(path: &Path) -> Ran {
     let out = tempfile::tempdir().unwrap();
     run_at(path, out.path())
+}
+
+/// The file or folder `rel` of `../shared` beside the checkout (data of other projects, kept
+/// out of the repository), or `None` when it is not there: the test says on stderr that `what`
+/// is skipped and returns. Under CI (`CI` set) its absence fails the test instead.
+pub fn shared(rel: &str, what: &str) -> Option<PathBuf> {
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared")).join(rel);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(std::env::var_os("CI").is_none(), "CI needs {} (../shared beside the checkout)", path.display());
+    eprintln!("no {}: {what} is skipped", path.display());
+    None
 }
 
 pub fn bad_dir() -> PathBuf {

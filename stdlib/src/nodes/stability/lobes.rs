@@ -5,7 +5,9 @@ use super::{
     lobes_value, milling_named, outputs, receptance, speeds_rpm, stab_err, warn_lobes_short, warn_unlimited,
     with_geometry,
 };
-use crate::stability::{self, ProcessDampingOptions, StabilityLimit, ToolPointFrf, ZoaOptions};
+use crate::stability::{
+    self, ProcessDampingFormulation, ProcessDampingOptions, StabilityLimit, ToolPointFrf, ZoaOptions,
+};
 use spindlelab_engine::node::{Node, NodeContext, NodeError, NodeSpec, Outputs, PortSpec};
 use spindlelab_engine::node_params;
 use spindlelab_engine::spec::{FieldType as T, Params};
@@ -26,6 +28,10 @@ node_params! {
         process_damping: opt &'a Params = (
             T::Object(PROCESS_DAMPING),
             "process damping at low speed (Tyler & Schmitz 2013): `{ indentation, wear_land, diameter }`; the flank rubbing the wavy surface adds the damping C b/V along the surface normal, C = K_d w²/4, V = π D n/60, and the limit becomes the fixed point b = b_lim(C b/V) at each speed; the table then also gives the limit without it"
+        ),
+        process_damping_formulation: opt &'a str = (
+            T::Choice(&["arc_average", "average_tooth_angle"]),
+            "with `process_damping`: `arc_average` (the default) is the coupled ZOA with the damping averaged over the engaged arc; `average_tooth_angle` is Tlusty's average tooth angle with diagonal damping, as the Schmitz & Smith textbook's converging analysis applies it (about twice the coupled limit for a half-immersion cut: docs/stability.md)"
         ),
     }
 }
@@ -135,6 +141,12 @@ impl Node for StabilityLobes {
         if let Some(pd) = p.process_damping {
             process_damping(pd)?;
         }
+        if p.process_damping.is_none() && p.process_damping_formulation.is_some() {
+            return Err(NodeError::param(
+                "process_damping_formulation",
+                "is given without `process_damping`: give the flank contact too, or leave the formulation out",
+            ));
+        }
         speeds_rpm(p.speeds).map(|_| ())
     }
 
@@ -155,9 +167,13 @@ impl Node for StabilityLobes {
         };
         if let Some(pd) = p.process_damping {
             let pd = process_damping(pd)?;
-            let r =
-                stability::zoa_lobes_with_process_damping(&frf, &mill, &pd, &opts, &ProcessDampingOptions::default())
-                    .map_err(|e| stab_err(e, "frf_x"))?;
+            let formulation = match p.process_damping_formulation {
+                Some("average_tooth_angle") => ProcessDampingFormulation::AverageToothAngle,
+                _ => ProcessDampingFormulation::ArcAverage,
+            };
+            let pd_opts = ProcessDampingOptions { formulation, ..ProcessDampingOptions::default() };
+            let r = stability::zoa_lobes_with_process_damping(&frf, &mill, &pd, &opts, &pd_opts)
+                .map_err(|e| stab_err(e, "frf_x"))?;
             warn_lobes_short(ctx, r.lobe_count, r.lobes_needed, r.band_top_hz, mill.teeth, opts.speeds_rpm[0]);
             warn_unlimited(ctx, "lobes without process damping", &r.without);
             warn_process_damping(ctx, &r.limit, &r.without, &r.converged);
@@ -314,5 +330,8 @@ mod tests {
         assert!(e.contains("indentation"), "{e}");
         let e = with("indentation: 30000 N/mm^3, wear_land: 0 mm, diameter: 10 mm").unwrap_err();
         assert!(e.contains("process_damping") && e.contains("`wear_land` must be positive"), "{e}");
+        let e =
+            recipe("cutting: slot, speeds: 2000 rpm, process_damping_formulation: average_tooth_angle").unwrap_err();
+        assert!(e.contains("process_damping_formulation") && e.contains("without `process_damping`"), "{e}");
     }
 }

@@ -2,12 +2,12 @@
 //! parallel, the fixed-point search on scalar functions, and the kernel on one mode against an independent root
 //! scan of the characteristic equation with the depth-dependent damping in it.
 //!
-//! No published low-speed case with every number needed (modal parameters, cutting coefficients, `K_d`, wear land,
-//! diameter and the resulting depth at a stated speed) was found, so none is reproduced here: the check is the
-//! closed form of [`kernel_matches_independent_root_scan_on_one_mode`] instead.
+//! No measured low-speed case with every number needed (modal parameters, cutting coefficients, `K_d`, wear land,
+//! diameter and the measured depth at a stated speed) was found: the checks here are the closed form of
+//! [`kernel_matches_independent_root_scan_on_one_mode`], and in `textbook_case.rs` a textbook's computed case.
 
 use super::*;
-use crate::stability::zoa::limit_at_speed;
+use crate::stability::zoa::{limit_at_speed, line_roots};
 use crate::stability::{CuttingCoefficients, MillingDirection};
 
 /// Receptance of one mode, `1/(k(1 − r² + 2iζr))`, m/N.
@@ -213,12 +213,17 @@ fn fixed_point_search_on_closed_forms() {
 /// `ψ(ω) = ω c/b(ω) + ωγ + K sin ωτ`, whose roots above `ω_n` are bracketed on a 0.02 Hz scan and bisected. The
 /// limit is the smallest `b` of a root.
 fn scan_limit(speed_rpm: f64, pd: &ProcessDamping) -> f64 {
+    scan_limit_with_share(speed_rpm, pd, 1.0)
+}
+
+/// [`scan_limit`] with `share · C b/V` of the process damping on the mode instead of all of it (`γ = share · C/V`).
+fn scan_limit_with_share(speed_rpm: f64, pd: &ProcessDamping, share: f64) -> f64 {
     let teeth = 4.0;
     let kk = teeth * KN / 4.0;
     let wn = TAU * F_N;
     let m = K / (wn * wn);
     let c = 2.0 * ZETA * (K * m).sqrt();
-    let gamma = pd.coefficient() / pd.cutting_speed(speed_rpm);
+    let gamma = share * pd.coefficient() / pd.cutting_speed(speed_rpm);
     let tau = 60.0 / (teeth * speed_rpm);
     let inv_b = |w: f64| kk * (1.0 - (w * tau).cos()) / (m * w * w - K);
     let psi = |w: f64| w * c * inv_b(w) + w * gamma + kk * (w * tau).sin();
@@ -284,6 +289,49 @@ fn kernel_matches_independent_root_scan_on_one_mode() {
     assert!(slow.limit.depth_m[0].is_infinite() && slow.converged[0], "{:?}", slow.limit);
     let scan = scan_limit(1000.0, &contact());
     assert!(scan > 1.0, "{scan}");
+}
+
+/// The textbook's formulation ([`ProcessDampingFormulation::AverageToothAngle`]) on a closed form: the mode of
+/// [`one_mode`] along x and along y, four teeth up-milling at 50 % immersion. With `φ_ave = 45°` the oriented FRF
+/// is `(μ_x + μ_y) G = cos β G = (Kn/Ks) G` and `N* = 1`, so the scalar characteristic equation
+/// `1 + Ks N* b Φ_or (1 − e^{−iωτ}) = 0` is that of [`scan_limit`] (`K = N Kn/4`), and the textbook's damping
+/// `sin²45° = cos²45° = ½` of `C b/V` along x and y puts half of it on the mode: the kernel's fixed point equals the
+/// smallest root of [`scan_limit_with_share`] with share ½ within 0.5 % at 2000, 3000 and 6000 rpm, with and
+/// without the process damping. The coupled ZOA of the same cut is shallower.
+#[test]
+fn average_tooth_angle_matches_the_scalar_root_scan() {
+    let freqs: Vec<f64> = (5000..=25_000).map(|i| 0.1 * i as f64).collect();
+    let x = sdof(F_N, ZETA, K, &freqs);
+    let frf = ToolPointFrf::new(freqs, x.clone(), x).unwrap();
+    let mill = Milling::new(4, 0.5, MillingDirection::Up, CuttingCoefficients::from_kt_kn(KT, KN).unwrap()).unwrap();
+    let speeds = vec![2000.0, 3000.0, 6000.0];
+    let book = ProcessDampingOptions {
+        formulation: ProcessDampingFormulation::AverageToothAngle,
+        ..ProcessDampingOptions::default()
+    };
+    let r = zoa_lobes_with_process_damping(&frf, &mill, &contact(), &options(speeds.clone()), &book).unwrap();
+    let coupled = zoa_lobes_with_process_damping(
+        &frf,
+        &mill,
+        &contact(),
+        &options(speeds.clone()),
+        &ProcessDampingOptions::default(),
+    )
+    .unwrap();
+    let tiny = ProcessDamping::new(1e-30, 1e-30, 1.0).unwrap();
+    for (i, &n) in speeds.iter().enumerate() {
+        let (got, without) = (r.limit.depth_m[i], r.without.depth_m[i]);
+        let (want, undamped) = (scan_limit_with_share(n, &contact(), 0.5), scan_limit(n, &tiny));
+        eprintln!(
+            "{n} rpm: kernel {got:.6e} m, scan {want:.6e} m; without {without:.6e} m, scan {undamped:.6e} m; \
+             coupled ZOA {:.6e} m",
+            coupled.limit.depth_m[i]
+        );
+        assert!(r.converged[i]);
+        assert!((got / want - 1.0).abs() < 5e-3, "{n} rpm: kernel {got} vs scan {want}");
+        assert!((without / undamped - 1.0).abs() < 5e-3, "{n} rpm: without {without} vs scan {undamped}");
+        assert!(got > without && coupled.limit.depth_m[i] < got, "{n} rpm");
+    }
 }
 
 /// (b) The limit with process damping is never below the limit without it; far above it at low speed; and it
