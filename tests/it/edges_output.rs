@@ -77,6 +77,21 @@ outputs:
     path
 }
 
+/// The cache entry of the first instance of `step` in the last run of the output folder
+/// `out` (by the key its manifest records): the consumer's entry, which a rerun needs.
+fn entry_of(out: &Path, step: &str) -> PathBuf {
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let node = m["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["id"].as_str().is_some_and(|id| id == step || id.starts_with(&format!("{step}["))))
+        .unwrap_or_else(|| panic!("no instance of `{step}` in the manifest"));
+    let key = node["key"].as_str().unwrap();
+    out.join(".spindlelab-cache").join(&key[..2]).join(format!("{key}.bin"))
+}
+
 fn entries(cache: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for sub in std::fs::read_dir(cache).unwrap().flatten() {
@@ -151,8 +166,9 @@ fn a_linked_cache_folder_or_lock_is_not_written_through() {
     assert!(o.status.success(), "{}", text(&o));
     let cache = tmp.path().join("o/.spindlelab-cache");
     let before = entries(&cache).len();
-    // A cache subfolder replaced by a link to another folder.
-    let sub = entries(&cache)[0].parent().unwrap().to_path_buf();
+    // A cache subfolder replaced by a link to another folder: the one of the table's entry,
+    // which the rerun needs (an entry no output needs is not recomputed).
+    let sub = entry_of(&tmp.path().join("o"), "impulse").parent().unwrap().to_path_buf();
     std::fs::remove_dir_all(&sub).unwrap();
     std::os::unix::fs::symlink(elsewhere.path(), &sub).unwrap();
     let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o"]);
@@ -182,7 +198,8 @@ fn pipes_and_devices_in_the_cache_are_recomputed_not_waited_on() {
     let o = run_in(tmp.path(), &["run", recipe.to_str().unwrap(), "-o", "o", "-q"]);
     assert!(o.status.success(), "{}", text(&o));
     let first = std::fs::read(tmp.path().join("o/impulse.csv")).unwrap();
-    let all = entries(&tmp.path().join("o/.spindlelab-cache"));
+    // The table's entry and one of its inputs', both needed by the rerun.
+    let all = [entry_of(&tmp.path().join("o"), "impulse"), entry_of(&tmp.path().join("o"), "hit")];
     std::fs::remove_file(&all[0]).unwrap();
     mkfifo(&all[0]);
     std::fs::remove_file(&all[1]).unwrap();
