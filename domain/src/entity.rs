@@ -80,6 +80,11 @@ pub struct SpindleMode {
     /// `k(n) = k (1 + kk (n/n_ref)²)` at the mode's mass, so the frequency moves with `√k` and
     /// the modal flexibility with `1/k`; zero for bearings that keep their stiffness.
     pub stiffness_change: f64,
+    /// Exponent `p` of the bearing law `k(n) = k (1 + kk (n/n_ref)^p)` (`kk_exponent`): 2 for
+    /// the quadratic law; a preloaded angular-contact bearing softens faster at high speed,
+    /// as its balls' centrifugal load turns the contact angles (Jones–Harris), so a law
+    /// fitted over three speeds or more may take a larger one.
+    pub stiffness_exponent: f64,
     /// Gyroscopic coefficient of the rotor in this mode (`gyro`): its polar over its diametral
     /// moment of inertia, `g = I_p/I_d` (0 for a mode without gyroscopic coupling, 2 for a thin
     /// disk). At spin `Ω` the mode whirls forward and backward at `ω (√(1+e²) ± e)`, `e =
@@ -112,7 +117,15 @@ pub fn whirl_frequency(freq_hz: f64, gyro: f64, n: Speed, whirl: Whirl) -> f64 {
 impl SpindleMode {
     /// A mode that does not change with speed.
     pub fn new(freq_hz: f64, diameter: f64, loss_factor: f64) -> SpindleMode {
-        SpindleMode { freq_hz, diameter, loss_factor, law: SpeedLaw::NONE, stiffness_change: 0.0, gyro: 0.0 }
+        SpindleMode {
+            freq_hz,
+            diameter,
+            loss_factor,
+            law: SpeedLaw::NONE,
+            stiffness_change: 0.0,
+            stiffness_exponent: 2.0,
+            gyro: 0.0,
+        }
     }
 
     /// A mode stated modally, as the equivalent beam the spindle model uses: the solid
@@ -130,7 +143,15 @@ impl SpindleMode {
         let (e, rho) = (material.youngs_modulus, material.density);
         let length = (stiffness * b4 * e / (std::f64::consts::PI * rho * rho * w.powi(4))).powf(0.2);
         let diameter = 4.0 * w * length * length / (FIXED_FREE_FIRST_ROOT.powi(2) * (e / rho).sqrt());
-        SpindleMode { freq_hz, diameter, loss_factor: 2.0 * zeta, law, stiffness_change: 0.0, gyro: 0.0 }
+        SpindleMode {
+            freq_hz,
+            diameter,
+            loss_factor: 2.0 * zeta,
+            law,
+            stiffness_change: 0.0,
+            stiffness_exponent: 2.0,
+            gyro: 0.0,
+        }
     }
 
     /// Natural frequency (Hz) and loss factor at speed `n`, by the law about `reference`.
@@ -140,12 +161,15 @@ impl SpindleMode {
 
     /// The equivalent beam the mode is at speed `n`, `(frequency Hz, diameter m, loss factor)`:
     /// the speed law's frequency and loss factor, then the bearing stiffness change at the
-    /// mode's mass. A beam keeps its modal mass when its frequency moves by a factor `r` and its
+    /// mode's mass, `1 + kk (n/n_ref)^p`. A beam keeps its modal mass when its frequency moves by a factor `r` and its
     /// stiffness by `r²` if its diameter moves by `r^⅕` (from [`SpindleMode::from_modal`]:
     /// `d ∝ ω L²`, `L⁵ ∝ k/ω⁴`).
     pub fn beam_at(&self, n: Speed, reference: Speed) -> (f64, f64, f64) {
         let (f, eta) = self.at_speed(n, reference);
-        let stiffness = 1.0 + self.stiffness_change * SpeedLaw::ratio_squared(n, reference);
+        let ratio = SpeedLaw::ratio_squared(n, reference);
+        let stiffness = 1.0
+            + self.stiffness_change
+                * if self.stiffness_exponent == 2.0 { ratio } else { ratio.powf(0.5 * self.stiffness_exponent) };
         (f * stiffness.sqrt(), self.diameter * stiffness.powf(0.1), eta)
     }
 

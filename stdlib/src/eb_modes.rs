@@ -574,6 +574,11 @@ mod tests {
         let soft = SpindleMode { stiffness_change: -0.19, ..mode };
         let (f, d, _) = soft.beam_at(rpm(10000.0), rpm(10000.0));
         assert!((f - 800.0 * 0.9).abs() < 1e-9, "{f}");
+        // A law that bends: at twice the reference speed the change is kk 2^p.
+        let bent = SpindleMode { stiffness_change: -0.01, stiffness_exponent: 4.0, ..mode };
+        let (f2, _, _) = bent.beam_at(rpm(20000.0), rpm(10000.0));
+        assert!((f2 - 800.0 * (1.0f64 - 0.01 * 16.0).sqrt()).abs() < 1e-9, "{f2}");
+        assert_eq!(bent.beam_at(Speed::ZERO, rpm(10000.0)).0, 800.0);
         let at = |f: f64, d: f64| FixedFreeBeam::equivalent(f, d, 0.0, mat).unwrap().tip_receptance(0.0).h.re;
         assert!((at(800.0, mode.diameter) / at(f, d) - 0.81).abs() < 1e-9);
         let gyro = SpindleMode { gyro: 0.4, ..soft };

@@ -606,8 +606,11 @@ fn spindle_at_speed<'c>(
 }
 
 /// A bearing set whose stiffness changes with speed (centrifugal softening, preload change):
-/// `k(n) = k (1 + c (n/n_ref)²)` for every spindle mode at its own mass, so each mode's
-/// frequency moves with `√k` and its flexibility with `1/k`, one `c` for all of them.
+/// `k(n) = k (1 + c (n/n_ref)^p)` for every spindle mode at its own mass, so each mode's
+/// frequency moves with `√k` and its flexibility with `1/k`, one `c` for all of them. `p` is 2
+/// (the quadratic law) unless three speeds or more are measured: then it is fitted, since a
+/// preloaded angular-contact bearing softens faster at high speed as its balls' centrifugal
+/// load turns the contact angles (Jones–Harris).
 pub struct BearingStiffnessChange;
 
 impl Effect for BearingStiffnessChange {
@@ -618,7 +621,7 @@ impl Effect for BearingStiffnessChange {
         Scope::Structure
     }
     fn description(&self) -> &'static str {
-        "the bearings' stiffness changing with speed, k(n) = k (1 + c (n/n_ref)²) for every spindle mode at its mass (f ∝ √k, flexibility ∝ 1/k); measured and cutting"
+        "the bearings' stiffness changing with speed, k(n) = k (1 + c (n/n_ref)^p) for every spindle mode at its mass (f ∝ √k, flexibility ∝ 1/k), p = 2 or fitted over three speeds or more; measured and cutting"
     }
     fn apply(&self, roles: &Roles, c: &Compiled, r: &mut RecipeText) -> Result<Vec<Free>, NotApplicable> {
         let (machine, spindle, top) = spindle_at_speed(roles, c, "a bearing stiffness law")?;
@@ -634,11 +637,20 @@ impl Effect for BearingStiffnessChange {
         // at most 30 %; at the fastest speed the recipe uses they keep at least a fifth.
         let s2 = SpeedLaw::ratio_squared(Speed::from_rpm(top), spindle.ref_speed);
         let s2_all = SpeedLaw::ratio_squared(Speed::from_rpm(roles.top_speed_rpm.max(top)), spindle.ref_speed);
-        let free = vec![Free::lin("bearing_kk", "", start, (-0.5 / s2).max(-0.8 / s2_all).min(start), 0.3 / s2)];
+        let mut free = vec![Free::lin("bearing_kk", "", start, (-0.5 / s2).max(-0.8 / s2_all).min(start), 0.3 / s2)];
+        // Three speeds or more resolve how the law bends: its exponent is fitted too (the
+        // quadratic law is the nested form BIC falls back to); two fix the quadratic law.
+        let bends = roles.speeds_rpm.len() >= 3;
+        if bends {
+            free.push(Free::lin("bearing_p", "", 2.0, 1.0, 8.0));
+        }
         for (d, modes) in &spindle.modes {
             for i in 0..modes.len() {
                 let p = path(&["machines", machine, "spindle", "modes", d, &i.to_string()]);
                 r.set_key(&p, "kk", &Raw::param("bearing_kk")).map_err(e)?;
+                if bends {
+                    r.set_key(&p, "kk_exponent", &Raw::param("bearing_p")).map_err(e)?;
+                }
             }
         }
         declare(r, &free)?;
@@ -646,8 +658,12 @@ impl Effect for BearingStiffnessChange {
     }
     /// A change of a few per cent moves every spindle mode by more than its bandwidth at the
     /// fastest speed: a scan of the one parameter finds the well.
-    fn starts(&self, _free: &[Free]) -> usize {
-        16
+    fn starts(&self, free: &[Free]) -> usize {
+        16 * free.len()
+    }
+    /// The quadratic law: the exponent held at 2.
+    fn nested(&self) -> Vec<Vec<&'static str>> {
+        vec![vec!["bearing_p"]]
     }
     fn report(&self, values: &[(String, f64)], roles: &Roles, c: &Compiled) -> Map<String, Json> {
         let reference = roles
@@ -662,7 +678,10 @@ impl Effect for BearingStiffnessChange {
         m.insert("reference_rpm".into(), json!(reference));
         m.insert("relative_change_at_reference".into(), json!(kk));
         m.insert("fastest_measured_rpm".into(), json!(top));
-        m.insert("relative_change_at_fastest_measured".into(), json!(kk * (top / reference).powi(2)));
+        let p = values.iter().find(|(n, _)| n == "bearing_p").map_or(2.0, |v| v.1);
+        m.insert("exponent".into(), json!(p));
+        m.insert("law".into(), json!(if p == 2.0 { "quadratic" } else { "exponent fitted over three speeds or more" }));
+        m.insert("relative_change_at_fastest_measured".into(), json!(kk * (top / reference).powf(p)));
         m
     }
 }

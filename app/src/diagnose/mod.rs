@@ -48,6 +48,11 @@ pub const Z_DISCREPANT: f64 = 5.0;
 /// "Very strong" evidence on the Kass–Raftery scale: the BIC difference an effect must
 /// win by to be named.
 pub const BIC_STRONG: f64 = 10.0;
+/// The least share of a pair's evidence (its ΔBIC over the model as written) its weaker effect
+/// must carry, as the pair's gain over the stronger alone, when the stronger alone already
+/// takes the gap to a form misfit: one that adds a sliver there is fitting the stronger
+/// one's residual, not naming a cause.
+pub const MIN_PAIR_SHARE: f64 = 0.01;
 /// A file whose noise floor exceeds this relative level carries no usable signal.
 pub const MAX_NOISE_FLOOR: f64 = 0.5;
 
@@ -856,6 +861,13 @@ fn search_frf_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>], search: &mut Se
     if chosen.is_none() {
         chosen = try_unknown_mode(ctx, &singles, &fitted, &ranked, search);
     }
+    if chosen.is_none()
+        && let Some(&i) = ranked.first()
+        && let Some(note) = form_misfit(ctx.baseline, &fitted[i])
+    {
+        search.notes.push(note);
+        chosen = Some(fitted[i].clone());
+    }
     search.candidates.splice(0..0, fitted);
     if let Some(ch) = &chosen {
         for name in &ch.effects {
@@ -866,6 +878,34 @@ fn search_frf_effects<'l>(ctx: &Ctx, lib: &'l [Box<dyn Effect>], search: &mut Se
         search.named_values = ch.values.clone();
         *current = ch.evaluation.clone().expect("evaluated");
     }
+}
+
+/// The largest gap ratio after an effect that explains nearly all of the discrepancy but
+/// leaves it off the floor: its form, not its presence, is then in doubt.
+pub const FORM_MISFIT_MAX_RATIO: f64 = 1.5;
+/// The least share of the excess gap (largest ratio over 1) such an effect must remove.
+pub const FORM_MISFIT_MIN_SHARE: f64 = 0.9;
+
+/// When no effect, pair or mode outside the library explains the FRFs, the best single effect
+/// is still named if its evidence is strong and it brings every file within
+/// [`FORM_MISFIT_MAX_RATIO`] of its floor, removing at least [`FORM_MISFIT_MIN_SHARE`] of the
+/// excess gap: the note says so with the ratio it leaves, and the files off the floor stay
+/// listed as unexplained.
+fn form_misfit(baseline: &Evaluation, c: &Candidate) -> Option<String> {
+    let before = baseline.files.iter().map(|f| f.ratio).fold(0.0, f64::max);
+    let after = c.ratios_after.iter().copied().fold(0.0, f64::max);
+    let removed = (before - after) / (before - 1.0);
+    (c.skipped.is_none()
+        && c.delta_bic > BIC_STRONG
+        && after <= FORM_MISFIT_MAX_RATIO
+        && removed >= FORM_MISFIT_MIN_SHARE)
+        .then(|| {
+            format!(
+                "`{}` is named with a form misfit: it takes the largest gap ratio from {before:.2} to {after:.2}, {:.0} % of the excess, but not to the noise floor; its form, not its presence, is in doubt",
+                c.effects.join(" + "),
+                100.0 * removed
+            )
+        })
 }
 
 /// Fits pairs of the three best single effects with strong evidence and returns the best pair
@@ -891,8 +931,16 @@ fn try_pairs(
         .map(|&(a, b)| {
             let starts: Vec<(String, f64)> = fitted[a].values.iter().chain(&fitted[b].values).cloned().collect();
             let mut c = try_candidate(ctx, &[singles[a], singles[b]], &[], &[], &starts, ctx.baseline);
-            // A pair must also beat the best single effect.
-            if c.skipped.is_none() && best_single_bic - c.bic <= BIC_STRONG {
+            // A pair must also beat the best single effect; and where its stronger effect alone
+            // nearly explains the data (a form misfit), the other must carry a share of the
+            // pair's evidence, or it is only fitting the stronger one's residual.
+            let (strong, weak_gain) = if fitted[a].bic <= fitted[b].bic {
+                (&fitted[a], fitted[a].bic - c.bic)
+            } else {
+                (&fitted[b], fitted[b].bic - c.bic)
+            };
+            let sliver = form_misfit(ctx.baseline, strong).is_some() && weak_gain < MIN_PAIR_SHARE * c.delta_bic;
+            if c.skipped.is_none() && (best_single_bic - c.bic <= BIC_STRONG || sliver) {
                 c.explains = false;
             }
             c

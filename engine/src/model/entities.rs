@@ -47,7 +47,12 @@ pub const SPINDLE_MODE: &[Field] = &[
     Field::opt(
         "kk",
         RATIO,
-        "bearing stiffness over speed: k(n) = k (1 + kk (n/ref_speed)^2) at the mode's mass (f with its root); default 0",
+        "bearing stiffness over speed: k(n) = k (1 + kk (n/ref_speed)^p) at the mode's mass (f with its root); default 0",
+    ),
+    Field::opt(
+        "kk_exponent",
+        RATIO,
+        "exponent p of the bearing law with `kk`; default 2 (preloaded angular-contact bearings soften faster at high speed: a law fitted over three speeds may take more)",
     ),
     Field::opt(
         "gyro",

@@ -497,6 +497,18 @@ fn check_spindle_modes(machine: &str, raw: &Raw, p: &Params, diags: &mut Diagnos
                 }
                 _ => diags.error_help(at.as_ref(), format!("{what} is stated twice, as a beam and modally"), help),
             }
+            if let Some(p) = m.f64("kk_exponent")
+                && !(p.is_finite() && (0.5..=10.0).contains(&p))
+            {
+                diags.error_help(
+                    at.as_ref(),
+                    format!(
+                        "{what}: bearing law exponent `kk_exponent` = {} must be in [0.5, 10]",
+                        spindlelab_domain::sig(p, 6)
+                    ),
+                    "2 is the quadratic law; preloaded angular-contact bearings at high speed take 3–5",
+                );
+            }
         }
     }
 }
@@ -558,6 +570,7 @@ fn build_machine(p: &Params, materials: &IndexMap<String, Material>) -> Machine 
                                 };
                                 SpindleMode {
                                     stiffness_change: m.f64("kk").unwrap_or(0.0),
+                                    stiffness_exponent: m.f64("kk_exponent").unwrap_or(2.0),
                                     gyro: m.f64("gyro").unwrap_or(0.0),
                                     ..mode
                                 }
