@@ -404,6 +404,10 @@ fn a_spindle_mode_stated_by_stiffness_and_damping_ratio_has_that_peak() {
         (format!("{{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta}, d: 90 mm, eta: 0.05 }}"), "stated twice"),
         (format!("{{ f: {f} Hz, stiffness: {k} N/m }}"), "only half stated"),
         (format!("{{ f: {f} Hz, stiffness: {k} N/m, zeta: 1.5 }}"), "must be in [0, 1)"),
+        (
+            format!("{{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta}, kk: -0.01, kk_exponent: 50 }}"),
+            "`kk_exponent` = 50",
+        ),
     ] {
         let bad = dir.path().join("bad.yaml");
         let line = format!("- {{ f: {f} Hz, stiffness: {k} N/m, zeta: {zeta} }}");
