@@ -126,6 +126,37 @@ fn pd1_inputs_give_the_stated_orientation_factors() {
     assert!((d[0][0] - 0.5).abs() < 1e-15 && (d[1][1] - 0.5).abs() < 1e-15 && d[0][1] == 0.0, "{d:?}");
 }
 
+/// The kernel's limits in one formulation beside a pair of the check table's columns
+/// (`<prefix>_C2e4`, `<prefix>_C0`), printed speed by speed, with the worst deviation of each.
+struct Compared {
+    speeds: Vec<f64>,
+    with: Vec<f64>,
+    reference_with: Vec<f64>,
+    reference_without: Vec<f64>,
+    worst_with: (f64, f64, f64),
+    worst_without: (f64, f64, f64),
+}
+
+impl Compared {
+    fn new(table: &Table, formulation: ProcessDampingFormulation, prefix: &str) -> Compared {
+        let speeds = table.column("omega_rpm");
+        let (with, without) = limits(&speeds, formulation);
+        let (rw, rwo) = (table.column(&format!("{prefix}_C2e4")), table.column(&format!("{prefix}_C0")));
+        for i in 0..speeds.len() {
+            eprintln!(
+                "{:>5} rpm: {:.6} mm ({prefix} {:.4}), C = 0 {:.6} mm ({prefix} {:.4})",
+                speeds[i], with[i], rw[i], without[i], rwo[i]
+            );
+        }
+        let (worst_with, worst_without) = (worst(&speeds, &with, &rw), worst(&speeds, &without, &rwo));
+        eprintln!(
+            "largest deviation: C = 2e4 {:.2e} at {} rpm, C = 0 {:.2e} at {} rpm",
+            worst_with.0, worst_with.1, worst_without.0, worst_without.1
+        );
+        Compared { speeds, with, reference_with: rw, reference_without: rwo, worst_with, worst_without }
+    }
+}
+
 /// spindlelab's own formulation — the coupled ZOA with the damping matrix averaged over the arc, solved for the
 /// depth's fixed point — against the independent check B of the case (the same formulation written in numpy) at
 /// 150–9000 rpm, with and without process damping: equal to the table's last printed digit (10⁻⁴ mm; at most
@@ -133,20 +164,8 @@ fn pd1_inputs_give_the_stated_orientation_factors() {
 #[test]
 fn pd1_coupled_zoa_matches_the_independent_check_b() {
     let Some(table) = Table::read("check_pd_table.csv") else { return };
-    let speeds = table.column("omega_rpm");
-    let (with, without) = limits(&speeds, ProcessDampingFormulation::ArcAverage);
-    let (b_with, b_without) = (table.column("B_zoa_C2e4"), table.column("B_zoa_C0"));
-    for i in 0..speeds.len() {
-        eprintln!(
-            "{:>5} rpm: {:.6} mm (B {:.4}), C = 0 {:.6} mm (B {:.4})",
-            speeds[i], with[i], b_with[i], without[i], b_without[i]
-        );
-    }
-    let (e_with, e_without) = (worst(&speeds, &with, &b_with), worst(&speeds, &without, &b_without));
-    eprintln!(
-        "largest deviation: C = 2e4 {:.2e} at {} rpm, C = 0 {:.2e} at {} rpm",
-        e_with.0, e_with.1, e_without.0, e_without.1
-    );
+    let c = Compared::new(&table, ProcessDampingFormulation::ArcAverage, "B_zoa");
+    let (b_with, b_without, e_with, e_without) = (c.reference_with, c.reference_without, c.worst_with, c.worst_without);
     assert!(b_with.iter().chain(&b_without).all(|b| b.is_finite()));
     assert!(e_with.2 <= TABLE_DIGIT_MM && e_without.2 <= TABLE_DIGIT_MM, "{e_with:?} {e_without:?}");
 }
@@ -158,20 +177,8 @@ fn pd1_coupled_zoa_matches_the_independent_check_b() {
 #[test]
 fn pd1_average_tooth_angle_reproduces_the_textbook_column_a() {
     let Some(table) = Table::read("check_pd_table.csv") else { return };
-    let speeds = table.column("omega_rpm");
-    let (with, without) = limits(&speeds, ProcessDampingFormulation::AverageToothAngle);
-    let (a_with, a_without) = (table.column("A_book_C2e4"), table.column("A_book_C0"));
-    for i in 0..speeds.len() {
-        eprintln!(
-            "{:>5} rpm: {:.6} mm (A {:.4}), C = 0 {:.6} mm (A {:.4})",
-            speeds[i], with[i], a_with[i], without[i], a_without[i]
-        );
-    }
-    let (e_with, e_without) = (worst(&speeds, &with, &a_with), worst(&speeds, &without, &a_without));
-    eprintln!(
-        "largest deviation: C = 2e4 {:.2e} at {} rpm, C = 0 {:.2e} at {} rpm",
-        e_with.0, e_with.1, e_without.0, e_without.1
-    );
+    let c = Compared::new(&table, ProcessDampingFormulation::AverageToothAngle, "A_book");
+    let (speeds, with, a_with, e_with, e_without) = (c.speeds, c.with, c.reference_with, c.worst_with, c.worst_without);
     let slowest = speeds.iter().position(|&n| n == 150.0).expect("150 rpm");
     assert!(a_with[slowest].is_infinite() && with[slowest].is_infinite(), "{} {}", a_with[slowest], with[slowest]);
     assert!(e_with.2 <= TABLE_DIGIT_MM && e_without.2 <= TABLE_DIGIT_MM, "{e_with:?} {e_without:?}");
